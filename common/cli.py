@@ -1,0 +1,53 @@
+"""Helpers every entry point shares: logging set-up and error-to-exit-code mapping.
+
+Entry points stay thin (STYLE.md habit 1): parse arguments, load config,
+configure logging, call ``run``, and map exceptions to exit codes with
+:func:`run_main`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable
+
+from common.errors import ConfigError, PanoError
+
+__all__ = ["EXIT_BUG", "EXIT_ERROR", "EXIT_USAGE", "add_logging_args", "run_main", "setup_logging"]
+
+EXIT_ERROR = 1
+"""A clear, expected failure (bad config, unreachable router, corrupt file)."""
+EXIT_USAGE = 2
+EXIT_BUG = 70
+"""An unexpected exception: a bug; the supervisor restarts the process."""
+
+
+def add_logging_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+
+
+def setup_logging(level: str = "INFO") -> None:
+    """Configure the root logger once, for a process entry point."""
+    logging.basicConfig(
+        level=getattr(logging, level.upper(), logging.INFO),
+        format="%(asctime)s %(levelname).1s %(name)s: %(message)s",
+        datefmt="%H:%M:%S",
+        stream=sys.stderr,
+    )
+
+
+def run_main(fn: Callable[[], int], prog: str) -> int:
+    """Call ``fn`` and turn expected errors into one line on stderr and an exit code."""
+    try:
+        return fn()
+    except KeyboardInterrupt:
+        return 0
+    except ConfigError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return EXIT_ERROR
+    except PanoError as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return EXIT_ERROR
+    except BrokenPipeError:
+        return EXIT_ERROR

@@ -1,0 +1,250 @@
+"""Every key expression of the public API; nowhere else forms key strings.
+
+Root: ``{prefix}/@v1`` (prefix configurable per site, default ``pano``).
+
+=====================================  ===========================  ==============
+key                                    kind                         payload
+=====================================  ===========================  ==============
+``{root}/sensor/{id}``                 liveliness token             presence
+``{root}/sensor/{id}/info``            queryable + put on change    SensorInfo
+``{root}/sensor/{id}/features``        put per frame                Features
+``{root}/sensor/{id}/status``          put 1 Hz                     NodeStatus
+``{root}/sensor/{id}/ptz``             subscriber on the node       PtzCommand
+``{root}/sensor/{id}/ptz/state``       put on change                PtzState
+``{root}/manager/{id}``                liveliness token             presence
+``{root}/tracks``                      put per fusion tick          TrackSet
+``{root}/track/{track_id}``            put per update + queryable   Track
+``{root}/plan/{sensor_id}``            put                          ViewPlan
+``{root}/manager/{id}/pairs``          put per tick                 PairChoice
+``{root}/manager/{id}/ptz``            queryable                    PtzRequest -> PtzReply
+``{root}/manager/{id}/status``         put 1 Hz                     ManagerStatus
+``{root}/agent/{id}``                  liveliness token             presence
+=====================================  ===========================  ==============
+
+``get {root}/track/{track_id}`` answers the latest Track;
+``get {root}/track/{track_id}?history=SECONDS`` answers the path as one Track
+reply per state, oldest first.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Final, Literal
+
+from common.errors import ConfigError
+
+__all__ = ["DEFAULT_PREFIX", "VERSION", "KeyKind", "Keys", "ParsedKey", "validate_id"]
+
+DEFAULT_PREFIX: Final = "pano"
+VERSION: Final = "@v1"
+
+_ID_RE: Final = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+_PREFIX_RE: Final = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
+_MAX_ID_LEN: Final = 48
+
+KeyKind = Literal[
+    "sensor",
+    "sensor_info",
+    "sensor_features",
+    "sensor_status",
+    "sensor_ptz",
+    "sensor_ptz_state",
+    "manager",
+    "manager_pairs",
+    "manager_ptz",
+    "manager_status",
+    "tracks",
+    "track",
+    "plan",
+    "agent",
+]
+
+
+def validate_id(value: str, what: str = "id") -> str:
+    """Return ``value`` if it is a valid id (``[a-z0-9][a-z0-9-]*``, ≤ 48 chars).
+
+    Raises:
+        ConfigError: naming ``what`` and the offending value.
+    """
+    if not isinstance(value, str) or len(value) > _MAX_ID_LEN or not _ID_RE.match(value):
+        raise ConfigError(
+            f"{what} must match [a-z0-9][a-z0-9-]* and be at most {_MAX_ID_LEN} characters, got {value!r}"
+        )
+    return value
+
+
+@dataclass(frozen=True, slots=True)
+class ParsedKey:
+    """A concrete key taken apart."""
+
+    kind: KeyKind
+    ident: str = ""
+    """The sensor, manager, agent or track id the key is about ("" for ``tracks``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Keys:
+    """Key builders, wildcards and the parser for one prefix."""
+
+    prefix: str = DEFAULT_PREFIX
+
+    def __post_init__(self) -> None:
+        if not _PREFIX_RE.match(self.prefix):
+            raise ConfigError(f"key prefix must be chunks of [A-Za-z0-9_-] separated by '/', got {self.prefix!r}")
+
+    @property
+    def root(self) -> str:
+        """``{prefix}/@v1``."""
+        return f"{self.prefix}/{VERSION}"
+
+    # -- builders ---------------------------------------------------------
+    def sensor(self, sensor_id: str) -> str:
+        """Liveliness token of a sensor node."""
+        return f"{self.root}/sensor/{validate_id(sensor_id, 'sensor id')}"
+
+    def sensor_info(self, sensor_id: str) -> str:
+        return f"{self.sensor(sensor_id)}/info"
+
+    def sensor_features(self, sensor_id: str) -> str:
+        return f"{self.sensor(sensor_id)}/features"
+
+    def sensor_status(self, sensor_id: str) -> str:
+        return f"{self.sensor(sensor_id)}/status"
+
+    def sensor_ptz(self, sensor_id: str) -> str:
+        return f"{self.sensor(sensor_id)}/ptz"
+
+    def sensor_ptz_state(self, sensor_id: str) -> str:
+        return f"{self.sensor(sensor_id)}/ptz/state"
+
+    def manager(self, manager_id: str) -> str:
+        """Liveliness token of a resource manager."""
+        return f"{self.root}/manager/{validate_id(manager_id, 'manager id')}"
+
+    def manager_pairs(self, manager_id: str) -> str:
+        return f"{self.manager(manager_id)}/pairs"
+
+    def manager_ptz(self, manager_id: str) -> str:
+        return f"{self.manager(manager_id)}/ptz"
+
+    def manager_status(self, manager_id: str) -> str:
+        return f"{self.manager(manager_id)}/status"
+
+    def tracks(self) -> str:
+        return f"{self.root}/tracks"
+
+    def track(self, track_id: str) -> str:
+        return f"{self.root}/track/{validate_id(track_id, 'track id')}"
+
+    def plan(self, sensor_id: str) -> str:
+        return f"{self.root}/plan/{validate_id(sensor_id, 'sensor id')}"
+
+    def agent(self, agent_id: str) -> str:
+        """Liveliness token of a user agent."""
+        return f"{self.root}/agent/{validate_id(agent_id, 'agent id')}"
+
+    # -- wildcards --------------------------------------------------------
+    @property
+    def all(self) -> str:
+        """Everything of this version: ``{root}/**``."""
+        return f"{self.root}/**"
+
+    @property
+    def all_sensors(self) -> str:
+        """Liveliness of every sensor."""
+        return f"{self.root}/sensor/*"
+
+    @property
+    def all_sensor_info(self) -> str:
+        return f"{self.root}/sensor/*/info"
+
+    @property
+    def all_features(self) -> str:
+        return f"{self.root}/sensor/*/features"
+
+    @property
+    def all_sensor_status(self) -> str:
+        return f"{self.root}/sensor/*/status"
+
+    @property
+    def all_ptz_state(self) -> str:
+        return f"{self.root}/sensor/*/ptz/state"
+
+    @property
+    def all_managers(self) -> str:
+        """Liveliness of every manager."""
+        return f"{self.root}/manager/*"
+
+    @property
+    def all_manager_status(self) -> str:
+        return f"{self.root}/manager/*/status"
+
+    @property
+    def all_pairs(self) -> str:
+        return f"{self.root}/manager/*/pairs"
+
+    @property
+    def all_manager_ptz(self) -> str:
+        return f"{self.root}/manager/*/ptz"
+
+    @property
+    def all_tracks(self) -> str:
+        """Every single-track key (put per update, and the queryable)."""
+        return f"{self.root}/track/*"
+
+    @property
+    def all_plans(self) -> str:
+        return f"{self.root}/plan/*"
+
+    @property
+    def all_agents(self) -> str:
+        return f"{self.root}/agent/*"
+
+    # -- parser -----------------------------------------------------------
+    def parse(self, key: str) -> ParsedKey:
+        """Take a concrete key of this prefix apart.
+
+        Raises:
+            ConfigError: if the key is not one of the documented keys.
+        """
+        head = self.root + "/"
+        if not key.startswith(head):
+            raise ConfigError(f"key {key!r} is not under {self.root!r}")
+        parts = key[len(head) :].split("/")
+        kind: KeyKind | None = None
+        ident = ""
+        match parts:
+            case ["tracks"]:
+                kind = "tracks"
+            case ["track", tid]:
+                kind, ident = "track", tid
+            case ["plan", sid]:
+                kind, ident = "plan", sid
+            case ["agent", aid]:
+                kind, ident = "agent", aid
+            case ["sensor", sid]:
+                kind, ident = "sensor", sid
+            case ["sensor", sid, "info"]:
+                kind, ident = "sensor_info", sid
+            case ["sensor", sid, "features"]:
+                kind, ident = "sensor_features", sid
+            case ["sensor", sid, "status"]:
+                kind, ident = "sensor_status", sid
+            case ["sensor", sid, "ptz"]:
+                kind, ident = "sensor_ptz", sid
+            case ["sensor", sid, "ptz", "state"]:
+                kind, ident = "sensor_ptz_state", sid
+            case ["manager", mid]:
+                kind, ident = "manager", mid
+            case ["manager", mid, "pairs"]:
+                kind, ident = "manager_pairs", mid
+            case ["manager", mid, "ptz"]:
+                kind, ident = "manager_ptz", mid
+            case ["manager", mid, "status"]:
+                kind, ident = "manager_status", mid
+        if kind is None:
+            raise ConfigError(f"key {key!r} is not a documented panostereo key")
+        if ident:
+            validate_id(ident, f"id in key {key!r}")
+        return ParsedKey(kind=kind, ident=ident)

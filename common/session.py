@@ -1,0 +1,228 @@
+"""Opening zenoh sessions from config and the shared command-line flags.
+
+Deployment shape (notes/zenoh.md §2.2): in zenoh 1.10 peers do not relay
+through a router, so a site runs one router (``panostereo router``, a zenoh
+router in Python) and every process is a *client* of it. Clients wait and
+retry while the router is not up yet, and reconnect by themselves after it
+restarts.
+
+Multicast scouting is off unless asked for: the default config would leak
+onto every interface and cross-talk between concurrent runs.
+
+Shutdown: callback subscribers start non-daemon threads that keep a process
+alive until the session closes (notes/zenoh.md §5.1), so every shell opens
+its session with ``with open_session(...) as session:`` and installs
+:func:`install_signal_handlers` so SIGTERM unwinds like SIGINT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+from typing import Any, Literal
+
+import msgspec
+
+from common.errors import ConfigError, SessionError
+
+__all__ = [
+    "MSGPACK",
+    "SessionSettings",
+    "add_session_args",
+    "install_signal_handlers",
+    "open_session",
+    "settings_from_args",
+    "zenoh_config",
+]
+
+logger = logging.getLogger(__name__)
+
+MSGPACK = "application/msgpack"
+"""Encoding string of every panostereo payload (zenoh has no predefined constant)."""
+
+Mode = Literal["peer", "client", "router"]
+
+
+class SessionSettings(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """How to join the zenoh network; the ``[zenoh]`` table of every process config."""
+
+    mode: Mode = "client"
+    connect: list[str] = []
+    """Endpoints to connect to, e.g. ``tcp/192.168.1.10:7447``."""
+    listen: list[str] = []
+    """Endpoints to listen on (routers, and peers that others connect to)."""
+    config_file: str = ""
+    """A zenoh JSON5 config file (TLS, ACL, auth); flags override its endpoints and mode."""
+    multicast_scouting: bool = False
+    connect_timeout_ms: int = 10_000
+    """How long a client waits for its router at start (-1: forever)."""
+    lease_ms: int = 3_000
+    """Transport lease this process announces: peers detect its freezing after this long."""
+    user: str = ""
+    password: str = ""
+
+
+DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
+
+
+def add_session_args(parser: argparse.ArgumentParser) -> None:
+    """Add the shared session flags (``--mode --connect --listen --zenoh-config``)."""
+    g = parser.add_argument_group("zenoh session")
+    g.add_argument("--mode", choices=["peer", "client", "router"], default=None, help="zenoh mode (default: client)")
+    g.add_argument(
+        "--connect",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help=f"endpoint to connect to, repeatable (default for clients: {DEFAULT_ROUTER})",
+    )
+    g.add_argument("--listen", action="append", default=None, metavar="ENDPOINT", help="endpoint to listen on")
+    g.add_argument("--zenoh-config", default=None, metavar="FILE", help="zenoh JSON5 config (TLS, ACL, auth)")
+    g.add_argument(
+        "--multicast-scouting", action="store_true", default=None, help="enable multicast scouting (off by default)"
+    )
+
+
+def settings_from_args(args: argparse.Namespace, base: SessionSettings | None = None) -> SessionSettings:
+    """Overlay command-line flags on ``base`` (from the process config)."""
+    s = base or SessionSettings()
+    changes: dict[str, Any] = {}
+    if getattr(args, "mode", None):
+        changes["mode"] = args.mode
+    if getattr(args, "connect", None):
+        changes["connect"] = list(args.connect)
+    if getattr(args, "listen", None):
+        changes["listen"] = list(args.listen)
+    if getattr(args, "zenoh_config", None):
+        changes["config_file"] = args.zenoh_config
+    if getattr(args, "multicast_scouting", None):
+        changes["multicast_scouting"] = True
+    return msgspec.structs.replace(s, **changes) if changes else s
+
+
+def zenoh_config(settings: SessionSettings) -> Any:
+    """Build a ``zenoh.Config`` from settings.
+
+    Raises:
+        ConfigError: if the config file is missing or zenoh rejects a value.
+    """
+    import zenoh
+
+    try:
+        if settings.config_file:
+            path = Path(settings.config_file)
+            if not path.is_file():
+                raise ConfigError(f"zenoh config file {settings.config_file!r} does not exist")
+            conf = zenoh.Config.from_file(str(path))
+        else:
+            conf = zenoh.Config()
+        conf.insert_json5("mode", json.dumps(settings.mode))
+        connect = list(settings.connect)
+        if not connect and settings.mode == "client" and not settings.config_file:
+            connect = [DEFAULT_ROUTER]
+        if connect or not settings.config_file:
+            conf.insert_json5("connect/endpoints", json.dumps(connect))
+        if settings.listen:
+            conf.insert_json5("listen/endpoints", json.dumps(list(settings.listen)))
+        elif settings.mode != "router" and not settings.config_file:
+            # Never leave the default [::]:0 listener: it leaks onto every interface.
+            conf.insert_json5("listen/endpoints", json.dumps([]))
+        conf.insert_json5("scouting/multicast/enabled", json.dumps(bool(settings.multicast_scouting)))
+        if settings.mode == "client":
+            conf.insert_json5("connect/timeout_ms", json.dumps(settings.connect_timeout_ms))
+            conf.insert_json5(
+                "connect/retry",
+                json.dumps({"period_init_ms": 200, "period_max_ms": 1000, "period_increase_factor": 2}),
+            )
+        conf.insert_json5("transport/link/tx/lease", json.dumps(settings.lease_ms))
+        if settings.user:
+            conf.insert_json5(
+                "transport/auth/usrpwd", json.dumps({"user": settings.user, "password": settings.password})
+            )
+    except ConfigError:
+        raise
+    except Exception as err:  # zenoh raises ZError for any bad value
+        raise ConfigError(f"invalid zenoh configuration: {err}") from err
+    return conf
+
+
+@contextmanager
+def open_session(settings: SessionSettings) -> Iterator[Any]:
+    """Open a zenoh session and close it on exit, whatever happens.
+
+    Raises:
+        SessionError: if the session cannot be opened (router unreachable within
+            ``connect_timeout_ms``, port taken, TLS/auth refused).
+    """
+    import zenoh
+
+    conf = zenoh_config(settings)
+    try:
+        session = zenoh.open(conf)
+    except Exception as err:
+        where = ", ".join(settings.connect or settings.listen or [DEFAULT_ROUTER])
+        raise SessionError(f"cannot open a zenoh {settings.mode} session ({where}): {err}") from err
+    try:
+        yield session
+    finally:
+        try:
+            session.close()
+        except Exception as err:  # close can time out on lossy links (zenoh#2675)
+            logger.warning("zenoh session close failed: %s", err)
+
+
+class Shutdown:
+    """A stop flag set by SIGINT/SIGTERM; shells poll it or wait on it."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+
+    def set(self) -> None:
+        self._event.set()
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        return self._event.wait(timeout)
+
+    def sleep(self, seconds: float) -> bool:
+        """Sleep up to ``seconds``; return True if shutdown was requested."""
+        return self._event.wait(max(0.0, seconds))
+
+
+def install_signal_handlers(shutdown: Shutdown | None = None) -> Shutdown:
+    """Make SIGINT and SIGTERM set a :class:`Shutdown` flag (main thread only).
+
+    A second signal raises KeyboardInterrupt so a stuck loop still unwinds.
+    """
+    flag = shutdown or Shutdown()
+
+    def _handler(signum: int, frame: FrameType | None) -> None:
+        if flag.is_set():
+            raise KeyboardInterrupt
+        logger.info("received %s: shutting down", signal.Signals(signum).name)
+        flag.set()
+
+    signal.signal(signal.SIGINT, _handler)
+    signal.signal(signal.SIGTERM, _handler)
+    return flag
+
+
+def wait_until(pred: Callable[[], bool], timeout_s: float, poll_s: float = 0.01) -> bool:
+    """Poll ``pred`` until it is true or ``timeout_s`` passes; return its last value."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        if pred():
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(poll_s)

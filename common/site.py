@@ -1,0 +1,241 @@
+"""Site files: what a site is made of and which processes run it.
+
+A site file (``deploy/sites/*.toml``) describes, for a simulated site, the
+world (room, people, lighting) and every camera's true placement; for any
+site, the processes to start (``[[process]]``, each with its own config
+file) and the router. The simulator and the launcher read it; the
+pipeline never sees the simulated truth: sensor nodes get only pixels (or
+detection files), and a camera's pose reaches the manager only through its
+node's own config (a surveyed pose) or mutual calibration.
+
+Example (abridged)::
+
+    [site]
+    name = "demo"
+    prefix = "pano"
+    fps = 15.0
+    duration_s = 60.0
+    seed = 1
+    router = "tcp/127.0.0.1:7447"
+
+    [world]
+    room_x_m = 8.0
+    room_y_m = 6.0
+    people = 4
+
+    [[camera]]
+    id = "pano1"
+    kind = "panoramic"
+    x_m = 2.0
+    y_m = 1.5
+    mobile = true
+    waypoints = [[2.0, 1.5], [2.5, 1.5]]
+
+    [[process]]
+    name = "pano1"
+    command = "node"
+    config = "../nodes/demo/pano1.toml"
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import msgspec
+
+from common.config import ConfigStruct, load_config, resolve_path
+from common.errors import ConfigError
+from common.keys import DEFAULT_PREFIX, validate_id
+
+__all__ = [
+    "CameraSpec",
+    "DatasetSpec",
+    "LightingSpec",
+    "ProcessSpec",
+    "SiteConfig",
+    "SiteSection",
+    "WorldSpec",
+    "load_site",
+]
+
+Pos = Annotated[float, msgspec.Meta(gt=0.0)]
+NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
+Range = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
+RGB = Annotated[list[Annotated[int, msgspec.Meta(ge=0, le=255)]], msgspec.Meta(min_length=3, max_length=3)]
+XY = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
+
+
+class SiteSection(ConfigStruct, frozen=True):
+    """``[site]``: identity, timing and the router of the site."""
+
+    name: str
+    prefix: str = DEFAULT_PREFIX
+    fps: Pos = 15.0
+    """Frame rate of simulated cameras, and of the ground truth (gt.csv)."""
+    duration_s: Pos = 60.0
+    """How long ``panostereo demo`` runs the site."""
+    seed: int = 1
+    router: str = "tcp/127.0.0.1:7447"
+    """Endpoint the router listens on and every process connects to."""
+
+
+class LightingSpec(ConfigStruct, frozen=True):
+    """``[world.lighting]``: what the simulated cameras' pixels suffer."""
+
+    noise_sigma: NonNeg = 2.0
+    """Std-dev of per-pixel Gaussian sensor noise (grey levels)."""
+    drift_amplitude: NonNeg = 0.08
+    """Relative amplitude of the slow illumination drift."""
+    drift_period_s: Pos = 40.0
+    sudden_changes_s: list[NonNeg] = []
+    """World times at which the light level jumps."""
+    sudden_change_gain: Pos = 1.35
+    """Brightness factor applied at each sudden change (alternating up/down)."""
+
+
+class WorldSpec(ConfigStruct, frozen=True):
+    """``[world]``: the simulated room and its people."""
+
+    room_x_m: Pos = 8.0
+    room_y_m: Pos = 6.0
+    wall_height_m: Pos = 2.8
+    people: Annotated[int, msgspec.Meta(ge=0, le=64)] = 4
+    person_speed_mps: Range = msgspec.field(default_factory=lambda: [0.5, 1.5])
+    person_height_m: Range = msgspec.field(default_factory=lambda: [1.5, 1.9])
+    pause_prob: Annotated[float, msgspec.Meta(ge=0.0, le=1.0)] = 0.15
+    """Chance that a person pauses at a waypoint."""
+    enter_leave: bool = False
+    """People enter through and leave by a door instead of staying in the room."""
+    margin_m: NonNeg = 0.6
+    """People keep at least this far from walls and camera platforms."""
+    paths: Literal["random", "rectangle", "line"] = "random"
+    """``rectangle``: walk a known rectangular path (the paper's Fig. 7 experiment)."""
+    rectangle: Annotated[list[float], msgspec.Meta(min_length=4, max_length=4)] = msgspec.field(
+        default_factory=lambda: [2.0, 1.5, 6.0, 4.5]
+    )
+    """x0, y0, x1, y1 of the rectangular path."""
+    lighting: LightingSpec = msgspec.field(default_factory=LightingSpec)
+
+
+CameraKind = Literal["panoramic", "ptz"]
+
+
+class CameraSpec(ConfigStruct, frozen=True):
+    """``[[camera]]``: one camera's true placement and optics in the simulated world."""
+
+    id: str
+    kind: CameraKind = "panoramic"
+    x_m: float = 0.0
+    y_m: float = 0.0
+    height_m: Pos = 1.1
+    """Height of the optical centre above the floor."""
+    yaw_deg: float = 0.0
+    """True heading of the camera's sensor frame in the world."""
+    mobile: bool = False
+    pose: Literal["surveyed", "mutual"] = "surveyed"
+    """How the pipeline learns this camera's pose: from its node config, or by mutual calibration."""
+    body_radius_m: NonNeg = 0.18
+    """Radius of the white cylinder body (0: no body, e.g. a wall-mounted PTZ)."""
+    body_height_m: NonNeg = 0.9
+    band_rgb: RGB = msgspec.field(default_factory=lambda: [220, 40, 40])
+    """Colour of the marking band that identifies the body to other robots."""
+    waypoints: list[XY] = []
+    """Mobile: the robot drives through these in a loop (until a goal is given)."""
+    max_speed_mps: Pos = 0.5
+    image_size: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
+        default_factory=lambda: [768, 576]
+    )
+    """Raw image width, height (annular for panoramic, perspective for PTZ)."""
+    pano_size: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
+        default_factory=lambda: [1080, 162]
+    )
+    """Unwarped cylindrical panorama width, height (panoramic only)."""
+    hfov_deg: Annotated[float, msgspec.Meta(gt=1.0, lt=170.0)] = 60.0
+    """PTZ: horizontal field of view at zoom 1."""
+    pan_deg: float = 0.0
+    tilt_deg: float = -10.0
+    zoom: Annotated[float, msgspec.Meta(ge=1.0, le=30.0)] = 1.0
+
+    @property
+    def yaw_rad(self) -> float:
+        return math.radians(self.yaw_deg)
+
+
+class ProcessSpec(ConfigStruct, frozen=True):
+    """``[[process]]``: one OS process of the site."""
+
+    name: str
+    command: Literal["node", "manager", "agent"]
+    config: str
+    """Path of the process's own TOML config, relative to the site file."""
+    args: list[str] = []
+    """Extra command-line arguments (e.g. an agent subcommand)."""
+    host: str = "localhost"
+    """Which host runs it (``panostereo up`` starts only processes of ``localhost``/its --host)."""
+
+
+class DatasetSpec(ConfigStruct, frozen=True):
+    """``[dataset]``: a recorded site (detection files) with its ground truth."""
+
+    ground_truth: str = "gt.csv"
+    fps: Pos = 2.0
+    frames: Annotated[int, msgspec.Meta(ge=0)] = 0
+    """Number of frames (0: as many as the detection files hold)."""
+
+
+class SiteConfig(ConfigStruct, frozen=True):
+    """A whole site file."""
+
+    site: SiteSection
+    world: WorldSpec = msgspec.field(default_factory=WorldSpec)
+    camera: list[CameraSpec] = []
+    process: list[ProcessSpec] = []
+    dataset: DatasetSpec | None = None
+    path: str = ""
+    """Where the file was read from (set by :func:`load_site`; not written in the file)."""
+
+    def camera_by_id(self, camera_id: str) -> CameraSpec:
+        """The ``[[camera]]`` with this id.
+
+        Raises:
+            ConfigError: naming the unknown id and the ones the site has.
+        """
+        for cam in self.camera:
+            if cam.id == camera_id:
+                return cam
+        known = ", ".join(c.id for c in self.camera) or "none"
+        raise ConfigError(f"{self.path or 'site'}: no camera {camera_id!r} (cameras: {known})")
+
+    def resolve(self, relative: str) -> Path:
+        """A path written in the site file, resolved against its folder."""
+        return resolve_path(self.path or ".", relative)
+
+
+def load_site(path: str | Path) -> SiteConfig:
+    """Read and validate a site file.
+
+    Raises:
+        ConfigError: for any problem, naming the file and key.
+    """
+    site = load_config(path, SiteConfig)
+    validate_id(site.site.name, f"{path}: site.name")
+    seen: set[str] = set()
+    for i, cam in enumerate(site.camera):
+        validate_id(cam.id, f"{path}: camera[{i}].id")
+        if cam.id in seen:
+            raise ConfigError(f"{path}: camera id {cam.id!r} appears twice")
+        seen.add(cam.id)
+        if cam.kind == "ptz" and cam.mobile:
+            raise ConfigError(f"{path}: camera {cam.id!r}: a PTZ camera cannot be mobile")
+    names: set[str] = set()
+    for proc in site.process:
+        validate_id(proc.name, f"{path}: process name")
+        if proc.name in names:
+            raise ConfigError(f"{path}: process name {proc.name!r} appears twice")
+        names.add(proc.name)
+    lo, hi = site.world.person_height_m
+    if not 0.5 <= lo <= hi <= 2.5:
+        raise ConfigError(f"{path}: world.person_height_m must be [low, high] within 0.5-2.5 m, got {[lo, hi]}")
+    return msgspec.structs.replace(site, path=str(Path(path)))

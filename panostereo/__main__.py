@@ -1,0 +1,5 @@
+import sys
+
+from panostereo.cli import main
+
+sys.exit(main())

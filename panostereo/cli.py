@@ -1,0 +1,60 @@
+"""``panostereo``: one command, many subcommands.
+
+Each subcommand lives in its own module exposing ``configure(parser)`` and
+``run(args) -> int``; only the chosen one is imported, so ``panostereo
+--help`` is instant and a broken optional extra cannot break other commands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from typing import Final
+
+from common.cli import add_logging_args, run_main, setup_logging
+
+COMMANDS: Final[dict[str, tuple[str, str]]] = {
+    "demo": ("panostereo.commands.demo", "run the whole network of a site on this machine and score it"),
+    "up": ("panostereo.commands.up", "run a site's processes until interrupted, restarting crashed ones"),
+    "router": ("panostereo.commands.router", "run a zenoh router (the hub every process connects to)"),
+    "node": ("sensor_node.cli", "run one sensor node (same as `sensor-node`)"),
+    "manager": ("resource_manager.cli", "run the resource manager (same as `resource-manager`)"),
+    "agent": ("user_agent.cli", "user-agent tools: watch, tracks, history, record, replay, plot, evaluate"),
+    "plan": ("panostereo.commands.plan", "best stereo configuration and error map for a target (Eqs. 4-6, Fig. 4)"),
+    "render": ("panostereo.commands.render", "render one simulated camera frame and its panorama"),
+    "import": ("panostereo.commands.import_dataset", "convert a dataset (wildtrack) into a runnable site"),
+}
+
+
+def _top_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="panostereo",
+        description="Adaptive panoramic stereo: find and follow people in 3D with cooperating cameras.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="commands:\n" + "\n".join(f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()),
+    )
+    p.add_argument("command", nargs="?", help="one of: " + ", ".join(COMMANDS))
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args_in = list(sys.argv[1:] if argv is None else argv)
+    top = _top_parser()
+    if not args_in or args_in[0] in ("-h", "--help"):
+        top.print_help()
+        return 0
+    name, rest = args_in[0], args_in[1:]
+    if name not in COMMANDS:
+        top.error(f"unknown command {name!r} (choose from {', '.join(COMMANDS)})")
+    module = importlib.import_module(COMMANDS[name][0])
+    parser = argparse.ArgumentParser(prog=f"panostereo {name}", description=COMMANDS[name][1])
+    add_logging_args(parser)
+    module.configure(parser)
+    args = parser.parse_args(rest)
+    setup_logging(args.log_level)
+    return run_main(lambda: int(module.run(args)), f"panostereo {name}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

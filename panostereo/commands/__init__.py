@@ -1,0 +1,1 @@
+"""Subcommands of ``panostereo``; each module exposes ``configure(parser)`` and ``run(args) -> int``."""
