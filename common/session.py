@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 import signal
 import threading
 import time
@@ -108,8 +109,13 @@ def settings_from_args(args: argparse.Namespace, base: SessionSettings | None = 
     return msgspec.structs.replace(s, **changes) if changes else s
 
 
-def zenoh_config(settings: SessionSettings) -> Any:
+def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None) -> Any:
     """Build a ``zenoh.Config`` from settings.
+
+    Args:
+        settings: the ``[zenoh]`` table merged with the command-line flags.
+        extra: further zenoh config keys (``"adminspace/enabled": True``),
+            inserted last; values are JSON-encoded here.
 
     Raises:
         ConfigError: if the config file is missing or zenoh rejects a value.
@@ -147,6 +153,8 @@ def zenoh_config(settings: SessionSettings) -> Any:
             conf.insert_json5(
                 "transport/auth/usrpwd", json.dumps({"user": settings.user, "password": settings.password})
             )
+        for key, value in (extra or {}).items():
+            conf.insert_json5(key, json.dumps(value))
     except ConfigError:
         raise
     except Exception as err:  # zenoh raises ZError for any bad value
@@ -154,9 +162,21 @@ def zenoh_config(settings: SessionSettings) -> Any:
     return conf
 
 
+_RUST_AT_RE = re.compile(r" at /\S+?\.rs:\d+\.?")
+
+
+def _zerror_text(err: BaseException) -> str:
+    """A zenoh error as one readable line (without Rust source locations)."""
+    return " ".join(_RUST_AT_RE.sub("", str(err)).split())
+
+
 @contextmanager
-def open_session(settings: SessionSettings) -> Iterator[Any]:
+def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None) -> Iterator[Any]:
     """Open a zenoh session and close it on exit, whatever happens.
+
+    Args:
+        settings: mode, endpoints, config file (see :class:`SessionSettings`).
+        extra: further zenoh config keys, see :func:`zenoh_config`.
 
     Raises:
         SessionError: if the session cannot be opened (router unreachable within
@@ -164,12 +184,12 @@ def open_session(settings: SessionSettings) -> Iterator[Any]:
     """
     import zenoh
 
-    conf = zenoh_config(settings)
+    conf = zenoh_config(settings, extra)
     try:
         session = zenoh.open(conf)
     except Exception as err:
         where = ", ".join(settings.connect or settings.listen or [DEFAULT_ROUTER])
-        raise SessionError(f"cannot open a zenoh {settings.mode} session ({where}): {err}") from err
+        raise SessionError(f"cannot open a zenoh {settings.mode} session ({where}): {_zerror_text(err)}") from err
     try:
         yield session
     finally:
