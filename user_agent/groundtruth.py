@@ -1,0 +1,119 @@
+"""Ground-truth files: ``gt.csv`` with header ``frame,id,x_m,y_m[,z_m]``.
+
+Frames are 1-based at the site's fps: frame ``k`` is world time
+``(k - 1) / fps`` seconds after the run's epoch. The simulator writes this file
+for its runs and ``panostereo import wildtrack`` writes it for a dataset; only
+evaluation and plotting read it (ground truth never flows into the pipeline).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from common.errors import ConfigError
+
+__all__ = ["GT_HEADER", "GroundTruth", "GtPoint", "read_gt_csv", "write_gt_rows"]
+
+GT_HEADER = ("frame", "id", "x_m", "y_m", "z_m")
+
+
+@dataclass(frozen=True, slots=True)
+class GtPoint:
+    """One person's true floor position at one frame."""
+
+    frame: int
+    """1-based frame number."""
+    person_id: str
+    x_m: float
+    y_m: float
+    z_m: float = 0.0
+    """Height (of the head top, or 0 when the file has no ``z_m``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class GroundTruth:
+    """A whole ``gt.csv``: points grouped by frame."""
+
+    frames: dict[int, list[GtPoint]]
+    source: str = ""
+
+    @property
+    def frame_numbers(self) -> list[int]:
+        return sorted(self.frames)
+
+    @property
+    def person_ids(self) -> list[str]:
+        return sorted({p.person_id for pts in self.frames.values() for p in pts})
+
+    def track_of(self, person_id: str) -> list[GtPoint]:
+        """One person's points in frame order."""
+        return [p for k in self.frame_numbers for p in self.frames[k] if p.person_id == person_id]
+
+
+def _float(row: dict[str, str], key: str, where: str) -> float:
+    raw = row.get(key)
+    try:
+        value = float(raw) if raw is not None else math.nan
+    except ValueError as err:
+        raise ConfigError(f"{where}: {key} must be a number, got {raw!r}") from err
+    if not math.isfinite(value):
+        raise ConfigError(f"{where}: {key} must be a finite number, got {raw!r}")
+    return value
+
+
+def read_gt_csv(path: str | Path) -> GroundTruth:
+    """Read a ``gt.csv``.
+
+    Raises:
+        ConfigError: missing file, missing columns, or a bad value (naming the line).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError as err:
+        raise ConfigError(f"{p}: no such ground-truth file") from err
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read ground-truth file: {err.strerror}") from err
+    reader = csv.DictReader(text.splitlines())
+    fields = [f.strip() for f in (reader.fieldnames or [])]
+    missing = [c for c in GT_HEADER[:4] if c not in fields]
+    if missing:
+        raise ConfigError(f"{p}: expected a header with frame,id,x_m,y_m[,z_m], got {','.join(fields) or 'nothing'}")
+    frames: dict[int, list[GtPoint]] = {}
+    for lineno, raw in enumerate(reader, start=2):
+        row = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
+        where = f"{p}:{lineno}"
+        try:
+            frame = int(row["frame"])
+        except ValueError as err:
+            raise ConfigError(f"{where}: frame must be an integer, got {row['frame']!r}") from err
+        if frame < 1:
+            raise ConfigError(f"{where}: frame must be >= 1 (1-based), got {frame}")
+        pid = row["id"]
+        if not pid:
+            raise ConfigError(f"{where}: id must not be empty")
+        z = _float(row, "z_m", where) if row.get("z_m") else 0.0
+        point = GtPoint(frame, pid, _float(row, "x_m", where), _float(row, "y_m", where), z)
+        frames.setdefault(frame, []).append(point)
+    return GroundTruth(frames=frames, source=str(p))
+
+
+def write_gt_rows(path: str | Path, points: Iterable[GtPoint], with_z: bool = True) -> int:
+    """Write points as a ``gt.csv``; returns the number of rows written."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    n = 0
+    with p.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(GT_HEADER if with_z else GT_HEADER[:4])
+        for pt in sorted(points, key=lambda q: (q.frame, q.person_id)):
+            row = [pt.frame, pt.person_id, f"{pt.x_m:.4f}", f"{pt.y_m:.4f}"]
+            if with_z:
+                row.append(f"{pt.z_m:.4f}")
+            w.writerow(row)
+            n += 1
+    return n
