@@ -1,0 +1,258 @@
+"""The resource manager's configuration: one TOML file per manager process.
+
+Example (``deploy/nodes/examples/manager.toml`` is the annotated full version)::
+
+    [manager]
+    id = "mgr1"
+    prefix = "pano"
+    rate_hz = 10.0
+    latency_ms = 200.0
+    matcher = "greedy"          # or "global"
+    fuse_all = false
+    state_dir = "state/mgr1"
+
+    [zenoh]
+    connect = ["tcp/127.0.0.1:7447"]
+
+    [clock]
+    ntp_server = ""
+
+    [[pose]]                    # optional surveyed-pose overrides
+    id = "pano1"
+    x_m = 0.0
+    y_m = 0.0
+    z_m = 1.1
+    yaw_deg = 0.0
+
+Every table but ``[manager]`` is optional. Unknown keys are errors.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import msgspec
+
+from common.clock import ClockSettings
+from common.config import ConfigStruct, load_config, resolve_path
+from common.errors import ConfigError
+from common.keys import DEFAULT_PREFIX, Keys, validate_id
+from common.session import SessionSettings
+
+__all__ = [
+    "ManagerConfig",
+    "ManagerSection",
+    "MatchSection",
+    "MutualSection",
+    "PlannerSection",
+    "PoseOverride",
+    "PtzSection",
+    "TrackerSection",
+    "load_manager_config",
+]
+
+Pos = Annotated[float, msgspec.Meta(gt=0.0)]
+NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
+Frac = Annotated[float, msgspec.Meta(ge=0.0, le=1.0)]
+PosInt = Annotated[int, msgspec.Meta(ge=1)]
+
+
+class ManagerSection(ConfigStruct, frozen=True):
+    """``[manager]``: identity, tick rate, time alignment, persistence."""
+
+    id: str
+    """Manager id; track ids are ``{id}-{n}``."""
+    prefix: str = DEFAULT_PREFIX
+    rate_hz: Annotated[float, msgspec.Meta(gt=0.0, le=200.0)] = 10.0
+    """Fusion ticks per second."""
+    latency_ms: Annotated[float, msgspec.Meta(ge=0.0, le=10_000.0)] = 200.0
+    """The fusion instant is ``now - latency``: larger than a frame period plus the network delay, so that
+    two frames of every sensor bracket it. Raising it adds delay; lowering it forces extrapolation."""
+    max_extrapolation_ms: NonNeg = 100.0
+    """Furthest a blob is extrapolated (or held) past its nearest frame; beyond it the sensor sits out the tick."""
+    stale_ms: Pos = 1000.0
+    """A sensor whose newest frame is older than this before the fusion instant is left out."""
+    max_gap_ms: Pos = 500.0
+    """Two frames further apart than this are not interpolated between (the nearer one is held instead)."""
+    buffer_frames: PosInt = 64
+    """Most frames kept per sensor (bounded memory)."""
+    clock_step_ms: Pos = 1500.0
+    """A frame this much older than the newest with a higher seq is a sender clock step: the buffer restarts."""
+    matcher: Literal["greedy", "global"] = "greedy"
+    """Stereo matcher by registry name: ``greedy`` (the paper's, O(N^3/3)) or ``global`` (Hungarian)."""
+    fuse_all: bool = False
+    """False: localise each person with the best pair only (the paper). True: least squares over every view."""
+    publish_tentative: bool = False
+    """Also publish tracks still waiting for birth confirmation."""
+    state_dir: str = ""
+    """Where the track log and id counter persist (relative to the config file); "" = ``state/{id}``."""
+    history_s: Pos = 600.0
+    """How much track history is kept in memory, reloaded at start and served by ``?history=``."""
+    segment_s: Pos = 60.0
+    """Length of one track-log segment file."""
+    retain_s: Pos = 3600.0
+    """Track-log segments older than this are deleted."""
+    status_period_s: Pos = 1.0
+    default_bearing_sigma_deg: Pos = 0.2
+    """Bearing error of a sensor whose SensorInfo has not arrived."""
+
+
+class PoseOverride(ConfigStruct, frozen=True):
+    """``[[pose]]``: a surveyed pose that overrides what the sensor reports."""
+
+    id: str
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_deg: float = 0.0
+
+
+class MatchSection(ConfigStruct, frozen=True):
+    """``[match]``: Eq. (7) measures and thresholds."""
+
+    threshold: Frac = 0.1
+    """tau: a pair is accepted only if its confidence exceeds this (raise: fewer, surer matches)."""
+    temporal_weight: NonNeg = 1.0
+    """lambda in r' = (r + lambda c_t)/(1 + lambda); 0 disables the temporal term."""
+    temporal_gate_m: Pos = 0.6
+    """Distance from a track's prediction at which the temporal term has fallen to exp(-1/2)."""
+    max_range_m: Pos = 30.0
+    """r_rc = 0 when a hypothesised target lies further than this from either camera."""
+    width_sigma: Pos = 0.35
+    """Spread of ln(W1/W2) in r_wc (frontal vs side widths differ by ~0.6)."""
+    height_sigma: Pos = 0.12
+    """Spread of ln(H1/H2) in r_hc."""
+    use_colour: bool = True
+    """False: r_is = 1 (e.g. detection files without colour)."""
+    width_rel_sigma: Pos = 0.1
+    """Relative width error epsilon fed to the size-ratio crossover."""
+    bearing_gate_sigmas: Pos = 4.0
+    """A blob supports a track when its bearing is within this many sigmas of the predicted bearing."""
+    max_birth_pairs: PosInt = 12
+    """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
+    max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
+    """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
+    ghost_veto_views: PosInt = 2
+    """A new person is refused when this many other cameras that should see the spot see nothing there."""
+
+
+class TrackerSection(ConfigStruct, frozen=True):
+    """``[tracker]``: the constant-velocity Kalman filter and the track life cycle."""
+
+    accel_sigma_mps2: Pos = 1.5
+    """Process noise: raising it follows turns faster, lowering it smooths more."""
+    gate_chi2: Pos = 13.8
+    """Mahalanobis gate on the floor (chi-square, 2 dof; 13.8 ~ 99.9%)."""
+    gate_min_m: Pos = 0.5
+    """Measurements within this distance always pass the gate."""
+    min_meas_sigma_m: Pos = 0.03
+    birth_hits: PosInt = 3
+    """Consistent measurements needed before a track is confirmed."""
+    birth_window: PosInt = 5
+    """...within this many ticks."""
+    max_misses: PosInt = 15
+    """A confirmed track dies after this many ticks without a measurement."""
+    init_speed_sigma_mps: Pos = 1.0
+    height_alpha: Frac = 0.2
+    """Smoothing of the head height (EMA weight of a new measurement)."""
+
+
+class MutualSection(ConfigStruct, frozen=True):
+    """``[mutual]``: mutual calibration (Eq. 3) of mobile panoramic cameras."""
+
+    enabled: bool = True
+    smoothing_s: Pos = 1.0
+    """Time constant of the pose smoothing (raise: steadier but lags a moving robot)."""
+    timeout_s: Pos = 2.0
+    """A calibrated pose not refreshed for this long becomes unknown again."""
+    jump_m: Pos = 1.0
+    """A new pose further than this from the smoothed one restarts the smoothing."""
+    boundary_sigma_deg: NonNeg = 0.0
+    """Error of one occluding-boundary bearing; 0 = the observer's bearing sigma."""
+
+
+class PlannerSection(ConfigStruct, frozen=True):
+    """``[planner]``: view planning of mobile cameras (Eqs. 4-6, Fig. 4)."""
+
+    enabled: bool = True
+    period_s: Pos = 0.5
+    room: list[float] = []
+    """``[x_min, y_min, x_max, y_max]`` the goals are clipped to; empty = no bounds."""
+    margin_m: NonNeg = 0.4
+    min_move_m: NonNeg = 0.15
+    """A new goal closer than this to the previous one is not re-issued."""
+
+
+class PtzSection(ConfigStruct, frozen=True):
+    """``[ptz]``: PTZ allocation to user agents."""
+
+    max_range_m: Pos = 25.0
+    aim_height_frac: Frac = 0.85
+    """Aim at this fraction of the person's height (0.85: the face)."""
+    target_width_m: Pos = 1.5
+    """Zoom so that about this much of the scene fills the image width."""
+    hfov_deg: Annotated[float, msgspec.Meta(gt=1.0, lt=170.0)] = 60.0
+    """Horizontal field of view at zoom 1 (for the zoom command)."""
+    max_zoom: Annotated[float, msgspec.Meta(ge=1.0, le=1000.0)] = 10.0
+    min_tilt_deg: float = -80.0
+    max_tilt_deg: float = 60.0
+
+
+class ManagerConfig(ConfigStruct, frozen=True):
+    """The whole manager config file."""
+
+    manager: ManagerSection
+    zenoh: SessionSettings = msgspec.field(default_factory=SessionSettings)
+    clock: ClockSettings = msgspec.field(default_factory=ClockSettings)
+    match: MatchSection = msgspec.field(default_factory=MatchSection)
+    tracker: TrackerSection = msgspec.field(default_factory=TrackerSection)
+    mutual: MutualSection = msgspec.field(default_factory=MutualSection)
+    planner: PlannerSection = msgspec.field(default_factory=PlannerSection)
+    ptz: PtzSection = msgspec.field(default_factory=PtzSection)
+    pose: list[PoseOverride] = []
+
+    @property
+    def keys(self) -> Keys:
+        return Keys(self.manager.prefix)
+
+    @property
+    def default_bearing_sigma_rad(self) -> float:
+        return math.radians(self.manager.default_bearing_sigma_deg)
+
+
+def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
+    """Checks msgspec cannot express; raises ConfigError naming the key."""
+    try:
+        validate_id(cfg.manager.id, "manager.id")
+        Keys(cfg.manager.prefix)
+        for i, p in enumerate(cfg.pose):
+            validate_id(p.id, f"pose[{i}].id")
+    except ConfigError as err:
+        raise ConfigError(f"{source}: {err}") from err
+    room = cfg.planner.room
+    if room and (len(room) != 4 or room[0] >= room[2] or room[1] >= room[3]):
+        raise ConfigError(f"{source}: planner.room must be [x_min, y_min, x_max, y_max], got {cfg.planner.room!r}")
+    ids = [p.id for p in cfg.pose]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"{source}: pose ids must be unique, got {ids!r}")
+    if cfg.tracker.birth_hits > cfg.tracker.birth_window:
+        raise ConfigError(
+            f"{source}: tracker.birth_hits ({cfg.tracker.birth_hits}) must be <= tracker.birth_window "
+            f"({cfg.tracker.birth_window})"
+        )
+    return cfg
+
+
+def load_manager_config(path: str | Path) -> ManagerConfig:
+    """Load and validate a manager config; ``state_dir`` is resolved relative to the file.
+
+    Raises:
+        ConfigError: naming the file, the key, what was expected and what was given.
+    """
+    cfg = load_config(path, ManagerConfig)
+    cfg = validate_manager_config(cfg, str(path))
+    state = cfg.manager.state_dir or f"state/{cfg.manager.id}"
+    resolved = str(resolve_path(path, state))
+    return msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, state_dir=resolved))
