@@ -1,0 +1,240 @@
+"""Record everything under ``{prefix}/@v1/**`` into an MCAP file.
+
+Per zenoh key the file holds (notes/zenoh.md §7.1):
+
+* a **raw** channel (topic = the key, message encoding ``msgpack``, channel
+  metadata ``zenoh_key`` and ``kind=raw``): the exact payload bytes, so
+  ``replay`` republishes bit for bit;
+* a **JSON** channel (topic ``/json/<key>``) with the message type's JSON
+  schema (``pano.TrackSet``, …) so any MCAP tool shows the fields;
+* and, for the 3D view in Foxglove, ``/scene/tracks`` and ``/scene/cameras``
+  (``foxglove.SceneUpdate``) and ``/tf`` (``foxglove.FrameTransform``).
+
+Log time is the local arrival time; publish time is the message's own
+``stamp_ns``. Zenoh's callback only enqueues bytes; a writer thread decodes
+and writes (never block a transport thread).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import msgspec
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import CompressionType, Writer
+
+from common.errors import ConfigError
+from common.keys import VERSION, Keys
+from common.schema import SensorInfo, TrackSet
+from user_agent.foxglove import (
+    FRAME_TRANSFORM_SCHEMA,
+    SCENE_UPDATE_SCHEMA,
+    cameras_scene,
+    frame_transform,
+    tracks_scene,
+)
+from user_agent.messages import decode_on_key, type_for_key
+
+__all__ = ["META_NAME", "RAW_ENCODING", "McapSink", "Recorder"]
+
+logger = logging.getLogger(__name__)
+
+META_NAME = "panostereo"
+"""Name of the MCAP metadata record holding the run's facts (site, epoch_ns, fps, room)."""
+RAW_ENCODING = "msgpack"
+
+
+def keys_for(key: str) -> Keys | None:
+    """The :class:`Keys` of a concrete key's prefix (None if not a versioned panostereo key)."""
+    marker = f"/{VERSION}/"
+    if marker not in key:
+        return None
+    try:
+        return Keys(key.split(marker, 1)[0])
+    except ConfigError:
+        return None
+
+
+class McapSink:
+    """Writes zenoh samples into an MCAP file (raw + JSON + Foxglove channels).
+
+    Args:
+        path: output file (its folder is created).
+        metadata: run facts stored as the ``panostereo`` metadata record.
+        foxglove: also write the Foxglove scene channels.
+    """
+
+    def __init__(self, path: str | Path, metadata: dict[str, str] | None = None, foxglove: bool = True) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self._fh = self.path.open("wb")
+        except OSError as err:
+            raise ConfigError(f"{self.path}: cannot write recording: {err.strerror}") from err
+        self._w = Writer(self._fh, compression=CompressionType.ZSTD)
+        self._w.start(profile="", library="panostereo")
+        self._w.add_metadata(META_NAME, {k: str(v) for k, v in (metadata or {}).items()})
+        self._foxglove = foxglove
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._seq: dict[int, int] = {}
+        self._infos: dict[str, SensorInfo] = {}
+        self._lock = threading.Lock()
+        self.messages = 0
+        """Raw samples written."""
+        self.undecodable = 0
+        self._closed = False
+
+    # -- registration -------------------------------------------------------
+    def _schema(self, name: str, schema: dict[str, Any]) -> int:
+        sid = self._schemas.get(name)
+        if sid is None:
+            sid = self._w.register_schema(
+                name=name, encoding=SchemaEncoding.JSONSchema, data=json.dumps(schema).encode()
+            )
+            self._schemas[name] = sid
+        return sid
+
+    def _channel(self, topic: str, encoding: str, schema_id: int, metadata: dict[str, str]) -> int:
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self._w.register_channel(
+                topic=topic, message_encoding=encoding, schema_id=schema_id, metadata=metadata
+            )
+            self._channels[topic] = cid
+        return cid
+
+    def _add(self, cid: int, log_ns: int, pub_ns: int, data: bytes) -> None:
+        seq = self._seq.get(cid, 0)
+        self._seq[cid] = seq + 1
+        self._w.add_message(channel_id=cid, log_time=log_ns, publish_time=pub_ns, sequence=seq, data=data)
+
+    def add_json(self, topic: str, schema_name: str, schema: dict[str, Any], obj: Any, log_time_ns: int) -> None:
+        """Write one JSON message on a channel of its own (e.g. a ground-truth scene)."""
+        with self._lock:
+            cid = self._channel(topic, MessageEncoding.JSON, self._schema(schema_name, schema), {"kind": "extra"})
+            self._add(cid, log_time_ns, log_time_ns, json.dumps(obj).encode())
+
+    # -- samples ------------------------------------------------------------
+    def write(self, key: str, data: bytes, log_time_ns: int) -> None:
+        """Write one zenoh sample (raw bytes as received) and its decoded views."""
+        with self._lock:
+            if self._closed:
+                return
+            keys = keys_for(key)
+            msg = decode_on_key(keys, key, data) if keys is not None else None
+            pub_ns = int(getattr(msg, "stamp_ns", 0)) or log_time_ns
+            raw = self._channel(
+                key, RAW_ENCODING, 0, {"zenoh_key": key, "encoding": "application/msgpack", "kind": "raw"}
+            )
+            self._add(raw, log_time_ns, pub_ns, data)
+            self.messages += 1
+            if msg is None:
+                self.undecodable += 1
+                return
+            mtype = type_for_key(keys, key) if keys is not None else None
+            assert mtype is not None
+            name = f"pano.{mtype.__name__}"
+            sid = self._schema(name, msgspec.json.schema(mtype))
+            cid = self._channel(f"/json/{key}", MessageEncoding.JSON, sid, {"zenoh_key": key, "kind": "json"})
+            self._add(cid, log_time_ns, pub_ns, msgspec.json.encode(msg))
+            if self._foxglove:
+                self._write_scene(msg, log_time_ns, pub_ns)
+
+    def _write_scene(self, msg: Any, log_ns: int, pub_ns: int) -> None:
+        scene_sid = self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
+        if isinstance(msg, TrackSet):
+            xyz = {s: (i.pose.x_m, i.pose.y_m, i.pose.z_m) for s, i in self._infos.items() if i.pose is not None}
+            cid = self._channel("/scene/tracks", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
+            self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, xyz)).encode())
+        elif isinstance(msg, SensorInfo):
+            self._infos[msg.sensor_id] = msg
+            cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
+            self._add(cid, log_ns, pub_ns, json.dumps(cameras_scene(list(self._infos.values()), pub_ns)).encode())
+            tf = frame_transform(msg, pub_ns)
+            if tf is not None:
+                tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
+                tcid = self._channel("/tf", MessageEncoding.JSON, tf_sid, {"kind": "foxglove"})
+                self._add(tcid, log_ns, pub_ns, json.dumps(tf).encode())
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        with self._lock:
+            if not self._closed:
+                self._w.add_metadata(name, {k: str(v) for k, v in data.items()})
+
+    def close(self) -> None:
+        """Finish the file (summary, indexes); safe to call twice."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._w.finish()
+            self._fh.close()
+
+
+class Recorder:
+    """Subscribes to a key expression and feeds an :class:`McapSink` from a writer thread.
+
+    Args:
+        session: an open zenoh session.
+        key_expr: what to record (``Keys(prefix).all``).
+        sink: where to write.
+        capacity: most samples buffered before the oldest are dropped (counted).
+    """
+
+    def __init__(self, session: Any, key_expr: str, sink: McapSink, capacity: int = 100_000) -> None:
+        self.sink = sink
+        self.dropped = 0
+        self._buf: deque[tuple[str, bytes, int]] = deque()
+        self._capacity = capacity
+        self._cond = threading.Condition()
+        self._stop = False
+        self._thread = threading.Thread(target=self._loop, name="mcap-writer", daemon=True)
+        self._thread.start()
+        self._sub = session.declare_subscriber(key_expr, self._on_sample)
+
+    def _on_sample(self, sample: Any) -> None:
+        item = (str(sample.key_expr), sample.payload.to_bytes(), time.time_ns())
+        with self._cond:
+            if len(self._buf) >= self._capacity:
+                self._buf.popleft()
+                self.dropped += 1
+            self._buf.append(item)
+            self._cond.notify()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._buf and not self._stop:
+                    self._cond.wait(0.2)
+                items = list(self._buf)
+                self._buf.clear()
+                stop = self._stop
+            for key, data, t in items:
+                self.sink.write(key, data, t)
+            if stop:
+                return
+
+    @property
+    def messages(self) -> int:
+        return self.sink.messages
+
+    def stop(self) -> None:
+        """Undeclare, write what is buffered and finish the file."""
+        try:
+            self._sub.undeclare()
+        except Exception as err:  # session already closed
+            logger.debug("undeclare recorder: %s", err)
+        with self._cond:
+            self._stop = True
+            self._cond.notify()
+        self._thread.join(timeout=30)
+        self.sink.close()
+        if self.dropped:
+            logger.warning("recorder dropped %d samples (writer too slow)", self.dropped)
