@@ -1,0 +1,295 @@
+#!/usr/bin/env python3
+"""Zenoh configs for a secured panostereo site: TLS + mutual TLS + access control, or user/password.
+
+Usage::
+
+    python3 deploy/security/make_configs.py --certs DIR --out DIR [--prefix pano] \
+        [--sensors "c1 c2"] [--managers m1] [--agents a1] [--listen tls/0.0.0.0:7447] \
+        [--router-host localhost] [--users-only]
+
+Reads nothing but the command line (the certificates come from ``make-certs.sh``; only
+their paths are written) and writes, under ``--out``:
+
+* ``router-tls.json5``: the router. TLS only (``protocols: ["tls"]``), ``enable_mtls``, so a
+  client must present a certificate signed by the site CA; default-deny access control
+  whose subjects are the certificates' common names.
+* ``sensor-<id>.json5``, ``manager-<id>.json5``, ``agent-<id>.json5``: each client's TLS
+  config (its own certificate and key, the CA, ``enable_mtls: true``: without it a client
+  sends no certificate at all).
+* ``router-usrpwd.json5`` + ``users.txt`` and ``usrpwd/<name>.json5``: the alternative with
+  no certificates: user/password authentication on TCP and the same rules, whose subjects
+  are user names. Passwords are random; ``users.txt`` is the router's dictionary.
+
+The rules (one rule + subject + policy per identity, so an identity can only speak for
+itself; key expressions from ``common/keys.py``, ``R = {prefix}/@v1``):
+
+sensor ``<id>``
+    put ``R/sensor/<id>/features|info|status|ptz/state``; declare its liveliness token
+    ``R/sensor/<id>`` and its info queryable (and reply on it); subscribe to its own PTZ
+    commands and view plans; see managers' presence.
+manager ``<id>``
+    put ``R/tracks``, ``R/track/*``, ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands
+    ``R/sensor/*/ptz``; serve ``R/track/**`` and ``R/manager/<id>/**`` queryables; read
+    every sensor key and query sensor info; its liveliness token.
+agent ``<id>``
+    no put at all; subscribe to tracks, plans, pairs, statuses and PTZ states (not raw
+    features); query tracks, sensor info and the PTZ allocation ``R/manager/*/ptz``; its
+    liveliness token ``R/agent/<id>``.
+
+Anything not allowed is denied; a denied put is dropped silently at the router.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import secrets
+import sys
+from pathlib import Path
+from typing import Any
+
+ID_RE = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
+
+Rule = dict[str, Any]
+
+
+def _rule(rid: str, flow: str, messages: list[str], keys: list[str]) -> Rule:
+    return {"id": rid, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
+
+
+def sensor_rules(root: str, sid: str) -> list[Rule]:
+    """What sensor ``sid`` may do (ingress: sensor -> router; egress: router -> sensor)."""
+    own = f"{root}/sensor/{sid}"
+    n = f"sensor-{sid}"
+    return [
+        _rule(
+            f"{n}-put",
+            "ingress",
+            ["put"],
+            [f"{own}/features", f"{own}/info", f"{own}/status", f"{own}/ptz/state"],
+        ),
+        _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
+        _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], [f"{own}/info"]),
+        _rule(f"{n}-sub", "ingress", ["declare_subscriber"], [f"{own}/ptz", f"{root}/plan/{sid}"]),
+        _rule(
+            f"{n}-watch",
+            "ingress",
+            ["declare_liveliness_subscriber", "liveliness_query"],
+            [f"{root}/manager/*"],
+        ),
+        _rule(f"{n}-recv", "egress", ["put"], [f"{own}/ptz", f"{root}/plan/{sid}"]),
+        # A query for every sensor's info (``R/sensor/*/info``) must reach this sensor too.
+        _rule(f"{n}-queried", "egress", ["query"], [f"{root}/sensor/*/info"]),
+        _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/manager/*"]),
+    ]
+
+
+def manager_rules(root: str, mid: str) -> list[Rule]:
+    """What manager ``mid`` may do."""
+    own = f"{root}/manager/{mid}"
+    n = f"manager-{mid}"
+    outputs = [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/*", f"{own}/**", f"{root}/sensor/*/ptz"]
+    served = [f"{root}/tracks", f"{root}/track/**", f"{own}/**"]
+    read = [f"{root}/sensor/**", f"{root}/manager/**", f"{root}/plan/*", f"{root}/tracks", f"{root}/track/**"]
+    return [
+        _rule(f"{n}-put", "ingress", ["put", "delete"], outputs),
+        _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
+        _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], served),
+        _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
+        _rule(f"{n}-query", "ingress", ["query"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
+        _rule(f"{n}-watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], [f"{root}/**"]),
+        _rule(f"{n}-recv", "egress", ["put", "delete"], read),
+        _rule(f"{n}-queried", "egress", ["query"], served),
+        _rule(f"{n}-replies", "egress", ["reply"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
+        _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/**"]),
+    ]
+
+
+def agent_rules(root: str, aid: str) -> list[Rule]:
+    """What agent ``aid`` may do: read derived data and query, never put."""
+    n = f"agent-{aid}"
+    read = [
+        f"{root}/tracks",
+        f"{root}/track/**",
+        f"{root}/plan/*",
+        f"{root}/manager/*/pairs",
+        f"{root}/manager/*/status",
+        f"{root}/sensor/*/status",
+        f"{root}/sensor/*/ptz/state",
+    ]
+    queries = [f"{root}/tracks", f"{root}/track/**", f"{root}/sensor/*/info", f"{root}/manager/*/ptz"]
+    return [
+        _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
+        _rule(f"{n}-query", "ingress", ["query"], queries),
+        _rule(f"{n}-token", "ingress", ["liveliness_token"], [f"{root}/agent/{aid}"]),
+        _rule(f"{n}-watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], [f"{root}/**"]),
+        _rule(f"{n}-recv", "egress", ["put", "delete"], read),
+        _rule(f"{n}-replies", "egress", ["reply"], queries),
+        _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/**"]),
+    ]
+
+
+def access_control(root: str, identities: list[tuple[str, list[Rule]]], by: str) -> dict[str, Any]:
+    """Default-deny ACL: each identity (certificate CN or user name) gets exactly its rules."""
+    rules: list[Rule] = []
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    for name, its_rules in identities:
+        rules.extend(its_rules)
+        subjects.append({"id": name, by: [name]})
+        policies.append({"id": name, "rules": [r["id"] for r in its_rules], "subjects": [name]})
+    return {
+        "enabled": True,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    }
+
+
+def identities(root: str, sensors: list[str], managers: list[str], agents: list[str]) -> list[tuple[str, list[Rule]]]:
+    out: list[tuple[str, list[Rule]]] = []
+    out += [(f"sensor-{s}", sensor_rules(root, s)) for s in sensors]
+    out += [(f"manager-{m}", manager_rules(root, m)) for m in managers]
+    out += [(f"agent-{a}", agent_rules(root, a)) for a in agents]
+    return out
+
+
+def _base(mode: str, listen: list[str], connect: list[str]) -> dict[str, Any]:
+    return {
+        "mode": mode,
+        "listen": {"endpoints": listen},
+        "connect": {"endpoints": connect},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
+    }
+
+
+def router_tls(certs: str, listen: str, acl: dict[str, Any]) -> dict[str, Any]:
+    c = _base("router", [listen], [])
+    c["transport"] = {
+        "link": {
+            "protocols": ["tls"],
+            "tls": {
+                "root_ca_certificate": f"{certs}/ca.pem",
+                "listen_certificate": f"{certs}/router.pem",
+                "listen_private_key": f"{certs}/router.key",
+                "enable_mtls": True,
+            },
+        }
+    }
+    c["access_control"] = acl
+    return c
+
+
+def client_tls(certs: str, name: str, connect: str) -> dict[str, Any]:
+    c = _base("client", [], [connect])
+    c["transport"] = {
+        "link": {
+            "tls": {
+                "root_ca_certificate": f"{certs}/ca.pem",
+                "connect_certificate": f"{certs}/{name}.pem",
+                "connect_private_key": f"{certs}/{name}.key",
+                "enable_mtls": True,
+            }
+        }
+    }
+    return c
+
+
+def router_usrpwd(out: str, listen: str, acl: dict[str, Any], password: str) -> dict[str, Any]:
+    c = _base("router", [listen], [])
+    c["transport"] = {
+        "link": {"protocols": ["tcp"]},
+        "auth": {"usrpwd": {"user": "router", "password": password, "dictionary_file": f"{out}/users.txt"}},
+    }
+    c["access_control"] = acl
+    return c
+
+
+def client_usrpwd(name: str, password: str, connect: str) -> dict[str, Any]:
+    c = _base("client", [], [connect])
+    c["transport"] = {"auth": {"usrpwd": {"user": name, "password": password}}}
+    return c
+
+
+def _ids(text: str, what: str) -> list[str]:
+    ids = text.split()
+    for i in ids:
+        if len(i) > 48 or not ID_RE.match(i):
+            raise SystemExit(f"make_configs.py: error: {what} ids must match [a-z0-9][a-z0-9-]*, got {i!r}")
+    return ids
+
+
+def _write(path: Path, obj: dict[str, Any], header: str) -> None:
+    path.write_text(
+        f"// {header}\n// Generated by deploy/security/make_configs.py; see deploy/security/README.md.\n"
+        + json.dumps(obj, indent=2)
+        + "\n"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="make_configs.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--certs", required=True, help="directory of make-certs.sh output (paths are written as given)")
+    p.add_argument("--out", required=True, help="directory to write the configs to")
+    p.add_argument("--prefix", default="pano", help="site key prefix (default pano)")
+    p.add_argument("--sensors", default="", help='sensor ids, space separated ("c1 c2")')
+    p.add_argument("--managers", default="m1", help="manager ids")
+    p.add_argument("--agents", default="a1", help="agent ids")
+    p.add_argument("--listen", default="tls/127.0.0.1:7447", help="router TLS endpoint")
+    p.add_argument("--listen-tcp", default="tcp/127.0.0.1:7447", help="router endpoint of the usrpwd variant")
+    p.add_argument("--router-host", default="localhost", help="name clients connect to (must be in the SAN)")
+    args = p.parse_args(argv)
+    if not PREFIX_RE.match(args.prefix):
+        raise SystemExit(f"make_configs.py: error: --prefix must be chunks of [A-Za-z0-9_-], got {args.prefix!r}")
+    root = f"{args.prefix}/@v1"
+    sensors = _ids(args.sensors, "sensor")
+    managers = _ids(args.managers, "manager")
+    agents = _ids(args.agents, "agent")
+    certs = args.certs.rstrip("/") or "/"
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "usrpwd").mkdir(exist_ok=True)
+    port = args.listen.rsplit(":", 1)[-1]
+    tcp_port = args.listen_tcp.rsplit(":", 1)[-1]
+    who = identities(root, sensors, managers, agents)
+
+    _write(
+        out / "router-tls.json5",
+        router_tls(certs, args.listen, access_control(root, who, "cert_common_names")),
+        f"panostereo router: TLS + mutual TLS + default-deny ACL for prefix {args.prefix}",
+    )
+    for name, _ in who:
+        _write(
+            out / f"{name}.json5",
+            client_tls(certs, name, f"tls/{args.router_host}:{port}"),
+            f"panostereo client {name}: TLS with its own certificate (mutual TLS)",
+        )
+
+    passwords = {name: secrets.token_urlsafe(18) for name, _ in who}
+    router_pw = secrets.token_urlsafe(18)
+    users = out / "users.txt"
+    users.write_text("".join(f"{n}:{pw}\n" for n, pw in passwords.items()))
+    users.chmod(0o600)
+    _write(
+        out / "router-usrpwd.json5",
+        router_usrpwd(str(out), args.listen_tcp, access_control(root, who, "usernames"), router_pw),
+        f"panostereo router: user/password + default-deny ACL for prefix {args.prefix} (no TLS)",
+    )
+    for name, pw in passwords.items():
+        f = out / "usrpwd" / f"{name}.json5"
+        _write(
+            f, client_usrpwd(name, pw, f"tcp/{args.router_host}:{tcp_port}"), f"panostereo client {name}: user/password"
+        )
+        f.chmod(0o600)
+    print(
+        f"make_configs.py: wrote router-tls.json5, router-usrpwd.json5, users.txt and {len(who)} client configs"
+        f" in {out}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,450 @@
+"""Security of a site (issue 8): TLS + mutual TLS + default-deny access control, and user/password.
+
+A real ``panostereo router`` runs with the configs that ``deploy/security/make-certs.sh`` and
+``deploy/security/make_configs.py`` produce (into a temp dir, never the repo). Legitimate
+sensor, manager and agent clients are zenoh sessions holding their own certificates; each
+is a separate transport to the router, which is where the rules are enforced.
+
+Every negative case is paired with the positive one that shows the test could fail: the
+same receiver does get the legitimate message, through the same router, in the same test.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from common.codec import decode, encode
+from common.errors import SessionError
+from common.keys import Keys
+from common.schema import Features, PtzCommand, PtzReply, PtzRequest, Track, TrackSet
+from common.session import SessionSettings, open_session
+from tests.support import REPO, ManagedProcess, free_port, spawn, wait_for, wait_for_port
+
+pytestmark = [pytest.mark.integration, pytest.mark.timeout(120)]
+
+SECURITY = REPO / "deploy" / "security"
+KEYS = Keys("sectest")
+SENSORS = ("c1", "c2")
+REFUSE_MS = 1200
+"""Connect timeout of clients expected to be refused (auth failures look like timeouts)."""
+SETTLE_S = 0.5
+"""After a marker proves the path is flowing, how long a forged sample is given to show up."""
+
+
+def _run(args: list[str]) -> str:
+    res = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 0, f"{args} failed:\n{res.stdout}\n{res.stderr}"
+    return res.stdout
+
+
+def _json5(path: Path) -> dict[str, Any]:
+    """Our generated JSON5 is JSON plus leading ``//`` comment lines."""
+    return dict(json.loads(re.sub(r"^\s*//.*$", "", path.read_text(), flags=re.M)))
+
+
+@dataclass
+class SecureSite:
+    certs: Path
+    foreign: Path
+    cfg: Path
+    tls_port: int
+    tcp_port: int
+    router: ManagedProcess
+    usr_router: ManagedProcess
+
+    @property
+    def tls(self) -> str:
+        return f"tls/localhost:{self.tls_port}"
+
+    def users(self) -> dict[str, str]:
+        return dict(line.split(":", 1) for line in (self.cfg / "users.txt").read_text().split())
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureSite]:
+    root = tmp_path_factory.mktemp("secure-site")
+    certs, foreign, cfg = root / "certs", root / "foreign", root / "cfg"
+    ids = " ".join(SENSORS)
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), "--sensors", ids])
+    # Another CA issuing certificates with the very same names: must not be trusted.
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(foreign), "--sensors", ids, "--ca-name", "evil-ca"])
+    tls_port, tcp_port = free_port(), free_port()
+    _run(
+        [
+            sys.executable,
+            str(SECURITY / "make_configs.py"),
+            "--certs",
+            str(certs),
+            "--out",
+            str(cfg),
+            "--prefix",
+            KEYS.prefix,
+            "--sensors",
+            ids,
+            "--listen",
+            f"tls/127.0.0.1:{tls_port}",
+            "--listen-tcp",
+            f"tcp/127.0.0.1:{tcp_port}",
+        ]
+    )
+    logs = root / "logs"
+    router = spawn(
+        [sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(cfg / "router-tls.json5")],
+        log_dir=logs,
+        name="router-tls",
+    )
+    usr_router = spawn(
+        [sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(cfg / "router-usrpwd.json5")],
+        log_dir=logs,
+        name="router-usrpwd",
+    )
+    try:
+        wait_for_port(tls_port, 20.0, proc=router)
+        wait_for_port(tcp_port, 20.0, proc=usr_router)
+        yield SecureSite(certs, foreign, cfg, tls_port, tcp_port, router, usr_router)
+    finally:
+        for proc in (router, usr_router):
+            proc.stop()
+        assert router.returncode == 0, router.log()
+        assert usr_router.returncode == 0, usr_router.log()
+
+
+def _settings(config_file: Path, connect: str, timeout_ms: int = 10_000, **kw: Any) -> SessionSettings:
+    return SessionSettings(
+        mode="client", config_file=str(config_file), connect=[connect], connect_timeout_ms=timeout_ms, **kw
+    )
+
+
+def _tls_client(site: SecureSite, name: str) -> Any:
+    return open_session(_settings(site.cfg / f"{name}.json5", site.tls))
+
+
+def _variant(site: SecureSite, tmp_path: Path, name: str, **tls_changes: Any) -> Path:
+    """A copy of ``name``'s client config with TLS fields replaced (None deletes one)."""
+    conf = _json5(site.cfg / f"{name}.json5")
+    tls = conf["transport"]["link"]["tls"]
+    for k, v in tls_changes.items():
+        if v is None:
+            tls.pop(k, None)
+        else:
+            tls[k] = v
+    path = tmp_path / f"{name}-variant.json5"
+    path.write_text(json.dumps(conf))
+    return path
+
+
+class Collector:
+    """Decoded samples that reached one subscriber from other sessions, thread-safe."""
+
+    def __init__(self, session: Any, key_expr: str, msg_type: type) -> None:
+        self._lock = threading.Lock()
+        self.items: list[tuple[str, Any]] = []
+        self._type = msg_type
+        import zenoh
+
+        # REMOTE only: a session's own puts are delivered to it locally, before any router rule applies.
+        self._sub = session.declare_subscriber(key_expr, self._on, allowed_origin=zenoh.Locality.REMOTE)
+
+    def _on(self, sample: Any) -> None:
+        msg: Any = decode(sample.payload.to_bytes(), self._type)
+        with self._lock:
+            self.items.append((str(sample.key_expr), msg))
+
+    def where(self, pred: Any) -> list[tuple[str, Any]]:
+        with self._lock:
+            return [kv for kv in self.items if pred(kv[0], kv[1])]
+
+
+def _features(sensor_id: str, seq: int, frame: int = 0) -> Features:
+    return Features(sensor_id=sensor_id, seq=seq, stamp_ns=1_700_000_000_000_000_000 + seq, frame_index=frame)
+
+
+def _trackset(manager_id: str, seq: int) -> TrackSet:
+    t = Track(
+        manager_id=manager_id,
+        seq=seq,
+        stamp_ns=1,
+        track_id=f"{manager_id}-{seq}",
+        x_m=1.0,
+        y_m=2.0,
+        height_m=1.7,
+        vx_mps=0.0,
+        vy_mps=0.0,
+        cov_xx_m2=0.01,
+        cov_xy_m2=0.0,
+        cov_yy_m2=0.01,
+        state="confirmed",
+        method="triangulation",
+    )
+    return TrackSet(manager_id=manager_id, seq=seq, stamp_ns=1, tracks=[t])
+
+
+def _deliver_until(put: Any, pred: Any, what: str, timeout_s: float = 10.0) -> Any:
+    """Re-put until the receiver sees it (subscriptions take a moment to propagate)."""
+
+    def seen() -> Any:
+        put()
+        return pred()
+
+    return wait_for(seen, timeout_s, what, poll_s=0.05)
+
+
+# ---------------------------------------------------------------------------
+# Who may connect
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["sensor-c1", "manager-m1", "agent-a1"])
+def test_each_role_connects_with_its_certificate(site: SecureSite, name: str) -> None:
+    with _tls_client(site, name) as s:
+        assert s.info.routers_zid(), f"{name} sees no router"
+    links_ok = site.router.alive
+    assert links_ok, site.router.log()
+
+
+@pytest.mark.parametrize(
+    "case",
+    ["no client certificate", "certificate from another CA", "client trusts another CA", "plain tcp to the tls port"],
+)
+def test_untrusted_peers_are_refused(site: SecureSite, tmp_path: Path, case: str) -> None:
+    name = "sensor-c1"
+    connect = site.tls
+    if case == "no client certificate":
+        cfg = _variant(site, tmp_path, name, connect_certificate=None, connect_private_key=None)
+    elif case == "certificate from another CA":
+        cfg = _variant(
+            site,
+            tmp_path,
+            name,
+            connect_certificate=str(site.foreign / f"{name}.pem"),
+            connect_private_key=str(site.foreign / f"{name}.key"),
+        )
+    elif case == "client trusts another CA":  # the router cannot prove it is the site's router
+        cfg = _variant(site, tmp_path, name, root_ca_certificate=str(site.foreign / "ca.pem"))
+    else:
+        cfg = site.cfg / f"{name}.json5"
+        connect = f"tcp/127.0.0.1:{site.tls_port}"
+    refused = _settings(cfg, connect, timeout_ms=REFUSE_MS)
+    with pytest.raises(SessionError, match="cannot open a zenoh client session"), open_session(refused):
+        pass
+    # ...and a legitimate client still gets in afterwards.
+    with _tls_client(site, name) as s:
+        assert s.info.routers_zid()
+
+
+# ---------------------------------------------------------------------------
+# What each identity may say
+# ---------------------------------------------------------------------------
+
+
+def test_forged_features_and_tracks_change_nothing(site: SecureSite) -> None:
+    """An agent, another sensor and the manager cannot publish c1's features; only the manager publishes tracks."""
+    with (
+        _tls_client(site, "manager-m1") as mgr,
+        _tls_client(site, "sensor-c1") as c1,
+        _tls_client(site, "sensor-c2") as c2,
+        _tls_client(site, "agent-a1") as agent,
+        _tls_client(site, "agent-a1") as watcher,
+    ):
+        feats = Collector(mgr, KEYS.all_features, Features)
+        sets = Collector(watcher, KEYS.tracks(), TrackSet)
+        singles = Collector(watcher, KEYS.all_tracks, Track)
+        token = agent.liveliness().declare_token(KEYS.agent("a1"))
+        # The legitimate paths work: c1's features reach the manager, the manager's tracks reach an agent.
+        _deliver_until(
+            lambda: c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 1))),
+            lambda: feats.where(lambda k, m: m.seq == 1),
+            "c1's own features at the manager",
+        )
+        _deliver_until(
+            lambda: mgr.put(KEYS.tracks(), encode(_trackset("m1", 1))),
+            lambda: sets.where(lambda k, m: m.seq == 1),
+            "the manager's tracks at an agent",
+        )
+        # Forgeries, each of a message that would be accepted if delivered.
+        forged_seq = 666
+        agent.put(KEYS.sensor_features("c1"), encode(_features("c1", forged_seq)))
+        c2.put(KEYS.sensor_features("c1"), encode(_features("c1", forged_seq)))
+        mgr.put(KEYS.sensor_features("c2"), encode(_features("c2", forged_seq)))
+        agent.put(KEYS.tracks(), encode(_trackset("m1", forged_seq)))
+        c1.put(KEYS.tracks(), encode(_trackset("m1", forged_seq)))
+        agent.put(KEYS.track("m1-666"), encode(_trackset("m1", forged_seq).tracks[0]))
+        c2.put(KEYS.track("m1-666"), encode(_trackset("m1", forged_seq).tracks[0]))
+        # Markers sent after the forgeries on the same transports, which must arrive.
+        c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 2)))
+        c2.put(KEYS.sensor_features("c2"), encode(_features("c2", 2)))
+        mgr.put(KEYS.tracks(), encode(_trackset("m1", 2)))
+        wait_for(lambda: len(feats.where(lambda k, m: m.seq == 2)) == 2, 10.0, "both sensors' markers")
+        wait_for(lambda: sets.where(lambda k, m: m.seq == 2), 10.0, "the manager's marker track set")
+        wait_for(lambda: bool(mgr.liveliness().get(KEYS.agent("a1"), timeout=1.0)), 5.0, "the agent's own token")
+        assert not wait_for_any(
+            lambda: (
+                feats.where(lambda k, m: m.seq == forged_seq)
+                or sets.where(lambda k, m: m.seq == forged_seq)
+                or singles.where(lambda k, m: True)
+            ),
+            SETTLE_S,
+        ), (feats.items, sets.items, singles.items)
+        token.undeclare()
+        # The network still works after the attempts.
+        c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 3)))
+        wait_for(lambda: feats.where(lambda k, m: m.seq == 3), 10.0, "c1's features after the attacks")
+
+
+def wait_for_any(pred: Any, timeout_s: float) -> bool:
+    """True as soon as ``pred()`` is truthy within ``timeout_s``; False if it never is (bounded negative wait)."""
+    try:
+        wait_for(pred, timeout_s, "a forged sample", poll_s=0.02)
+    except AssertionError:
+        return False
+    return True
+
+
+def test_agents_cannot_read_raw_features_or_command_cameras(site: SecureSite) -> None:
+    with (
+        _tls_client(site, "manager-m1") as mgr,
+        _tls_client(site, "sensor-c1") as c1,
+        _tls_client(site, "agent-a1") as agent,
+    ):
+        seen_by_agent = Collector(agent, KEYS.all_features, Features)
+        seen_by_mgr = Collector(mgr, KEYS.all_features, Features)
+        ptz_at_c1 = Collector(c1, KEYS.sensor_ptz("c1"), PtzCommand)
+        _deliver_until(
+            lambda: c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 1))),
+            lambda: seen_by_mgr.where(lambda k, m: True),
+            "c1's features at the manager",
+        )
+        cmd = PtzCommand(manager_id="m1", seq=1, stamp_ns=1, sensor_id="c1", pan_rad=0.5, tilt_rad=0.0)
+        agent.put(KEYS.sensor_ptz("c1"), encode(msg_replace(cmd, seq=666)))
+        _deliver_until(
+            lambda: mgr.put(KEYS.sensor_ptz("c1"), encode(cmd)),
+            lambda: ptz_at_c1.where(lambda k, m: m.seq == 1),
+            "the manager's PTZ command at c1",
+        )
+        c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 2)))
+        wait_for(lambda: seen_by_mgr.where(lambda k, m: m.seq == 2), 10.0, "c1's second frame")
+        assert not wait_for_any(lambda: seen_by_agent.items or ptz_at_c1.where(lambda k, m: m.seq == 666), SETTLE_S), (
+            seen_by_agent.items,
+            ptz_at_c1.items,
+        )
+
+
+def msg_replace(msg: Any, **changes: Any) -> Any:
+    import msgspec
+
+    return msgspec.structs.replace(msg, **changes)
+
+
+def test_queries_follow_the_roles(site: SecureSite) -> None:
+    """Agents query tracks and ask for PTZ views; a sensor cannot query tracks; the manager reads sensor info."""
+    track = _trackset("m1", 5).tracks[0]
+    with (
+        _tls_client(site, "manager-m1") as mgr,
+        _tls_client(site, "sensor-c1") as c1,
+        _tls_client(site, "agent-a1") as agent,
+    ):
+
+        def on_track(q: Any) -> None:
+            with q:
+                q.reply(KEYS.track(track.track_id), encode(track))
+
+        def on_ptz(q: Any) -> None:
+            with q:
+                req = decode(q.payload.to_bytes(), PtzRequest)
+                reply = PtzReply(manager_id="m1", seq=1, stamp_ns=1, ok=False, track_id=req.track_id, reason="test")
+                q.reply(KEYS.manager_ptz("m1"), encode(reply))
+
+        def on_info(q: Any) -> None:
+            with q:
+                q.reply(KEYS.sensor_info("c1"), b"info")
+
+        qs = [
+            mgr.declare_queryable(KEYS.all_tracks, on_track),
+            mgr.declare_queryable(KEYS.manager_ptz("m1"), on_ptz),
+            c1.declare_queryable(KEYS.sensor_info("c1"), on_info),
+        ]
+
+        def get(s: Any, key: str, payload: bytes | None = None) -> list[str]:
+            return [str(r.ok.key_expr) for r in s.get(key, payload=payload, timeout=2.0) if r.ok is not None]
+
+        assert wait_for(lambda: get(agent, KEYS.track(track.track_id)), 10.0, "agent gets a track") == [
+            KEYS.track(track.track_id)
+        ]
+        req = PtzRequest(agent_id="a1", seq=1, stamp_ns=1, action="acquire", track_id=track.track_id)
+        assert wait_for(lambda: get(agent, KEYS.manager_ptz("m1"), encode(req)), 10.0, "PTZ allocation reply")
+        assert wait_for(lambda: get(mgr, KEYS.all_sensor_info), 10.0, "manager reads sensor info") == [
+            KEYS.sensor_info("c1")
+        ]
+        assert get(c1, KEYS.all_tracks) == []  # denied at the router: no reply at all
+        assert get(agent, KEYS.all_features) == []
+        for q in qs:
+            q.undeclare()
+
+
+def test_a_sensor_cannot_impersonate_another_sensors_presence(site: SecureSite) -> None:
+    with _tls_client(site, "manager-m1") as mgr, _tls_client(site, "sensor-c2") as c2:
+        own = c2.liveliness().declare_token(KEYS.sensor("c2"))
+        fake = c2.liveliness().declare_token(KEYS.sensor("c1"))
+
+        def alive() -> list[str]:
+            return sorted(str(r.ok.key_expr) for r in mgr.liveliness().get(KEYS.all_sensors, timeout=1.0) if r.ok)
+
+        wait_for(lambda: KEYS.sensor("c2") in alive(), 10.0, "c2's own token")
+        assert KEYS.sensor("c1") not in alive()
+        fake.undeclare()
+        own.undeclare()
+
+
+# ---------------------------------------------------------------------------
+# User/password alternative
+# ---------------------------------------------------------------------------
+
+
+def test_usrpwd_variant(site: SecureSite) -> None:
+    users = site.users()
+    tcp = f"tcp/127.0.0.1:{site.tcp_port}"
+
+    def creds(name: str, password: str | None = None) -> SessionSettings:
+        return SessionSettings(
+            mode="client",
+            connect=[tcp],
+            connect_timeout_ms=REFUSE_MS if password is not None else 10_000,
+            user=name,
+            password=users[name] if password is None else password,
+        )
+
+    for bad in (
+        creds("sensor-c1", "wrong"),
+        SessionSettings(mode="client", connect=[tcp], connect_timeout_ms=REFUSE_MS),
+    ):
+        with pytest.raises(SessionError), open_session(bad):
+            pass
+    # A client config file from make_configs.py works as well as [zenoh] user/password.
+    mgr_cfg = SessionSettings(mode="client", config_file=str(site.cfg / "usrpwd" / "manager-m1.json5"), connect=[tcp])
+    with open_session(mgr_cfg) as mgr, open_session(creds("sensor-c1")) as c1, open_session(creds("agent-a1")) as ag:
+        feats = Collector(mgr, KEYS.all_features, Features)
+        _deliver_until(
+            lambda: c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 1))),
+            lambda: feats.where(lambda k, m: m.seq == 1),
+            "c1's features over user/password",
+        )
+        ag.put(KEYS.sensor_features("c1"), encode(_features("c1", 666)))
+        c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 2)))
+        wait_for(lambda: feats.where(lambda k, m: m.seq == 2), 10.0, "c1's marker")
+        assert not wait_for_any(lambda: feats.where(lambda k, m: m.seq == 666), SETTLE_S), feats.items
+
+
+def test_routers_stay_up(site: SecureSite) -> None:
+    """Refused and denied clients never take the routers down."""
+    assert site.router.alive, site.router.log()
+    assert site.usr_router.alive, site.usr_router.log()
