@@ -1,0 +1,172 @@
+"""Stage 2: moving-object detection by the paper's background model.
+
+The paper ("Moving object detection and extraction", after its ref. [9])
+integrates four parts, all here:
+
+* **background subtraction** -- ``|I - B| > fg_threshold`` marks changed pixels;
+* **frame differencing** -- ``|I_t - I_{t-1}| > diff_threshold`` marks moving
+  pixels; it tells a *sudden* global change (every pixel jumps between two
+  frames) from people, and gives each blob its motion evidence;
+* **abnormal-change detection** -- when more than ``abnormal_frac`` of the
+  image changed at once (a light switched, the camera moved), the model is
+  re-initialised instead of reporting the whole image as people: first by the
+  robust global gain ``median(I / B)`` (a light change scales the scene), and
+  if that does not explain the change, from the current frame;
+* **background update** -- ``B <- (1 - a) B + a I`` pixel-wise, *only outside
+  object regions* (the caller passes the mask of accepted objects), so people
+  who pause are not absorbed while the slow light drift is followed.
+
+The model starts from the per-pixel median of the first ``warmup_frames``
+frames, so people walking through the first second do not leave ghosts.
+Nothing is reported while warming up or on the frame of a re-initialisation.
+
+Works on one grey channel (the panorama's luminance): the cheapest signal that
+carries the silhouette; colour is used later, on blob regions only.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from sensor_node.config import PipelineSettings
+
+__all__ = ["BackgroundModel", "Motion", "MotionState"]
+
+logger = logging.getLogger(__name__)
+
+Mask = npt.NDArray[Any]
+"""An 8-bit single-channel image (cv2 results are typed loosely)."""
+MotionState = Literal["warmup", "ok", "relit", "reinit"]
+
+
+@dataclass(frozen=True, slots=True)
+class Motion:
+    """What changed in one frame."""
+
+    fg: Mask
+    """255 where the frame differs from the background (empty unless state is "ok" or "relit")."""
+    moving: Mask
+    """255 where the frame differs from the previous frame."""
+    state: MotionState
+    """"warmup": still learning; "ok"; "relit": a global light change was compensated by a gain;
+    "reinit": the background was re-initialised from this frame (nothing reported)."""
+    changed_frac: float
+    """Fraction of pixels in ``fg`` (before any re-initialisation)."""
+    gain: float = 1.0
+    """Global brightness gain applied to the background on a light change (1: none)."""
+
+    @property
+    def reportable(self) -> bool:
+        return self.state in ("ok", "relit")
+
+
+class BackgroundModel:
+    """Per-camera background model on grey frames of a fixed size.
+
+    Args:
+        settings: the ``[pipeline]`` knobs (thresholds, learning rate, abnormal fraction, warm-up).
+    """
+
+    def __init__(self, settings: PipelineSettings) -> None:
+        self.settings = settings
+        self._bg: npt.NDArray[np.float32] | None = None
+        self._bg_u8: Mask | None = None
+        self._prev: Mask | None = None
+        self._warm: list[Mask] = []
+        self._frames = 0
+        self._updates = 0
+        self.reinits = 0
+        """Times the model was re-initialised from a frame."""
+        self.relights = 0
+        """Times a global light change was compensated by a gain."""
+
+    @property
+    def ready(self) -> bool:
+        return self._bg is not None
+
+    @property
+    def background(self) -> Mask | None:
+        """The current background as an 8-bit image (None while warming up)."""
+        return self._bg_u8
+
+    def _set_background(self, bg: npt.NDArray[np.float32]) -> None:
+        self._bg = bg
+        self._bg_u8 = cv2.convertScaleAbs(bg)
+
+    def apply(self, grey: Mask) -> Motion:
+        """Classify the pixels of one grey frame (H, W) uint8 against the model."""
+        s = self.settings
+        self._frames += 1
+        prev = self._prev
+        self._prev = grey
+        moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
+        empty = np.zeros_like(grey)
+        if self._bg is None:
+            self._warm.append(grey.copy())
+            if len(self._warm) >= s.warmup_frames:
+                stack = np.stack(self._warm)
+                self._set_background(np.median(stack, axis=0).astype(np.float32))
+                self._warm = []
+                logger.debug("background initialised from %d frames", s.warmup_frames)
+            return Motion(empty, moving, "warmup", 0.0)
+        bg_u8 = self._bg_u8
+        assert bg_u8 is not None
+        fg = _threshold(cv2.absdiff(grey, bg_u8), s.fg_threshold)
+        n = grey.size
+        frac = cv2.countNonZero(fg) / n
+        if frac <= s.abnormal_frac:
+            return Motion(fg, moving, "ok", frac)
+        # Abnormal change: many pixels changed. A light change scales the scene by a gain.
+        gain = _global_gain(grey, bg_u8)
+        relit = cv2.convertScaleAbs(self._bg, alpha=gain)
+        fg2 = _threshold(cv2.absdiff(grey, relit), s.fg_threshold)
+        frac2 = cv2.countNonZero(fg2) / n
+        if frac2 <= s.abnormal_frac:
+            assert self._bg is not None
+            self._set_background(np.minimum(self._bg * np.float32(gain), np.float32(255.0)))
+            self.relights += 1
+            logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
+            # The frame of the jump is not reported: frame differencing is meaningless across it.
+            return Motion(empty, empty, "relit", frac, gain)
+        self._set_background(grey.astype(np.float32))
+        self.reinits += 1
+        logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f): background reset", 100 * frac, gain)
+        return Motion(empty, empty, "reinit", frac, gain)
+
+    def update(self, grey: Mask, objects: Mask | None) -> None:
+        """Weighted-average update of the background *outside* ``objects`` (255 = object pixel).
+
+        Runs every ``update_every`` frames with the learning rate scaled to match.
+        """
+        if self._bg is None:
+            return
+        self._updates += 1
+        k = self.settings.update_every
+        if self._updates % k:
+            return
+        alpha = min(1.0, self.settings.learning_rate * k)
+        if objects is None:
+            cv2.accumulateWeighted(grey, self._bg, alpha)
+        else:
+            cv2.accumulateWeighted(grey, self._bg, alpha, mask=cv2.bitwise_not(objects))
+        self._bg_u8 = cv2.convertScaleAbs(self._bg)
+
+
+def _threshold(diff: Mask, level: int) -> Mask:
+    return cv2.threshold(diff, level, 255, cv2.THRESH_BINARY)[1]
+
+
+def _global_gain(grey: Mask, bg: Mask) -> float:
+    """Robust global brightness ratio frame/background: median over a pixel grid, ignoring dark pixels."""
+    g = grey[::4, ::4].astype(np.float32)
+    b = bg[::4, ::4].astype(np.float32)
+    ok = (b > 16) & (g > 4) & (g < 250)
+    if int(np.count_nonzero(ok)) < 16:
+        return 1.0
+    return float(np.median(g[ok] / b[ok]))

@@ -1,0 +1,157 @@
+"""Stage 3: group changed pixels into blobs (moving-object candidates) and validate them.
+
+Paper: "The subtraction image ... is analyzed by a grouping algorithm that
+generates blobs by merging connected and nearby regions ... Each of the
+extracted moving object blobs is checked to determine that enough pixels in
+the difference image have changed inside each region".
+
+* connected regions of the foreground mask (8-connectivity); specks under
+  ``min_component_px`` are noise;
+* regions whose bounding boxes are within ``merge_gap_px`` (columns, rows) of
+  each other merge into one blob -- a body split by clothing that matches
+  the wall rejoins; on a panorama columns wrap around (column W-1 touches
+  column 0), so a person standing on the seam is one blob;
+* a blob is kept if it has at least ``min_blob_px`` changed pixels, is at
+  least ``min_blob_height_px`` tall, and at least ``min_changed_frac`` of its
+  bounding box changed.
+
+Blob boxes are in *unwrapped* columns: ``u0`` in [0, W) and ``u0 + w`` may pass
+W; :func:`roi` cuts any image of the panorama's size the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from sensor_node.config import PipelineSettings
+
+__all__ = ["RawBlob", "find_blobs", "roi"]
+
+Mask = npt.NDArray[Any]
+"""An 8-bit single-channel image (cv2 results are typed loosely)."""
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RawBlob:
+    """One validated blob, before annotation."""
+
+    u0: int
+    """Left column of the bounding box, in [0, W)."""
+    v0: int
+    """Top row."""
+    w: int
+    """Width in columns (u0 + w may exceed W on a panorama: the box wraps)."""
+    h: int
+    mask: npt.NDArray[np.bool_]
+    """(h, w) pixels of the blob inside its box."""
+    area_px: int
+    changed_frac: float
+    """Changed pixels / box area."""
+    moving_frac: float
+    """Fraction of the blob's pixels that also moved since the previous frame."""
+
+
+def roi(image: npt.NDArray[np.generic], u0: int, v0: int, w: int, h: int) -> npt.NDArray[np.generic]:
+    """The (h, w) box of ``image`` at (u0, v0), wrapping around the right edge if it passes it."""
+    width = image.shape[1]
+    rows = slice(v0, v0 + h)
+    if u0 + w <= width:
+        return image[rows, u0 : u0 + w]
+    return np.concatenate([image[rows, u0:], image[rows, : u0 + w - width]], axis=1)
+
+
+def _groups(adj: npt.NDArray[np.bool_]) -> list[list[int]]:
+    """Connected components of a small symmetric adjacency matrix."""
+    n = adj.shape[0]
+    seen = np.zeros(n, dtype=bool)
+    out: list[list[int]] = []
+    for i in range(n):
+        if seen[i]:
+            continue
+        stack, members = [i], []
+        seen[i] = True
+        while stack:
+            j = stack.pop()
+            members.append(j)
+            for k in np.flatnonzero(adj[j] & ~seen):
+                seen[k] = True
+                stack.append(int(k))
+        out.append(members)
+    return out
+
+
+def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
+    """Start column of the shortest arc covering intervals [a0, a1] (inclusive) on a circle of ``width``."""
+    order = np.argsort(a0)
+    s, e = a0[order], a1[order]
+    # running end of coverage, then the widest uncovered gap (including the one across the seam)
+    ends = np.maximum.accumulate(e)
+    gaps = np.append(s[1:] - ends[:-1], s[0] + width - ends[-1])
+    k = int(np.argmax(gaps))
+    return int(s[(k + 1) % len(s)])
+
+
+def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True) -> list[RawBlob]:
+    """Group the foreground pixels of one frame into validated blobs.
+
+    Args:
+        fg: (H, W) 255 = changed against the background.
+        moving: (H, W) 255 = changed since the previous frame (frame differencing).
+        settings: grouping and validation knobs.
+        wrap: the image is a 360-degree panorama (columns wrap around).
+    """
+    width = fg.shape[1]
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8, ltype=cv2.CV_32S)
+    if n <= 1:
+        return []
+    st = stats[1:].astype(np.int64)
+    keep = np.flatnonzero(st[:, cv2.CC_STAT_AREA] >= settings.min_component_px)
+    if keep.size == 0:
+        return []
+    st = st[keep]
+    ids = keep + 1
+    a0 = st[:, cv2.CC_STAT_LEFT]
+    a1 = a0 + st[:, cv2.CC_STAT_WIDTH] - 1
+    b0 = st[:, cv2.CC_STAT_TOP]
+    b1 = b0 + st[:, cv2.CC_STAT_HEIGHT] - 1
+    gx, gy = settings.merge_gap_px
+    # Pairwise box gaps (<= 0: overlapping or touching), columns also across the seam.
+    gap_x = np.maximum(a0[:, None], a0[None, :]) - np.minimum(a1[:, None], a1[None, :]) - 1
+    if wrap:
+        for shift in (width, -width):
+            g = np.maximum(a0[:, None], a0[None, :] + shift) - np.minimum(a1[:, None], a1[None, :] + shift) - 1
+            gap_x = np.minimum(gap_x, g)
+    gap_y = np.maximum(b0[:, None], b0[None, :]) - np.minimum(b1[:, None], b1[None, :]) - 1
+    adj = (gap_x <= gx) & (gap_y <= gy)
+    out: list[RawBlob] = []
+    for members in _groups(adj):
+        m = np.asarray(members)
+        area = int(st[m, cv2.CC_STAT_AREA].sum())
+        v0, v1 = int(b0[m].min()), int(b1[m].max())
+        h = v1 - v0 + 1
+        if area < settings.min_blob_px or h < settings.min_blob_height_px:
+            continue
+        if wrap and len(m) > 1:
+            u0 = _circular_start(a0[m], a1[m], width)
+            s0 = np.where(a0[m] < u0, a0[m] + width, a0[m])
+            s1 = s0 + (a1[m] - a0[m])
+            w = int(s1.max()) - u0 + 1
+        else:
+            u0 = int(a0[m].min())
+            w = int(a1[m].max()) - u0 + 1
+        w = min(w, width)
+        changed = area / float(w * h)
+        if changed < settings.min_changed_frac:
+            continue
+        lab = roi(labels, u0, v0, w, h)
+        mask = lab == ids[m[0]] if len(m) == 1 else np.isin(lab, ids[m])
+        mov = roi(moving, u0, v0, w, h)
+        moving_px = int(np.count_nonzero(mov[mask]))
+        out.append(RawBlob(u0, v0, w, h, mask, area, min(1.0, changed), moving_px / max(area, 1)))
+    return out

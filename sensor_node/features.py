@@ -1,0 +1,222 @@
+"""Stage 5: annotate each blob as the paper's T_i = (I, theta, w, h), plus bottom and box.
+
+* I -- photometric feature: an L1-normalised hue x saturation histogram of the
+  blob's pixels (hue and saturation change little under a global light change,
+  unlike raw BGR);
+* theta -- bearing of the head centre (:mod:`sensor_node.head`);
+* w -- angular width of the blob;
+* h -- elevation of the top of the blob (the top of the head: with a distance,
+  the person's height);
+* plus the bottom elevation (feet, when visible), the bounding box, and the
+  fraction of changed pixels.
+
+Angles come from the image geometry: the cylindrical camera for a panorama
+(sensor-frame bearings) or the pinhole model for a PTZ/perspective camera
+(world azimuths, its pose having yaw 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from common.cameras import CylindricalCamera, PinholeCamera
+from common.schema import Blob
+from sensor_node.blobs import RawBlob, roi
+from sensor_node.head import extract_head
+
+__all__ = [
+    "BlobFeature",
+    "ImageGeometry",
+    "PanoramicGeometry",
+    "PinholeGeometry",
+    "annotate",
+    "colour_histogram",
+    "to_wire",
+]
+
+
+class ImageGeometry(Protocol):
+    """Pixel -> angles of one camera's processed image (pixel centres at integers)."""
+
+    @property
+    def wraps(self) -> bool:
+        """True for a 360-degree panorama (columns wrap around)."""
+        ...
+
+    def bearing(self, u: float, v: float) -> float:
+        """Bearing (rad) of the ray through pixel (u, v)."""
+        ...
+
+    def elevation(self, u: float, v: float) -> float:
+        """Elevation (rad) of the ray through pixel (u, v)."""
+        ...
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        """Angle (rad) between the rays through (u_left, v) and (u_right, v)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class PanoramicGeometry:
+    """A cylindrical panorama: bearings in the sensor frame."""
+
+    camera: CylindricalCamera
+
+    @property
+    def wraps(self) -> bool:
+        return True
+
+    def bearing(self, u: float, v: float) -> float:
+        return self.camera.bearing_from_col(u)
+
+    def elevation(self, u: float, v: float) -> float:
+        return self.camera.elevation_from_row(v)
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        return abs(u_right - u_left) / self.camera.f_h_px
+
+
+@dataclass(frozen=True, slots=True)
+class PinholeGeometry:
+    """A perspective image with a known pose: bearings are world azimuths."""
+
+    camera: PinholeCamera
+
+    @property
+    def wraps(self) -> bool:
+        return False
+
+    def _angles(self, u: float, v: float) -> tuple[float, float]:
+        az, el = self.camera.bearing_elevation(np.array([[u, v]], dtype=np.float64))
+        return float(az[0]), float(el[0])
+
+    def bearing(self, u: float, v: float) -> float:
+        return self._angles(u, v)[0]
+
+    def elevation(self, u: float, v: float) -> float:
+        return self._angles(u, v)[1]
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        az, _ = self.camera.bearing_elevation(np.array([[u_left, v], [u_right, v]], dtype=np.float64))
+        d = float(az[0] - az[1])
+        return abs(math.atan2(math.sin(d), math.cos(d)))
+
+
+@dataclass(frozen=True, slots=True)
+class BlobFeature:
+    """One annotated blob (the wire Blob minus its local id)."""
+
+    bearing_rad: float
+    width_rad: float
+    top_elev_rad: float
+    bottom_elev_rad: float
+    u0_px: int
+    v0_px: int
+    w_px: int
+    h_px: int
+    head_u_px: float
+    """Head centroid column in the image (may exceed the width on a wrapped box; wrap with % W)."""
+    head_v_px: float
+    hist: list[float]
+    changed_frac: float
+    feet_visible: bool
+    confidence: float = 1.0
+
+
+def colour_histogram(
+    bgr_roi: npt.NDArray[Any], mask: npt.NDArray[np.bool_], bins: tuple[int, int] | list[int]
+) -> list[float]:
+    """L1-normalised hue x saturation histogram of the masked pixels (the paper's I)."""
+    hsv = cv2.cvtColor(np.ascontiguousarray(bgr_roi), cv2.COLOR_BGR2HSV)
+    m8 = mask.astype(np.uint8)
+    hist = cv2.calcHist([hsv], [0, 1], m8, [int(bins[0]), int(bins[1])], [0, 180, 0, 256]).ravel()
+    total = float(hist.sum())
+    if total <= 0:
+        return []
+    return [float(x) for x in hist / total]
+
+
+def annotate(
+    raw: RawBlob,
+    image_bgr: npt.NDArray[np.uint8] | None,
+    geometry: ImageGeometry,
+    head_ratio: float = 1.5,
+    hist_bins: tuple[int, int] | list[int] = (16, 4),
+) -> BlobFeature:
+    """Turn a validated blob into its annotation (I, theta, w, h, bottom, box).
+
+    Args:
+        raw: the blob (box and pixel mask) from :func:`sensor_node.blobs.find_blobs`.
+        image_bgr: the processed colour image the blob was found in (None: no histogram).
+        geometry: pixel -> angle mapping of that image.
+        head_ratio: head box height:width (paper 3:2).
+        hist_bins: hue x saturation bins of I.
+    """
+    head = extract_head(raw.mask, head_ratio)
+    height_px, width_img = (image_bgr.shape[0], image_bgr.shape[1]) if image_bgr is not None else (0, 0)
+    head_u = raw.u0 + head.u_px
+    head_v = raw.v0 + head.v_px
+    top_v = raw.v0 + head.top_px - 0.5
+    bottom_v = raw.v0 + raw.h - 0.5
+    mid_v = raw.v0 + raw.h / 2.0
+    bearing = geometry.bearing(head_u % width_img if geometry.wraps and width_img else head_u, head_v)
+    width = geometry.width(raw.u0 - 0.5, raw.u0 + raw.w - 0.5, mid_v)
+    top = geometry.elevation(head_u, top_v)
+    bottom = geometry.elevation(head_u, bottom_v)
+    hist: list[float] = []
+    feet_visible = True
+    if image_bgr is not None:
+        hist = colour_histogram(roi(image_bgr, raw.u0, raw.v0, raw.w, raw.h), raw.mask, hist_bins)
+        feet_visible = raw.v0 + raw.h < height_px
+        if not geometry.wraps:
+            feet_visible = feet_visible and raw.u0 > 0 and raw.u0 + raw.w < width_img
+    return BlobFeature(
+        bearing_rad=bearing,
+        width_rad=width,
+        top_elev_rad=top,
+        bottom_elev_rad=bottom,
+        u0_px=raw.u0,
+        v0_px=raw.v0,
+        w_px=raw.w,
+        h_px=raw.h,
+        head_u_px=head_u,
+        head_v_px=head_v,
+        hist=hist,
+        changed_frac=raw.changed_frac,
+        feet_visible=feet_visible,
+    )
+
+
+def _wrap_pi(a: float) -> float:
+    w = math.atan2(math.sin(a), math.cos(a))
+    return math.pi if w > math.pi else w
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+def to_wire(f: BlobFeature, local_id: int) -> Blob:
+    """The wire Blob (numpy values turned into bounded Python floats)."""
+    half = math.pi / 2
+    return Blob(
+        local_id=int(local_id),
+        bearing_rad=_wrap_pi(float(f.bearing_rad)),
+        width_rad=_clip(float(f.width_rad), 0.0, 2 * math.pi),
+        top_elev_rad=_clip(float(f.top_elev_rad), -half, half),
+        bottom_elev_rad=_clip(float(f.bottom_elev_rad), -half, half),
+        bbox_u_px=float(f.u0_px),
+        bbox_v_px=float(f.v0_px),
+        bbox_w_px=float(f.w_px),
+        bbox_h_px=float(f.h_px),
+        hist=f.hist,
+        changed_frac=_clip(float(f.changed_frac), 0.0, 1.0),
+        feet_visible=bool(f.feet_visible),
+        confidence=_clip(float(f.confidence), 0.0, 1.0),
+    )

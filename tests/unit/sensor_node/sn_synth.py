@@ -1,0 +1,65 @@
+"""Synthetic panoramas drawn with cv2 for stage tests (no renderer needed)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+W, H = 1080, 162
+
+
+def backdrop(seed: int = 0, w: int = W, h: int = H) -> npt.NDArray[np.uint8]:
+    """A smooth, textured BGR background."""
+    rng = np.random.default_rng(seed)
+    coarse = rng.integers(70, 170, (h // 8 + 1, w // 20 + 1, 3)).astype(np.uint8)
+    return cv2.resize(coarse, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def draw_person(
+    img: npt.NDArray[np.uint8],
+    u: float,
+    top: int = 40,
+    head_w: int = 10,
+    body_w: int = 22,
+    body_offset: float = 0.0,
+    shirt: tuple[int, int, int] = (30, 30, 200),
+    head: tuple[int, int, int] = (200, 220, 240),
+) -> None:
+    """A person: elliptic head centred at column ``u`` and a body box (offset sideways by ``body_offset``).
+
+    Drawn with 1/16-px precision (cv2 shift=4); wraps around the panorama seam.
+    """
+    width = img.shape[1]
+    for shift in (0, -width, width):
+        cu = u + shift
+        head_h = int(round(1.5 * head_w))
+        b0 = cu + body_offset - body_w / 2
+        cv2.rectangle(
+            img,
+            (int(round(b0 * 16)), (top + head_h - 2) * 16),
+            (int(round((b0 + body_w) * 16)), (img.shape[0] + 5) * 16),
+            shirt,
+            -1,
+            shift=4,
+        )
+        cv2.ellipse(
+            img,
+            (int(round(cu * 16)), int(round((top + head_h / 2) * 16))),
+            (int(round(head_w / 2 * 16)), int(round(head_h / 2 * 16))),
+            0,
+            0,
+            360,
+            head,
+            -1,
+            lineType=cv2.LINE_AA,
+            shift=4,
+        )
+
+
+def noisy(img: npt.NDArray[np.uint8], rng: np.random.Generator, sigma: float = 2.0, gain: float = 1.0) -> npt.NDArray[np.uint8]:
+    return np.clip(img.astype(np.float32) * gain + rng.normal(0, sigma, img.shape), 0, 255).astype(np.uint8)
+
+
+def grey(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)

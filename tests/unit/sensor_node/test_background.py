@@ -1,0 +1,91 @@
+"""Background model: subtraction, frame differencing, abnormal change, update outside objects."""
+
+from __future__ import annotations
+
+import numpy as np
+from sn_synth import backdrop, draw_person, grey, noisy
+
+from sensor_node.background import BackgroundModel
+from sensor_node.config import PipelineSettings
+
+
+def _warm(model: BackgroundModel, base: np.ndarray, rng: np.random.Generator) -> None:
+    for _ in range(model.settings.warmup_frames):
+        m = model.apply(grey(noisy(base, rng)))
+        assert m.state == "warmup" and not m.reportable and not m.fg.any()
+
+
+def test_person_is_foreground_and_static_scene_is_not() -> None:
+    rng = np.random.default_rng(1)
+    base = backdrop(1)
+    model = BackgroundModel(PipelineSettings())
+    _warm(model, base, rng)
+    m = model.apply(grey(noisy(base, rng)))
+    assert m.state == "ok" and m.changed_frac < 0.001
+    frame = base.copy()
+    draw_person(frame, 300.0)
+    m = model.apply(grey(noisy(frame, rng)))
+    assert m.state == "ok"
+    assert (m.fg[90:130, 295:305] > 0).mean() > 0.8  # the shirt
+    assert not m.fg[:, 600:].any()
+    assert m.moving[100, 295:305].any()  # it appeared: frame differencing sees it
+
+
+def test_people_in_the_warmup_frames_leave_no_ghost() -> None:
+    rng = np.random.default_rng(2)
+    base = backdrop(2)
+    model = BackgroundModel(PipelineSettings(warmup_frames=9))
+    for k in range(9):
+        f = base.copy()
+        draw_person(f, 100.0 + 30 * k)
+        model.apply(grey(noisy(f, rng)))
+    m = model.apply(grey(noisy(base, rng)))
+    assert m.state == "ok"
+    assert m.changed_frac < 0.002
+
+
+def test_sudden_light_change_is_compensated_not_reported() -> None:
+    rng = np.random.default_rng(3)
+    base = backdrop(3)
+    model = BackgroundModel(PipelineSettings())
+    _warm(model, base, rng)
+    m = model.apply(grey(noisy(base, rng, gain=1.35)))
+    assert m.state == "relit" and not m.fg.any()
+    assert abs(m.gain - 1.35) < 0.05
+    # After the jump, the brighter empty scene is background, and a person is still found.
+    m = model.apply(grey(noisy(base, rng, gain=1.35)))
+    assert m.state == "ok" and m.changed_frac < 0.002
+    frame = base.copy()
+    draw_person(frame, 700.0)
+    m = model.apply(grey(noisy(frame, rng, gain=1.35)))
+    assert (m.fg[90:130, 695:705] > 0).mean() > 0.8
+
+
+def test_scene_change_reinitialises() -> None:
+    rng = np.random.default_rng(4)
+    model = BackgroundModel(PipelineSettings())
+    _warm(model, backdrop(4), rng)
+    other = (255 - backdrop(4)).astype(np.uint8)  # a different scene (camera moved), not a gain
+    m = model.apply(grey(noisy(other, rng)))
+    assert m.state == "reinit" and not m.fg.any() and model.reinits == 1
+    assert model.apply(grey(noisy(other, rng))).changed_frac < 0.002
+
+
+def test_update_only_outside_objects() -> None:
+    rng = np.random.default_rng(5)
+    base = backdrop(5)
+    model = BackgroundModel(PipelineSettings(learning_rate=0.5, update_every=1))
+    _warm(model, base, rng)
+    frame = base.copy()
+    draw_person(frame, 300.0)
+    g = grey(frame)
+    objects = np.zeros_like(g)
+    objects[:, 280:320] = 255
+    before = model.background.copy()  # type: ignore[union-attr]
+    brighter = np.clip(g.astype(np.int16) + 30, 0, 255).astype(np.uint8)
+    for _ in range(5):
+        model.update(brighter, objects)
+    after = model.background
+    assert after is not None
+    assert np.array_equal(after[:, 280:320], before[:, 280:320])  # object region untouched
+    assert float(np.mean(after[:, 600:700].astype(int) - before[:, 600:700].astype(int))) > 25  # elsewhere learnt
