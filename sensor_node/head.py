@@ -62,11 +62,11 @@ def extract_head(mask: npt.NDArray[np.bool_], head_ratio: float = 1.5) -> Head:
     # Per-row pixel centroids, averaged over the rows that are head-wide (a shoulder row that
     # slipped into the box would pull the centroid towards the body).
     counts = region.sum(axis=1)
-    cols = np.arange(region.shape[1], dtype=np.float64)
+    col_idx = np.arange(region.shape[1], dtype=np.float64)
     ok = (counts > 0) & (counts <= max(1.5 * head_w, 2))
     if not ok.any():
         ok = counts > 0
-    row_u = (region[ok] @ cols) / counts[ok]
+    row_u = (region[ok] @ col_idx) / counts[ok]
     row_v = np.flatnonzero(ok).astype(np.float64)
     return Head(
         u_px=float(row_u.mean()),

@@ -33,20 +33,20 @@ def draw_person(
     width = img.shape[1]
     for shift in (0, -width, width):
         cu = u + shift
-        head_h = int(round(1.5 * head_w))
+        head_h = round(1.5 * head_w)
         b0 = cu + body_offset - body_w / 2
         cv2.rectangle(
             img,
-            (int(round(b0 * 16)), (top + head_h - 2) * 16),
-            (int(round((b0 + body_w) * 16)), (img.shape[0] + 5) * 16),
+            (round(b0 * 16), (top + head_h - 2) * 16),
+            (round((b0 + body_w) * 16), (img.shape[0] + 5) * 16),
             shirt,
             -1,
             shift=4,
         )
         cv2.ellipse(
             img,
-            (int(round(cu * 16)), int(round((top + head_h / 2) * 16))),
-            (int(round(head_w / 2 * 16)), int(round(head_h / 2 * 16))),
+            (round(cu * 16), round((top + head_h / 2) * 16)),
+            (round(head_w / 2 * 16), round(head_h / 2 * 16)),
             0,
             0,
             360,
@@ -57,7 +57,9 @@ def draw_person(
         )
 
 
-def noisy(img: npt.NDArray[np.uint8], rng: np.random.Generator, sigma: float = 2.0, gain: float = 1.0) -> npt.NDArray[np.uint8]:
+def noisy(
+    img: npt.NDArray[np.uint8], rng: np.random.Generator, sigma: float = 2.0, gain: float = 1.0
+) -> npt.NDArray[np.uint8]:
     return np.clip(img.astype(np.float32) * gain + rng.normal(0, sigma, img.shape), 0, 255).astype(np.uint8)
 
 

@@ -53,7 +53,9 @@ def test_noise_and_sparse_regions_are_rejected() -> None:
     for k in range(12):
         sparse[40 + 8 * k : 43 + 8 * k, 200 + 5 * k : 203 + 5 * k] = 255
     assert find_blobs(sparse, sparse, PipelineSettings(min_component_px=4, min_blob_px=20)) == []
-    assert len(find_blobs(sparse, sparse, PipelineSettings(min_component_px=4, min_blob_px=20, min_changed_frac=0.0))) == 1
+    assert (
+        len(find_blobs(sparse, sparse, PipelineSettings(min_component_px=4, min_blob_px=20, min_changed_frac=0.0))) == 1
+    )
 
 
 def test_small_blob_rejected() -> None:
