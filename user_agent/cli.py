@@ -1,0 +1,276 @@
+"""``user-agent`` (= ``panostereo agent``): watch, tracks, history, sensors, view, record, replay, plot, evaluate.
+
+Thin entry point: parse, load config, call the library, print. Network
+subcommands take the shared zenoh flags (``--connect`` …) and ``--config``
+(an agent TOML with ``[agent]`` and ``[zenoh]``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from typing import Any
+
+import msgspec
+
+from common.cli import add_logging_args, run_main, setup_logging
+from common.errors import ConfigError
+from common.keys import DEFAULT_PREFIX, Keys
+from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
+
+__all__ = ["configure", "main", "run"]
+
+EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
+
+
+def _net(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", default=None, metavar="FILE", help="agent config (TOML: [agent] id, prefix; [zenoh])")
+    p.add_argument("--prefix", default=None, help=f"key prefix of the site (default {DEFAULT_PREFIX})")
+    p.add_argument("--agent-id", default=None, help="id announced on the network (default agent-<pid>)")
+    add_session_args(p)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the agent's subcommands to ``parser`` (used by ``panostereo agent`` too)."""
+    sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
+
+    p = sub.add_parser("watch", help="live terminal view of tracks, sensors and managers")
+    p.add_argument("--interval", type=float, default=0.5, help="refresh period in seconds")
+    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--once", action="store_true", help="print one screen and exit")
+    _net(p)
+
+    p = sub.add_parser("tracks", help="current tracks (table or --json)")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--timeout", type=float, default=3.0, help="wait this long for a first TrackSet")
+    _net(p)
+
+    p = sub.add_parser("history", help="a track's path over the last seconds (table or --json)")
+    p.add_argument("track_id")
+    p.add_argument("--seconds", type=float, default=30.0)
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--timeout", type=float, default=3.0)
+    _net(p)
+
+    p = sub.add_parser("sensors", help="sensors with status and clock offsets (table or --json)")
+    p.add_argument("--json", action="store_true")
+    _net(p)
+
+    p = sub.add_parser("view", help="ask the manager for a PTZ view of a track (or --release it)")
+    p.add_argument("track_id")
+    p.add_argument("--release", action="store_true")
+    p.add_argument("--priority", type=int, default=0)
+    p.add_argument("--manager", default=None, help="manager id (default: from the track id)")
+    _net(p)
+
+    p = sub.add_parser("record", help="record everything under {prefix}/@v1/** into MCAP")
+    p.add_argument("out", metavar="OUT.mcap")
+    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--site", default=None, metavar="FILE", help="site file: stores prefix, fps and room for evaluate")
+    p.add_argument("--epoch-ns", type=int, default=None, help=f"world epoch (default: env {EPOCH_ENV})")
+    p.add_argument("--fps", type=float, default=None, help="ground-truth frame rate (default: the site's)")
+    _net(p)
+
+    p = sub.add_parser("replay", help="republish a recording with its original timing")
+    p.add_argument("input", metavar="IN.mcap")
+    p.add_argument("--speed", type=float, default=1.0)
+    _net(p)
+
+    p = sub.add_parser("plot", help="top-view PNG of a recording (ground truth beside it)")
+    p.add_argument("input", metavar="IN.mcap")
+    p.add_argument("--out", required=True, metavar="PNG")
+    p.add_argument("--ground-truth", default=None, metavar="GT.csv")
+    p.add_argument("--title", default="")
+
+    p = sub.add_parser("evaluate", help="MOTA/MOTP, IDF1, ID switches, precision, recall, error of a recording")
+    p.add_argument("input", metavar="IN.mcap")
+    p.add_argument("--ground-truth", required=True, metavar="GT.csv")
+    p.add_argument("--threshold", type=float, default=0.5, help="match distance in metres")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
+    p.add_argument("--fps", type=float, default=None, help="ground-truth fps (default: from the recording)")
+
+
+def _session_and_prefix(args: argparse.Namespace) -> tuple[SessionSettings, str, str | None]:
+    base = SessionSettings()
+    prefix = DEFAULT_PREFIX
+    agent_id = None
+    if args.config:
+        from user_agent.config import load_agent_config
+
+        cfg = load_agent_config(args.config)
+        base, prefix, agent_id = cfg.zenoh, cfg.agent.prefix, cfg.agent.id
+    prefix = args.prefix or prefix
+    Keys(prefix)
+    return settings_from_args(args, base), prefix, args.agent_id or agent_id
+
+
+def _client(args: argparse.Namespace) -> Any:
+    from user_agent.client import AgentClient
+
+    settings, prefix, agent_id = _session_and_prefix(args)
+    return AgentClient(settings=settings, prefix=prefix, agent_id=agent_id)
+
+
+def _dump(obj: Any) -> None:
+    print(json.dumps(msgspec.to_builtins(obj), indent=2))
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from user_agent.views import CLEAR_SCREEN, watch_screen
+
+    shutdown = install_signal_handlers()
+    tty = sys.stdout.isatty()
+    with _client(args) as agent:
+        end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+        sensors = agent.sensors(timeout_s=1.0)
+        last_sensors = time.monotonic()
+        while True:
+            if time.monotonic() - last_sensors > 3.0:
+                sensors, last_sensors = agent.sensors(timeout_s=1.0), time.monotonic()
+            header = f"panostereo watch  {time.strftime('%H:%M:%S')}  prefix {agent.keys.prefix}"
+            screen = watch_screen(agent.tracks(timeout_s=0), sensors, agent.managers(timeout_s=0.5), header)
+            print((CLEAR_SCREEN if tty else "") + screen, flush=True)
+            if args.once or time.monotonic() >= end or shutdown.sleep(args.interval):
+                return 0
+
+
+def _record(args: argparse.Namespace) -> int:
+    from user_agent.record import McapSink, Recorder
+
+    settings, prefix, _ = _session_and_prefix(args)
+    meta: dict[str, str] = {"prefix": prefix}
+    fps = args.fps
+    if args.site:
+        from common.site import load_site
+
+        site = load_site(args.site)
+        prefix = args.prefix or site.site.prefix
+        meta.update(site=site.site.name, prefix=prefix, room_x_m=str(site.world.room_x_m))
+        meta["room_y_m"] = str(site.world.room_y_m)
+        if site.dataset is not None:
+            fps = fps or site.dataset.fps
+            meta.pop("room_x_m")
+            meta.pop("room_y_m")
+        fps = fps or site.site.fps
+    epoch = args.epoch_ns if args.epoch_ns is not None else os.environ.get(EPOCH_ENV, "")
+    if str(epoch).strip():
+        try:
+            meta["epoch_ns"] = str(int(epoch))
+        except ValueError as err:
+            raise ConfigError(f"environment {EPOCH_ENV}: expected integer Unix ns, got {epoch!r}") from err
+    if fps:
+        meta["fps"] = str(fps)
+    shutdown = install_signal_handlers()
+    with open_session(settings) as session:
+        rec = Recorder(session, Keys(prefix).all, McapSink(args.out, meta))
+        end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+        try:
+            while time.monotonic() < end and not shutdown.sleep(min(0.2, max(0.0, end - time.monotonic()))):
+                pass
+        finally:
+            rec.stop()
+    print(f"recorded {rec.messages} samples into {args.out}", file=sys.stderr)
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from user_agent.replay import replay
+
+    settings, _, _ = _session_and_prefix(args)
+    shutdown = install_signal_handlers()
+    with open_session(settings) as session:
+        sent = replay(session, args.input, speed=args.speed, should_stop=shutdown.is_set, sleep=shutdown.sleep)
+    print(f"replayed {sent} samples", file=sys.stderr)
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from user_agent.groundtruth import read_gt_csv
+    from user_agent.recording import load_recording
+    from user_agent.report import score_recording
+
+    rec = load_recording(args.input)
+    scored = score_recording(
+        rec, read_gt_csv(args.ground_truth), threshold_m=args.threshold, epoch_ns=args.epoch_ns, fps=args.fps
+    )
+    out: dict[str, Any] = dict(scored.metrics.to_dict())
+    out["tracks_published"] = scored.tracks_published
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        m = scored.metrics
+        print(
+            f"frames {m.frames}  objects {m.objects}  tracks {scored.tracks_published}\n"
+            f"MOTA {m.mota:.3f}  MOTP {m.motp_m:.3f} m  IDF1 {m.idf1:.3f}  ID switches {m.id_switches}\n"
+            f"precision {m.precision:.3f}  recall {m.recall:.3f}  FP {m.false_positives}  misses {m.misses}\n"
+            f"error mean {m.mean_error_m:.3f} m  p90 {m.p90_error_m:.3f} m  (threshold {args.threshold} m)"
+        )
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the chosen subcommand."""
+    action = args.action
+    if action == "watch":
+        return _watch(args)
+    if action == "record":
+        return _record(args)
+    if action == "replay":
+        return _replay(args)
+    if action == "evaluate":
+        return _evaluate(args)
+    if action == "plot":
+        from user_agent.report import plot_recording
+
+        print(plot_recording(args.input, args.out, args.ground_truth, title=args.title))
+        return 0
+    from user_agent.views import history_table, tracks_table
+
+    with _client(args) as agent:
+        if action == "tracks":
+            tracks = agent.tracks(timeout_s=args.timeout)
+            _dump(tracks) if args.json else print(tracks_table(tracks))
+        elif action == "history":
+            path = agent.history(args.track_id, args.seconds, timeout_s=args.timeout)
+            _dump(path) if args.json else print(history_table(path))
+        elif action == "sensors":
+            sensors = agent.sensors(timeout_s=1.5)
+            if args.json:
+                _dump(
+                    [
+                        {
+                            "sensor_id": s.sensor_id,
+                            "alive": s.alive,
+                            "clock_offset_ns": s.clock_offset_ns,
+                            "info": msgspec.to_builtins(s.info),
+                            "status": msgspec.to_builtins(s.status),
+                        }
+                        for s in sensors
+                    ]
+                )
+            else:
+                from user_agent.views import watch_screen
+
+                print(watch_screen([], sensors, []), end="")
+        elif action == "view":
+            reply = (
+                agent.release_view(args.track_id, args.manager)
+                if args.release
+                else agent.request_view(args.track_id, args.priority, args.manager)
+            )
+            _dump(reply)
+            return 0 if reply.ok else 1
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="user-agent", description="User-agent tools of a panostereo site.")
+    add_logging_args(parser)
+    configure(parser)
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    setup_logging(args.log_level)
+    return run_main(lambda: run(args), "user-agent")

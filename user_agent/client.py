@@ -1,0 +1,330 @@
+"""Python API of a user agent: read tracks, sensors and plans of any site; ask for PTZ views.
+
+A :class:`AgentClient` is a zenoh client of the site's router (or uses a
+session you pass in). It keeps the newest TrackSet of every manager, the
+newest status of every sensor and manager, view plans and pair choices,
+from subscriptions whose zenoh callbacks only enqueue bytes (common.transport);
+a pump thread decodes them and calls your subscribers. Queries (track state,
+history, sensor info, PTZ allocation) are plain zenoh ``get`` calls on the keys
+of :mod:`common.keys`.
+
+Example::
+
+    from user_agent.client import AgentClient
+    with AgentClient(connect=["tcp/192.168.1.10:7447"]) as agent:
+        for track in agent.tracks(timeout_s=5):
+            print(track.track_id, track.x_m, track.y_m)
+        path = agent.history("mgr1-3", seconds=30)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from common.codec import decode, encode
+from common.errors import SchemaError, SessionError
+from common.keys import DEFAULT_PREFIX, Keys, validate_id
+from common.schema import (
+    ManagerStatus,
+    NodeStatus,
+    PairChoice,
+    PtzReply,
+    PtzRequest,
+    SensorInfo,
+    Track,
+    TrackSet,
+    ViewPlan,
+)
+from common.session import MSGPACK, SessionSettings, open_session
+from common.transport import Inbox
+
+__all__ = ["AgentClient", "ManagerView", "SensorView", "Subscription"]
+
+logger = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True)
+class SensorView:
+    """What the network says about one sensor."""
+
+    sensor_id: str
+    alive: bool
+    """Its liveliness token is present."""
+    info: SensorInfo | None
+    status: NodeStatus | None
+
+    @property
+    def clock_offset_ns(self) -> int:
+        """The node's NTP clock offset (status first, else info; 0 when unknown)."""
+        if self.status is not None:
+            return self.status.clock_offset_ns
+        return self.info.clock_offset_ns if self.info is not None else 0
+
+
+@dataclass(frozen=True, slots=True)
+class ManagerView:
+    manager_id: str
+    alive: bool
+    status: ManagerStatus | None
+
+
+class Subscription:
+    """A TrackSet callback; :meth:`close` stops it."""
+
+    def __init__(self, owner: AgentClient, callback: Callable[[TrackSet], None]) -> None:
+        self._owner = owner
+        self.callback = callback
+
+    def close(self) -> None:
+        self._owner._unsubscribe(self)
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class AgentClient:
+    """A user agent's connection to a site.
+
+    Args:
+        session: an open zenoh session to use (not closed by the client); if
+            None, one is opened from ``settings`` or ``connect``.
+        settings: how to join (mode, endpoints, TLS config file, user/password).
+        connect: shorthand for ``SessionSettings(connect=connect)``.
+        prefix: the site's key prefix.
+        agent_id: announced as a liveliness token ``{root}/agent/{id}`` and sent
+            with PTZ requests (default ``agent-<pid>``).
+    """
+
+    def __init__(
+        self,
+        session: Any | None = None,
+        *,
+        settings: SessionSettings | None = None,
+        connect: list[str] | None = None,
+        prefix: str = DEFAULT_PREFIX,
+        agent_id: str | None = None,
+    ) -> None:
+        self.keys = Keys(prefix)
+        self.agent_id = validate_id(agent_id or f"agent-{os.getpid()}", "agent id")
+        self._stack = contextlib.ExitStack()
+        if session is None:
+            s = settings or SessionSettings(connect=list(connect or []))
+            session = self._stack.enter_context(open_session(s))
+        self.session = session
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self._tracksets: dict[str, TrackSet] = {}
+        self._node_status: dict[str, NodeStatus] = {}
+        self._mgr_status: dict[str, ManagerStatus] = {}
+        self._plans: dict[str, ViewPlan] = {}
+        self._pairs: dict[str, PairChoice] = {}
+        self._subs: list[Subscription] = []
+        self._seq = itertools.count()
+        self._stop = threading.Event()
+        try:
+            self._token = session.liveliness().declare_token(self.keys.agent(self.agent_id))
+            self._in_tracks = Inbox(session, self.keys.tracks(), TrackSet, capacity=256)
+            self._in_status = Inbox(session, self.keys.all_sensor_status, NodeStatus, capacity=256)
+            self._in_mgr = Inbox(session, self.keys.all_manager_status, ManagerStatus, capacity=64)
+            self._in_plans = Inbox(session, self.keys.all_plans, ViewPlan, capacity=64)
+            self._in_pairs = Inbox(session, self.keys.all_pairs, PairChoice, capacity=64)
+        except Exception:
+            self._stack.close()
+            raise
+        self._thread = threading.Thread(target=self._pump, name="agent-pump", daemon=True)
+        self._thread.start()
+
+    # -- lifecycle ----------------------------------------------------------
+    def close(self) -> None:
+        """Stop the pump, undeclare everything, close the session if we opened it."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self._thread.join(timeout=5)
+        for inbox in (self._in_tracks, self._in_status, self._in_mgr, self._in_plans, self._in_pairs):
+            inbox.close()
+        with contextlib.suppress(Exception):
+            self._token.undeclare()
+        self._stack.close()
+
+    def __enter__(self) -> AgentClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- background ---------------------------------------------------------
+    def _pump(self) -> None:
+        while not self._stop.is_set():
+            got = self._in_tracks.get(timeout_s=0.05)
+            sets = [got] if got is not None else []
+            sets += self._in_tracks.drain()
+            with self._lock:
+                for r in sets:
+                    old = self._tracksets.get(r.msg.manager_id)
+                    if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
+                        self._tracksets[r.msg.manager_id] = r.msg
+                for s in self._in_status.drain():
+                    self._node_status[s.msg.sensor_id] = s.msg
+                for m in self._in_mgr.drain():
+                    self._mgr_status[m.msg.manager_id] = m.msg
+                for p in self._in_plans.drain():
+                    self._plans[p.msg.sensor_id] = p.msg
+                for c in self._in_pairs.drain():
+                    self._pairs[c.msg.manager_id] = c.msg
+                subs = list(self._subs)
+                self._changed.notify_all()
+            for r in sets:
+                for sub in subs:
+                    try:
+                        sub.callback(r.msg)
+                    except Exception:
+                        logger.exception("track subscriber callback failed")
+
+    def _unsubscribe(self, sub: Subscription) -> None:
+        with self._lock:
+            if sub in self._subs:
+                self._subs.remove(sub)
+
+    def _wait(self, pred: Callable[[], bool], timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while not pred():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._changed.wait(min(left, 0.1))
+            return True
+
+    def _query(self, selector: Any, msg_type: type[T], timeout_s: float, payload: bytes | None = None) -> list[T]:
+        out: list[T] = []
+        try:
+            replies = self.session.get(
+                selector, timeout=timeout_s, payload=payload, encoding=MSGPACK if payload else None
+            )
+        except Exception as err:
+            raise SessionError(f"query {selector} failed: {err}") from err
+        for reply in replies:
+            if reply.ok is None:
+                logger.debug("query %s: error reply %s", selector, reply.err.payload.to_string())
+                continue
+            try:
+                out.append(decode(reply.ok.payload.to_bytes(), msg_type))
+            except SchemaError as err:
+                logger.warning("query %s: bad reply dropped: %s", selector, err)
+        return out
+
+    # -- tracks -------------------------------------------------------------
+    def track_sets(self, timeout_s: float = 0.0) -> dict[str, TrackSet]:
+        """The newest TrackSet of every manager (waits up to ``timeout_s`` for a first one)."""
+        self._wait(lambda: bool(self._tracksets), timeout_s)
+        with self._lock:
+            return dict(self._tracksets)
+
+    def tracks(self, timeout_s: float = 2.0) -> list[Track]:
+        """Every current track of every manager, by track id."""
+        sets = self.track_sets(timeout_s)
+        return sorted((t for ts in sets.values() for t in ts.tracks), key=lambda t: t.track_id)
+
+    def subscribe(self, callback: Callable[[TrackSet], None]) -> Subscription:
+        """Call ``callback(trackset)`` for every TrackSet (on the client's pump thread; keep it short)."""
+        sub = Subscription(self, callback)
+        with self._lock:
+            self._subs.append(sub)
+        return sub
+
+    def latest(self, track_id: str, timeout_s: float = 2.0) -> Track | None:
+        """Query the manager for a track's latest state (None if no manager knows it)."""
+        replies = self._query(self.keys.track(track_id), Track, timeout_s)
+        return max(replies, key=lambda t: t.stamp_ns) if replies else None
+
+    def history(self, track_id: str, seconds: float, timeout_s: float = 3.0) -> list[Track]:
+        """A track's path over the last ``seconds``, oldest first (``get track/{id}?history=S``)."""
+        import zenoh
+
+        if not seconds > 0:
+            raise SessionError(f"history seconds must be > 0, got {seconds}")
+        sel = zenoh.Selector(self.keys.track(track_id), {"history": f"{seconds:g}"})
+        replies = self._query(sel, Track, timeout_s)
+        return sorted(replies, key=lambda t: t.stamp_ns)
+
+    # -- sensors, managers, plans --------------------------------------------
+    def _alive(self, key_expr: str, timeout_s: float) -> set[str]:
+        alive: set[str] = set()
+        for reply in self.session.liveliness().get(key_expr, timeout=timeout_s):
+            if reply.ok is not None:
+                with contextlib.suppress(Exception):
+                    alive.add(self.keys.parse(str(reply.ok.key_expr)).ident)
+        return alive
+
+    def sensors(self, timeout_s: float = 1.0) -> list[SensorView]:
+        """Every sensor seen (alive, or with a status/info): info, status and clock offset."""
+        alive = self._alive(self.keys.all_sensors, timeout_s)
+        infos = {i.sensor_id: i for i in self._query(self.keys.all_sensor_info, SensorInfo, timeout_s)}
+        with self._lock:
+            status = dict(self._node_status)
+        ids = sorted(alive | set(infos) | set(status))
+        return [SensorView(s, s in alive, infos.get(s), status.get(s)) for s in ids]
+
+    def managers(self, timeout_s: float = 1.0) -> list[ManagerView]:
+        alive = self._alive(self.keys.all_managers, timeout_s)
+        with self._lock:
+            status = dict(self._mgr_status)
+        return [ManagerView(m, m in alive, status.get(m)) for m in sorted(alive | set(status))]
+
+    def plans(self) -> list[ViewPlan]:
+        """The newest view plan for every mobile camera."""
+        with self._lock:
+            return [self._plans[k] for k in sorted(self._plans)]
+
+    def pairs(self) -> dict[str, PairChoice]:
+        """The newest pair choice of every manager."""
+        with self._lock:
+            return dict(self._pairs)
+
+    # -- PTZ views -----------------------------------------------------------
+    def _ptz(self, action: str, track_id: str, priority: int, manager_id: str | None, timeout_s: float) -> PtzReply:
+        validate_id(track_id, "track id")
+        mid = manager_id or track_id.rsplit("-", 1)[0]
+        req = PtzRequest(
+            agent_id=self.agent_id,
+            seq=next(self._seq),
+            stamp_ns=time.time_ns(),
+            action=action,  # type: ignore[arg-type]
+            track_id=track_id,
+            priority=priority,
+        )
+        replies = self._query(self.keys.manager_ptz(mid), PtzReply, timeout_s, payload=encode(req))
+        if not replies:
+            raise SessionError(f"no PTZ reply from manager {mid!r} within {timeout_s:g} s (is it running?)")
+        return replies[0]
+
+    def request_view(
+        self, track_id: str, priority: int = 0, manager_id: str | None = None, timeout_s: float = 2.0
+    ) -> PtzReply:
+        """Ask the manager for a PTZ camera to look at a track.
+
+        The manager is the one named in the track id (``{manager_id}-{n}``)
+        unless ``manager_id`` is given. The reply names the camera, or why none.
+
+        Raises:
+            SessionError: if no manager answers.
+        """
+        return self._ptz("acquire", track_id, priority, manager_id, timeout_s)
+
+    def release_view(self, track_id: str, manager_id: str | None = None, timeout_s: float = 2.0) -> PtzReply:
+        """Give a PTZ view back."""
+        return self._ptz("release", track_id, 0, manager_id, timeout_s)

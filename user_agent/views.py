@@ -1,0 +1,139 @@
+"""Text views for the terminal: the live ``watch`` screen and the ``tracks``/``history`` tables.
+
+Pure formatting (no zenoh): data in, a string out; the CLI prints it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+from common.schema import Track
+from user_agent.client import ManagerView, SensorView
+
+__all__ = ["CLEAR_SCREEN", "format_table", "history_table", "tracks_table", "watch_screen"]
+
+CLEAR_SCREEN = "\x1b[H\x1b[2J"
+
+
+def format_table(headers: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
+    """Left-aligned text columns, two spaces apart."""
+    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _pair(t: Track) -> str:
+    return "+".join(t.sensors) if t.sensors else "-"
+
+
+def tracks_table(tracks: Sequence[Track]) -> str:
+    """Current tracks: id, state, position, height, speed, the pair that localised it and its predicted error."""
+    rows = [
+        (
+            t.track_id,
+            t.state,
+            f"{t.x_m:7.2f}",
+            f"{t.y_m:7.2f}",
+            f"{t.height_m:4.2f}" if t.height_m > 0 else "  - ",
+            f"{math.hypot(t.vx_mps, t.vy_mps):4.2f}",
+            _pair(t),
+            t.method,
+            f"{t.predicted_error_m:5.3f}",
+            f"{t.age_s:6.1f}",
+        )
+        for t in tracks
+    ]
+    heads = ("track", "state", "x_m", "y_m", "h_m", "v_mps", "pair", "method", "pred_err_m", "age_s")
+    return format_table(heads, rows)
+
+
+def history_table(path: Sequence[Track]) -> str:
+    """A track's path: one row per state."""
+    if not path:
+        return "(no history)"
+    t0 = path[0].stamp_ns
+    rows = [
+        (f"{(t.stamp_ns - t0) / 1e9:7.2f}", f"{t.x_m:7.2f}", f"{t.y_m:7.2f}", f"{t.height_m:4.2f}", t.state, _pair(t))
+        for t in path
+    ]
+    return format_table(("t_s", "x_m", "y_m", "h_m", "state", "pair"), rows)
+
+
+def _sensors_table(sensors: Sequence[SensorView]) -> str:
+    rows = []
+    for s in sensors:
+        st, info = s.status, s.info
+        rows.append(
+            (
+                s.sensor_id,
+                "up" if s.alive else "DOWN",
+                info.kind if info else "?",
+                (info.pose_source if info else "?"),
+                f"{st.fps:5.1f}" if st else "-",
+                st.frames if st else "-",
+                st.dropped_frames if st else "-",
+                f"{st.processing_ms:5.1f}" if st else "-",
+                f"{s.clock_offset_ns / 1e6:+7.2f}",
+                (st.clock_source if st else (info.clock_source if info else "?")),
+                st.source_state if st else "-",
+                st.decode_errors if st else "-",
+            )
+        )
+    heads = (
+        "sensor",
+        "live",
+        "kind",
+        "pose",
+        "fps",
+        "frames",
+        "drops",
+        "proc_ms",
+        "clock_ms",
+        "clock",
+        "source",
+        "bad",
+    )
+    return format_table(heads, rows)
+
+
+def _managers_table(managers: Sequence[ManagerView]) -> str:
+    rows = []
+    for m in managers:
+        st = m.status
+        rows.append(
+            (
+                m.manager_id,
+                "up" if m.alive else "DOWN",
+                f"{st.tick_ms:6.2f}" if st else "-",
+                f"{st.tick_p99_ms:6.2f}" if st else "-",
+                f"{st.tick_rate_hz:5.1f}" if st else "-",
+                st.tracks if st else "-",
+                ",".join(st.sensors_in_use) if st else "-",
+                ",".join(st.sensors_without_pose) if st and st.sensors_without_pose else "-",
+                (st.late_msgs + st.out_of_order_msgs + st.duplicate_msgs) if st else "-",
+                st.decode_errors if st else "-",
+            )
+        )
+    heads = ("manager", "live", "tick_ms", "p99_ms", "hz", "tracks", "sensors in use", "no pose", "late/ooo", "bad")
+    return format_table(heads, rows)
+
+
+def watch_screen(
+    tracks: Sequence[Track], sensors: Sequence[SensorView], managers: Sequence[ManagerView], header: str = ""
+) -> str:
+    """The whole live screen."""
+    parts = []
+    if header:
+        parts.append(header)
+    parts.append(f"TRACKS ({len(tracks)})")
+    parts.append(tracks_table(tracks) if tracks else "(none)")
+    parts.append("")
+    parts.append(f"SENSORS ({sum(s.alive for s in sensors)} up of {len(sensors)})")
+    parts.append(_sensors_table(sensors) if sensors else "(none)")
+    parts.append("")
+    parts.append("MANAGERS")
+    parts.append(_managers_table(managers) if managers else "(none)")
+    return "\n".join(parts) + "\n"
