@@ -1,0 +1,118 @@
+"""MCAP sink -> reader -> score/plot, without a network."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import cv2
+import pytest
+from mcap.reader import make_reader
+
+from common.codec import encode
+from common.keys import Keys
+from common.schema import PairChoice, PairEntry, PanoramicModel, Pose, SensorInfo, Track, TrackSet
+from user_agent.groundtruth import GtPoint, read_gt_csv, write_gt_rows
+from user_agent.record import McapSink
+from user_agent.recording import iter_raw, load_recording
+from user_agent.report import plot_recording, score_recording
+
+EPOCH = 1_700_000_000_000_000_000
+FPS = 10.0
+K = Keys("pano")
+
+
+def person(k: int, pid: int) -> tuple[float, float]:
+    t = (k - 1) / FPS
+    return (1.0 + 0.5 * t, 1.0 + pid * 2.0 + 0.3 * math.sin(t))
+
+
+def _track(tid: str, x: float, y: float, stamp: int) -> Track:
+    return Track(manager_id="mgr1", seq=0, stamp_ns=stamp, track_id=tid, x_m=x, y_m=y, height_m=1.75, vx_mps=0.0,
+                 vy_mps=0.0, cov_xx_m2=0.01, cov_xy_m2=0.0, cov_yy_m2=0.01, state="confirmed",
+                 method="triangulation", sensors=["pano1", "pano2"], predicted_error_m=0.08)  # fmt: skip
+
+
+def _info(sid: str, x: float, y: float) -> SensorInfo:
+    model = PanoramicModel(width_px=1080, height_px=162, f_v_px=256.0, v0_px=93.0)
+    pose = Pose(x_m=x, y_m=y, z_m=1.1, yaw_rad=0.0)
+    return SensorInfo(sensor_id=sid, seq=0, stamp_ns=EPOCH, kind="panoramic", model=model, pose=pose,
+                      pose_source="surveyed", body_radius_m=0.18)  # fmt: skip
+
+
+@pytest.fixture
+def recorded(tmp_path: Path) -> tuple[Path, Path]:
+    gt_path = tmp_path / "gt.csv"
+    write_gt_rows(gt_path, [GtPoint(k, str(p), *person(k, p), 1.75) for k in range(1, 51) for p in (0, 1)])
+    sink = McapSink(tmp_path / "run.mcap", {"epoch_ns": str(EPOCH), "fps": str(FPS), "room_x_m": "8", "room_y_m": "6"})
+    for sid, x, y in (("pano1", 0.5, 0.5), ("pano2", 7.5, 0.5)):
+        sink.write(K.sensor_info(sid), encode(_info(sid, x, y)), EPOCH)
+    sink.write(K.tracks(), b"\xc1garbage", EPOCH + 1)  # an invalid payload is kept raw and counted
+    # Tracks at 20 Hz from frame 5 on, offset 5 cm from the truth.
+    for i in range(80):
+        stamp = EPOCH + int(0.4e9) + i * 50_000_000
+        k = 1 + (stamp - EPOCH) / 1e9 * FPS
+        tracks = [_track(f"mgr1-{p + 1}", person(k, p)[0] + 0.05, person(k, p)[1], stamp) for p in (0, 1)]
+        sink.write(K.tracks(), encode(TrackSet(manager_id="mgr1", seq=i, stamp_ns=stamp, tracks=tracks)), stamp + 10)
+        pc = PairChoice(manager_id="mgr1", seq=i, stamp_ns=stamp,
+                        choices=[PairEntry(track_id="mgr1-1", sensor_a="pano1", sensor_b="pano2",
+                                           predicted_error_m=0.1, method="triangulation")])  # fmt: skip
+        sink.write(K.manager_pairs("mgr1"), encode(pc), stamp + 20)
+    sink.close()
+    return tmp_path / "run.mcap", gt_path
+
+
+def test_reader_returns_every_raw_sample_with_its_key(recorded: tuple[Path, Path]) -> None:
+    mcap, _ = recorded
+    raw = list(iter_raw(mcap))
+    assert len(raw) == 2 + 1 + 160
+    assert raw[0].key == K.sensor_info("pano1")
+    rec = load_recording(mcap)
+    assert rec.invalid == 1 and len(rec.tracksets) == 80 and set(rec.sensor_infos) == {"pano1", "pano2"}
+
+
+def test_file_has_json_schema_and_foxglove_channels(recorded: tuple[Path, Path]) -> None:
+    mcap, _ = recorded
+    with mcap.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    schemas = {s.name: s for s in summary.schemas.values()}
+    assert {
+        "pano.TrackSet",
+        "pano.SensorInfo",
+        "pano.PairChoice",
+        "foxglove.SceneUpdate",
+        "foxglove.FrameTransform",
+    } <= set(schemas)
+    assert json.loads(schemas["pano.TrackSet"].data)["$defs"]["TrackSet"]["type"] == "object"
+    topics = {c.topic: c for c in summary.channels.values()}
+    assert topics["/scene/tracks"].message_encoding == "json"
+    assert topics[K.tracks()].metadata["zenoh_key"] == K.tracks()
+    assert topics["/json/" + K.tracks()].message_encoding == "json"
+    with mcap.open("rb") as fh:
+        scenes = [json.loads(m.data) for _, _, m in make_reader(fh).iter_messages(topics=["/scene/tracks"])]
+    ent = scenes[0]["entities"][0]
+    assert ent["frame_id"] == "world" and ent["timestamp"]["sec"] > 0 and ent["cylinders"] and ent["lines"]
+
+
+def test_score_of_recording_with_constant_offset(recorded: tuple[Path, Path]) -> None:
+    mcap, gt_path = recorded
+    scored = score_recording(load_recording(mcap), read_gt_csv(gt_path), threshold_m=0.5)
+    m = scored.metrics
+    assert scored.tracks_published == 2
+    assert m.mota == 1.0 and m.idf1 == 1.0 and m.id_switches == 0
+    assert m.mean_error_m == pytest.approx(0.05, abs=0.01)
+    # The recorded span 0.4 .. 4.35 s, widened by the 0.25 s gap, covers frames 3..47 ((k - 1) / 10 s).
+    assert scored.frames_scored == 47 - 3 + 1
+
+
+def test_plot_draws_tracks_and_ground_truth_side_by_side(recorded: tuple[Path, Path], tmp_path: Path) -> None:
+    mcap, gt_path = recorded
+    out = plot_recording(mcap, tmp_path / "top.png", gt_path)
+    img = cv2.imread(str(out))
+    assert img is not None and img.shape[1] > 1.8 * img.shape[0] * (6 / 8) * 0.9
+    # Coloured (non-grey) pixels exist in both halves: the tracks and the ground-truth paths.
+    sat = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[:, :, 1]
+    half = img.shape[1] // 2
+    assert (sat[:, :half] > 120).sum() > 200 and (sat[:, half:] > 120).sum() > 200
