@@ -1,0 +1,567 @@
+"""Load benchmark (issue 8): 16 camera streams at 30 Hz through one resource manager for 60 s.
+
+Usage::
+
+    python -m benchmarks.bench_load [--sensors 16] [--fps 30] [--duration 60] [--people 6] [--out FILE]
+
+What runs (all real processes on loopback, multicast scouting off):
+
+* a ``panostereo router``;
+* one ``panostereo manager`` (its config written to a temp dir: prefix ``bench``, 10 Hz fusion);
+* a *fleet* process (this module, ``fleet`` sub-command) that plays N panoramic sensor nodes at
+  ``fps``: for each it declares the liveliness token, serves and puts a ``SensorInfo`` with a
+  surveyed pose, puts ``NodeStatus`` at 1 Hz and one ``Features`` message per frame. The blobs
+  are what a panoramic node would report for the people of a small simulated room (bearing,
+  angular width, top and bottom elevation, bounding box, a per-person colour histogram), with
+  0.2 deg bearing noise and frames of different sensors out of phase, as free-running cameras
+  are. (Rendering and segmenting 16 x 30 panoramas per second would need ~16 cores; this
+  exercises everything downstream of the image pipeline: transport, ingest, alignment, pair
+  choice, matching, localisation, tracking, publication.) Capture stamps are the fleet's clock
+  at the frame time;
+* the user agent: this process, subscribed to ``{root}/tracks``; for every TrackSet it notes the
+  arrival time.
+
+Figures (one JSON object on stdout, and in ``--out``):
+
+* ``latency_ms`` p50/p90/p99/max: agent arrival time minus the TrackSet's fusion instant, i.e.
+  from capture (frames are interpolated to that instant) to the user agent. It includes the
+  manager's alignment wait ``latency_ms`` (config), reported separately as ``alignment_wait_ms``;
+  ``latency_beyond_wait_ms`` subtracts it (goal: p50 <= 20 ms).
+* drops: frames sent by the fleet, the manager's ``dropped_msgs``, ``late_msgs``,
+  ``decode_errors`` (from its last ManagerStatus), and TrackSets lost on the way to the agent
+  (gaps in ``seq``); ``tick_rate_hz`` achieved against the configured rate.
+* memory: the manager's RSS (``/proc/<pid>/status``) sampled every second; growth from the
+  first sample after the warm-up to the last (goal: flat).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import logging
+import math
+import os
+import random
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from common.codec import decode, encode
+from common.keys import Keys
+from common.schema import Blob, Features, ManagerStatus, NodeStatus, PanoramicModel, Pose, SensorInfo, TrackSet
+from common.session import MSGPACK, SessionSettings, open_session
+
+logger = logging.getLogger(__name__)
+
+REPO = Path(__file__).resolve().parent.parent
+
+# A panorama like design_pal's: 1080 x 162 px covering -15..+20 deg of elevation.
+PANO_W_PX = 1080
+PANO_H_PX = 162
+F_V_PX = PANO_H_PX / (math.tan(math.radians(20.0)) + math.tan(math.radians(15.0)))
+V0_PX = F_V_PX * math.tan(math.radians(20.0))
+ELEV_MIN_RAD = math.radians(-15.0)
+BODY_RADIUS_M = 0.22
+HIST_BINS = 64
+MAX_RANGE_M = 12.0
+
+
+# ---------------------------------------------------------------------------
+# The simulated room: people walking, cameras around it
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Walker:
+    """A person walking back and forth between two points of the room at constant speed."""
+
+    person_id: int
+    x0_m: float
+    y0_m: float
+    x1_m: float
+    y1_m: float
+    speed_mps: float
+    height_m: float
+    phase_s: float
+    hist: tuple[float, ...]
+
+    def at(self, t_s: float) -> tuple[float, float]:
+        length = math.hypot(self.x1_m - self.x0_m, self.y1_m - self.y0_m)
+        period = 2 * length / self.speed_mps
+        s = ((t_s + self.phase_s) % period) * self.speed_mps
+        f = s / length if s <= length else 2 - s / length
+        return self.x0_m + f * (self.x1_m - self.x0_m), self.y0_m + f * (self.y1_m - self.y0_m)
+
+
+@dataclass(frozen=True, slots=True)
+class Cam:
+    sensor_id: str
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+
+
+def make_room(sensors: int, people: int, seed: int, room_m: float = 10.0) -> tuple[list[Cam], list[Walker]]:
+    """Cameras evenly on a circle around a square room, people on random straight beats inside it."""
+    rng = random.Random(seed)
+    cams = []
+    for i in range(sensors):
+        a = 2 * math.pi * i / sensors
+        r = 0.45 * room_m
+        cams.append(
+            Cam(
+                f"s{i:02d}",
+                room_m / 2 + r * math.cos(a),
+                room_m / 2 + r * math.sin(a),
+                1.1 + 0.1 * (i % 3),
+                math.remainder(rng.uniform(-math.pi, math.pi), 2 * math.pi),
+            )
+        )
+    walkers = []
+    for p in range(people):
+        raw = [rng.random() ** 3 for _ in range(HIST_BINS)]
+        total = sum(raw)
+        walkers.append(
+            Walker(
+                p,
+                rng.uniform(2, room_m - 2),
+                rng.uniform(2, room_m - 2),
+                rng.uniform(2, room_m - 2),
+                rng.uniform(2, room_m - 2),
+                rng.uniform(0.5, 1.3),
+                rng.uniform(1.55, 1.9),
+                rng.uniform(0, 20),
+                tuple(v / total for v in raw),
+            )
+        )
+    return cams, walkers
+
+
+def _wrap(a: float) -> float:
+    return math.remainder(a, 2 * math.pi)
+
+
+def observe(cam: Cam, walkers: list[Walker], t_s: float, rng: random.Random, sigma_rad: float) -> list[Blob]:
+    """The blobs a panoramic node at ``cam`` would report at world time ``t_s``."""
+    blobs = []
+    for w in walkers:
+        x, y = w.at(t_s)
+        d = math.hypot(x - cam.x_m, y - cam.y_m)
+        if d < 0.5 or d > MAX_RANGE_M:
+            continue
+        bearing = _wrap(math.atan2(y - cam.y_m, x - cam.x_m) - cam.yaw_rad + rng.gauss(0.0, sigma_rad))
+        width = 2 * math.atan(BODY_RADIUS_M / d)
+        top = math.atan((w.height_m - cam.z_m) / d) + rng.gauss(0.0, sigma_rad)
+        bottom = math.atan(-cam.z_m / d)
+        feet = bottom >= ELEV_MIN_RAD
+        bottom = max(bottom, ELEV_MIN_RAD)
+        u = (bearing % (2 * math.pi)) / (2 * math.pi) * PANO_W_PX
+        w_px = width / (2 * math.pi) * PANO_W_PX
+        v_top = V0_PX - F_V_PX * math.tan(top)
+        v_bot = V0_PX - F_V_PX * math.tan(bottom)
+        noisy = [max(0.0, h * (1 + rng.gauss(0.0, 0.05))) for h in w.hist]
+        total = sum(noisy) or 1.0
+        blobs.append(
+            Blob(
+                local_id=w.person_id,
+                bearing_rad=bearing,
+                width_rad=width,
+                top_elev_rad=top,
+                bottom_elev_rad=bottom,
+                bbox_u_px=u - w_px / 2,
+                bbox_v_px=v_top,
+                bbox_w_px=w_px,
+                bbox_h_px=max(0.0, v_bot - v_top),
+                hist=[min(1.0, v / total) for v in noisy],
+                feet_visible=feet,
+            )
+        )
+    return blobs
+
+
+# ---------------------------------------------------------------------------
+# The fleet: N sensor nodes in one process
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class FleetStats:
+    sent: int = 0
+    late_sent: int = 0
+    per_sensor: dict[str, int] = field(default_factory=dict)
+    behind_ms_max: float = 0.0
+    """Worst lateness of the publishing loop against the frame schedule."""
+
+
+def sensor_info(cam: Cam, seq: int, fps: float, sigma_rad: float) -> SensorInfo:
+    return SensorInfo(
+        sensor_id=cam.sensor_id,
+        seq=seq,
+        stamp_ns=time.time_ns(),
+        kind="panoramic",
+        model=PanoramicModel(width_px=PANO_W_PX, height_px=PANO_H_PX, f_v_px=F_V_PX, v0_px=V0_PX),
+        pose=Pose(x_m=cam.x_m, y_m=cam.y_m, z_m=cam.z_m, yaw_rad=cam.yaw_rad),
+        pose_source="surveyed",
+        fps=fps,
+        bearing_sigma_rad=sigma_rad,
+    )
+
+
+def run_fleet(args: argparse.Namespace) -> FleetStats:
+    """Publish ``args.sensors`` sensors at ``args.fps`` for ``args.duration`` s (forever if 0) or until SIGTERM.
+
+    Timing faults for the fault tests: ``--clock-offset-ms`` shifts every capture stamp (a node
+    whose clock is off), ``--reorder`` holds back every k-th frame and sends it after the next
+    one (out of order), ``--late-ms`` sends one frame in 30 that much late.
+    """
+    keys = Keys(args.prefix)
+    cams, walkers = make_room(args.sensors, args.people, args.seed)
+    if args.only:
+        cams = [c for c in cams if c.sensor_id in set(args.only.split(","))]
+    sigma = math.radians(0.2)
+    rng = random.Random(args.seed + 1)
+    stats = FleetStats(per_sensor={c.sensor_id: 0 for c in cams})
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    settings = SessionSettings(mode="client", connect=[args.connect])
+    epoch_ns = args.epoch_ns or time.time_ns()
+    with open_session(settings) as s:
+        infos = {c.sensor_id: sensor_info(c, 0, args.fps, sigma) for c in cams}
+
+        def on_info(q: Any) -> None:
+            with q:
+                for c in cams:
+                    k = keys.sensor_info(c.sensor_id)
+                    if q.key_expr.intersects(k):
+                        q.reply(k, encode(infos[c.sensor_id]), encoding=MSGPACK)
+
+        entities: list[Any] = [s.declare_queryable(keys.all_sensor_info, on_info)]
+        entities += [s.liveliness().declare_token(keys.sensor(c.sensor_id)) for c in cams]
+        pubs = {c.sensor_id: s.declare_publisher(keys.sensor_features(c.sensor_id), encoding=MSGPACK) for c in cams}
+        for c in cams:
+            s.put(keys.sensor_info(c.sensor_id), encode(infos[c.sensor_id]), encoding=MSGPACK)
+        period_ns = int(1e9 / args.fps)
+        start_ns = time.time_ns() + 200_000_000
+        phase = {c.sensor_id: rng.randrange(period_ns) for c in cams}
+        frame = dict.fromkeys(phase, 0)
+        held: dict[str, bytes] = {}
+        next_status_ns = start_ns
+        seq_status = 0
+        end_ns = start_ns + int(args.duration * 1e9) if args.duration > 0 else None
+        while not stop.is_set():
+            # The earliest due frame of any sensor.
+            sid = min(frame, key=lambda k: frame[k] * period_ns + phase[k])
+            due_ns = start_ns + frame[sid] * period_ns + phase[sid]
+            if end_ns is not None and due_ns >= end_ns:
+                break
+            wait_s = (due_ns - time.time_ns()) / 1e9
+            if wait_s > 0 and stop.wait(wait_s):
+                break
+            now_ns = time.time_ns()
+            stats.behind_ms_max = max(stats.behind_ms_max, (now_ns - due_ns) / 1e6)
+            cam = next(c for c in cams if c.sensor_id == sid)
+            t_world_s = (due_ns - epoch_ns) / 1e9
+            k = frame[sid]
+            msg = Features(
+                sensor_id=sid,
+                seq=k,
+                stamp_ns=due_ns + int(args.clock_offset_ms * 1e6),
+                frame_index=k,
+                blobs=observe(cam, walkers, t_world_s, rng, sigma),
+                processing_ms=(now_ns - due_ns) / 1e6,
+            )
+            data = encode(msg)
+            frame[sid] += 1
+            if args.reorder and k % args.reorder == 1:
+                held[sid] = data  # sent after the next frame: out of order
+            elif args.late_ms and k % 30 == 15:
+                threading.Timer(args.late_ms / 1e3, pubs[sid].put, (data,)).start()
+                stats.late_sent += 1
+            else:
+                pubs[sid].put(data)
+                if sid in held:
+                    pubs[sid].put(held.pop(sid))
+            stats.sent += 1
+            stats.per_sensor[sid] += 1
+            if now_ns >= next_status_ns:
+                next_status_ns += 1_000_000_000
+                seq_status += 1
+                for c in cams:
+                    st = NodeStatus(
+                        sensor_id=c.sensor_id,
+                        seq=seq_status,
+                        stamp_ns=now_ns,
+                        fps=args.fps,
+                        frames=frame[c.sensor_id],
+                        dropped_frames=0,
+                        processing_ms=0.1,
+                        clock_offset_ns=0,
+                        clock_uncertainty_ns=0,
+                        clock_source="system",
+                        decode_errors=0,
+                        source_state="ok",
+                    )
+                    s.put(keys.sensor_status(c.sensor_id), encode(st), encoding=MSGPACK)
+                    if seq_status % 5 == 0:  # re-announce info now and then, as a node does on change
+                        s.put(keys.sensor_info(c.sensor_id), encode(infos[c.sensor_id]), encoding=MSGPACK)
+        for p in pubs.values():
+            p.undeclare()
+        for e in entities:
+            e.undeclare()
+    return stats
+
+
+# ---------------------------------------------------------------------------
+# The benchmark driver
+# ---------------------------------------------------------------------------
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _rss_kib(pid: int) -> int | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def _wait_port(port: int, timeout_s: float) -> None:
+    import socket
+
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return
+        except OSError:
+            time.sleep(0.05)
+    raise SystemExit(f"bench_load: router on port {port} did not come up within {timeout_s} s")
+
+
+def manager_config(path: Path, prefix: str, endpoint: str, rate_hz: float, state_dir: Path) -> float:
+    """Write the manager's config; return its alignment wait (ms)."""
+    latency_ms = 200.0
+    path.write_text(
+        "[manager]\n"
+        'id = "bench"\n'
+        f'prefix = "{prefix}"\n'
+        f"rate_hz = {rate_hz}\n"
+        f"latency_ms = {latency_ms}\n"
+        f'state_dir = "{state_dir}"\n'
+        "[zenoh]\n"
+        'mode = "client"\n'
+        f'connect = ["{endpoint}"]\n'
+    )
+    return latency_ms
+
+
+def _percentiles(xs: list[float]) -> dict[str, float | None]:
+    if not xs:
+        return {"p50": None, "p90": None, "p99": None, "max": None, "n": 0}
+    q = statistics.quantiles(xs, n=100, method="inclusive") if len(xs) > 1 else [xs[0]] * 99
+    return {
+        "p50": round(q[49], 2),
+        "p90": round(q[89], 2),
+        "p99": round(q[98], 2),
+        "max": round(max(xs), 2),
+        "n": len(xs),
+    }
+
+
+def run_bench(args: argparse.Namespace) -> dict[str, Any]:
+    prefix = "bench"
+    keys = Keys(prefix)
+    tmp = Path(tempfile.mkdtemp(prefix="bench-load-"))
+    port = _free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(REPO))
+    procs: list[subprocess.Popen[bytes]] = []
+
+    def start(name: str, argv: list[str]) -> subprocess.Popen[bytes]:
+        with (tmp / f"{name}.log").open("wb") as log:
+            p = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=REPO)
+        procs.append(p)
+        return p
+
+    py = sys.executable
+    arrivals: list[tuple[int, int, int, int]] = []  # (arrival_ns, stamp_ns, seq, n_tracks)
+    statuses: list[ManagerStatus] = []
+    lock = threading.Lock()
+    rss: list[tuple[float, int]] = []
+    try:
+        start("router", [py, "-m", "panostereo", "router", "--listen", endpoint])
+        _wait_port(port, 20.0)
+        mgr_cfg = tmp / "manager.toml"
+        wait_ms = manager_config(mgr_cfg, prefix, endpoint, args.rate_hz, tmp / "state")
+        mgr = start("manager", [py, "-m", "panostereo", "manager", "--config", str(mgr_cfg), "--log-level", "WARNING"])
+        with open_session(SessionSettings(mode="client", connect=[endpoint])) as s:
+
+            def on_tracks(sample: Any) -> None:
+                now = time.time_ns()
+                ts = decode(sample.payload.to_bytes(), TrackSet)
+                with lock:
+                    arrivals.append((now, ts.stamp_ns, ts.seq, len(ts.tracks)))
+
+            def on_status(sample: Any) -> None:
+                with lock:
+                    statuses.append(decode(sample.payload.to_bytes(), ManagerStatus))
+
+            subs = [
+                s.declare_subscriber(keys.tracks(), on_tracks),
+                s.declare_subscriber(keys.all_manager_status, on_status),
+            ]
+            deadline = time.monotonic() + 30
+            while not statuses and time.monotonic() < deadline:
+                if mgr.poll() is not None:
+                    raise SystemExit(
+                        f"bench_load: manager exited with {mgr.returncode}:\n{(tmp / 'manager.log').read_text()}"
+                    )
+                time.sleep(0.1)
+            if not statuses:
+                raise SystemExit(f"bench_load: no ManagerStatus within 30 s:\n{(tmp / 'manager.log').read_text()}")
+            fleet_out = tmp / "fleet.json"
+            fleet = start(
+                "fleet",
+                [
+                    py,
+                    "-m",
+                    "benchmarks.bench_load",
+                    "fleet",
+                    "--connect",
+                    endpoint,
+                    "--prefix",
+                    prefix,
+                    "--sensors",
+                    str(args.sensors),
+                    "--fps",
+                    str(args.fps),
+                    "--people",
+                    str(args.people),
+                    "--duration",
+                    str(args.duration),
+                    "--seed",
+                    str(args.seed),
+                    "--stats",
+                    str(fleet_out),
+                ],
+            )
+            t0 = time.monotonic()
+            while fleet.poll() is None and time.monotonic() - t0 < args.duration + 60:
+                r = _rss_kib(mgr.pid)
+                if r is not None:
+                    rss.append((time.monotonic() - t0, r))
+                time.sleep(1.0)
+            fleet.wait(timeout=30)
+            time.sleep(1.5)  # the last ticks and a status after the fleet stopped
+            for sub in subs:
+                sub.undeclare()
+        fleet_stats = json.loads(fleet_out.read_text()) if fleet_out.exists() else {}
+        warm_s = args.warmup
+        with lock:
+            live = [(a, st, sq, n) for a, st, sq, n in arrivals if a / 1e9 >= 0]
+        lat = [(a - st) / 1e6 for a, st, _, _ in live]
+        t_first = min((a for a, *_ in live), default=0)
+        lat_warm = [(a - st) / 1e6 for a, st, _, _ in live if (a - t_first) / 1e9 >= warm_s]
+        seqs = sorted({sq for _, _, sq, _ in live})
+        gaps = sum(b - a - 1 for a, b in itertools.pairwise(seqs) if b > a + 1)
+        last = statuses[-1] if statuses else None
+        rss_warm = [r for t, r in rss if t >= warm_s]
+        duration_ticks = (max((a for a, *_ in live), default=0) - t_first) / 1e9
+        return {
+            "benchmark": "bench_load",
+            "sensors": args.sensors,
+            "fps": args.fps,
+            "people": args.people,
+            "duration_s": args.duration,
+            "manager_rate_hz": args.rate_hz,
+            "alignment_wait_ms": wait_ms,
+            "frames_sent": fleet_stats.get("sent"),
+            "fleet_behind_ms_max": fleet_stats.get("behind_ms_max"),
+            "tracksets_received": len(live),
+            "tracksets_lost": gaps,
+            "tick_rate_hz_achieved": round(len(live) / duration_ticks, 2) if duration_ticks > 0 else None,
+            "tracks_mean": round(statistics.fmean(n for *_, n in live), 2) if live else 0,
+            "manager_dropped_msgs": last.dropped_msgs if last else None,
+            "manager_late_msgs": last.late_msgs if last else None,
+            "manager_decode_errors": last.decode_errors if last else None,
+            "manager_out_of_order_msgs": last.out_of_order_msgs if last else None,
+            "manager_tick_ms": last.tick_ms if last else None,
+            "manager_tick_p99_ms": last.tick_p99_ms if last else None,
+            "latency_ms": _percentiles(lat_warm or lat),
+            "latency_beyond_wait_ms": _percentiles([x - wait_ms for x in (lat_warm or lat)]),
+            "manager_rss_mib": {
+                "first_after_warmup": round(rss_warm[0] / 1024, 1) if rss_warm else None,
+                "last": round(rss_warm[-1] / 1024, 1) if rss_warm else None,
+                "max": round(max(rss_warm) / 1024, 1) if rss_warm else None,
+                "growth": round((rss_warm[-1] - rss_warm[0]) / 1024, 1) if rss_warm else None,
+            },
+            "logs": str(tmp),
+        }
+    finally:
+        for p in reversed(procs):
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="bench_load", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd")
+    f = sub.add_parser("fleet", help="run only the simulated sensors (used by the benchmark and the tests)")
+    for q in (p, f):
+        q.add_argument("--sensors", type=int, default=16)
+        q.add_argument("--fps", type=float, default=30.0)
+        q.add_argument("--people", type=int, default=6)
+        q.add_argument("--duration", type=float, default=60.0, help="seconds (fleet: 0 = until SIGTERM)")
+        q.add_argument("--seed", type=int, default=1)
+    p.add_argument("--rate-hz", type=float, default=10.0, help="manager fusion rate")
+    p.add_argument("--warmup", type=float, default=5.0, help="seconds left out of latency and memory figures")
+    p.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    f.add_argument("--connect", required=True)
+    f.add_argument("--prefix", default="pano")
+    f.add_argument("--only", default="", help="comma-separated sensor ids to play (default all)")
+    f.add_argument("--epoch-ns", type=int, default=0, help="world time origin (0: now)")
+    f.add_argument("--clock-offset-ms", type=float, default=0.0, help="add this to every capture stamp")
+    f.add_argument("--reorder", type=int, default=0, help="send every k-th frame after the next one (0: never)")
+    f.add_argument("--late-ms", type=float, default=0.0, help="send one frame in 30 this much late (0: never)")
+    f.add_argument("--stats", type=Path, default=None, help="write the fleet's counters here as JSON at exit")
+    args = p.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
+    if args.cmd == "fleet":
+        stats = run_fleet(args)
+        if args.stats:
+            args.stats.write_text(json.dumps(stats.__dict__))
+        return 0
+    result = run_bench(args)
+    text = json.dumps(result, indent=2)
+    if args.out:
+        args.out.write_text(text + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
