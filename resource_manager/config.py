@@ -171,6 +171,8 @@ class MutualSection(ConfigStruct, frozen=True):
     """A new pose further than this from the smoothed one restarts the smoothing."""
     boundary_sigma_deg: NonNeg = 0.0
     """Error of one occluding-boundary bearing; 0 = the observer's bearing sigma."""
+    default_height_m: Pos = 1.1
+    """Camera height of a mobile sensor whose SensorInfo carries no pose with z_m."""
 
 
 class PlannerSection(ConfigStruct, frozen=True):

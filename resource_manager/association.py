@@ -1,0 +1,354 @@
+"""One tick of data association: views -> pairs -> Eq. (7) matches -> measurements -> tracks.
+
+1. *Support*: for every predicted track and every camera with a known pose, the
+   blob whose world bearing is nearest the track's predicted bearing, inside a
+   gate of ``bearing_gate_sigmas`` (bearing error plus the track's position
+   uncertainty seen from that camera); the blob the node tracked for it last
+   tick (same ``local_id``) is preferred.
+2. *Pair choice*: the cameras that support a track are paired and ranked by the
+   error model (:func:`~resource_manager.pairs.rank_pairs`); the best pair whose
+   Eq. (7) match (all blobs of both cameras, temporal term from the tracks)
+   yields a gated measurement localises the person (Eq. 1 or Eq. 2), or every
+   supporting view by least squares with ``fuse_all``.
+3. *Births*: blobs supporting no track are matched pairwise (a bounded number of
+   camera pairs per tick); a hypothesis becomes a tentative track unless other
+   cameras that should see that spot see nothing there (ghost veto), best
+   predicted error first.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from common.schema import PairEntry
+from resource_manager.align import AlignedView
+from resource_manager.config import ManagerConfig
+from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
+from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrix
+from resource_manager.pairs import CameraGeom, rank_pairs
+from resource_manager.poses import PoseEstimate
+from resource_manager.track import Tracker, TrackRecord
+
+__all__ = ["Associator", "Outcome", "build_views"]
+
+FloatArray = npt.NDArray[np.float64]
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(slots=True)
+class Outcome:
+    pair_entries: list[PairEntry] = field(default_factory=list)
+    sensors_in_use: list[str] = field(default_factory=list)
+    measured: int = 0
+    births: int = 0
+
+
+@dataclass(slots=True)
+class _PairMatch:
+    mm: MatchMatrix
+    pairs: dict[int, int]
+    """row -> column of the accepted matches."""
+
+
+def build_views(
+    aligned: dict[str, AlignedView], poses: dict[str, PoseEstimate], sigma_of: Callable[[str], float]
+) -> dict[str, ViewBlobs]:
+    """World-frame blobs of every aligned sensor whose pose is known."""
+    out: dict[str, ViewBlobs] = {}
+    for sid, av in aligned.items():
+        pose = poses.get(sid)
+        if pose is None:
+            continue
+        n = len(av.blobs)
+        hist_len = {len(b.hist) for b in av.blobs}
+        hist = None
+        if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
+            hist = np.array([b.hist for b in av.blobs], dtype=np.float64)
+        out[sid] = ViewBlobs(
+            sensor_id=sid,
+            origin_xy=pose.origin,
+            z_m=pose.z_m,
+            sigma_rad=math.hypot(sigma_of(sid), pose.sigma_yaw_rad),
+            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in av.blobs], dtype=np.float64),
+            width_rad=np.array([b.width_rad for b in av.blobs], dtype=np.float64),
+            top_elev_rad=np.array([b.top_elev_rad for b in av.blobs], dtype=np.float64),
+            hist=hist,
+            local_id=np.array([b.local_id for b in av.blobs], dtype=np.int64),
+        )
+    return out
+
+
+def _wrap(a: FloatArray) -> FloatArray:
+    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
+
+
+class Associator:
+    """Runs steps 1-3 above against the tracker's tracks."""
+
+    def __init__(self, config: ManagerConfig, tracker: Tracker) -> None:
+        mc = config.match
+        self.config = config
+        self.tracker = tracker
+        self.matcher = get_matcher(config.manager.matcher)
+        self.params = MatchParams(
+            max_range_m=mc.max_range_m,
+            width_sigma=mc.width_sigma,
+            height_sigma=mc.height_sigma,
+            use_colour=mc.use_colour,
+            temporal_weight=mc.temporal_weight,
+        )
+        self.threshold = mc.threshold
+        self._birth_rr = 0
+
+    # -- step 1 -----------------------------------------------------------------
+    def support(self, views: dict[str, ViewBlobs], tracks: list[TrackRecord]) -> list[dict[str, int]]:
+        """For each track, sensor id -> index of its supporting blob."""
+        out: list[dict[str, int]] = [{} for _ in tracks]
+        if not tracks:
+            return out
+        txy = np.array([tr.x[:2] for tr in tracks])
+        tvar = np.array([max(tr.p[0, 0], tr.p[1, 1]) for tr in tracks])
+        k = self.config.match.bearing_gate_sigmas
+        for sid, v in views.items():
+            if v.n == 0:
+                continue
+            rel = txy - v.origin_xy
+            dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
+            pred = np.arctan2(rel[:, 1], rel[:, 0])
+            gate = k * np.sqrt(v.sigma_rad**2 + tvar / dist**2) + 0.25 / dist
+            diff = np.abs(_wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
+            norm = diff / gate[None, :]
+            for t, tr in enumerate(tracks):
+                lid = tr.links.get(sid)
+                if lid is not None:
+                    hit = np.nonzero(v.local_id == lid)[0]
+                    if hit.size and norm[hit[0], t] < 2.0:
+                        out[t][sid] = int(hit[0])
+                        continue
+                i = int(np.argmin(norm[:, t]))
+                if norm[i, t] < 1.0 and dist[t] <= self.params.max_range_m:
+                    out[t][sid] = i
+        return out
+
+    # -- step 2 -----------------------------------------------------------------
+    def _pair_match(
+        self, a: ViewBlobs, b: ViewBlobs, support: list[dict[str, int]], cache: dict[tuple[str, str], _PairMatch]
+    ) -> _PairMatch:
+        key = (a.sensor_id, b.sensor_id)
+        got = cache.get(key)
+        if got is not None:
+            return got
+        temporal = np.zeros((a.n, b.n))
+        for sup in support:
+            i, j = sup.get(a.sensor_id), sup.get(b.sensor_id)
+            if i is not None and j is not None:
+                temporal[i, j] = 1.0
+        mm = match_matrix(a, b, self.params, temporal)
+        pm = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
+        cache[key] = pm
+        return pm
+
+    def run(
+        self,
+        aligned: dict[str, AlignedView],
+        poses: dict[str, PoseEstimate],
+        sigma_of: Callable[[str], float],
+        t_ns: int,
+    ) -> Outcome:
+        views = build_views(aligned, poses, sigma_of)
+        out = Outcome(sensors_in_use=sorted(views))
+        tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
+        support = self.support(views, tracks)
+        cache: dict[tuple[str, str], _PairMatch] = {}
+        used: dict[str, set[int]] = {sid: set() for sid in views}
+        pose_sigma = {sid: p.sigma_xy_m for sid, p in poses.items()}
+        mc = self.config.match
+        for tr, sup in zip(tracks, support, strict=True):
+            for sid, i in sup.items():
+                used[sid].add(i)
+            meas, entry = self._measure(
+                tr,
+                sup=sup,
+                views=views,
+                support=support,
+                cache=cache,
+                pose_sigma=pose_sigma,
+                max_cams=mc.max_pair_cameras,
+            )
+            if meas is None:
+                self.tracker.miss(tr)
+                continue
+            links = {sid: int(views[sid].local_id[i]) for sid, i in sup.items()}
+            self.tracker.update(tr, meas, links)
+            out.measured += 1
+            if entry is not None and tr.track_id:
+                out.pair_entries.append(
+                    PairEntry(
+                        track_id=tr.track_id,
+                        sensor_a=entry[0],
+                        sensor_b=entry[1],
+                        predicted_error_m=float(min(max(meas.predicted_error_m, 0.0), 1e5)),
+                        method=meas.method,
+                        candidates=entry[2],
+                    )
+                )
+        out.births = self._births(views, used, cache, pose_sigma, t_ns)
+        return out
+
+    def _measure(
+        self,
+        tr: TrackRecord,
+        *,
+        sup: dict[str, int],
+        views: dict[str, ViewBlobs],
+        support: list[dict[str, int]],
+        cache: dict[tuple[str, str], _PairMatch],
+        pose_sigma: dict[str, float],
+        max_cams: int,
+    ) -> tuple[Measurement | None, tuple[str, str, int] | None]:
+        if len(sup) < 2:
+            return None, None
+        cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
+        ranked = rank_pairs(tr.x[:2].copy(), cams, max_cams)
+        for cand in ranked[:3]:
+            a_id, b_id = sorted((cand.a, cand.b))
+            a, b = views[a_id], views[b_id]
+            pm = self._pair_match(a, b, support, cache)
+            i, j = sup[a_id], sup[b_id]
+            options = []
+            if pm.pairs.get(i) == j:
+                options.append((i, j))
+            options += [(ii, jj) for ii, jj in pm.pairs.items() if (ii == i) != (jj == j)]
+            for ii, jj in options:
+                meas = localize_best_pair(
+                    a,
+                    ii,
+                    b,
+                    jj,
+                    sigma_xy_a=pose_sigma.get(a_id, 0.0),
+                    sigma_xy_b=pose_sigma.get(b_id, 0.0),
+                    width_rel_sigma=self.config.match.width_rel_sigma,
+                )
+                if meas is None or not math.isfinite(self.tracker.gate_distance(tr, meas)):
+                    continue
+                if self.config.manager.fuse_all and len(sup) >= 3:
+                    lsq = localize_least_squares([(views[s], k) for s, k in sup.items()], pose_sigma)
+                    if lsq is not None and math.isfinite(self.tracker.gate_distance(tr, lsq)):
+                        meas = lsq
+                return meas, (a_id, b_id, len(ranked))
+        return None, None
+
+    # -- step 3 -----------------------------------------------------------------
+    def _births(
+        self,
+        views: dict[str, ViewBlobs],
+        used: dict[str, set[int]],
+        cache: dict[tuple[str, str], _PairMatch],
+        pose_sigma: dict[str, float],
+        t_ns: int,
+    ) -> int:
+        left = {sid: [i for i in range(v.n) if i not in used[sid]] for sid, v in views.items()}
+        left = {sid: idx for sid, idx in left.items() if idx}
+        if len(left) < 2:
+            return 0
+        pairs = sorted(itertools.combinations(sorted(left), 2), key=lambda p: -len(left[p[0]]) * len(left[p[1]]))
+        budget = self.config.match.max_birth_pairs
+        if len(pairs) > budget:
+            start = self._birth_rr % len(pairs)
+            pairs = (pairs[start:] + pairs[:start])[:budget]
+            self._birth_rr += budget
+        hyps: list[tuple[int, float, Measurement, dict[str, int]]] = []
+        for a_id, b_id in pairs:
+            a, b = _subset(views[a_id], left[a_id]), _subset(views[b_id], left[b_id])
+            mm = match_matrix(a, b, self.params, None)
+            for ii, jj in self.matcher.match(mm.r, self.threshold):
+                meas = localize_best_pair(
+                    a,
+                    ii,
+                    b,
+                    jj,
+                    sigma_xy_a=pose_sigma.get(a_id, 0.0),
+                    sigma_xy_b=pose_sigma.get(b_id, 0.0),
+                    width_rel_sigma=self.config.match.width_rel_sigma,
+                )
+                if meas is None or self._near_track(meas):
+                    continue
+                support, against = self._third_views(meas, views, (a_id, b_id))
+                if against >= self.config.match.ghost_veto_views:
+                    continue
+                links = {a_id: left[a_id][ii], b_id: left[b_id][jj]}
+                hyps.append((support, meas.predicted_error_m, meas, links))
+        hyps.sort(key=lambda h: (-h[0], h[1]))
+        taken: set[tuple[str, int]] = set()
+        accepted: list[FloatArray] = []
+        born = 0
+        for _, _, meas, links in hyps:
+            if any((s, i) in taken for s, i in links.items()):
+                continue
+            if any(float(np.hypot(*(meas.xy - p))) < 0.5 for p in accepted):
+                continue
+            taken.update(links.items())
+            accepted.append(meas.xy)
+            ids = {s: int(views[s].local_id[i]) for s, i in links.items()}
+            self.tracker.spawn(_reindex(meas, links), t_ns, ids)
+            born += 1
+        return born
+
+    def _near_track(self, meas: Measurement) -> bool:
+        for tr in self.tracker.tracks:
+            if float(np.hypot(*(meas.xy - tr.x[:2]))) < self.tracker.position_gate_m(tr):
+                return True
+        return False
+
+    def _third_views(self, meas: Measurement, views: dict[str, ViewBlobs], pair: tuple[str, str]) -> tuple[int, int]:
+        """Cameras outside the pair that do / do not see a blob toward the hypothesis."""
+        k = self.config.match.bearing_gate_sigmas
+        support = against = 0
+        for sid, v in views.items():
+            if sid in pair:
+                continue
+            rel = meas.xy - v.origin_xy
+            dist = float(np.hypot(*rel))
+            if dist > self.params.max_range_m or dist < 0.3:
+                continue
+            pred = math.atan2(rel[1], rel[0])
+            gate = k * v.sigma_rad + 0.3 / dist
+            if v.n and float(np.min(np.abs(_wrap(v.bearing_rad - pred)) - 0.5 * v.width_rad)) < gate:
+                support += 1
+            else:
+                against += 1
+        return support, against
+
+
+def _subset(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
+    sel = np.asarray(idx, dtype=np.int64)
+    return ViewBlobs(
+        sensor_id=v.sensor_id,
+        origin_xy=v.origin_xy,
+        z_m=v.z_m,
+        sigma_rad=v.sigma_rad,
+        bearing_rad=v.bearing_rad[sel],
+        width_rad=v.width_rad[sel],
+        top_elev_rad=v.top_elev_rad[sel],
+        hist=None if v.hist is None else v.hist[sel],
+        local_id=v.local_id[sel],
+    )
+
+
+def _reindex(meas: Measurement, links: dict[str, int]) -> Measurement:
+    """Blob indices of a subset view back to the full view's."""
+    return Measurement(
+        xy=meas.xy,
+        cov=meas.cov,
+        height_m=meas.height_m,
+        method=meas.method,
+        sensors=meas.sensors,
+        predicted_error_m=meas.predicted_error_m,
+        blobs=tuple((s, links[s]) for s, _ in meas.blobs),
+    )

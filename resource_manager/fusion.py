@@ -1,0 +1,349 @@
+"""The manager's whole per-tick computation, pure: received messages in, tracks and commands out.
+
+``Fusion(config).step(batch, t_ns)`` runs, at the fusion instant ``t_ns``:
+
+1. ingest (bounded buffers; late, duplicate, out-of-order counted) and align
+   every sensor's blobs to ``t_ns`` (:mod:`~resource_manager.align`);
+2. poses: surveyed ones plus mutual calibration (:mod:`~resource_manager.poses`);
+3. for each predicted track, the cameras whose blobs support it, and every pair
+   of them ranked by the error model (:mod:`~resource_manager.pairs`);
+4. Eq. (7) stereo matching of the chosen pairs with the temporal term from the
+   current tracks (:mod:`~resource_manager.match`), then localisation by Eq. (1)
+   or Eq. (2) with the best pair, or least squares over all views (``fuse_all``);
+5. Kalman update, births from unexplained blobs, deaths (:mod:`~resource_manager.track`);
+6. view plans for mobile cameras and PTZ pointing.
+
+No zenoh, no disk: tests and benchmarks feed it recorded or synthetic messages;
+:mod:`resource_manager.node` is the thin shell around it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from common.geometry import wrap_angle
+from common.schema import (
+    Features,
+    PairChoice,
+    PairEntry,
+    PtzCommand,
+    PtzState,
+    SensorInfo,
+    Track,
+    TrackSet,
+    ViewPlan,
+)
+from resource_manager.align import AlignedView, AlignParams, align_sensor
+from resource_manager.association import Associator
+from resource_manager.config import ManagerConfig
+from resource_manager.ingest import Ingest
+from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
+from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
+from resource_manager.ptz import PtzAllocator, PtzParams, PtzTarget
+from resource_manager.track import Tracker, TrackParams, TrackRecord
+
+__all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
+
+
+@dataclass(frozen=True, slots=True)
+class Batch:
+    """Everything received since the previous tick."""
+
+    features: Sequence[Features] = ()
+    infos: Sequence[SensorInfo] = ()
+    ptz_states: Sequence[PtzState] = ()
+    presence: Mapping[str, bool] = field(default_factory=dict)
+    """Liveliness changes: sensor id -> alive."""
+
+
+@dataclass(frozen=True, slots=True)
+class TickCounters:
+    sensors_in_use: list[str]
+    sensors_known: list[str]
+    sensors_without_pose: list[str]
+    late: int
+    duplicate: int
+    out_of_order: int
+    dropped: int
+    clock_steps: int
+    skipped_ticks: int
+
+
+@dataclass(frozen=True, slots=True)
+class TickResult:
+    trackset: TrackSet
+    pair_choice: PairChoice
+    plans: list[ViewPlan]
+    ptz_commands: list[PtzCommand]
+    counters: TickCounters
+    ended: list[str]
+    """Ids of the tracks that ended this tick."""
+    skipped: bool = False
+    """True when ``t_ns`` was not after the previous instant (nothing changed)."""
+
+
+def _counter_ids(prefix: str) -> Callable[[], str]:
+    n = itertools.count(1)
+    return lambda: f"{prefix}-{next(n)}"
+
+
+class Fusion:
+    """The resource manager's state and its per-tick pipeline.
+
+    Args:
+        config: the manager config.
+        new_id: returns the next unique track id (default: an in-memory counter;
+            the node passes the persisted allocator of :mod:`resource_manager.history`).
+    """
+
+    def __init__(self, config: ManagerConfig, new_id: Callable[[], str] | None = None) -> None:
+        self.config = config
+        m = config.manager
+        self.manager_id = m.id
+        self.ingest = Ingest(m.buffer_frames, int(m.clock_step_ms * 1e6))
+        self.align_params = AlignParams(
+            max_extrapolation_ns=int(m.max_extrapolation_ms * 1e6),
+            stale_ns=int(m.stale_ms * 1e6),
+            max_gap_ns=int(m.max_gap_ms * 1e6),
+        )
+        mu = config.mutual
+        self.poses = PoseSolver(
+            MutualParams(
+                enabled=mu.enabled,
+                smoothing_s=mu.smoothing_s,
+                timeout_s=mu.timeout_s,
+                jump_m=mu.jump_m,
+                boundary_sigma_rad=math.radians(mu.boundary_sigma_deg),
+                default_bearing_sigma_rad=config.default_bearing_sigma_rad,
+                default_height_m=mu.default_height_m,
+            )
+        )
+        for p in config.pose:
+            self.poses.overrides[p.id] = PoseEstimate(
+                p.id, p.x_m, p.y_m, p.z_m, float(wrap_angle(math.radians(p.yaw_deg))), "surveyed"
+            )
+        t = config.tracker
+        self.tracker = Tracker(
+            TrackParams(
+                accel_sigma_mps2=t.accel_sigma_mps2,
+                gate_chi2=t.gate_chi2,
+                gate_min_m=t.gate_min_m,
+                min_meas_sigma_m=t.min_meas_sigma_m,
+                birth_hits=t.birth_hits,
+                birth_window=t.birth_window,
+                max_misses=t.max_misses,
+                init_speed_sigma_mps=t.init_speed_sigma_mps,
+                height_alpha=t.height_alpha,
+            ),
+            new_id or _counter_ids(m.id),
+        )
+        self.associator = Associator(config, self.tracker)
+        pl = config.planner
+        room = tuple(pl.room) if len(pl.room) == 4 else None
+        self.planner = ViewPlanner(
+            PlannerParams(pl.enabled, int(pl.period_s * 1e9), room, pl.margin_m, pl.min_move_m)  # type: ignore[arg-type]
+        )
+        pz = config.ptz
+        self.ptz = PtzAllocator(
+            PtzParams(
+                pz.max_range_m,
+                pz.aim_height_frac,
+                pz.target_width_m,
+                math.radians(pz.hfov_deg),
+                pz.max_zoom,
+                math.radians(pz.min_tilt_deg),
+                math.radians(pz.max_tilt_deg),
+            )
+        )
+        self.present: dict[str, bool] = {}
+        self.last_t_ns = 0
+        self.seq = 0
+        self.plan_seq = 0
+        self.ptz_seq = 0
+        self.skipped_ticks = 0
+        self.last_poses: dict[str, PoseEstimate] = {}
+        self.last_result: TickResult | None = None
+
+    # -- inputs ---------------------------------------------------------------
+    def absorb(self, batch: Batch) -> None:
+        """File a batch of messages without running a tick."""
+        for info in batch.infos:
+            self.poses.update_info(info)
+            self.ptz.update_info(info)
+        for sid, alive in batch.presence.items():
+            self.present[sid] = alive
+            if not alive:
+                self.ingest.forget(sid)
+                self.poses.forget(sid)
+                self.ptz.forget(sid)
+        for f in sorted(batch.features, key=lambda f: f.stamp_ns):
+            if self.present.get(f.sensor_id, True):
+                self.ingest.add(f)
+
+    # -- the tick -------------------------------------------------------------
+    def step(self, batch: Batch, t_ns: int) -> TickResult:
+        """Absorb ``batch`` and fuse at instant ``t_ns``."""
+        self.absorb(batch)
+        if t_ns <= self.last_t_ns:
+            self.skipped_ticks += 1
+            return self._result([], [], [], [], skipped=True)
+        self.last_t_ns = t_ns
+        self.ingest.last_fusion_ns = t_ns
+        aligned: dict[str, AlignedView] = {}
+        for sid, buf in self.ingest.buffers.items():
+            if not self.present.get(sid, True):
+                continue
+            view = align_sensor(buf, sid, t_ns, self.align_params)
+            if view is not None:
+                aligned[sid] = view
+        poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)
+        self.last_poses = poses
+        self.tracker.predict(t_ns)
+        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns)
+        ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
+        self.ingest.trim(t_ns - self.align_params.stale_ns)
+        plans = self._plans(t_ns, poses)
+        commands = self._ptz_commands(t_ns)
+        return self._result(
+            outcome.pair_entries, plans, commands, ended, in_use=outcome.sensors_in_use, aligned=aligned
+        )
+
+    # -- outputs --------------------------------------------------------------
+    def published_tracks(self) -> list[TrackRecord]:
+        show_tentative = self.config.manager.publish_tentative
+        return [tr for tr in self.tracker.tracks if tr.confirmed or show_tentative]
+
+    def track_message(self, tr: TrackRecord) -> Track:
+        tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"
+        p = tr.p
+        return Track(
+            manager_id=self.manager_id,
+            seq=self.seq,
+            stamp_ns=self.last_t_ns,
+            track_id=tid,
+            x_m=float(np.clip(tr.x[0], -1e5, 1e5)),
+            y_m=float(np.clip(tr.x[1], -1e5, 1e5)),
+            height_m=float(min(max(tr.height_m, 0.0), 1e5)),
+            vx_mps=float(np.clip(tr.x[2], -1e3, 1e3)),
+            vy_mps=float(np.clip(tr.x[3], -1e3, 1e3)),
+            cov_xx_m2=float(min(max(p[0, 0], 0.0), 1e10)),
+            cov_xy_m2=float(np.clip(p[0, 1], -1e10, 1e10)),
+            cov_yy_m2=float(min(max(p[1, 1], 0.0), 1e10)),
+            state=tr.state,
+            method=tr.method,
+            sensors=list(tr.sensors)[:64],
+            predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
+            age_s=max(0.0, (tr.t_ns - tr.born_ns) / 1e9),
+            hits=tr.hits,
+            misses=tr.misses,
+        )
+
+    def ptz_targets(self) -> dict[str, PtzTarget]:
+        return {
+            tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), tr.height_m)
+            for tr in self.tracker.tracks
+            if tr.track_id
+        }
+
+    def _plans(self, t_ns: int, poses: dict[str, PoseEstimate]) -> list[ViewPlan]:
+        cams = []
+        for sid, pose in poses.items():
+            info = self.poses.infos.get(sid)
+            mobile = bool(info is not None and info.mobile)
+            radius = info.body_radius_m if info is not None else 0.0
+            cams.append(PlanCamera(sid, pose.origin, radius, self.poses.bearing_sigma(sid), mobile))
+        if not any(c.mobile for c in cams):
+            return []
+        targets = [
+            PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors)
+            for tr in self.tracker.tracks
+            if tr.track_id and tr.state == "confirmed"
+        ]
+        out = []
+        for g in self.planner.plan(t_ns, cams, targets):
+            self.plan_seq += 1
+            out.append(
+                ViewPlan(
+                    manager_id=self.manager_id,
+                    seq=self.plan_seq,
+                    stamp_ns=t_ns,
+                    sensor_id=g.sensor_id,
+                    partner_id=g.partner_id,
+                    track_id=g.track_id,
+                    goal_x_m=g.goal_xy[0],
+                    goal_y_m=g.goal_xy[1],
+                    baseline_m=g.baseline_m,
+                    phi1_rad=min(max(g.phi1_rad, 0.0), 2 * math.pi),
+                    predicted_error_m=g.predicted_error_m,
+                    current_error_m=g.current_error_m,
+                )
+            )
+        return out
+
+    def _ptz_commands(self, t_ns: int) -> list[PtzCommand]:
+        out = []
+        for aim in self.ptz.tick(self.ptz_targets()):
+            self.ptz_seq += 1
+            out.append(
+                PtzCommand(
+                    manager_id=self.manager_id,
+                    seq=self.ptz_seq,
+                    stamp_ns=t_ns,
+                    sensor_id=aim.sensor_id,
+                    pan_rad=float(wrap_angle(aim.pan_rad)),
+                    tilt_rad=float(np.clip(aim.tilt_rad, -math.pi / 2, math.pi / 2)),
+                    zoom=float(aim.zoom),
+                    track_id=aim.track_id,
+                )
+            )
+        return out
+
+    def _result(
+        self,
+        pair_entries: list[PairEntry],
+        plans: list[ViewPlan],
+        commands: list[PtzCommand],
+        ended: list[str],
+        *,
+        skipped: bool = False,
+        in_use: list[str] | None = None,
+        aligned: Mapping[str, AlignedView] | None = None,
+    ) -> TickResult:
+        if not skipped:
+            self.seq += 1
+        tracks = [self.track_message(tr) for tr in self.published_tracks()][:256]
+        used = sorted(in_use or [])
+        known = sorted(set(self.ingest.buffers) | set(self.poses.infos) | set(self.poses.overrides))
+        without = sorted(s for s in (aligned or {}) if s not in self.last_poses)
+        c = self.ingest.counters
+        counters = TickCounters(
+            sensors_in_use=used,
+            sensors_known=known,
+            sensors_without_pose=without,
+            late=c.late,
+            duplicate=c.duplicate,
+            out_of_order=c.out_of_order,
+            dropped=c.dropped,
+            clock_steps=c.clock_steps,
+            skipped_ticks=self.skipped_ticks,
+        )
+        result = TickResult(
+            trackset=TrackSet(
+                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, tracks=tracks, sensors_used=used[:64]
+            ),
+            pair_choice=PairChoice(
+                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, choices=pair_entries[:256]
+            ),
+            plans=plans,
+            ptz_commands=commands,
+            counters=counters,
+            ended=ended,
+            skipped=skipped,
+        )
+        self.last_result = result
+        return result

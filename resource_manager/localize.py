@@ -1,0 +1,159 @@
+"""Localisation: a floor position, head height and covariance from matched views.
+
+With the best pair (the paper's method) the position comes from
+:func:`common.geometry.localize_pair`: triangulation (Eq. 1) or, near
+colinearity, size-ratio (Eq. 2), chosen by the crossover of
+notes/geometry.md §3. With ``fuse_all`` every view of the person is combined
+by least squares (:func:`common.geometry.intersect_rays`).
+
+The head-top height comes from the top elevation: z = z_cam + D·tan(top_elev),
+averaged over the views with weights 1/D².
+
+Covariance (first order, notes/geometry.md §2.1): an error δθ1 in camera 1's
+bearing moves the intersection along ray 2 by D1·δθ1/sin φ0, and δθ2 moves it
+along ray 1 by D2·δθ2/sin φ0; a baseline error δB scales the triangle about O1.
+Hence Σ = σ²/sin²φ0 (D1² e2e2ᵀ + D2² e1e1ᵀ) + (σ_B/B)² (p−O1)(p−O1)ᵀ, whose
+trace is the error model's σ²(D1²+D2²)/sin²φ0 (the size of ``pair_position_error``).
+For size-ratio the error lies along the baseline: 2εD1D2/B (relative width
+error ε), and D1·σ across it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from common.error_model import pair_position_error
+from common.geometry import intersect_rays, localize_pair
+from common.schema import Method
+from resource_manager.match import ViewBlobs
+
+__all__ = ["Measurement", "localize_best_pair", "localize_least_squares", "pair_sigmas"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """One person's position at the fusion instant, from some views."""
+
+    xy: FloatArray
+    """(2,) floor position."""
+    cov: FloatArray
+    """(2, 2) covariance in m²."""
+    height_m: float
+    """Head-top height above the floor (0: unknown)."""
+    method: Method
+    sensors: tuple[str, ...]
+    predicted_error_m: float
+    """The error model's predicted position error of the views used."""
+    blobs: tuple[tuple[str, int], ...]
+    """(sensor_id, blob index) of every view used."""
+
+
+def pair_sigmas(a: ViewBlobs, b: ViewBlobs, sigma_xy_a: float, sigma_xy_b: float) -> tuple[float, float]:
+    """Bearing sigma of the pair and the baseline sigma (non-zero when a pose came from mutual calibration)."""
+    return math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0), math.hypot(sigma_xy_a, sigma_xy_b)
+
+
+def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
+    num = den = 0.0
+    for v, i in views:
+        d = float(np.hypot(*(xy - v.origin_xy)))
+        if d <= 1e-6:
+            continue
+        z = v.z_m + d * math.tan(float(v.top_elev_rad[i]))
+        w = 1.0 / (d * d)
+        num += w * z
+        den += w
+    return max(0.0, num / den) if den > 0 else 0.0
+
+
+def localize_best_pair(
+    a: ViewBlobs,
+    i: int,
+    b: ViewBlobs,
+    j: int,
+    *,
+    sigma_xy_a: float = 0.0,
+    sigma_xy_b: float = 0.0,
+    width_rel_sigma: float = 0.1,
+    min_sigma_m: float = 0.02,
+) -> Measurement | None:
+    """Localise blob i of camera a and blob j of camera b (Eq. 1 or Eq. 2); None if the rays do not meet."""
+    sigma, sigma_base = pair_sigmas(a, b, sigma_xy_a, sigma_xy_b)
+    w1, w2 = float(a.width_rad[i]), float(b.width_rad[j])
+    sigma_w = width_rel_sigma * 0.5 * (w1 + w2)
+    fix = localize_pair(
+        a.origin_xy, float(a.bearing_rad[i]), w1, b.origin_xy, float(b.bearing_rad[j]), w2, sigma, max(sigma_w, 1e-6)
+    )
+    if not fix.converges:
+        return None
+    xy = np.asarray(fix.xy, dtype=np.float64)
+    if not np.all(np.isfinite(xy)):
+        return None
+    o1, o2 = a.origin_xy, b.origin_xy
+    base_vec = o2 - o1
+    base = float(np.hypot(*base_vec))
+    d1, d2 = float(fix.d1_m), float(fix.d2_m)
+    if fix.method == "size_ratio":
+        u = base_vec / max(base, 1e-9)
+        n = np.array([-u[1], u[0]])
+        along = 2.0 * width_rel_sigma * d1 * d2 / max(base, 1e-9)
+        cov = along**2 * np.outer(u, u) + (d1 * sigma) ** 2 * np.outer(n, n)
+    else:
+        s0 = max(abs(math.sin(float(fix.phi0_rad))), 1e-3)
+        e1 = (xy - o1) / max(float(np.hypot(*(xy - o1))), 1e-9)
+        e2 = (xy - o2) / max(float(np.hypot(*(xy - o2))), 1e-9)
+        cov = (sigma / s0) ** 2 * (d1 * d1 * np.outer(e2, e2) + d2 * d2 * np.outer(e1, e1))
+    if sigma_base > 0 and base > 0:
+        rel = xy - o1
+        cov = cov + (sigma_base / base) ** 2 * np.outer(rel, rel)
+    cov = cov + min_sigma_m**2 * np.eye(2)
+    predicted = float(pair_position_error(o1, o2, xy, sigma, sigma_base))
+    if fix.method == "size_ratio" or not math.isfinite(predicted):
+        predicted = math.sqrt(float(np.trace(cov)))
+    return Measurement(
+        xy=xy,
+        cov=cov,
+        height_m=_height([(a, i), (b, j)], xy),
+        method="size_ratio" if fix.method == "size_ratio" else "triangulation",
+        sensors=(a.sensor_id, b.sensor_id),
+        predicted_error_m=predicted,
+        blobs=((a.sensor_id, i), (b.sensor_id, j)),
+    )
+
+
+def localize_least_squares(
+    views: list[tuple[ViewBlobs, int]], sigma_xy: dict[str, float], min_sigma_m: float = 0.02
+) -> Measurement | None:
+    """Fuse every view of one person by least squares on the bearing rays; None if degenerate."""
+    if len(views) < 2:
+        return None
+    origins = np.array([v.origin_xy for v, _ in views], dtype=np.float64)
+    bearings = np.array([float(v.bearing_rad[i]) for v, i in views], dtype=np.float64)
+    sigmas = []
+    for v, _ in views:
+        sigmas.append(v.sigma_rad)
+    try:
+        fix = intersect_rays(origins, bearings, np.array(sigmas, dtype=np.float64))
+    except Exception:  # GeometryError on parallel rays
+        return None
+    xy = np.asarray(fix.xy, dtype=np.float64)
+    if not np.all(np.isfinite(xy)):
+        return None
+    cov = np.asarray(fix.cov, dtype=np.float64)
+    pose_var = max(sigma_xy.get(v.sensor_id, 0.0) for v, _ in views) ** 2
+    cov = cov + (pose_var + min_sigma_m**2) * np.eye(2)
+    return Measurement(
+        xy=xy,
+        cov=cov,
+        height_m=_height(views, xy),
+        method="least_squares",
+        sensors=tuple(v.sensor_id for v, _ in views),
+        predicted_error_m=math.sqrt(max(float(np.trace(cov)), 0.0)),
+        blobs=tuple((v.sensor_id, i) for v, i in views),
+    )

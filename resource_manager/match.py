@@ -1,0 +1,277 @@
+"""3D blob-based stereo match (paper, "3D Blob-Based Stereo Match", Eq. 7).
+
+For two cameras with known poses, every blob i of camera a is scored against
+every blob j of camera b::
+
+    r(i, j) = r_is(i, j) · r_rc(i, j) · r_wc(i, j) · r_hc(i, j)      (Eq. 7)
+
+* r_is: colour similarity, the Bhattacharyya coefficient of the histograms;
+* r_rc: ray convergence; soft, from the smallest inner angle of the triangle
+  O1-O2-T against the bearing error, with a colinear branch where the
+  size-ratio method (Eq. 2) takes over (notes/geometry.md §4);
+* r_wc: width consistency of the metric widths W_k = 2 D_k tan(w_k / 2);
+* r_hc: height consistency of the head-top heights H_k = z_k + D_k tan(top_k).
+
+A temporal consistency term from the current tracks is added:
+``r' = (r + λ c_t) / (1 + λ)`` with c_t = 1 when both blobs already support
+the same track (only where the rays can meet at all). Two matchers turn the
+matrix into pairs, chosen by name (STYLE.md habit 12): ``greedy`` (the
+paper's, O(N³/3)) and ``global`` (Hungarian on the sum of confidences, with a
+private "unmatched" dummy per row and column).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final, Protocol
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import linear_sum_assignment
+from scipy.special import ndtr
+
+from common.errors import GeometryError
+from common.geometry import size_ratio, triangulate
+
+__all__ = [
+    "MATCHERS",
+    "GlobalMatcher",
+    "GreedyMatcher",
+    "MatchMatrix",
+    "MatchParams",
+    "Matcher",
+    "ViewBlobs",
+    "get_matcher",
+    "match_matrix",
+]
+
+FloatArray = npt.NDArray[np.float64]
+TWO_PI: Final = 2.0 * math.pi
+
+
+@dataclass(frozen=True, slots=True)
+class ViewBlobs:
+    """The blobs of one camera at the fusion instant, in world terms."""
+
+    sensor_id: str
+    origin_xy: FloatArray
+    """(2,) optical centre on the floor plane."""
+    z_m: float
+    """Height of the optical centre."""
+    sigma_rad: float
+    """1-sigma bearing error (the sensor's, plus its pose's yaw error)."""
+    bearing_rad: FloatArray
+    """(n,) world azimuths of the heads."""
+    width_rad: FloatArray
+    """(n,) angular widths."""
+    top_elev_rad: FloatArray
+    """(n,) elevations of the blob tops."""
+    hist: FloatArray | None
+    """(n, k) L1-normalised histograms, or None when the sensor sends none."""
+    local_id: npt.NDArray[np.int64]
+    """(n,) the node's 2D track ids."""
+
+    @property
+    def n(self) -> int:
+        return int(self.bearing_rad.shape[0])
+
+
+@dataclass(frozen=True, slots=True)
+class MatchParams:
+    """The knobs of Eq. 7 (see ``[match]`` in the config)."""
+
+    max_range_m: float = 30.0
+    width_sigma: float = 0.35
+    height_sigma: float = 0.12
+    use_colour: bool = True
+    temporal_weight: float = 1.0
+    colinear_sigmas: float = 2.0
+    """A target within this many bearing sigmas (or its own half width) of the baseline is size-ratio."""
+
+
+@dataclass(frozen=True, slots=True)
+class MatchMatrix:
+    """Eq. 7 for every blob pair of two views, and the hypothesised targets."""
+
+    r: FloatArray
+    """(na, nb) total confidence (with the temporal term when given)."""
+    d1_m: FloatArray
+    d2_m: FloatArray
+    xy: FloatArray
+    """(na, nb, 2) hypothesised target positions."""
+    size_ratio: npt.NDArray[np.bool_]
+    """(na, nb) True where Eq. 2 (size-ratio) was used instead of Eq. 1."""
+    parts: dict[str, FloatArray]
+    """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics)."""
+
+
+def _wrap(a: FloatArray) -> FloatArray:
+    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
+
+
+def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
+    """exp(-ln²(v1/v2) / 2σ²); 0 where either value is not positive."""
+    ok = (v1 > 0) & (v2 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lr = np.where(ok, np.log(np.where(ok, v1, 1.0) / np.where(ok, v2, 1.0)), 0.0)
+    return np.where(ok, np.exp(-(lr**2) / (2.0 * sigma**2)), 0.0)
+
+
+def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: FloatArray | None = None) -> MatchMatrix:
+    """Score every blob of ``a`` against every blob of ``b`` (Eq. 7).
+
+    Args:
+        a: camera 1 (O1).
+        b: camera 2 (O2).
+        params: measure settings.
+        temporal: (na, nb) c_t in [0, 1] from the current tracks, or None.
+    """
+    na, nb = a.n, b.n
+    o1, o2 = a.origin_xy, b.origin_xy
+    d = o2 - o1
+    base = float(math.hypot(d[0], d[1]))
+    psi12 = math.atan2(d[1], d[0])
+    sigma = max(math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0), 1e-6)
+    th1 = a.bearing_rad[:, None]
+    th2 = b.bearing_rad[None, :]
+    # Signed inner angles at O1 and O2 (notes/geometry.md §4).
+    a1 = _wrap(th1 - psi12) * np.ones((1, nb))
+    a2 = _wrap(psi12 + math.pi - th2) * np.ones((na, 1))
+    abs1, abs2 = np.abs(a1), np.abs(a2)
+    same_side = np.sign(a1) == np.sign(a2)
+    converge = same_side & (abs1 + abs2 < math.pi)
+    phi0 = math.pi - abs1 - abs2
+    margin = np.where(
+        converge, np.minimum(np.minimum(abs1, abs2), phi0), np.where(same_side, phi0, -np.minimum(abs1, abs2))
+    )
+    r_conv = ndtr(margin / (math.sqrt(2.0) * sigma))
+    col_d = np.minimum(
+        np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, math.pi - abs2), np.maximum(math.pi - abs1, abs2))
+    )
+    r_col = np.exp(-(col_d**2) / (4.0 * sigma**2))
+    # Eq. 1 (triangulation) where the triangle is proper.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d1_t, d2_t = triangulate(base, abs1, abs2)
+    d1_t = np.asarray(d1_t, dtype=np.float64) * np.ones((na, nb))
+    d2_t = np.asarray(d2_t, dtype=np.float64) * np.ones((na, nb))
+    # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
+    # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
+    w1 = a.width_rad[:, None] * np.ones((1, nb))
+    w2 = b.width_rad[None, :] * np.ones((na, 1))
+    colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
+    use_sr = col_d < colinear_gap
+    d1_s = np.full((na, nb), np.nan)
+    d2_s = np.full((na, nb), np.nan)
+    for i, j in np.argwhere(use_sr):
+        c1 = 1.0 if abs1[i, j] < math.pi / 2 else -1.0
+        c2 = 1.0 if abs2[i, j] < math.pi / 2 else -1.0
+        try:  # Eq. 2 with sizes sin(w/2) (exact for a cylinder of the target's width)
+            d1_s[i, j], d2_s[i, j] = size_ratio(base, math.sin(w1[i, j] / 2), math.sin(w2[i, j] / 2), c1, c2)
+        except GeometryError:
+            use_sr[i, j] = False
+    d1 = np.where(use_sr, d1_s, np.where(converge, d1_t, np.nan))
+    d2 = np.where(use_sr, d2_s, np.where(converge, d2_t, np.nan))
+    valid = np.isfinite(d1) & np.isfinite(d2) & (d1 > 0) & (d2 > 0)
+    valid &= (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
+    d1 = np.where(valid, d1, 0.0)
+    d2 = np.where(valid, d2, 0.0)
+    r_rc = np.where(valid, np.where(use_sr, np.maximum(r_conv, r_col), r_conv), 0.0)
+    # Width consistency: metric widths from both views (1 where Eq. 2 made them equal by construction).
+    width1 = 2.0 * d1 * np.tan(w1 / 2.0)
+    width2 = 2.0 * d2 * np.tan(w2 / 2.0)
+    r_wc = np.where(use_sr, 1.0, _log_ratio_score(width1, width2, params.width_sigma))
+    # Height consistency: head-top height from each view.
+    h1 = a.z_m + d1 * np.tan(a.top_elev_rad[:, None])
+    h2 = b.z_m + d2 * np.tan(b.top_elev_rad[None, :])
+    r_hc = _log_ratio_score(h1, h2, params.height_sigma)
+    # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
+    if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
+        r_is = np.clip(np.sqrt(np.clip(a.hist, 0, None)) @ np.sqrt(np.clip(b.hist, 0, None)).T, 0.0, 1.0)
+    else:
+        r_is = np.ones((na, nb))
+    r = r_is * r_rc * r_wc * r_hc
+    c_t = np.zeros((na, nb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
+    lam = params.temporal_weight
+    if temporal is not None and lam > 0:
+        r = np.where(r_rc > 0, (r + lam * c_t) / (1.0 + lam), 0.0)
+    # Hypothesised positions along camera 1's ray.
+    xy = np.empty((na, nb, 2))
+    xy[..., 0] = o1[0] + d1 * np.cos(th1)
+    xy[..., 1] = o1[1] + d1 * np.sin(th1)
+    parts = {"r_is": r_is, "r_rc": r_rc, "r_wc": r_wc, "r_hc": r_hc, "c_t": c_t}
+    return MatchMatrix(r=r, d1_m=d1, d2_m=d2, xy=xy, size_ratio=use_sr & valid, parts=parts)
+
+
+class Matcher(Protocol):
+    """Turns a confidence matrix into one-to-one pairs above a threshold."""
+
+    name: str
+
+    def match(self, r: FloatArray, threshold: float) -> list[tuple[int, int]]:
+        """Return (row, column) pairs, each row and column at most once, every r > threshold."""
+        ...
+
+
+class GreedyMatcher:
+    """The paper's greedy matcher: take the largest entry, delete its row and column, repeat.
+
+    Scanning the remaining (N-k)x(N-k) matrix N times costs Σ m² ≈ N³/3 comparisons.
+    """
+
+    name = "greedy"
+
+    def match(self, r: FloatArray, threshold: float) -> list[tuple[int, int]]:
+        m = np.array(r, dtype=np.float64, copy=True)
+        out: list[tuple[int, int]] = []
+        if m.size == 0:
+            return out
+        for _ in range(min(m.shape)):
+            flat = int(np.argmax(m))
+            i, j = divmod(flat, m.shape[1])
+            if not m[i, j] > threshold:
+                break
+            out.append((i, j))
+            m[i, :] = -np.inf
+            m[:, j] = -np.inf
+        return out
+
+
+class GlobalMatcher:
+    """Maximise the total confidence (Hungarian), each blob free to stay unmatched.
+
+    The (na+nb) square problem gives every row and column a private dummy worth
+    threshold/2, so a real pair is taken only when r > threshold (notes/geometry.md §4).
+    """
+
+    name = "global"
+
+    def match(self, r: FloatArray, threshold: float) -> list[tuple[int, int]]:
+        na, nb = r.shape
+        if na == 0 or nb == 0:
+            return []
+        forbid = -1e6
+        n = na + nb
+        w = np.full((n, n), forbid)
+        w[:na, :nb] = np.where(r > threshold, r, forbid)
+        u = threshold / 2.0
+        w[np.arange(na), nb + np.arange(na)] = u
+        w[na + np.arange(nb), np.arange(nb)] = u
+        w[na:, nb:] = 0.0
+        rows, cols = linear_sum_assignment(w, maximize=True)
+        return [(int(i), int(j)) for i, j in zip(rows, cols, strict=True) if i < na and j < nb and r[i, j] > threshold]
+
+
+MATCHERS: Final[dict[str, type[GreedyMatcher] | type[GlobalMatcher]]] = {
+    GreedyMatcher.name: GreedyMatcher,
+    GlobalMatcher.name: GlobalMatcher,
+}
+"""Matchers by the name used in ``[manager] matcher``."""
+
+
+def get_matcher(name: str) -> Matcher:
+    """Instantiate a matcher by registry name (KeyError names the choices)."""
+    try:
+        return MATCHERS[name]()
+    except KeyError as err:
+        raise KeyError(f"unknown matcher {name!r}; choose from {sorted(MATCHERS)}") from err

@@ -1,0 +1,335 @@
+"""Camera poses: surveyed ones from config/SensorInfo, mobile ones by mutual calibration.
+
+A pose is known when and only when it is: a surveyed pose (a ``[[pose]]``
+override in the manager config, or the pose a sensor reports with
+``pose_source = "surveyed"``), or a pose solved this instant by mutual
+calibration from sightings and chained from cameras whose pose is known.
+Nothing is guessed: a robot that no known camera sees, and that does not see
+two known bodies itself, has no pose and its blobs are not used.
+
+Mutual calibration (paper, "Dynamic Mutual Calibration", Eq. 3): camera o sees
+robot t's cylinder between two occluding rays at angle α; the baseline is
+B = R / sin(α/2) and the direction of t is the mean of the two boundary
+bearings. Chaining rules, repeated until nothing changes:
+
+1. *Position by range and bearing*: a camera o with a known pose that sights t
+   puts t at p_o + B·(cos, sin)(yaw_o + β_ot); B is averaged with t's own
+   measurement of the same baseline when t sights o too (both robots' views).
+2. *Orientation from t's own sightings*: once t's position is known, every body
+   k of known position that t sights gives yaw_t = atan2(p_k - p_t) - β_tk
+   (circular mean over k).
+3. *Resection*: t sighting two bodies of known position gives both its yaw (the
+   angle between the world and sensor-frame vectors k1->k2) and its position.
+
+Raw poses are smoothed over time with an alpha-beta filter (time constant
+``smoothing_s``), and carry the error model's uncertainty: σ_B ≈ B²σ_α/(2R)
+(notes/geometry.md §2.1), divided by √2 when both views are averaged.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from common.geometry import baseline_from_alpha, sighting_bearing, wrap_angle
+from common.schema import SensorInfo
+from resource_manager.align import AlignedSighting
+
+__all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
+
+logger = logging.getLogger(__name__)
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class MutualParams:
+    enabled: bool = True
+    smoothing_s: float = 1.0
+    timeout_s: float = 2.0
+    jump_m: float = 1.0
+    boundary_sigma_rad: float = 0.0
+    """0: use the observer's bearing sigma."""
+    default_bearing_sigma_rad: float = math.radians(0.2)
+    default_height_m: float = 1.1
+    """Camera height of a mobile sensor whose SensorInfo carries no pose (z is a constant of the robot)."""
+
+
+@dataclass(frozen=True, slots=True)
+class PoseEstimate:
+    """A sensor's pose at the fusion instant and its uncertainty."""
+
+    sensor_id: str
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+    source: Literal["surveyed", "mutual"]
+    sigma_xy_m: float = 0.0
+    sigma_yaw_rad: float = 0.0
+
+    @property
+    def origin(self) -> FloatArray:
+        return np.array([self.x_m, self.y_m])
+
+
+@dataclass(frozen=True, slots=True)
+class RawPose:
+    """One instant's mutual-calibration solution before smoothing."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    sigma_xy_m: float
+    sigma_yaw_rad: float
+
+
+@dataclass(slots=True)
+class _Filter:
+    x: float
+    y: float
+    yaw: float
+    vx: float = 0.0
+    vy: float = 0.0
+    vyaw: float = 0.0
+    t_ns: int = 0
+    n: int = 1
+    sigma_xy: float = 0.0
+    sigma_yaw: float = 0.0
+
+
+@dataclass(slots=True)
+class _Obs:
+    bearing_rad: float
+    baseline_m: float
+    sigma_b_m: float
+
+
+@dataclass(slots=True)
+class PoseSolver:
+    """Keeps surveyed poses and solves mobile ones each tick."""
+
+    params: MutualParams = field(default_factory=MutualParams)
+    overrides: dict[str, PoseEstimate] = field(default_factory=dict)
+    infos: dict[str, SensorInfo] = field(default_factory=dict)
+    filters: dict[str, _Filter] = field(default_factory=dict)
+
+    def update_info(self, info: SensorInfo) -> bool:
+        """Take a SensorInfo (newest stamp wins); return True if it changed anything."""
+        old = self.infos.get(info.sensor_id)
+        if old is not None and old.stamp_ns > info.stamp_ns:
+            return False
+        self.infos[info.sensor_id] = info
+        return old != info
+
+    def forget(self, sensor_id: str) -> None:
+        self.filters.pop(sensor_id, None)
+
+    def bearing_sigma(self, sensor_id: str) -> float:
+        info = self.infos.get(sensor_id)
+        return (
+            info.bearing_sigma_rad
+            if info is not None and info.bearing_sigma_rad > 0
+            else self.params.default_bearing_sigma_rad
+        )
+
+    def surveyed(self) -> dict[str, PoseEstimate]:
+        """Poses known without calibration: overrides first, then surveyed SensorInfo poses."""
+        out: dict[str, PoseEstimate] = {}
+        for sid, info in self.infos.items():
+            if info.pose is not None and info.pose_source == "surveyed":
+                p = info.pose
+                out[sid] = PoseEstimate(sid, p.x_m, p.y_m, p.z_m, p.yaw_rad, "surveyed")
+        out.update(self.overrides)
+        return out
+
+    def _height(self, sensor_id: str) -> float | None:
+        """The optical centre's height: from SensorInfo (a mobile node may report z only), else the default."""
+        info = self.infos.get(sensor_id)
+        if info is None:
+            return None
+        if info.pose is not None and info.pose.z_m > 0:
+            return info.pose.z_m
+        return self.params.default_height_m
+
+    def _observations(self, sightings: dict[str, list[AlignedSighting]]) -> dict[tuple[str, str], _Obs]:
+        obs: dict[tuple[str, str], _Obs] = {}
+        for observer, items in sightings.items():
+            sigma_b = self.params.boundary_sigma_rad or self.bearing_sigma(observer)
+            for s in items:
+                if not s.target_id or s.target_id == observer or s.body_radius_m <= 0:
+                    continue
+                alpha = abs(float(wrap_angle(s.left_rad - s.right_rad)))
+                if not 0.0 < alpha < math.pi:
+                    continue
+                b = float(baseline_from_alpha(alpha, s.body_radius_m))
+                # σ_B ≈ B²σ_α/(2R), σ_α = √2 σ_boundary (two boundaries).
+                sigma = b * b * math.sqrt(2.0) * sigma_b / (2.0 * s.body_radius_m)
+                obs[(observer, s.target_id)] = _Obs(float(sighting_bearing(s.left_rad, s.right_rad)), b, sigma)
+        return obs
+
+    def solve_raw(
+        self, sightings: dict[str, list[AlignedSighting]], known: dict[str, PoseEstimate]
+    ) -> dict[str, RawPose]:
+        """One instant's mutual calibration, chained from ``known`` poses (no smoothing)."""
+        obs = self._observations(sightings)
+        full: dict[str, tuple[float, float, float, float, float]] = {
+            k: (p.x_m, p.y_m, p.yaw_rad, p.sigma_xy_m, p.sigma_yaw_rad) for k, p in known.items()
+        }
+        positions: dict[str, tuple[float, float, float]] = {k: (v[0], v[1], v[3]) for k, v in full.items()}
+        solved: dict[str, RawPose] = {}
+        candidates = {t for (_, t) in obs} | {o for (o, _) in obs}
+        changed = True
+        while changed:
+            changed = False
+            for t in sorted(candidates - set(full)):
+                if t not in positions:
+                    pos = self._position_from_observers(t, obs, full)
+                    if pos is not None:
+                        positions[t] = pos
+                        changed = True
+                if t in positions:
+                    yaw = self._yaw_from_own(t, obs, positions)
+                    if yaw is not None:
+                        x, y, sxy = positions[t]
+                        full[t] = (x, y, yaw[0], sxy, yaw[1])
+                        solved[t] = RawPose(x, y, yaw[0], sxy, yaw[1])
+                        changed = True
+                        continue
+                res = self._resection(t, obs, positions)
+                if res is not None:
+                    full[t] = (res.x_m, res.y_m, res.yaw_rad, res.sigma_xy_m, res.sigma_yaw_rad)
+                    positions[t] = (res.x_m, res.y_m, res.sigma_xy_m)
+                    solved[t] = res
+                    changed = True
+        return solved
+
+    def _position_from_observers(
+        self, t: str, obs: dict[tuple[str, str], _Obs], full: dict[str, tuple[float, float, float, float, float]]
+    ) -> tuple[float, float, float] | None:
+        xs, ys, ws, sig = [], [], [], []
+        for (o, tt), ob in obs.items():
+            if tt != t or o not in full:
+                continue
+            ox, oy, oyaw, osxy, osyaw = full[o]
+            b, sb = ob.baseline_m, ob.sigma_b_m
+            back = obs.get((t, o))
+            if back is not None:  # both robots' views of the same baseline
+                b = 0.5 * (b + back.baseline_m)
+                sb = 0.5 * math.hypot(sb, back.sigma_b_m)
+            ang = oyaw + ob.bearing_rad
+            s_perp = b * math.hypot(self.bearing_sigma(o), osyaw)
+            s = math.sqrt(sb * sb + s_perp * s_perp + osxy * osxy)
+            w = 1.0 / max(s * s, 1e-9)
+            xs.append(ox + b * math.cos(ang))
+            ys.append(oy + b * math.sin(ang))
+            ws.append(w)
+            sig.append(s)
+        if not ws:
+            return None
+        wsum = sum(ws)
+        x = sum(w * v for w, v in zip(ws, xs, strict=True)) / wsum
+        y = sum(w * v for w, v in zip(ws, ys, strict=True)) / wsum
+        return x, y, 1.0 / math.sqrt(wsum)
+
+    def _yaw_from_own(
+        self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
+    ) -> tuple[float, float] | None:
+        tx, ty, tsxy = positions[t]
+        sins, coss, sig = 0.0, 0.0, []
+        for (o, k), ob in obs.items():
+            if o != t or k not in positions:
+                continue
+            kx, ky, ksxy = positions[k]
+            dist = math.hypot(kx - tx, ky - ty)
+            if dist < 1e-6:
+                continue
+            yaw = math.atan2(ky - ty, kx - tx) - ob.bearing_rad
+            s = math.hypot(self.bearing_sigma(t), math.hypot(tsxy, ksxy) / dist)
+            w = 1.0 / max(s * s, 1e-12)
+            sins += w * math.sin(yaw)
+            coss += w * math.cos(yaw)
+            sig.append(w)
+        if not sig:
+            return None
+        return float(wrap_angle(math.atan2(sins, coss))), 1.0 / math.sqrt(sum(sig))
+
+    def _resection(
+        self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
+    ) -> RawPose | None:
+        seen = [(k, ob) for (o, k), ob in obs.items() if o == t and k in positions and k != t]
+        if len(seen) < 2:
+            return None
+        (k1, o1), (k2, o2) = sorted(seen, key=lambda kv: kv[1].sigma_b_m)[:2]
+        p1, p2 = positions[k1], positions[k2]
+        v_sensor = (
+            o2.baseline_m * math.cos(o2.bearing_rad) - o1.baseline_m * math.cos(o1.bearing_rad),
+            o2.baseline_m * math.sin(o2.bearing_rad) - o1.baseline_m * math.sin(o1.bearing_rad),
+        )
+        if math.hypot(*v_sensor) < 1e-6:
+            return None
+        yaw = float(wrap_angle(math.atan2(p2[1] - p1[1], p2[0] - p1[0]) - math.atan2(v_sensor[1], v_sensor[0])))
+        xs = [p[0] - ob.baseline_m * math.cos(yaw + ob.bearing_rad) for p, ob in ((p1, o1), (p2, o2))]
+        ys = [p[1] - ob.baseline_m * math.sin(yaw + ob.bearing_rad) for p, ob in ((p1, o1), (p2, o2))]
+        sxy = math.hypot(o1.sigma_b_m, o2.sigma_b_m) / 2.0 + max(p1[2], p2[2])
+        syaw = math.hypot(o1.sigma_b_m, o2.sigma_b_m) / max(math.hypot(p2[0] - p1[0], p2[1] - p1[1]), 1e-6)
+        return RawPose(sum(xs) / 2.0, sum(ys) / 2.0, yaw, sxy, math.hypot(syaw, self.bearing_sigma(t)))
+
+    def solve(self, sightings: dict[str, list[AlignedSighting]], t_ns: int) -> dict[str, PoseEstimate]:
+        """Every pose known at ``t_ns``: surveyed ones plus smoothed mutual-calibration ones."""
+        known = self.surveyed()
+        if not self.params.enabled:
+            return known
+        raw = self.solve_raw(sightings, known)
+        out = dict(known)
+        timeout_ns = int(self.params.timeout_s * 1e9)
+        for sid, rp in raw.items():
+            self._smooth(sid, rp, t_ns)
+        for sid, f in list(self.filters.items()):
+            if sid in known:
+                del self.filters[sid]
+                continue
+            if t_ns - f.t_ns > timeout_ns:
+                logger.info("pose of %s lost: no sighting for %.1f s", sid, (t_ns - f.t_ns) / 1e9)
+                del self.filters[sid]
+                continue
+            if sid not in raw:
+                continue  # known only at an instant where it was actually solved
+            z = self._height(sid)
+            if z is None:
+                continue
+            out[sid] = PoseEstimate(sid, f.x, f.y, z, float(wrap_angle(f.yaw)), "mutual", f.sigma_xy, f.sigma_yaw)
+        return out
+
+    def _smooth(self, sid: str, rp: RawPose, t_ns: int) -> None:
+        f = self.filters.get(sid)
+        timeout_ns = int(self.params.timeout_s * 1e9)
+        if (
+            f is None
+            or t_ns - f.t_ns > timeout_ns
+            or t_ns <= f.t_ns
+            or math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m
+        ):
+            self.filters[sid] = _Filter(
+                rp.x_m, rp.y_m, rp.yaw_rad, t_ns=t_ns, sigma_xy=rp.sigma_xy_m, sigma_yaw=rp.sigma_yaw_rad
+            )
+            return
+        dt = (t_ns - f.t_ns) / 1e9
+        a = 1.0 - math.exp(-dt / self.params.smoothing_s)
+        bgain = a * a / (2.0 - a)
+        px, py, pyaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
+        rx, ry, ryaw = rp.x_m - px, rp.y_m - py, float(wrap_angle(rp.yaw_rad - pyaw))
+        f.x, f.y, f.yaw = px + a * rx, py + a * ry, float(wrap_angle(pyaw + a * ryaw))
+        f.vx += bgain * rx / dt
+        f.vy += bgain * ry / dt
+        f.vyaw += bgain * ryaw / dt
+        f.t_ns = t_ns
+        f.n += 1
+        shrink = max(math.sqrt(a / (2.0 - a)), 1.0 / math.sqrt(f.n))
+        f.sigma_xy = rp.sigma_xy_m * shrink
+        f.sigma_yaw = rp.sigma_yaw_rad * shrink

@@ -1,0 +1,216 @@
+"""Tracking on the floor: a constant-velocity Kalman filter per person and the track life cycle.
+
+State x = (x, y, vx, vy) in metres and m/s; white-acceleration process noise
+(σ_a, ``accel_sigma_mps2``); measurements are floor positions with the
+covariance of :mod:`resource_manager.localize`. A measurement is associated to
+a track only inside a Mahalanobis gate (or within ``gate_min_m``).
+
+Life cycle: a new person starts *tentative*; ``birth_hits`` measurements within
+``birth_window`` ticks confirm it and give it an id ``{manager_id}-{n}``
+(``n`` from a persisted counter, so ids never repeat, across managers and
+restarts); a tentative track that cannot reach that dies quietly. A confirmed
+track missing a measurement is *coasting* and dies after ``max_misses``
+consecutive misses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from common.schema import Method, TrackState
+from resource_manager.localize import Measurement
+
+__all__ = ["TrackParams", "TrackRecord", "Tracker"]
+
+FloatArray = npt.NDArray[np.float64]
+
+_H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+
+
+@dataclass(frozen=True, slots=True)
+class TrackParams:
+    accel_sigma_mps2: float = 1.5
+    gate_chi2: float = 13.8
+    gate_min_m: float = 0.5
+    min_meas_sigma_m: float = 0.03
+    birth_hits: int = 3
+    birth_window: int = 5
+    max_misses: int = 15
+    init_speed_sigma_mps: float = 1.0
+    height_alpha: float = 0.2
+
+
+@dataclass(slots=True)
+class TrackRecord:
+    """One track's filter and bookkeeping (mutable, owned by the Tracker)."""
+
+    serial: int
+    x: FloatArray
+    p: FloatArray
+    t_ns: int
+    born_ns: int
+    track_id: str = ""
+    height_m: float = 0.0
+    state: TrackState = "tentative"
+    hits: int = 1
+    misses: int = 0
+    window: deque[bool] = field(default_factory=deque)
+    method: Method = "predicted"
+    sensors: tuple[str, ...] = ()
+    predicted_error_m: float = 0.0
+    links: dict[str, int] = field(default_factory=dict)
+    """sensor id -> the node's local blob id last associated with this track."""
+
+    @property
+    def xy(self) -> FloatArray:
+        return self.x[:2]
+
+    @property
+    def confirmed(self) -> bool:
+        return self.state != "tentative"
+
+
+class Tracker:
+    """All tracks of one manager.
+
+    Args:
+        params: filter and life-cycle settings.
+        new_id: returns the next unique track id (called once per confirmed track).
+    """
+
+    def __init__(self, params: TrackParams, new_id: Callable[[], str]) -> None:
+        self.params = params
+        self.new_id = new_id
+        self.tracks: list[TrackRecord] = []
+        self._serial = 0
+
+    def predict(self, t_ns: int) -> None:
+        """Move every track to the fusion instant ``t_ns`` (never backwards)."""
+        q = self.params.accel_sigma_mps2**2
+        for tr in self.tracks:
+            dt = (t_ns - tr.t_ns) / 1e9
+            if dt <= 0:
+                continue
+            f = np.eye(4)
+            f[0, 2] = f[1, 3] = dt
+            g = np.array([[dt * dt / 2, 0.0], [0.0, dt * dt / 2], [dt, 0.0], [0.0, dt]])
+            tr.x = f @ tr.x
+            tr.p = f @ tr.p @ f.T + q * (g @ g.T)
+            tr.t_ns = t_ns
+
+    def innovation(self, tr: TrackRecord, m: Measurement) -> tuple[FloatArray, FloatArray]:
+        r = m.cov + self.params.min_meas_sigma_m**2 * np.eye(2)
+        nu = m.xy - tr.x[:2]
+        s = _H @ tr.p @ _H.T + r
+        return nu, s
+
+    def gate_distance(self, tr: TrackRecord, m: Measurement) -> float:
+        """Mahalanobis distance² of a measurement to a track, or inf outside the gate."""
+        nu, s = self.innovation(tr, m)
+        d2 = float(nu @ np.linalg.solve(s, nu))
+        if d2 <= self.params.gate_chi2 or float(np.hypot(*nu)) <= self.params.gate_min_m:
+            return d2
+        return math.inf
+
+    def position_gate_m(self, tr: TrackRecord) -> float:
+        """A radius that contains the gate (for cheap spatial pre-filtering)."""
+        ev = float(np.max(np.linalg.eigvalsh(tr.p[:2, :2])))
+        return max(self.params.gate_min_m, math.sqrt(self.params.gate_chi2 * (ev + 0.25)))
+
+    def update(self, tr: TrackRecord, m: Measurement, links: dict[str, int]) -> None:
+        """Kalman update with a measurement; counts a hit and may confirm the track."""
+        nu, s = self.innovation(tr, m)
+        k = tr.p @ _H.T @ np.linalg.inv(s)
+        tr.x = tr.x + k @ nu
+        tr.p = (np.eye(4) - k @ _H) @ tr.p
+        tr.p = 0.5 * (tr.p + tr.p.T)
+        if m.height_m > 0:
+            a = self.params.height_alpha if tr.height_m > 0 else 1.0
+            tr.height_m += a * (m.height_m - tr.height_m)
+        tr.method = m.method
+        tr.sensors = m.sensors
+        tr.predicted_error_m = m.predicted_error_m
+        tr.links.update(links)
+        tr.hits += 1
+        tr.misses = 0
+        self._window(tr, True)
+        if tr.state == "tentative":
+            if sum(tr.window) >= self.params.birth_hits:
+                tr.state = "confirmed"
+                tr.track_id = self.new_id()
+        else:
+            tr.state = "confirmed"
+
+    def miss(self, tr: TrackRecord) -> None:
+        tr.misses += 1
+        tr.method = "predicted"
+        tr.sensors = ()
+        self._window(tr, False)
+        if tr.state == "confirmed":
+            tr.state = "coasting"
+
+    def _window(self, tr: TrackRecord, hit: bool) -> None:
+        tr.window.append(hit)
+        while len(tr.window) > self.params.birth_window:
+            tr.window.popleft()
+
+    def spawn(self, m: Measurement, t_ns: int, links: dict[str, int]) -> TrackRecord:
+        """Start a tentative track at a measurement."""
+        self._serial += 1
+        p = np.zeros((4, 4))
+        p[:2, :2] = m.cov + self.params.min_meas_sigma_m**2 * np.eye(2)
+        p[2, 2] = p[3, 3] = self.params.init_speed_sigma_mps**2
+        tr = TrackRecord(
+            serial=self._serial,
+            x=np.array([m.xy[0], m.xy[1], 0.0, 0.0]),
+            p=p,
+            t_ns=t_ns,
+            born_ns=t_ns,
+            height_m=m.height_m,
+            method=m.method,
+            sensors=m.sensors,
+            predicted_error_m=m.predicted_error_m,
+            links=dict(links),
+        )
+        tr.window.append(True)
+        if self.params.birth_hits <= 1:
+            tr.state = "confirmed"
+            tr.track_id = self.new_id()
+        self.tracks.append(tr)
+        return tr
+
+    def prune(self) -> list[TrackRecord]:
+        """Remove dead tracks; return the confirmed ones that ended (their ids are retired)."""
+        keep: list[TrackRecord] = []
+        ended: list[TrackRecord] = []
+        p = self.params
+        for tr in self.tracks:
+            if tr.state == "tentative":
+                needed = p.birth_hits - sum(tr.window)
+                if needed > p.birth_window - len(tr.window) or tr.misses >= 2:
+                    continue
+                keep.append(tr)
+            elif tr.misses > p.max_misses:
+                ended.append(tr)
+            else:
+                keep.append(tr)
+        # Two tracks on one person: the younger (or tentative) one goes.
+        keep.sort(key=lambda t: (not t.confirmed, t.born_ns, t.serial))
+        final: list[TrackRecord] = []
+        for tr in keep:
+            dup = next(
+                (o for o in final if float(np.hypot(*(o.xy - tr.xy))) < 0.3 and (o.confirmed or not tr.confirmed)), None
+            )
+            if dup is not None and (not tr.confirmed or tr.misses > 0):
+                if tr.confirmed:
+                    ended.append(tr)
+                continue
+            final.append(tr)
+        self.tracks = final
+        return ended
