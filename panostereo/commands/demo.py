@@ -1,0 +1,270 @@
+"""``panostereo demo``: run a whole site on this machine, watch it live, and score it.
+
+Usage::
+
+    panostereo demo [--site FILE] [--duration S] [--out DIR] [--seed N] [--listen ENDPOINT]
+
+Starts a zenoh router (``tcp/127.0.0.1:7447`` by default, so other clients can
+join) and every ``[[process]]`` of the site as its own OS process, a client of
+that router, with a common world epoch (``PANOSTEREO_EPOCH_NS``) for simulated
+sources. Records everything into ``OUT/recording.mcap`` while showing the live
+view, then stops the processes and writes ``OUT/gt.csv`` (the simulated world's
+ground truth -- for scoring only; it never reaches the pipeline), the scores in
+``OUT/summary.json`` and the top view ``OUT/top.png``. A dataset site
+(``[dataset]``: detection files and a ``gt.csv``) runs the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import shutil
+import sys
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+from common.codec import encode
+from common.errors import ConfigError
+from common.keys import Keys
+from common.schema import ViewPlan
+from common.session import SessionSettings, install_signal_handlers, open_session
+from common.site import SiteConfig, load_site
+from panostereo.launcher import (
+    EPOCH_ENV,
+    SEED_ENV,
+    STATE_ENV,
+    Supervisor,
+    client_endpoint,
+    process_ids,
+    router_plan,
+    site_plans,
+)
+
+__all__ = ["DEFAULT_LISTEN", "configure", "default_site", "run"]
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+
+
+def default_site() -> Path:
+    """``deploy/sites/demo.toml`` of this checkout."""
+    return Path(__file__).resolve().parents[2] / "deploy" / "sites" / "demo.toml"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--site", default=None, metavar="FILE", help="site file (default deploy/sites/demo.toml)")
+    parser.add_argument("--duration", type=float, default=None, help="seconds of tracking (default: the site's)")
+    parser.add_argument("--out", default=None, metavar="DIR", help="output folder (default runs/<time>/)")
+    parser.add_argument("--seed", type=int, default=None, help="world seed (default: the site's)")
+    parser.add_argument("--listen", default=DEFAULT_LISTEN, metavar="ENDPOINT", help="router endpoint")
+    parser.add_argument("--threshold", type=float, default=0.5, help="evaluation match distance (m)")
+    parser.add_argument("--ready-timeout", type=float, default=60.0, help="wait this long for every process")
+    parser.add_argument("--no-view", action="store_true", help="no live view (progress lines only)")
+
+
+def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Any]:
+    """Goals the simulated robots received, as the sim nodes derive them (shared rule)."""
+    import common.scenario as scenario
+
+    shared = getattr(scenario, "goals_from_plans", None)
+    if shared is not None:
+        return list(shared(plans, epoch_ns))
+    Goal = scenario.Goal
+
+    goals: list[Any] = []
+    last: dict[str, tuple[float, float]] = {}
+    for p in sorted(plans, key=lambda p: (p.stamp_ns, p.sensor_id)):
+        prev = last.get(p.sensor_id)
+        if prev is not None and math.hypot(prev[0] - p.goal_x_m, prev[1] - p.goal_y_m) < 0.01:
+            continue
+        last[p.sensor_id] = (p.goal_x_m, p.goal_y_m)
+        goals.append(Goal(p.sensor_id, p.goal_x_m, p.goal_y_m, (p.stamp_ns - epoch_ns) / 1e9))
+    return goals
+
+
+def _with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
+    if seed is None:
+        return site
+    return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=seed))
+
+
+def _progress(elapsed: float, duration: float, client: Any) -> str:
+    tracks = client.tracks(timeout_s=0)
+    return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; returns 0 when it completed (whatever the scores)."""
+    from user_agent.client import AgentClient
+    from user_agent.record import McapSink, Recorder
+    from user_agent.views import CLEAR_SCREEN, watch_screen
+
+    site = _with_seed(load_site(args.site or default_site()), args.seed)
+    dataset = site.dataset
+    fps = dataset.fps if dataset is not None else site.site.fps
+    if args.duration is not None:
+        duration = float(args.duration)
+    elif dataset is not None and dataset.frames:
+        duration = dataset.frames / dataset.fps + 1.0
+    else:
+        duration = site.site.duration_s
+    if not duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {duration}")
+    out = Path(args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    ids = process_ids(site)
+    endpoint = client_endpoint(args.listen)
+    epoch_ns = time.time_ns()
+    env = {EPOCH_ENV: str(epoch_ns), SEED_ENV: str(site.site.seed), STATE_ENV: str(out / "state")}
+    plans = site_plans(site, connect=endpoint, env=env, log_dir=out / "logs")
+    if not plans:
+        raise ConfigError(f"{site.path}: no [[process]] to run on localhost")
+    keys = Keys(site.site.prefix)
+    meta = {"site": site.site.name, "prefix": site.site.prefix, "epoch_ns": str(epoch_ns), "fps": str(fps),
+            "seed": str(site.site.seed)}  # fmt: skip
+    if dataset is None:
+        meta |= {"room_x_m": str(site.world.room_x_m), "room_y_m": str(site.world.room_y_m)}
+
+    shutdown = install_signal_handlers()
+    router = Supervisor([router_plan([args.listen], log_path=out / "logs" / "router.log")], grace_s=3.0)
+    procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
+    tty = sys.stdout.isatty() and not args.no_view
+    router.start()
+    recording = out / "recording.mcap"
+    t_stop_ns = epoch_ns
+    try:
+        settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
+        with open_session(settings) as session:
+            recorder = Recorder(session, keys.all, McapSink(recording, meta))
+            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo")
+            try:
+                procs.start()
+                sensors = {i for c, i in ids.values() if c == "node"}
+                managers = {i for c, i in ids.values() if c == "manager"}
+                t0 = time.monotonic()
+                ready = False
+                while not shutdown.is_set() and time.monotonic() - t0 < args.ready_timeout:
+                    procs.poll()
+                    up_s = {s.sensor_id for s in client.sensors(timeout_s=0.5) if s.alive}
+                    up_m = {m.manager_id for m in client.managers(timeout_s=0.5) if m.alive}
+                    if sensors <= up_s and managers <= up_m:
+                        ready = True
+                        break
+                    print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
+                    shutdown.sleep(0.5)
+                if not ready and not shutdown.is_set():
+                    logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
+                for view in client.sensors(timeout_s=1.0):  # make sure the poses are in the file
+                    if view.info is not None:
+                        recorder.sink.write(keys.sensor_info(view.sensor_id), encode(view.info), time.time_ns())
+                start = time.monotonic()
+                last_view = 0.0
+                sensor_views = client.sensors(timeout_s=0.5)
+                while not shutdown.is_set():
+                    procs.poll()
+                    elapsed = time.monotonic() - start
+                    if elapsed >= duration:
+                        break
+                    if time.monotonic() - last_view >= (1.0 if tty else 5.0):
+                        last_view = time.monotonic()
+                        if tty:
+                            sensor_views = client.sensors(timeout_s=0.3)
+                            head = f"panostereo demo  {elapsed:5.1f}/{duration:.0f} s  site {site.site.name}  out {out}"
+                            screen = watch_screen(client.tracks(timeout_s=0), sensor_views, client.managers(0.3), head)
+                            print(CLEAR_SCREEN + screen, flush=True)
+                        else:
+                            print(_progress(elapsed, duration, client), flush=True)
+                    shutdown.sleep(0.2)
+                t_stop_ns = time.time_ns()
+            finally:
+                recorder.stop()
+                client.close()
+                procs.stop()
+    finally:
+        router.stop()
+    return _finish(
+        site,
+        out=out,
+        recording=recording,
+        epoch_ns=epoch_ns,
+        t_stop_ns=t_stop_ns,
+        fps=fps,
+        threshold_m=args.threshold,
+        restarts=procs.restarts(),
+    )
+
+
+def _finish(
+    site: SiteConfig,
+    *,
+    out: Path,
+    recording: Path,
+    epoch_ns: int,
+    t_stop_ns: int,
+    fps: float,
+    threshold_m: float,
+    restarts: dict[str, int],
+) -> int:
+    from user_agent.groundtruth import read_gt_csv
+    from user_agent.recording import load_recording
+    from user_agent.report import plot_recording, score_recording
+
+    rec = load_recording(recording)
+    gt_path = out / "gt.csv"
+    if site.dataset is not None:
+        src = site.resolve(site.dataset.ground_truth)
+        if not src.is_file():
+            raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({src})")
+        shutil.copyfile(src, gt_path)
+    else:
+        from common.scenario import World, write_gt_csv
+
+        world = World.from_site(site).with_goals(goals_from_plans(rec.plans, epoch_ns))
+        write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
+    gt = read_gt_csv(gt_path)
+    scored = score_recording(rec, gt, threshold_m=threshold_m)
+    m = scored.metrics
+    plot = plot_recording(rec, out / "top.png", gt, title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}")
+    cams = len(set(rec.sensor_infos) | set(rec.node_status))
+    summary: dict[str, Any] = {
+        "site": site.site.name,
+        "seed": site.site.seed,
+        "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
+        "cameras": cams or len(site.camera),
+        "people": len(gt.person_ids),
+        "frames": m.frames,
+        "tracks_published": scored.tracks_published,
+        **{k: v for k, v in m.to_dict().items() if k in _SUMMARY_METRICS},
+        "recording": str(recording),
+        "plot": str(plot),
+        "ground_truth": str(gt_path),
+        "recorded_samples": rec.samples,
+        "restarts": restarts,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    print(json.dumps(summary, indent=2))
+    print(f"summary: {out / 'summary.json'}")
+    return 0
+
+
+_SUMMARY_METRICS = (
+    "mota",
+    "motp_m",
+    "idf1",
+    "id_switches",
+    "mean_error_m",
+    "p90_error_m",
+    "precision",
+    "recall",
+    "false_positives",
+    "misses",
+    "objects",
+    "threshold_m",
+)
