@@ -71,7 +71,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Any]:
     """Goals the simulated robots received, as the sim nodes derive them (shared rule)."""
-    import common.scenario as scenario
+    from common import scenario
 
     shared = getattr(scenario, "goals_from_plans", None)
     if shared is not None:
