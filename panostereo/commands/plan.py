@@ -67,14 +67,34 @@ def plan_result(distance_m: float, radius_m: float, bearing_error_deg: float) ->
     return result, cfg
 
 
+def _check_map_path(path: Path) -> None:
+    """Fail before any work if ``--map`` cannot become a PNG file."""
+    if path.suffix.lower() != ".png":
+        raise ConfigError(f"--map {path}: expected a file name ending in .png, got {path.suffix or 'no suffix'!r}")
+    if path.is_dir():
+        raise ConfigError(f"--map {path}: is a directory, expected a .png file path")
+    if not path.parent.is_dir():
+        raise ConfigError(f"--map {path}: cannot write a PNG there (directory {path.parent} does not exist)")
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    try:
+        ok = cv2.imwrite(str(path), image)
+    except cv2.error as err:
+        raise ConfigError(
+            f"--map {path}: cannot write a PNG there ({err.msg if hasattr(err, 'msg') else err})"
+        ) from err
+    if not ok:
+        raise ConfigError(f"--map {path}: cannot write a PNG there (permission denied or disk full?)")
+    logger.info("wrote error map %s", path)
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.map is not None:
+        _check_map_path(args.map)
     result, cfg = plan_result(args.distance, args.radius, args.bearing_error_deg)
     if args.map is not None:
-        image = render_error_map(args.distance, args.radius, cfg)
-        args.map.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(args.map), image):
-            raise ConfigError(f"--map: could not write a PNG to {args.map}")
-        logger.info("wrote error map %s", args.map)
+        _write_png(args.map, render_error_map(args.distance, args.radius, cfg))
     if args.json:
         print(json.dumps(result))
         return 0

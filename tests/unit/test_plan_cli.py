@@ -65,7 +65,7 @@ def test_plan_text_output(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_plan_map_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = tmp_path / "sub" / "fig4.png"
+    path = tmp_path / "fig4.png"
     res = _plan_json(capsys, "--map", str(path))
     img = cv2.imread(str(path))
     assert img is not None and img.shape[0] > 400 and img.shape[1] > 600
@@ -90,6 +90,19 @@ def test_plan_rejects_bad_input(capsys: pytest.CaptureFixture[str], args: list[s
     assert main(["plan", *args]) == 1
     err = capsys.readouterr().err
     assert message in err and err.startswith("panostereo plan: error:")
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [("no/such/dir/map.png", "does not exist"), (".", "png"), ("map.jpg", "png"), ("dir.png", "directory")],
+)
+def test_plan_map_path_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str, message: str) -> None:
+    (tmp_path / "dir.png").mkdir()
+    path = tmp_path / name
+    assert main(["plan", "--distance", "6", "--radius", "0.18", "--map", str(path)]) == 1
+    out, err = capsys.readouterr()
+    assert out == ""  # nothing printed when the map cannot be written
+    assert err.count("\n") == 1 and err.startswith("panostereo plan: error: --map") and message in err
 
 
 def test_plan_runs_as_a_module() -> None:
