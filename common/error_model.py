@@ -166,7 +166,7 @@ def optimal_positions_world(
     o1 = np.asarray(o1_xy, dtype=np.float64)
     v = np.asarray(target_xy, dtype=np.float64) - o1
     d1 = float(np.hypot(*v))
-    cfg = optimal_configuration(d1, radius_m)
+    cfg = optimal_configuration(d1, radius_m)  # raises GeometryError unless D1 > 2R
     c, s = v / d1
     rot = np.array([[c, -s], [s, c]])
     p_a = o1 + rot @ np.asarray(cfg.o2_xy_pair[0])

