@@ -1,0 +1,451 @@
+"""Walking people for the simulated world: a deterministic, incremental crowd simulation.
+
+Every person is stepped at a fixed ``DT_S`` from t = 0, all together (so people
+avoid each other), and the states are kept so any time can be sampled again.
+Random decisions (the next waypoint, whether to pause and for how long) are
+drawn from a generator seeded by ``(seed, person, decision number)``, never from
+a shared stream, so the simulation is a pure function of the site, the seed and
+the camera platforms' trajectories: every process computes the same crowd.
+
+Behaviour (the issue's "realistic paths"):
+
+* walking speed per person in ``person_speed_mps``; acceleration and turn rate
+  are bounded, so paths turn smoothly;
+* ``random`` paths: waypoints across the room (so paths cross), with pauses
+  (``pause_prob``); ``rectangle``: the paper's Fig. 7 path, a known rectangle
+  with six turn points where the walker stops briefly, people spaced along it and
+  walking in alternating directions; ``line``: back and forth along the segment
+  from (x0, y0) to (x1, y1) of ``rectangle``;
+* ``enter_leave``: people come in and go out through the door (on the wall y = 0)
+  and stay outside for a while;
+* people steer around each other and around camera platforms, and can never
+  overlap a platform (a hard constraint).
+
+When a mobile platform's trajectory changes (a goal given at run time), the
+caller invalidates the states after the goal's issue time with
+:meth:`WalkerSim.invalidate_from`; they are recomputed from the last checkpoint.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from common.site import WorldSpec
+
+__all__ = ["DT_S", "Door", "WalkerLook", "WalkerSample", "WalkerSim"]
+
+DT_S = 0.05
+"""Simulation step (s); samples between steps are interpolated."""
+CHECKPOINT_STEPS = 20
+PERSON_RADIUS_M = 0.28
+"""Clearance a person keeps from a platform's surface (half shoulder width + a little)."""
+ACCEL_MPS2 = 1.2
+TURN_RATE_RADPS = 2.6
+STRIDE_M = 1.4
+"""Distance walked per full gait cycle (two steps)."""
+ARRIVE_M = 0.3
+STUCK_S = 25.0
+"""A walker that has not reached its target after this long picks another."""
+
+_WALK, _PAUSE, _OUTSIDE = 0, 1, 2
+_WANDER, _ENTER, _EXIT_IN, _EXIT_OUT, _ROUTE = 0, 1, 2, 3, 4
+
+Obstacles = Callable[[float], Sequence[tuple[float, float, float]]]
+"""World time -> platforms as (x_m, y_m, radius_m)."""
+
+_SHIRTS = [
+    (200, 40, 40), (40, 90, 200), (40, 150, 60), (230, 180, 30), (150, 60, 170), (240, 120, 30),
+    (30, 160, 170), (120, 70, 40), (220, 100, 150), (20, 40, 100), (170, 200, 60), (130, 20, 40),
+    (60, 60, 60), (90, 130, 230), (200, 60, 110), (110, 150, 100),
+]  # fmt: skip
+_PANTS = [(40, 50, 90), (30, 30, 35), (150, 130, 90), (85, 85, 90), (70, 50, 35), (60, 70, 50), (25, 35, 60)]
+_SKIN = [(240, 200, 170), (225, 180, 140), (200, 150, 110), (160, 110, 75), (120, 80, 55), (95, 65, 45)]
+_HAIR = [(20, 15, 10), (60, 40, 25), (110, 75, 40), (190, 160, 100), (150, 150, 150), (120, 50, 20)]
+_SHOES = [(20, 20, 20), (60, 40, 30), (230, 230, 225), (40, 40, 60)]
+
+RGB = tuple[int, int, int]
+
+
+@dataclass(frozen=True, slots=True)
+class Door:
+    """The room's door: a gap in the wall y = 0 between x0 and x1."""
+
+    x0_m: float
+    x1_m: float
+    height_m: float = 2.1
+
+    @property
+    def inside_xy(self) -> tuple[float, float]:
+        """Point just inside the room in front of the door."""
+        return (0.5 * (self.x0_m + self.x1_m), 0.6)
+
+    @property
+    def outside_xy(self) -> tuple[float, float]:
+        """Where people wait outside, behind the wall."""
+        return (0.5 * (self.x0_m + self.x1_m), -0.9)
+
+
+@dataclass(frozen=True, slots=True)
+class WalkerLook:
+    """What a person looks like and how fast they like to walk (fixed for the run)."""
+
+    person_id: int
+    height_m: float
+    """Top of the head above the floor."""
+    body_width_m: float
+    """Shoulder width."""
+    speed_mps: float
+    """Preferred walking speed."""
+    shirt_rgb: RGB
+    pants_rgb: RGB
+    skin_rgb: RGB
+    hair_rgb: RGB
+    shoe_rgb: RGB
+
+
+@dataclass(frozen=True, slots=True)
+class WalkerSample:
+    """All people at one instant (arrays of length N, person i = ``looks[i]``)."""
+
+    x_m: npt.NDArray[np.float64]
+    y_m: npt.NDArray[np.float64]
+    heading_rad: npt.NDArray[np.float64]
+    speed_mps: npt.NDArray[np.float64]
+    gait_phase_rad: npt.NDArray[np.float64]
+    present: npt.NDArray[np.bool_]
+
+
+class _Walker:
+    """Mutable dynamic state of one person (scalar fields, copied into checkpoints)."""
+
+    __slots__ = (
+        "heading", "leg_start", "mode", "ndec", "phase", "route_dir", "route_idx", "speed",
+        "timer", "tkind", "tx", "ty", "wander_left", "x", "y",
+    )  # fmt: skip
+
+    def __init__(self) -> None:
+        self.x = self.y = self.heading = self.speed = self.phase = 0.0
+        self.tx = self.ty = self.timer = self.leg_start = 0.0
+        self.mode = _WALK
+        self.tkind = _WANDER
+        self.ndec = self.wander_left = self.route_idx = 0
+        self.route_dir = 1
+
+    def snapshot(self) -> tuple[float | int, ...]:
+        return tuple(getattr(self, k) for k in self.__slots__)
+
+    def restore(self, snap: tuple[float | int, ...]) -> None:
+        for k, v in zip(self.__slots__, snap, strict=True):
+            setattr(self, k, v)
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class WalkerSim:
+    """People walking in the room; :meth:`sample` gives their state at any time >= 0.
+
+    Args:
+        spec: the ``[world]`` table (room, people, speeds, heights, paths).
+        seed: the site seed.
+        obstacles: platforms at a given time, as (x, y, radius); people keep clear of them.
+        door: the door people enter and leave by.
+    """
+
+    def __init__(self, spec: WorldSpec, seed: int, obstacles: Obstacles, door: Door) -> None:
+        self.spec = spec
+        self.seed = int(seed)
+        self.door = door
+        self._obstacles = obstacles
+        self._lock = threading.Lock()
+        n = spec.people
+        self.looks: list[WalkerLook] = [self._look(i) for i in range(n)]
+        self._walkers = [_Walker() for _ in range(n)]
+        self._route = self._route_points()
+        self._init_walkers()
+        self._frames: list[npt.NDArray[np.float64]] = [self._record()]
+        self._checkpoints: dict[int, list[tuple[float | int, ...]]] = {0: [w.snapshot() for w in self._walkers]}
+
+    # -- set-up -------------------------------------------------------------------------------------
+    def _rng(self, person: int, decision: int) -> random.Random:
+        return random.Random(f"walker:{self.seed}:{person}:{decision}")
+
+    def _look(self, i: int) -> WalkerLook:
+        rng = self._rng(i, -1)
+        palette = random.Random(f"palette:{self.seed}")
+        shirts = list(_SHIRTS)
+        palette.shuffle(shirts)
+        pants = list(_PANTS)
+        palette.shuffle(pants)
+        shirt = shirts[i % len(shirts)]
+        if i >= len(shirts):  # more people than shirts: vary the shade
+            k = 0.6 + 0.3 * ((i // len(shirts)) % 2)
+            shirt = (int(shirt[0] * k), int(shirt[1] * k), int(shirt[2] * k))
+        lo_h, hi_h = self.spec.person_height_m
+        lo_v, hi_v = self.spec.person_speed_mps
+        height = rng.uniform(lo_h, hi_h)
+        return WalkerLook(
+            person_id=i + 1,
+            height_m=height,
+            body_width_m=0.40 + 0.12 * (height - 1.5) / 0.4 * rng.uniform(0.6, 1.0),
+            speed_mps=rng.uniform(lo_v, hi_v),
+            shirt_rgb=shirt,
+            pants_rgb=pants[i % len(pants)],
+            skin_rgb=rng.choice(_SKIN),
+            hair_rgb=rng.choice(_HAIR),
+            shoe_rgb=rng.choice(_SHOES),
+        )
+
+    def _route_points(self) -> list[tuple[float, float]]:
+        x0, y0, x1, y1 = self.spec.rectangle
+        if self.spec.paths == "line":
+            return [(x0, y0), (x1, y1)]
+        if self.spec.paths != "rectangle":
+            return []
+        # Six turn points (the paper's Fig. 7a shows six clusters): the corners and the middles of the long sides.
+        if abs(x1 - x0) >= abs(y1 - y0):
+            xm = 0.5 * (x0 + x1)
+            return [(x0, y0), (xm, y0), (x1, y0), (x1, y1), (xm, y1), (x0, y1)]
+        ym = 0.5 * (y0 + y1)
+        return [(x0, y0), (x1, y0), (x1, ym), (x1, y1), (x0, y1), (x0, ym)]
+
+    def _clear_of(self, x: float, y: float, t_s: float, margin_m: float) -> bool:
+        return all(math.hypot(x - ox, y - oy) >= r + margin_m for ox, oy, r in self._obstacles(t_s))
+
+    def _random_target(self, i: int, w: _Walker, t_s: float, rng: random.Random) -> tuple[float, float]:
+        m = max(self.spec.margin_m, 0.3)
+        xs, ys = self.spec.room_x_m, self.spec.room_y_m
+        best = (xs / 2, ys / 2)
+        for _ in range(40):
+            x, y = rng.uniform(m, max(m, xs - m)), rng.uniform(m, max(m, ys - m))
+            best = (x, y)
+            if math.hypot(x - w.x, y - w.y) >= min(2.0, 0.4 * max(xs, ys)) and self._clear_of(x, y, t_s, m):
+                break
+        return best
+
+    def _init_walkers(self) -> None:
+        n = len(self._walkers)
+        placed: list[tuple[float, float]] = []
+        for i, w in enumerate(self._walkers):
+            rng = self._rng(i, 0)
+            w.ndec = 1
+            if self._route:
+                npts = len(self._route)
+                w.route_dir = 1 if i % 2 == 0 else -1
+                w.route_idx = (round(i * npts / max(n, 1)) + (npts // 2 if i % 2 else 0)) % npts
+                w.x, w.y = self._route[w.route_idx]
+                w.tkind = _ROUTE
+                w.route_idx = (w.route_idx + w.route_dir) % npts
+                w.tx, w.ty = self._route[w.route_idx]
+            elif self.spec.enter_leave and i % 2 == 1:
+                w.mode, w.tkind = _OUTSIDE, _ENTER
+                w.x, w.y = self.door.outside_xy
+                w.timer = 1.0 + 4.0 * i / max(n, 1) + rng.uniform(0.0, 2.0)
+            else:
+                m = max(self.spec.margin_m, 0.3)
+                for _ in range(60):
+                    w.x = rng.uniform(m, self.spec.room_x_m - m)
+                    w.y = rng.uniform(m, self.spec.room_y_m - m)
+                    if self._clear_of(w.x, w.y, 0.0, m) and all(
+                        math.hypot(w.x - px, w.y - py) > 0.9 for px, py in placed
+                    ):
+                        break
+                w.tx, w.ty = self._random_target(i, w, 0.0, rng)
+                w.wander_left = rng.randint(3, 6)
+            placed.append((w.x, w.y))
+            w.heading = math.atan2(w.ty - w.y, w.tx - w.x) if w.mode != _OUTSIDE else math.pi / 2
+            w.speed = 0.0 if w.mode == _OUTSIDE else self.looks[i].speed_mps * 0.5
+
+    # -- stepping -----------------------------------------------------------------------------------
+    def _record(self) -> npt.NDArray[np.float64]:
+        rows = [
+            (w.x, w.y, w.heading, w.speed, w.phase, 1.0 if (w.mode != _OUTSIDE and w.y > 0.0) else 0.0)
+            for w in self._walkers
+        ]
+        return np.asarray(rows, dtype=np.float64).reshape(len(self._walkers), 6)
+
+    def _arrive(self, i: int, w: _Walker, t_s: float) -> None:
+        rng = self._rng(i, w.ndec)
+        w.ndec += 1
+        w.leg_start = t_s
+        if w.tkind == _ROUTE:
+            npts = len(self._route)
+            if npts == 2:
+                w.route_idx = 1 - w.route_idx
+            else:
+                w.route_idx = (w.route_idx + w.route_dir) % npts
+            w.tx, w.ty = self._route[w.route_idx]
+            w.mode, w.timer = _PAUSE, t_s + rng.uniform(0.6, 1.5)
+            return
+        if w.tkind == _EXIT_IN:
+            w.tkind = _EXIT_OUT
+            w.tx, w.ty = self.door.outside_xy
+            return
+        if w.tkind == _EXIT_OUT:
+            w.mode, w.timer, w.speed = _OUTSIDE, t_s + rng.uniform(3.0, 12.0), 0.0
+            return
+        if w.tkind == _ENTER:
+            w.tkind = _WANDER
+            w.wander_left = rng.randint(3, 6)
+        elif self.spec.enter_leave:
+            w.wander_left -= 1
+            if w.wander_left <= 0:
+                w.tkind = _EXIT_IN
+                w.tx, w.ty = self.door.inside_xy
+                return
+        if rng.random() < self.spec.pause_prob:
+            w.mode, w.timer = _PAUSE, t_s + rng.uniform(1.0, 4.0)
+        w.tx, w.ty = self._random_target(i, w, t_s, rng)
+
+    def _steer(
+        self, i: int, w: _Walker, others: npt.NDArray[np.float64], obst: Sequence[tuple[float, float, float]]
+    ) -> float:
+        """Desired heading: toward the target, bent around people and platforms ahead."""
+        dx, dy = w.tx - w.x, w.ty - w.y
+        dist = math.hypot(dx, dy) or 1e-9
+        gx, gy = dx / dist, dy / dist
+        hx, hy = math.cos(w.heading), math.sin(w.heading)
+        px = py = 0.0
+        for j in range(others.shape[0]):
+            if j == i or others[j, 5] < 0.5:
+                continue
+            rx, ry = others[j, 0] - w.x, others[j, 1] - w.y
+            d = math.hypot(rx, ry)
+            if d > 1.6 or d < 1e-6:
+                continue
+            ux, uy = rx / d, ry / d
+            ahead = max(0.0, ux * hx + uy * hy)
+            k = (1.6 - d) / 1.6 * (0.4 + ahead)
+            px -= ux * k * 1.2
+            py -= uy * k * 1.2
+            px += uy * k * ahead * 0.9  # sidestep: keep the other person on the left
+            py -= ux * k * ahead * 0.9
+        for ox, oy, r in obst:
+            rx, ry = ox - w.x, oy - w.y
+            d = math.hypot(rx, ry)
+            gap = d - r - PERSON_RADIUS_M
+            if gap > 1.2 or d < 1e-6:
+                continue
+            ux, uy = rx / d, ry / d
+            ahead = max(0.0, ux * gx + uy * gy)
+            k = (1.2 - max(gap, 0.0)) / 1.2 * (0.3 + ahead) * 1.6
+            side = 1.0 if (ux * gy - uy * gx) > 0 else -1.0  # pass on the side the target is on
+            px += -ux * k * 0.6 + side * (-uy) * k
+            py += -uy * k * 0.6 + side * ux * k
+        return math.atan2(gy + py, gx + px)
+
+    def _constrain(self, w: _Walker, obst: Sequence[tuple[float, float, float]]) -> None:
+        xs, ys = self.spec.room_x_m, self.spec.room_y_m
+        wall = 0.25
+        at_door = w.tkind in (_ENTER, _EXIT_IN, _EXIT_OUT)
+        if at_door and w.y < wall + 0.1:
+            w.x = min(max(w.x, self.door.x0_m + wall), self.door.x1_m - wall)
+            w.y = max(w.y, self.door.outside_xy[1] - 0.2)
+        else:
+            w.y = min(max(w.y, wall), ys - wall)
+        w.x = min(max(w.x, wall), xs - wall)
+        w.y = min(w.y, ys - wall)
+        for ox, oy, r in obst:
+            rx, ry = w.x - ox, w.y - oy
+            d = math.hypot(rx, ry)
+            need = r + PERSON_RADIUS_M
+            if d < need:
+                if d < 1e-6:
+                    rx, ry, d = 1.0, 0.0, 1.0
+                w.x, w.y = ox + rx / d * need, oy + ry / d * need
+
+    def _step_one(
+        self,
+        i: int,
+        w: _Walker,
+        t_s: float,
+        others: npt.NDArray[np.float64],
+        obst: Sequence[tuple[float, float, float]],
+    ) -> None:
+        if w.mode == _OUTSIDE:
+            if t_s >= w.timer:
+                w.mode, w.tkind, w.leg_start = _WALK, _ENTER, t_s
+                w.x, w.y = self.door.outside_xy
+                w.heading, w.speed = math.pi / 2, 0.5 * self.looks[i].speed_mps
+                w.tx, w.ty = self.door.inside_xy
+            return
+        pref = self.looks[i].speed_mps
+        want = self._steer(i, w, others, obst)
+        err = _wrap(want - w.heading)
+        rate = TURN_RATE_RADPS * (0.5 if w.mode == _PAUSE else 1.0)
+        w.heading = _wrap(w.heading + max(-rate * DT_S, min(rate * DT_S, err)))
+        if w.mode == _PAUSE:
+            v_goal = 0.0
+            if t_s >= w.timer:
+                w.mode, w.leg_start = _WALK, t_s
+        else:
+            dist = math.hypot(w.tx - w.x, w.ty - w.y)
+            v_goal = pref * max(0.25, math.cos(min(abs(err), math.pi / 2)))
+            v_goal = min(v_goal, max(0.3, dist * 1.5)) if w.tkind == _ROUTE else v_goal
+        dv = max(-ACCEL_MPS2 * DT_S, min(ACCEL_MPS2 * DT_S, v_goal - w.speed))
+        w.speed = max(0.0, w.speed + dv)
+        w.x += w.speed * math.cos(w.heading) * DT_S
+        w.y += w.speed * math.sin(w.heading) * DT_S
+        w.phase += 2.0 * math.pi * w.speed * DT_S / STRIDE_M
+        self._constrain(w, obst)
+        if w.mode == _WALK:
+            if math.hypot(w.tx - w.x, w.ty - w.y) < ARRIVE_M:
+                self._arrive(i, w, t_s)
+            elif t_s - w.leg_start > STUCK_S or not self._clear_of(w.tx, w.ty, t_s, PERSON_RADIUS_M):
+                self._arrive(i, w, t_s)  # blocked (e.g. a robot parked on the target): go elsewhere
+
+    def _advance_to(self, step: int) -> None:
+        while len(self._frames) <= step:
+            k = len(self._frames) - 1
+            t_s = k * DT_S
+            others = self._frames[k]
+            obst = [o for o in self._obstacles(t_s) if o[2] > 0.0]
+            for i, w in enumerate(self._walkers):
+                self._step_one(i, w, t_s, others, obst)
+            self._frames.append(self._record())
+            if (k + 1) % CHECKPOINT_STEPS == 0:
+                self._checkpoints[k + 1] = [w.snapshot() for w in self._walkers]
+
+    # -- public -------------------------------------------------------------------------------------
+    def invalidate_from(self, t_s: float) -> None:
+        """Forget states after ``t_s`` (the platforms' trajectories changed from then on)."""
+        with self._lock:
+            step = max(0, math.floor(t_s / DT_S))
+            cp = max(k for k in self._checkpoints if k <= step)
+            if cp >= len(self._frames) - 1:
+                return
+            for w, snap in zip(self._walkers, self._checkpoints[cp], strict=True):
+                w.restore(snap)
+            del self._frames[cp + 1 :]
+            for k in [k for k in self._checkpoints if k > cp]:
+                del self._checkpoints[k]
+
+    def sample(self, t_s: float) -> WalkerSample:
+        """Everyone's state at world time ``t_s`` (clamped at 0), interpolated between steps."""
+        pos = max(0.0, float(t_s)) / DT_S
+        k0 = math.floor(pos)
+        frac = pos - k0
+        with self._lock:
+            self._advance_to(k0 + 1)
+            a, b = self._frames[k0], self._frames[k0 + 1]
+        dh = (b[:, 2] - a[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+        heading = (a[:, 2] + frac * dh + math.pi) % (2.0 * math.pi) - math.pi
+        # A jump (entering through the door from outside) is not interpolated.
+        jump = np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]) > 0.5
+        f = np.where(jump, 0.0, frac)
+        return WalkerSample(
+            x_m=a[:, 0] + f * (b[:, 0] - a[:, 0]),
+            y_m=a[:, 1] + f * (b[:, 1] - a[:, 1]),
+            heading_rad=heading,
+            speed_mps=a[:, 3] + f * (b[:, 3] - a[:, 3]),
+            gait_phase_rad=a[:, 4] + f * (b[:, 4] - a[:, 4]),
+            present=(a[:, 5] if frac < 0.5 else b[:, 5]) > 0.5,
+        )

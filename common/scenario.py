@@ -1,0 +1,370 @@
+"""The simulated world: room, camera platforms and people as a pure function of time.
+
+A :class:`World` is built from a site file (``[world]`` and ``[[camera]]``) and
+answers "where is everything at world time t?" for any t >= 0:
+
+* the room: ``room_x_m`` x ``room_y_m`` with walls ``wall_height_m`` high, the
+  floor at z = 0, x and y along two walls, and a door in the wall y = 0;
+* camera platforms (:meth:`World.platforms_at`): every ``[[camera]]`` with its
+  body -- a white cylinder of radius R (0.18 m on the paper's robots) and known
+  height with a coloured marking band, carrying the camera on its axis at
+  ``height_m``. Static platforms stay put; mobile robots drive their waypoint
+  loop at ``max_speed_mps``, or, once given a goal (:meth:`World.set_goal`),
+  drive straight to it at that speed and stop. A robot base is holonomic: its
+  heading (the camera's sensor frame) stays at ``yaw_deg``;
+* people (:meth:`World.people_at`), walking as described in :mod:`common.paths`.
+
+World time t = (capture_stamp_ns - epoch_ns) / 1e9, with the common epoch set by
+the launcher. Everything here is deterministic: the same site, seed, goals and
+t give the same answer in every process. Goals take effect from their
+``issued_s`` (world time), so every process that receives the same goal messages
+computes the same trajectories, whenever they arrive.
+
+Ground truth (:meth:`World.ground_truth`, :func:`write_gt_csv`) is for scoring
+only: the pipeline sees pixels. In ``gt.csv`` ``z_m`` is the person's height
+(the top of the head above the floor), which the pipeline estimates from the
+top of the blob.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+import math
+import threading
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from common.errors import ConfigError
+from common.paths import Door, WalkerLook, WalkerSim
+from common.site import CameraSpec, SiteConfig, WorldSpec
+
+__all__ = [
+    "Goal",
+    "GroundTruth",
+    "PersonState",
+    "PlatformState",
+    "World",
+    "sensor_bearing",
+    "write_gt_csv",
+]
+
+logger = logging.getLogger(__name__)
+
+RGB = tuple[int, int, int]
+ROBOT_WALL_CLEARANCE_M = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class Goal:
+    """A run-time goal for a mobile robot: drive to (x, y) from world time ``issued_s``."""
+
+    sensor_id: str
+    x_m: float
+    y_m: float
+    issued_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class PersonState:
+    """One person at one instant."""
+
+    person_id: int
+    """Identity, 1..N (the ``id`` column of gt.csv)."""
+    x_m: float
+    y_m: float
+    height_m: float
+    """Top of the head above the floor."""
+    heading_rad: float
+    """Walking direction, counter-clockwise from world +x."""
+    present: bool
+    """Inside the room (False while outside the door)."""
+    body_width_m: float
+    """Shoulder width."""
+    shirt_rgb: RGB
+    pants_rgb: RGB
+    skin_rgb: RGB
+    hair_rgb: RGB
+    shoe_rgb: RGB
+    speed_mps: float
+    gait_phase_rad: float
+    """Phase of the walking cycle (legs and arms swing with it)."""
+
+
+@dataclass(frozen=True, slots=True)
+class PlatformState:
+    """A camera and its body at one instant (true pose)."""
+
+    sensor_id: str
+    kind: str
+    """``panoramic`` or ``ptz``."""
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    """Heading of the camera's sensor frame (world bearing of panorama column 0)."""
+    z_m: float
+    """Camera (optical centre) height above the floor."""
+    radius_m: float
+    """Radius of the white cylindrical body (0: no body)."""
+    body_height_m: float
+    band_rgb: RGB
+    """Colour of the marking band that identifies the body."""
+    mobile: bool
+
+
+@dataclass(frozen=True, slots=True)
+class GroundTruth:
+    """Everything's true state at one instant (for scoring, never for the pipeline)."""
+
+    t_s: float
+    people: tuple[PersonState, ...]
+    """Only the people present in the room."""
+    platforms: tuple[PlatformState, ...]
+
+
+class _RobotMotion:
+    """Trajectory of one platform: waypoint loop (or parked), overridden by goals from their issue time."""
+
+    def __init__(self, cam: CameraSpec) -> None:
+        self.start = (cam.x_m, cam.y_m)
+        self.speed = cam.max_speed_mps if cam.mobile else 0.0
+        loop = [self.start, *((float(p[0]), float(p[1])) for p in cam.waypoints)] if cam.mobile else [self.start]
+        self.loop = loop
+        self.seg_len = [math.dist(loop[i], loop[(i + 1) % len(loop)]) for i in range(len(loop))]
+        self.loop_len = sum(self.seg_len)
+        self.goal_t: list[float] = []
+        self.goals: list[tuple[float, float, tuple[float, float], tuple[float, float]]] = []
+        """(issued_s, order, from_xy, to_xy) sorted by issue time."""
+
+    def _loop_xy(self, t_s: float) -> tuple[float, float]:
+        if self.loop_len <= 1e-9 or self.speed <= 0.0:
+            return self.start
+        s = (self.speed * max(t_s, 0.0)) % self.loop_len
+        for i, seg in enumerate(self.seg_len):
+            if s <= seg or i == len(self.seg_len) - 1:
+                a, b = self.loop[i], self.loop[(i + 1) % len(self.loop)]
+                f = 0.0 if seg <= 1e-12 else min(s / seg, 1.0)
+                return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
+            s -= seg
+        return self.start  # pragma: no cover - the loop above always returns
+
+    def xy(self, t_s: float) -> tuple[float, float]:
+        k = bisect.bisect_right(self.goal_t, t_s) - 1
+        if k < 0:
+            return self._loop_xy(t_s)
+        issued, _, a, b = self.goals[k]
+        d = math.dist(a, b)
+        f = 1.0 if d <= 1e-9 else min(1.0, self.speed * (t_s - issued) / d)
+        return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
+
+    def add_goal(self, issued_s: float, xy: tuple[float, float]) -> None:
+        entry = (issued_s, len(self.goals), xy, xy)
+        keys = [(g[0], g[1]) for g in self.goals]
+        k = bisect.bisect_right(keys, (entry[0], entry[1]))
+        self.goals.insert(k, entry)
+        # Re-chain: every goal from k on starts where the robot was when it was issued.
+        for j in range(k, len(self.goals)):
+            issued, order, _, to = self.goals[j]
+            self.goal_t = [g[0] for g in self.goals[:j]]
+            self.goals[j] = (issued, order, self.xy(issued), to)
+        self.goal_t = [g[0] for g in self.goals]
+
+
+class World:
+    """The simulated site as a pure function of (site, seed, goals, t).
+
+    Args:
+        spec: the ``[world]`` table.
+        cameras: the ``[[camera]]`` tables (true placements).
+        seed: the site seed (textures, people, paths).
+        goals: run-time goals already known.
+    """
+
+    def __init__(self, spec: WorldSpec, cameras: Sequence[CameraSpec], seed: int, goals: Iterable[Goal] = ()) -> None:
+        self.spec = spec
+        self.cameras = tuple(cameras)
+        self.seed = int(seed)
+        for cam in self.cameras:
+            if not (0.0 <= cam.x_m <= spec.room_x_m and 0.0 <= cam.y_m <= spec.room_y_m):
+                raise ConfigError(
+                    f"camera {cam.id!r}: position ({cam.x_m}, {cam.y_m}) must be inside the room "
+                    f"[0, {spec.room_x_m}] x [0, {spec.room_y_m}]"
+                )
+        door_w = min(1.0, 0.5 * spec.room_x_m)
+        x1 = spec.room_x_m - min(1.0, 0.15 * spec.room_x_m)
+        self.door = Door(x0_m=x1 - door_w, x1_m=x1, height_m=min(2.1, 0.9 * spec.wall_height_m))
+        self._motion = {cam.id: _RobotMotion(cam) for cam in self.cameras}
+        self._goals: list[Goal] = []
+        self._lock = threading.Lock()
+        self._walkers = WalkerSim(spec, self.seed, self._obstacles, self.door)
+        for g in goals:
+            self.set_goal(g.sensor_id, g.x_m, g.y_m, g.issued_s)
+
+    @classmethod
+    def from_site(cls, site: SiteConfig, goals: Iterable[Goal] = ()) -> World:
+        """The world a site file describes."""
+        return cls(site.world, site.camera, site.site.seed, goals)
+
+    # -- room ----------------------------------------------------------------------------------------
+    @property
+    def room_x_m(self) -> float:
+        return self.spec.room_x_m
+
+    @property
+    def room_y_m(self) -> float:
+        return self.spec.room_y_m
+
+    @property
+    def wall_height_m(self) -> float:
+        return self.spec.wall_height_m
+
+    @property
+    def looks(self) -> list[WalkerLook]:
+        """Every person's fixed appearance (index i = person_id i + 1)."""
+        return self._walkers.looks
+
+    # -- platforms -----------------------------------------------------------------------------------
+    def _obstacles(self, t_s: float) -> list[tuple[float, float, float]]:
+        out = []
+        for cam in self.cameras:
+            if cam.kind == "ptz" and cam.body_radius_m <= 0.0:
+                continue  # wall-mounted: not in anyone's way
+            x, y = self._motion[cam.id].xy(t_s)
+            out.append((x, y, max(cam.body_radius_m, 0.25)))
+        return out
+
+    def platforms_at(self, t_s: float) -> list[PlatformState]:
+        """Every camera with its body and true pose at world time ``t_s``."""
+        out = []
+        with self._lock:
+            for cam in self.cameras:
+                x, y = self._motion[cam.id].xy(t_s)
+                out.append(
+                    PlatformState(
+                        sensor_id=cam.id,
+                        kind=cam.kind,
+                        x_m=x,
+                        y_m=y,
+                        yaw_rad=cam.yaw_rad,
+                        z_m=cam.height_m,
+                        radius_m=cam.body_radius_m,
+                        body_height_m=cam.body_height_m,
+                        band_rgb=(int(cam.band_rgb[0]), int(cam.band_rgb[1]), int(cam.band_rgb[2])),
+                        mobile=cam.mobile,
+                    )
+                )
+        return out
+
+    def platform_at(self, sensor_id: str, t_s: float) -> PlatformState:
+        """One platform's state; ConfigError for an unknown id."""
+        for p in self.platforms_at(t_s):
+            if p.sensor_id == sensor_id:
+                return p
+        raise ConfigError(f"no camera {sensor_id!r} in the world (cameras: {', '.join(c.id for c in self.cameras)})")
+
+    # -- goals ---------------------------------------------------------------------------------------
+    @property
+    def goals(self) -> tuple[Goal, ...]:
+        """The goals given so far, in the order they were set."""
+        return tuple(self._goals)
+
+    def set_goal(self, sensor_id: str, x_m: float, y_m: float, issued_s: float) -> Goal:
+        """Send a mobile robot to (x, y) from world time ``issued_s`` at its ``max_speed_mps``.
+
+        The goal is clamped into the room (the body stays clear of the walls).
+        Goals are ordered by issue time (ties: by the order they were given), so
+        the trajectory does not depend on when the call is made.
+
+        Returns:
+            The goal as applied (after clamping).
+
+        Raises:
+            ConfigError: unknown sensor, a camera that is not mobile, or a non-finite goal.
+        """
+        cam = next((c for c in self.cameras if c.id == sensor_id), None)
+        if cam is None:
+            raise ConfigError(f"goal for unknown sensor {sensor_id!r}")
+        if not cam.mobile:
+            raise ConfigError(f"goal for {sensor_id!r}: the camera is not mobile")
+        if not all(math.isfinite(v) for v in (x_m, y_m, issued_s)):
+            raise ConfigError(f"goal for {sensor_id!r} must be finite, got ({x_m}, {y_m}) at {issued_s}")
+        c = cam.body_radius_m + ROBOT_WALL_CLEARANCE_M
+        gx = min(max(x_m, c), self.spec.room_x_m - c)
+        gy = min(max(y_m, c), self.spec.room_y_m - c)
+        if (gx, gy) != (x_m, y_m):
+            logger.warning(
+                "goal for %s clamped into the room: (%.2f, %.2f) -> (%.2f, %.2f)", sensor_id, x_m, y_m, gx, gy
+            )
+        goal = Goal(sensor_id=sensor_id, x_m=gx, y_m=gy, issued_s=max(0.0, float(issued_s)))
+        with self._lock:
+            self._goals.append(goal)
+            self._motion[sensor_id].add_goal(goal.issued_s, (gx, gy))
+        self._walkers.invalidate_from(goal.issued_s)
+        return goal
+
+    def with_goals(self, goals: Iterable[Goal]) -> World:
+        """A new world with these goals added to the ones already set."""
+        return World(self.spec, self.cameras, self.seed, [*self._goals, *goals])
+
+    # -- people --------------------------------------------------------------------------------------
+    def people_at(self, t_s: float) -> list[PersonState]:
+        """Every person (present or not) at world time ``t_s``."""
+        s = self._walkers.sample(t_s)
+        out = []
+        for i, look in enumerate(self._walkers.looks):
+            out.append(
+                PersonState(
+                    person_id=look.person_id,
+                    x_m=float(s.x_m[i]),
+                    y_m=float(s.y_m[i]),
+                    height_m=look.height_m,
+                    heading_rad=float(s.heading_rad[i]),
+                    present=bool(s.present[i]),
+                    body_width_m=look.body_width_m,
+                    shirt_rgb=look.shirt_rgb,
+                    pants_rgb=look.pants_rgb,
+                    skin_rgb=look.skin_rgb,
+                    hair_rgb=look.hair_rgb,
+                    shoe_rgb=look.shoe_rgb,
+                    speed_mps=float(s.speed_mps[i]),
+                    gait_phase_rad=float(s.gait_phase_rad[i]),
+                )
+            )
+        return out
+
+    def ground_truth(self, t_s: float) -> GroundTruth:
+        """Present people and all platforms at world time ``t_s``."""
+        people = tuple(p for p in self.people_at(t_s) if p.present)
+        return GroundTruth(t_s=float(t_s), people=people, platforms=tuple(self.platforms_at(t_s)))
+
+
+def write_gt_csv(world: World, path: str | Path, fps: float, duration_s: float) -> int:
+    """Write the people's ground truth as ``frame,id,x_m,y_m,z_m``; returns the number of rows.
+
+    Frame k (1-based) is world time (k - 1) / fps; only people present in the
+    room are listed; ``z_m`` is the person's height (top of the head).
+
+    Raises:
+        ConfigError: non-positive fps or negative duration.
+    """
+    if not (fps > 0 and math.isfinite(fps)) or not (duration_s >= 0 and math.isfinite(duration_s)):
+        raise ConfigError(f"write_gt_csv: need fps > 0 and duration_s >= 0, got fps={fps}, duration_s={duration_s}")
+    n_frames = math.floor(duration_s * fps + 1e-9)
+    lines = ["frame,id,x_m,y_m,z_m"]
+    for k in range(1, n_frames + 1):
+        for p in world.people_at((k - 1) / fps):
+            if p.present:
+                lines.append(f"{k},{p.person_id},{p.x_m:.4f},{p.y_m:.4f},{p.height_m:.4f}")
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return len(lines) - 1
+
+
+def sensor_bearing(platform: PlatformState, x_m: float, y_m: float) -> float:
+    """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a world point seen from a platform."""
+    b = math.atan2(y_m - platform.y_m, x_m - platform.x_m) - platform.yaw_rad
+    return float(np.mod(b + math.pi, 2.0 * math.pi) - math.pi)
