@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from common.cameras import CylindricalCamera, PtzCamera, design_pal
+from common.cameras import CylindricalCamera, PinholeCamera, PtzCamera, design_pal, rotation_from_rvec
 from common.error_model import m1_error, normalised_error_xy, optimal_configuration
 from common.geometry import (
     baseline_exact,
@@ -116,3 +116,24 @@ def test_pair_near_the_baseline_stays_close(b: float, tx: float, ty: float, body
     fix = localize_pair(o1, math.atan2(ty, tx), w1, o2, math.atan2(ty, tx - b), w2, 0.0035, 0.007)
     assert fix.converges
     assert float(np.hypot(*(fix.xy - t))) < 0.01 + ty * ty / min(d1, d2)
+
+
+@SETTINGS
+@given(
+    st.tuples(angle, angle, angle),
+    st.tuples(coord, coord, st.floats(0.5, 30.0)),
+    st.floats(200.0, 5000.0),
+    st.floats(0.5, 2.0),
+    st.floats(-1e3, 1e3).filter(lambda s: abs(s) > 1e-3),
+)
+def test_projection_matrix_decomposes_back(
+    rv: tuple[float, float, float], t: tuple[float, float, float], fx: float, aspect: float, scale: float
+) -> None:
+    """Any P = s K [R | t] (s of either sign) gives back K, R and t."""
+    rot = rotation_from_rvec(np.array(rv) * 0.99)
+    k = np.array([[fx, 0.0, 640.0], [0.0, fx * aspect, 360.0], [0.0, 0.0, 1.0]])
+    p = scale * k @ np.column_stack([rot, np.array(t)])
+    cam = PinholeCamera.from_calibration({"model": "pinhole", "image_size": [1280, 720], "P": p.tolist()}, "prop")
+    assert np.allclose(cam.k, k, rtol=1e-7, atol=1e-6)
+    assert np.allclose(cam.r, rot, atol=1e-8)
+    assert np.allclose(cam.t, t, rtol=1e-7, atol=1e-6)
