@@ -189,6 +189,80 @@ def observe(cam: Cam, walkers: list[Walker], t_s: float, rng: random.Random, sig
 
 
 # ---------------------------------------------------------------------------
+# Detection cameras: real sensor-node processes without rendering (for fault tests)
+# ---------------------------------------------------------------------------
+
+DET_W_PX = 640
+DET_H_PX = 480
+DET_F_PX = 420.0
+
+
+def look_at(center: tuple[float, float, float], target: tuple[float, float, float]) -> list[list[float]]:
+    """World-to-camera rotation (OpenCV axes: x right, y down, z forward) of a camera at ``center``."""
+    f = [t - c for t, c in zip(target, center, strict=True)]
+    n = math.sqrt(sum(v * v for v in f))
+    z = [v / n for v in f]
+    x = [z[1] * 1.0 - z[2] * 0.0, z[2] * 0.0 - z[0] * 1.0, 0.0]  # cross(z, up=(0,0,1))
+    nx = math.hypot(x[0], x[1])
+    x = [x[0] / nx, x[1] / nx, 0.0]
+    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
+    return [x, y, z]
+
+
+def _project(r: list[list[float]], c: tuple[float, float, float], p: tuple[float, float, float]) -> tuple[float, ...]:
+    d = [p[i] - c[i] for i in range(3)]
+    xc = [sum(r[i][j] * d[j] for j in range(3)) for i in range(3)]
+    if xc[2] <= 0.3:
+        return ()
+    return (DET_W_PX / 2 + DET_F_PX * xc[0] / xc[2], DET_H_PX / 2 + DET_F_PX * xc[1] / xc[2], xc[2])
+
+
+def write_detection_cameras(
+    out: Path, cams: list[Cam], walkers: list[Walker], fps: float, duration_s: float, room_m: float = 10.0
+) -> dict[str, tuple[Path, Path]]:
+    """Write a MOT detection file and a pinhole calibration per camera; return ``{id: (det, calib)}``.
+
+    Each camera is a pinhole at ``cam``'s position and 2.5 m high, looking at the room's centre;
+    a detection is the box a person detector would draw (feet to head, 0.5 m wide), with the
+    person id as the track id. The files play a simulated detector, not ground truth to score.
+    """
+    files: dict[str, tuple[Path, Path]] = {}
+    centre = (room_m / 2, room_m / 2, 0.9)
+    for cam in cams:
+        c = (cam.x_m, cam.y_m, 2.5)
+        r = look_at(c, centre)
+        t = [-sum(r[i][j] * c[j] for j in range(3)) for i in range(3)]
+        d = out / cam.sensor_id
+        d.mkdir(parents=True, exist_ok=True)
+        calib = {
+            "model": "pinhole",
+            "image_size": [DET_W_PX, DET_H_PX],
+            "K": [[DET_F_PX, 0.0, DET_W_PX / 2], [0.0, DET_F_PX, DET_H_PX / 2], [0.0, 0.0, 1.0]],
+            "dist": [],
+            "R": r,
+            "t": t,
+        }
+        (d / "calibration.json").write_text(json.dumps(calib))
+        lines = []
+        for k in range(1, int(duration_s * fps) + 1):
+            t_s = (k - 1) / fps
+            for w in walkers:
+                x, y = w.at(t_s)
+                feet = _project(r, c, (x, y, 0.0))
+                head = _project(r, c, (x, y, w.height_m))
+                if not feet or not head:
+                    continue
+                width_px = DET_F_PX * 0.5 / feet[2]
+                left, top, height = feet[0] - width_px / 2, head[1], feet[1] - head[1]
+                if left < 0 or left + width_px > DET_W_PX or top < 0 or top + height > DET_H_PX or height <= 1:
+                    continue
+                lines.append(f"{k},{w.person_id},{left:.2f},{top:.2f},{width_px:.2f},{height:.2f},0.9,-1,-1,-1")
+        (d / "det.txt").write_text("\n".join(lines) + "\n")
+        files[cam.sensor_id] = (d / "det.txt", d / "calibration.json")
+    return files
+
+
+# ---------------------------------------------------------------------------
 # The fleet: N sensor nodes in one process
 # ---------------------------------------------------------------------------
 
