@@ -1,0 +1,1 @@
+"""Dataset converters: recorded multi-camera datasets -> runnable sites."""
