@@ -69,8 +69,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-view", action="store_true", help="no live view (progress lines only)")
 
 
-def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Any]:
-    """Goals the simulated robots received, as the sim nodes derive them (shared rule)."""
+def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int, mobile: set[str]) -> list[Any]:
+    """Goals the simulated robots received, as the sim nodes derive them (shared rule).
+
+    A plan is a goal for its (mobile) camera issued at the plan's stamp; a
+    re-published plan with the same goal changes nothing (the robot keeps
+    driving straight to the same point), so it is skipped.
+    """
     from common import scenario
 
     shared = getattr(scenario, "goals_from_plans", None)
@@ -81,6 +86,8 @@ def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Any]:
     goals: list[Any] = []
     last: dict[str, tuple[float, float]] = {}
     for p in sorted(plans, key=lambda p: (p.stamp_ns, p.sensor_id)):
+        if p.sensor_id not in mobile:
+            continue
         prev = last.get(p.sensor_id)
         if prev is not None and math.hypot(prev[0] - p.goal_x_m, prev[1] - p.goal_y_m) < 0.01:
             continue
@@ -226,7 +233,9 @@ def _finish(
     else:
         from common.scenario import World, write_gt_csv
 
-        world = World.from_site(site).with_goals(goals_from_plans(rec.plans, epoch_ns))
+        world = World.from_site(site).with_goals(
+            goals_from_plans(rec.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
+        )
         write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
     gt = read_gt_csv(gt_path)
     scored = score_recording(rec, gt, threshold_m=threshold_m)
