@@ -489,9 +489,12 @@ def strategy_for_type(info: Any, max_list: int = 3) -> Any:
             else st.just(_DEFAULT) | strategy_for_type(f.type, max_list)
             for f in info.fields
         }
-        return st.fixed_dictionaries(fields).map(
-            lambda values, cls=info.cls: cls(**{k: v for k, v in values.items() if v is not _DEFAULT})
-        )
+        cls = info.cls
+
+        def build(values: dict[str, Any]) -> Any:
+            return cls(**{k: v for k, v in values.items() if v is not _DEFAULT})
+
+        return st.fixed_dictionaries(fields).map(build)
     if isinstance(info, mi.FloatType):
         return _float_strategy(info)
     if isinstance(info, mi.IntType):

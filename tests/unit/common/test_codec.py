@@ -45,7 +45,9 @@ def _features(blobs: list[Blob] | None = None) -> Features:
 
 
 def _field_names(msg_type: type) -> set[str]:
-    return {f.encode_name for f in mi.type_info(msg_type).fields}
+    info = mi.type_info(msg_type)
+    assert isinstance(info, mi.StructType)
+    return {f.encode_name for f in info.fields}
 
 
 @pytest.mark.parametrize("msg_type", MESSAGE_TYPES, ids=lambda t: t.__name__)
