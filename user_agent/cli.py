@@ -141,7 +141,7 @@ def _watch(args: argparse.Namespace) -> int:
 def _record(args: argparse.Namespace) -> int:
     from user_agent.record import McapSink, Recorder
 
-    settings, prefix, _ = _session_and_prefix(args)
+    settings, prefix, agent_id = _session_and_prefix(args)
     meta: dict[str, str] = {"prefix": prefix}
     fps = args.fps
     if args.site:
@@ -167,11 +167,14 @@ def _record(args: argparse.Namespace) -> int:
     shutdown = install_signal_handlers()
     with open_session(settings) as session:
         rec = Recorder(session, Keys(prefix).all, McapSink(args.out, meta))
+        # Announce ourselves once subscribed, so a caller can wait for the recorder to be ready.
+        token = session.liveliness().declare_token(Keys(prefix).agent(agent_id or f"recorder-{os.getpid()}"))
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
         try:
             while time.monotonic() < end and not shutdown.sleep(min(0.2, max(0.0, end - time.monotonic()))):
                 pass
         finally:
+            token.undeclare()
             rec.stop()
     print(f"recorded {rec.messages} samples into {args.out}", file=sys.stderr)
     return 0
