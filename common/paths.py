@@ -46,6 +46,10 @@ DT_S = 0.05
 CHECKPOINT_STEPS = 20
 PERSON_RADIUS_M = 0.28
 """Clearance a person keeps from a platform's surface (half shoulder width + a little)."""
+PERSON_GAP_M = 0.5
+"""Closest two people's centres come (shoulder to shoulder)."""
+MAX_PUSH_M = 0.03
+"""Most a person is displaced per step to keep clear of someone else (bounded, so nobody jumps)."""
 ACCEL_MPS2 = 1.2
 TURN_RATE_RADPS = 2.6
 STRIDE_M = 1.4
@@ -240,7 +244,7 @@ class WalkerSim:
             if self._route:
                 npts = len(self._route)
                 w.route_dir = 1 if i % 2 == 0 else -1
-                w.route_idx = (round(i * npts / max(n, 1)) + (npts // 2 if i % 2 else 0)) % npts
+                w.route_idx = round(i * npts / max(n, 1)) % npts
                 w.x, w.y = self._route[w.route_idx]
                 w.tkind = _ROUTE
                 w.route_idx = (w.route_idx + w.route_dir) % npts
@@ -259,7 +263,7 @@ class WalkerSim:
                     ):
                         break
                 w.tx, w.ty = self._random_target(i, w, 0.0, rng)
-                w.wander_left = rng.randint(3, 6)
+                w.wander_left = rng.randint(4, 8)
             placed.append((w.x, w.y))
             w.heading = math.atan2(w.ty - w.y, w.tx - w.x) if w.mode != _OUTSIDE else math.pi / 2
             w.speed = 0.0 if w.mode == _OUTSIDE else self.looks[i].speed_mps * 0.5
@@ -267,10 +271,10 @@ class WalkerSim:
     # -- stepping -----------------------------------------------------------------------------------
     def _record(self) -> npt.NDArray[np.float64]:
         rows = [
-            (w.x, w.y, w.heading, w.speed, w.phase, 1.0 if (w.mode != _OUTSIDE and w.y > 0.0) else 0.0)
+            (w.x, w.y, w.heading, w.speed, w.phase, float(w.mode != _OUTSIDE and w.y > 0.0), float(w.mode != _OUTSIDE))
             for w in self._walkers
         ]
-        return np.asarray(rows, dtype=np.float64).reshape(len(self._walkers), 6)
+        return np.asarray(rows, dtype=np.float64).reshape(len(self._walkers), 7)
 
     def _arrive(self, i: int, w: _Walker, t_s: float) -> None:
         rng = self._rng(i, w.ndec)
@@ -294,7 +298,7 @@ class WalkerSim:
             return
         if w.tkind == _ENTER:
             w.tkind = _WANDER
-            w.wander_left = rng.randint(3, 6)
+            w.wander_left = rng.randint(4, 8)
         elif self.spec.enter_leave:
             w.wander_left -= 1
             if w.wander_left <= 0:
@@ -309,13 +313,16 @@ class WalkerSim:
         self, i: int, w: _Walker, others: npt.NDArray[np.float64], obst: Sequence[tuple[float, float, float]]
     ) -> float:
         """Desired heading: toward the target, bent around people and platforms ahead."""
-        dx, dy = w.tx - w.x, w.ty - w.y
+        tx, ty = w.tx, w.ty
+        if w.tkind == _EXIT_OUT and w.y > 0.0 and not (self.door.x0_m + 0.3 <= w.x <= self.door.x1_m - 0.3):
+            tx, ty = self.door.inside_xy[0], 0.3  # pushed aside at the door: line up with the doorway first
+        dx, dy = tx - w.x, ty - w.y
         dist = math.hypot(dx, dy) or 1e-9
         gx, gy = dx / dist, dy / dist
         hx, hy = math.cos(w.heading), math.sin(w.heading)
         px = py = 0.0
         for j in range(others.shape[0]):
-            if j == i or others[j, 5] < 0.5:
+            if j == i or others[j, 6] < 0.5:
                 continue
             rx, ry = others[j, 0] - w.x, others[j, 1] - w.y
             d = math.hypot(rx, ry)
@@ -342,15 +349,45 @@ class WalkerSim:
             py += -uy * k * 0.6 + side * ux * k
         return math.atan2(gy + py, gx + px)
 
-    def _constrain(self, w: _Walker, obst: Sequence[tuple[float, float, float]]) -> None:
+    def _crowding(self, i: int, w: _Walker, others: npt.NDArray[np.float64]) -> float:
+        """Speed factor: slow down behind or in front of someone close ahead."""
+        hx, hy = math.cos(w.heading), math.sin(w.heading)
+        k = 1.0
+        for j in range(others.shape[0]):
+            if j == i or others[j, 6] < 0.5:
+                continue
+            rx, ry = others[j, 0] - w.x, others[j, 1] - w.y
+            d = math.hypot(rx, ry)
+            if d < 1.0 and rx * hx + ry * hy > 0.7 * d:
+                k = min(k, max(0.2, (d - PERSON_GAP_M) / (1.0 - PERSON_GAP_M)))
+        return k
+
+    def _constrain(
+        self, i: int, w: _Walker, others: npt.NDArray[np.float64], obst: Sequence[tuple[float, float, float]]
+    ) -> None:
+        # People do not walk through each other: step out of anyone closer than PERSON_GAP_M (both do,
+        # against the other's position at the start of the step, so each corrects half the overlap).
+        for j in range(others.shape[0]):
+            if j == i or others[j, 6] < 0.5 or w.mode == _OUTSIDE:
+                continue
+            rx, ry = w.x - others[j, 0], w.y - others[j, 1]
+            d = math.hypot(rx, ry)
+            if d < PERSON_GAP_M:
+                if d < 1e-6:
+                    rx, ry, d = (1.0, 0.0, 1.0) if i < j else (-1.0, 0.0, 1.0)
+                push = min(0.5 * (PERSON_GAP_M - d), MAX_PUSH_M)
+                w.x += rx / d * push
+                w.y += ry / d * push
         xs, ys = self.spec.room_x_m, self.spec.room_y_m
         wall = 0.25
-        at_door = w.tkind in (_ENTER, _EXIT_IN, _EXIT_OUT)
-        if at_door and w.y < wall + 0.1:
-            w.x = min(max(w.x, self.door.x0_m + wall), self.door.x1_m - wall)
+        in_doorway = self.door.x0_m + wall <= w.x <= self.door.x1_m - wall
+        if w.tkind in (_ENTER, _EXIT_IN, _EXIT_OUT) and (in_doorway or w.y < 0.0):
+            # Through the door: the wall y = 0 has a gap here; behind it, stay in the corridor.
+            if w.y < wall:
+                w.x = min(max(w.x, self.door.x0_m + wall), self.door.x1_m - wall)
             w.y = max(w.y, self.door.outside_xy[1] - 0.2)
         else:
-            w.y = min(max(w.y, wall), ys - wall)
+            w.y = max(w.y, wall)
         w.x = min(max(w.x, wall), xs - wall)
         w.y = min(w.y, ys - wall)
         for ox, oy, r in obst:
@@ -388,14 +425,14 @@ class WalkerSim:
                 w.mode, w.leg_start = _WALK, t_s
         else:
             dist = math.hypot(w.tx - w.x, w.ty - w.y)
-            v_goal = pref * max(0.25, math.cos(min(abs(err), math.pi / 2)))
+            v_goal = pref * max(0.25, math.cos(min(abs(err), math.pi / 2))) * self._crowding(i, w, others)
             v_goal = min(v_goal, max(0.3, dist * 1.5)) if w.tkind == _ROUTE else v_goal
         dv = max(-ACCEL_MPS2 * DT_S, min(ACCEL_MPS2 * DT_S, v_goal - w.speed))
         w.speed = max(0.0, w.speed + dv)
         w.x += w.speed * math.cos(w.heading) * DT_S
         w.y += w.speed * math.sin(w.heading) * DT_S
         w.phase += 2.0 * math.pi * w.speed * DT_S / STRIDE_M
-        self._constrain(w, obst)
+        self._constrain(i, w, others, obst)
         if w.mode == _WALK:
             if math.hypot(w.tx - w.x, w.ty - w.y) < ARRIVE_M:
                 self._arrive(i, w, t_s)

@@ -193,7 +193,7 @@ class World:
                     f"camera {cam.id!r}: position ({cam.x_m}, {cam.y_m}) must be inside the room "
                     f"[0, {spec.room_x_m}] x [0, {spec.room_y_m}]"
                 )
-        door_w = min(1.0, 0.5 * spec.room_x_m)
+        door_w = min(1.2, 0.5 * spec.room_x_m)
         x1 = spec.room_x_m - min(1.0, 0.15 * spec.room_x_m)
         self.door = Door(x0_m=x1 - door_w, x1_m=x1, height_m=min(2.1, 0.9 * spec.wall_height_m))
         self._motion = {cam.id: _RobotMotion(cam) for cam in self.cameras}
