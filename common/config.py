@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import msgspec
+import msgspec.inspect as mi
 
 from common.errors import ConfigError
 
@@ -47,11 +48,96 @@ def _given(raw: Any, path: str) -> Any:
     return cur
 
 
+def _type_at(config_type: Any, path: str) -> Any:
+    """The ``msgspec.inspect`` type at an error path like ``.camera.pose[0]``, or None."""
+    info: Any = mi.type_info(config_type)
+    for tok in re.findall(r"\.([^.\[]+)|\[(\d+)\]", path):
+        key, _ = tok
+        while isinstance(info, mi.UnionType):  # `X | None`: describe X
+            options = [t for t in info.types if not isinstance(t, mi.NoneType)]
+            info = options[0] if options else None
+        if key and isinstance(info, mi.StructType):
+            info = next((f.type for f in info.fields if f.encode_name == key), None)
+        elif key and isinstance(info, mi.DictType):
+            info = info.value_type
+        elif not key and isinstance(info, (mi.ListType, mi.SetType, mi.FrozenSetType, mi.VarTupleType)):
+            info = info.item_type
+        elif not key and isinstance(info, mi.TupleType):
+            info = None
+        else:
+            return None
+    return info
+
+
+def _bounds(info: Any) -> str:
+    parts = []
+    for attr, op in (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<")):
+        value = getattr(info, attr, None)
+        if value is not None:
+            parts.append(f"{op} {value}")
+    return " and ".join(parts)
+
+
+def _expected(info: Any) -> str | None:
+    """Plain-words description of what a config value must be."""
+    if isinstance(info, mi.UnionType):
+        options = [_expected(t) for t in info.types]
+        return " or ".join(o for o in options if o) or None
+    if isinstance(info, mi.LiteralType):
+        return "one of " + ", ".join(repr(v) for v in info.values)
+    if isinstance(info, mi.FloatType):
+        b = _bounds(info)
+        return f"a number {b}" if b else "a number"
+    if isinstance(info, mi.IntType):
+        b = _bounds(info)
+        return f"an integer {b}" if b else "an integer"
+    if isinstance(info, mi.BoolType):
+        return "true or false"
+    if isinstance(info, mi.StrType):
+        extra = []
+        if info.min_length:
+            extra.append(f"at least {info.min_length} characters")
+        if info.max_length is not None:
+            extra.append(f"at most {info.max_length} characters")
+        if info.pattern:
+            extra.append(f"matching {info.pattern}")
+        return "a string" + (" (" + ", ".join(extra) + ")" if extra else "")
+    if isinstance(info, (mi.ListType, mi.VarTupleType, mi.SetType, mi.FrozenSetType)):
+        n = []
+        if info.min_length is not None and info.min_length == info.max_length:
+            n.append(f"exactly {info.min_length}")
+        else:
+            if info.min_length is not None:
+                n.append(f"at least {info.min_length}")
+            if info.max_length is not None:
+                n.append(f"at most {info.max_length}")
+        inner = _expected(info.item_type)
+        return "a list" + (f" of {' and '.join(n)} items" if n else "") + (f", each {inner}" if inner else "")
+    if isinstance(info, mi.TupleType):
+        return f"a list of {len(info.item_types)} items"
+    if isinstance(info, mi.NoneType):
+        return None
+    if isinstance(info, (mi.StructType, mi.DictType)):
+        return "a table"
+    return None
+
+
+def _toml_type(value: Any) -> str:
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, dict):
+        return "table"
+    if isinstance(value, list):
+        return "array"
+    return {int: "integer", float: "float", str: "string"}.get(type(value), type(value).__name__)
+
+
 def parse_config(raw: dict[str, Any], config_type: type[T], source: str) -> T:
     """Convert already-parsed TOML data to ``config_type``.
 
     Raises:
-        ConfigError: ``"{source}: {key}: {expected}, got {value!r}"``.
+        ConfigError: ``"{source}: {key}: expected {what}, got {value!r} ({toml type})"``;
+            ``"{source}: unknown key {key!r} (known keys: ...)"``; ``"{source}: missing required key {key!r}"``.
     """
     try:
         return msgspec.convert(raw, config_type, strict=True)
@@ -62,15 +148,22 @@ def parse_config(raw: dict[str, Any], config_type: type[T], source: str) -> T:
         unknown = _UNKNOWN_RE.match(msg)
         if unknown:
             where = _dotted(path + "." + unknown.group("field")) if path else unknown.group("field")
-            raise ConfigError(f"{source}: unknown key {where!r}") from err
-        key = _dotted(path) or "(top level)"
-        given = _given(raw, path)
-        tail = "" if given is None else f", got {given!r}"
+            table = _type_at(config_type, path)
+            known = ""
+            if isinstance(table, mi.StructType):
+                known = " (known keys: " + ", ".join(f.encode_name for f in table.fields) + ")"
+            raise ConfigError(f"{source}: unknown key {where!r}{known}") from err
         if msg.startswith("Object missing required field"):
             field = msg.split("`")[1]
             key = _dotted(f"{path}.{field}") if path else field
             raise ConfigError(f"{source}: missing required key {key!r}") from err
-        raise ConfigError(f"{source}: {key}: {msg[0].lower() + msg[1:]}{tail}") from err
+        key = _dotted(path) or "(top level)"
+        given = _given(raw, path)
+        expected = _expected(_type_at(config_type, path)) if path else None
+        got = "" if given is None else f", got {given!r} ({_toml_type(given)})"
+        if expected:
+            raise ConfigError(f"{source}: {key}: expected {expected}{got}") from err
+        raise ConfigError(f"{source}: {key}: {msg[0].lower() + msg[1:]}{got}") from err
 
 
 def load_config(path: str | Path, config_type: type[T]) -> T:
