@@ -210,10 +210,17 @@ class AgentClient:
             return True
 
     def _query(self, selector: Any, msg_type: type[T], timeout_s: float, payload: bytes | None = None) -> list[T]:
+        import zenoh
+
         out: list[T] = []
         try:
+            # No consolidation: a history answer is many replies on the same key, all wanted.
             replies = self.session.get(
-                selector, timeout=timeout_s, payload=payload, encoding=MSGPACK if payload else None
+                selector,
+                timeout=timeout_s,
+                payload=payload,
+                encoding=MSGPACK if payload else None,
+                consolidation=zenoh.ConsolidationMode.NONE,
             )
         except Exception as err:
             raise SessionError(f"query {selector} failed: {err}") from err
