@@ -107,11 +107,18 @@ class Associator:
         self._birth_rr = 0
 
     # -- step 1 -----------------------------------------------------------------
-    def support(self, views: dict[str, ViewBlobs], tracks: list[TrackRecord]) -> list[dict[str, int]]:
-        """For each track, sensor id -> index of its supporting blob."""
+    def support(
+        self, views: dict[str, ViewBlobs], tracks: list[TrackRecord]
+    ) -> tuple[list[dict[str, int]], list[dict[str, int]]]:
+        """For each track, sensor id -> index of its own supporting blob, and of blobs it shares.
+
+        First the blob the node kept tracking for it (same ``local_id``, loose gate), then, in cameras where that
+        blob is gone (occlusion, new track), the nearest blob inside the gate that no other track holds by link.
+        """
         out: list[dict[str, int]] = [{} for _ in tracks]
+        shared: list[dict[str, int]] = [{} for _ in tracks]
         if not tracks:
-            return out
+            return out, shared
         txy = np.array([tr.x[:2] for tr in tracks])
         tvar = np.array([max(tr.p[0, 0], tr.p[1, 1]) for tr in tracks])
         k = self.config.match.bearing_gate_sigmas
@@ -124,35 +131,70 @@ class Associator:
             gate = k * np.sqrt(v.sigma_rad**2 + tvar / dist**2) + 0.25 / dist
             diff = np.abs(_wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
             norm = diff / gate[None, :]
+            claimed: set[int] = set()
+            pending: list[int] = []
             for t, tr in enumerate(tracks):
                 lid = tr.links.get(sid)
                 if lid is not None:
                     hit = np.nonzero(v.local_id == lid)[0]
-                    if hit.size and norm[hit[0], t] < 2.0:
+                    if hit.size and norm[hit[0], t] < 3.0:
                         out[t][sid] = int(hit[0])
+                        claimed.add(int(hit[0]))
                         continue
-                i = int(np.argmin(norm[:, t]))
-                if norm[i, t] < 1.0 and dist[t] <= self.params.max_range_m:
+                pending.append(t)
+            for t in pending:
+                if dist[t] > self.params.max_range_m:
+                    continue
+                col = norm[:, t]
+                i = int(np.argmin(col))
+                if col[i] >= 1.0:
+                    continue
+                if i in claimed:
+                    # Another track's own blob: this person is probably hidden behind it. It explains the
+                    # blob (no birth from it) but its bearing is the other person's, so it does not localise.
+                    shared[t][sid] = i
+                else:
                     out[t][sid] = i
-        return out
+        return out, shared
 
     # -- step 2 -----------------------------------------------------------------
     def _pair_match(
-        self, a: ViewBlobs, b: ViewBlobs, support: list[dict[str, int]], cache: dict[tuple[str, str], _PairMatch]
+        self, a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord], cache: dict[tuple[str, str], _PairMatch]
     ) -> _PairMatch:
         key = (a.sensor_id, b.sensor_id)
         got = cache.get(key)
         if got is not None:
             return got
+        # Temporal consistency c_t: the pair continues a track's previous correspondence (same node blob ids).
         temporal = np.zeros((a.n, b.n))
-        for sup in support:
-            i, j = sup.get(a.sensor_id), sup.get(b.sensor_id)
-            if i is not None and j is not None:
-                temporal[i, j] = 1.0
-        mm = match_matrix(a, b, self.params, temporal)
+        if a.n and b.n:
+            rows = {int(lid): i for i, lid in enumerate(a.local_id)}
+            cols = {int(lid): j for j, lid in enumerate(b.local_id)}
+            for tr in tracks:
+                la, lb = tr.links.get(a.sensor_id), tr.links.get(b.sensor_id)
+                if la in rows and lb in cols:
+                    temporal[rows[la], cols[lb]] = 1.0
+        mm = match_matrix(a, b, self.params, temporal, self.threshold)
         pm = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
         cache[key] = pm
         return pm
+
+    def _consistent(self, meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs]) -> tuple[list[str], int]:
+        """Supporting cameras whose blob points at the measurement, and how many point elsewhere."""
+        k = self.config.match.bearing_gate_sigmas
+        agree: list[str] = []
+        against = 0
+        for sid, i in sup.items():
+            v = views[sid]
+            rel = meas.xy - v.origin_xy
+            dist = max(float(np.hypot(*rel)), 0.3)
+            pred = math.atan2(rel[1], rel[0])
+            gate = k * v.sigma_rad + 0.25 / dist
+            if abs(float(_wrap(np.array(v.bearing_rad[i] - pred)))) < gate:
+                agree.append(sid)
+            else:
+                against += 1
+        return agree, against
 
     def run(
         self,
@@ -164,28 +206,34 @@ class Associator:
         views = build_views(aligned, poses, sigma_of)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
-        support = self.support(views, tracks)
+        support, shared = self.support(views, tracks)
         cache: dict[tuple[str, str], _PairMatch] = {}
         used: dict[str, set[int]] = {sid: set() for sid in views}
         pose_sigma = {sid: p.sigma_xy_m for sid, p in poses.items()}
         mc = self.config.match
-        for tr, sup in zip(tracks, support, strict=True):
-            for sid, i in sup.items():
+        claimed: set[tuple[str, int]] = set()
+        for tr, sup, sh in zip(tracks, support, shared, strict=True):
+            for sid, i in itertools.chain(sup.items(), sh.items()):
                 used[sid].add(i)
-            meas, entry = self._measure(
+            meas, entry, used_blobs = self._measure(
                 tr,
                 sup=sup,
                 views=views,
-                support=support,
+                tracks=tracks,
                 cache=cache,
                 pose_sigma=pose_sigma,
                 max_cams=mc.max_pair_cameras,
+                claimed=claimed,
             )
             if meas is None:
                 self.tracker.miss(tr)
                 continue
-            links = {sid: int(views[sid].local_id[i]) for sid, i in sup.items()}
+            claimed.update(used_blobs.items())
+            links = {sid: int(views[sid].local_id[i]) for sid, i in used_blobs.items()}
             self.tracker.update(tr, meas, links)
+            for sid in sup:
+                if sid not in used_blobs:
+                    tr.links.pop(sid, None)  # that camera's blob is someone else's now
             out.measured += 1
             if entry is not None and tr.track_id:
                 out.pair_entries.append(
@@ -207,25 +255,28 @@ class Associator:
         *,
         sup: dict[str, int],
         views: dict[str, ViewBlobs],
-        support: list[dict[str, int]],
+        tracks: list[TrackRecord],
         cache: dict[tuple[str, str], _PairMatch],
         pose_sigma: dict[str, float],
         max_cams: int,
-    ) -> tuple[Measurement | None, tuple[str, str, int] | None]:
+        claimed: set[tuple[str, int]],
+    ) -> tuple[Measurement | None, tuple[str, str, int] | None, dict[str, int]]:
         if len(sup) < 2:
-            return None, None
+            return None, None, {}
         cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
         ranked = rank_pairs(tr.x[:2].copy(), cams, max_cams)
         for cand in ranked[:3]:
             a_id, b_id = sorted((cand.a, cand.b))
             a, b = views[a_id], views[b_id]
-            pm = self._pair_match(a, b, support, cache)
+            pm = self._pair_match(a, b, tracks, cache)
             i, j = sup[a_id], sup[b_id]
             options = []
             if pm.pairs.get(i) == j:
                 options.append((i, j))
             options += [(ii, jj) for ii, jj in pm.pairs.items() if (ii == i) != (jj == j)]
             for ii, jj in options:
+                if (a_id, ii) in claimed and (b_id, jj) in claimed:
+                    continue  # both blobs already localised another track this tick: a duplicate
                 meas = localize_best_pair(
                     a,
                     ii,
@@ -235,14 +286,26 @@ class Associator:
                     sigma_xy_b=pose_sigma.get(b_id, 0.0),
                     width_rel_sigma=self.config.match.width_rel_sigma,
                 )
-                if meas is None or not math.isfinite(self.tracker.gate_distance(tr, meas)):
+                if meas is None:
                     continue
-                if self.config.manager.fuse_all and len(sup) >= 3:
-                    lsq = localize_least_squares([(views[s], k) for s, k in sup.items()], pose_sigma)
+                if not math.isfinite(self.tracker.gate_distance(tr, meas)):
+                    # Outside the motion gate (a sharp turn): still the same person if the nodes' own 2D
+                    # tracks say so in both cameras and the jump is plausible.
+                    linked = tr.links.get(a_id) == int(a.local_id[ii]) and tr.links.get(b_id) == int(b.local_id[jj])
+                    if not linked or float(np.hypot(*(meas.xy - tr.x[:2]))) > self.config.match.link_gate_m:
+                        continue
+                used = dict(sup)
+                used[a_id], used[b_id] = ii, jj
+                agree, against = self._consistent(meas, used, views)
+                if against > len(agree) - 2:
+                    continue  # a ghost of two other people's rays: the other cameras look elsewhere
+                used = {s: used[s] for s in agree}
+                if self.config.manager.fuse_all and len(used) >= 3:
+                    lsq = localize_least_squares([(views[s], k) for s, k in used.items()], pose_sigma)
                     if lsq is not None and math.isfinite(self.tracker.gate_distance(tr, lsq)):
                         meas = lsq
-                return meas, (a_id, b_id, len(ranked))
-        return None, None
+                return meas, (a_id, b_id, len(ranked)), used
+        return None, None, {}
 
     # -- step 3 -----------------------------------------------------------------
     def _births(

@@ -130,22 +130,25 @@ class MatchSection(ConfigStruct, frozen=True):
     """Relative width error epsilon fed to the size-ratio crossover."""
     bearing_gate_sigmas: Pos = 4.0
     """A blob supports a track when its bearing is within this many sigmas of the predicted bearing."""
+    link_gate_m: Pos = 1.0
+    """A measurement outside the motion gate is still taken when both blobs continue the track's node-side
+    2D tracks (same local ids) and it lies within this distance of the prediction (sharp turns)."""
     max_birth_pairs: PosInt = 12
     """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
     max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
     """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
-    ghost_veto_views: PosInt = 2
+    ghost_veto_views: PosInt = 1
     """A new person is refused when this many other cameras that should see the spot see nothing there."""
 
 
 class TrackerSection(ConfigStruct, frozen=True):
     """``[tracker]``: the constant-velocity Kalman filter and the track life cycle."""
 
-    accel_sigma_mps2: Pos = 1.5
+    accel_sigma_mps2: Pos = 3.0
     """Process noise: raising it follows turns faster, lowering it smooths more."""
     gate_chi2: Pos = 13.8
     """Mahalanobis gate on the floor (chi-square, 2 dof; 13.8 ~ 99.9%)."""
-    gate_min_m: Pos = 0.5
+    gate_min_m: Pos = 0.3
     """Measurements within this distance always pass the gate."""
     min_meas_sigma_m: Pos = 0.03
     birth_hits: PosInt = 3

@@ -14,7 +14,7 @@ every blob j of camera b::
 
 A temporal consistency term from the current tracks is added:
 ``r' = (r + λ c_t) / (1 + λ)`` with c_t = 1 when both blobs already support
-the same track (only where the rays can meet at all). Two matchers turn the
+the same track (only where r alone already exceeds the threshold). Two matchers turn the
 matrix into pairs, chosen by name (STYLE.md habit 12): ``greedy`` (the
 paper's, O(N³/3)) and ``global`` (Hungarian on the sum of confidences, with a
 private "unmatched" dummy per row and column).
@@ -118,7 +118,9 @@ def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray
     return np.where(ok, np.exp(-(lr**2) / (2.0 * sigma**2)), 0.0)
 
 
-def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: FloatArray | None = None) -> MatchMatrix:
+def match_matrix(
+    a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: FloatArray | None = None, threshold: float = 0.1
+) -> MatchMatrix:
     """Score every blob of ``a`` against every blob of ``b`` (Eq. 7).
 
     Args:
@@ -126,6 +128,8 @@ def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: Floa
         b: camera 2 (O2).
         params: measure settings.
         temporal: (na, nb) c_t in [0, 1] from the current tracks, or None.
+        threshold: tau; the temporal term is added only where r itself exceeds it.
+        threshold: tau; the temporal term is added only where r itself exceeds it.
     """
     na, nb = a.n, b.n
     o1, o2 = a.origin_xy, b.origin_xy
@@ -194,7 +198,8 @@ def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: Floa
     c_t = np.zeros((na, nb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
     lam = params.temporal_weight
     if temporal is not None and lam > 0:
-        r = np.where(r_rc > 0, (r + lam * c_t) / (1.0 + lam), 0.0)
+        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
+        r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
     # Hypothesised positions along camera 1's ray.
     xy = np.empty((na, nb, 2))
     xy[..., 0] = o1[0] + d1 * np.cos(th1)

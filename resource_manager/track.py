@@ -35,9 +35,9 @@ _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 @dataclass(frozen=True, slots=True)
 class TrackParams:
-    accel_sigma_mps2: float = 1.5
+    accel_sigma_mps2: float = 3.0
     gate_chi2: float = 13.8
-    gate_min_m: float = 0.5
+    gate_min_m: float = 0.3
     min_meas_sigma_m: float = 0.03
     birth_hits: int = 3
     birth_window: int = 5
@@ -121,7 +121,7 @@ class Tracker:
     def position_gate_m(self, tr: TrackRecord) -> float:
         """A radius that contains the gate (for cheap spatial pre-filtering)."""
         ev = float(np.max(np.linalg.eigvalsh(tr.p[:2, :2])))
-        return max(self.params.gate_min_m, math.sqrt(self.params.gate_chi2 * (ev + 0.25)))
+        return max(self.params.gate_min_m, math.sqrt(self.params.gate_chi2 * (ev + 0.01)))
 
     def update(self, tr: TrackRecord, m: Measurement, links: dict[str, int]) -> None:
         """Kalman update with a measurement; counts a hit and may confirm the track."""
@@ -196,8 +196,10 @@ class Tracker:
                 if needed > p.birth_window - len(tr.window) or tr.misses >= 2:
                     continue
                 keep.append(tr)
-            elif tr.misses > p.max_misses:
-                ended.append(tr)
+            elif tr.misses > p.max_misses or (
+                tr.misses >= 3 and any(o is not tr and o.confirmed and _shared_links(o, tr) >= 2 for o in self.tracks)
+            ):
+                ended.append(tr)  # lost, or a coasting copy of a track that holds its blobs
             else:
                 keep.append(tr)
         # Two tracks on one person: the younger (or tentative) one goes.
@@ -207,10 +209,15 @@ class Tracker:
             dup = next(
                 (o for o in final if float(np.hypot(*(o.xy - tr.xy))) < 0.3 and (o.confirmed or not tr.confirmed)), None
             )
-            if dup is not None and (not tr.confirmed or tr.misses > 0):
+            if dup is not None and (not tr.confirmed or tr.misses > 0 or _shared_links(dup, tr) >= 2):
                 if tr.confirmed:
                     ended.append(tr)
                 continue
             final.append(tr)
         self.tracks = final
         return ended
+
+
+def _shared_links(a: TrackRecord, b: TrackRecord) -> int:
+    """How many cameras attribute the same node-side blob to both tracks (two tracks on one person)."""
+    return sum(1 for sid, lid in a.links.items() if b.links.get(sid) == lid)

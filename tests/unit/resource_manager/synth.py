@@ -48,7 +48,7 @@ class Person:
 
 def colour_hist(k: int, bins: int = 16) -> list[float]:
     """A distinct, smooth histogram for person k."""
-    c = (k * 5.3) % bins
+    c = (k * 0.618034 * bins) % bins  # golden-ratio spacing: neighbours in k get distant colours
     h = np.exp(-0.5 * ((np.arange(bins) - c) / 1.5) ** 2) + 0.02
     return list(h / h.sum())
 
@@ -144,7 +144,9 @@ def features_for(
     return Features(sensor_id=cam.id, seq=seq, stamp_ns=t_ns, frame_index=seq, blobs=blobs, sightings=sightings)
 
 
-def rectangle_path(t_s: float, rect: tuple[float, float, float, float], speed: float, phase: float = 0.0) -> tuple[float, float]:
+def rectangle_path(
+    t_s: float, rect: tuple[float, float, float, float], speed: float, phase: float = 0.0
+) -> tuple[float, float]:
     """Position on a rectangular loop walked at ``speed`` (the paper's Fig. 7 experiment)."""
     x0, y0, x1, y1 = rect
     w, h = x1 - x0, y1 - y0
@@ -162,7 +164,9 @@ def rectangle_path(t_s: float, rect: tuple[float, float, float, float], speed: f
     return x0, y1 - s
 
 
-def mota(gt: list[dict[int, tuple[float, float]]], hyp: list[dict[str, tuple[float, float]]], thr_m: float = 0.5) -> dict[str, float]:
+def mota(
+    gt: list[dict[int, tuple[float, float]]], hyp: list[dict[str, tuple[float, float]]], thr_m: float = 0.5
+) -> dict[str, float]:
     """CLEAR-MOT MOTA with a distance threshold, Hungarian matching per frame, keeping previous matches."""
     from scipy.optimize import linear_sum_assignment
 
@@ -202,3 +206,38 @@ def mota(gt: list[dict[int, tuple[float, float]]], hyp: list[dict[str, tuple[flo
         "idsw": idsw,
         "mean_error_m": float(np.mean(dists)) if dists else math.nan,
     }
+
+
+class RandomWalk:
+    """People walking between random waypoints of a room at their own speeds (seeded)."""
+
+    def __init__(self, n: int, room: tuple[float, float, float, float], seed: int, margin: float = 0.6) -> None:
+        rng = np.random.default_rng(seed)
+        self.legs: list[list[tuple[float, float, float, float, float]]] = []
+        x0, y0, x1, y1 = room[0] + margin, room[1] + margin, room[2] - margin, room[3] - margin
+        self.heights = [float(h) for h in rng.uniform(1.55, 1.9, n)]
+        for _ in range(n):
+            legs = []
+            t = 0.0
+            p = (float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)))
+            speed = float(rng.uniform(0.5, 1.5))
+            while t < 3600.0 and len(legs) < 400:
+                q = (float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)))
+                dur = math.dist(p, q) / speed
+                legs.append((t, t + dur, *p, *q))  # type: ignore[arg-type]
+                t += dur
+                p = q
+            self.legs.append(legs)  # type: ignore[arg-type]
+
+    def at(self, t_s: float) -> list[Person]:
+        out = []
+        for k, legs in enumerate(self.legs):
+            for leg in legs:
+                ta, tb, xa, ya, xb, yb = leg  # type: ignore[misc]
+                if ta <= t_s <= tb:
+                    f = (t_s - ta) / max(tb - ta, 1e-9)
+                    out.append(Person(xa + f * (xb - xa), ya + f * (yb - ya), self.heights[k]))
+                    break
+            else:
+                out.append(Person(legs[-1][4], legs[-1][5], self.heights[k]))  # type: ignore[misc]
+        return out
