@@ -16,8 +16,8 @@ integrates four parts, all here:
   object regions* (the caller passes the mask of accepted objects), so people
   who pause are not absorbed while the slow light drift is followed.
 
-The model starts from the per-pixel median of the first ``warmup_frames``
-frames, so people walking through the first second do not leave ghosts.
+The model starts from the per-pixel median of ``warmup_frames`` frames taken
+every ``warmup_stride`` frames, so people walking through the first second do not leave ghosts.
 Nothing is reported while warming up or on the frame of a re-initialisation.
 
 Works on one grey channel (the panorama's luminance): the cheapest signal that
@@ -79,12 +79,15 @@ class BackgroundModel:
         self._bg_u8: Mask | None = None
         self._prev: Mask | None = None
         self._warm: list[Mask] = []
+        self._static: Mask | None = None
         self._frames = 0
         self._updates = 0
         self.reinits = 0
         """Times the model was re-initialised from a frame."""
         self.relights = 0
         """Times a global light change was compensated by a gain."""
+        self.ghosts = 0
+        """Ghost blobs (objects that left the background) absorbed."""
 
     @property
     def ready(self) -> bool:
@@ -108,7 +111,8 @@ class BackgroundModel:
         moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
         empty = np.zeros_like(grey)
         if self._bg is None:
-            self._warm.append(grey.copy())
+            if (self._frames - 1) % s.warmup_stride == 0:
+                self._warm.append(grey.copy())
             if len(self._warm) >= s.warmup_frames:
                 stack = np.stack(self._warm)
                 self._set_background(np.median(stack, axis=0).astype(np.float32))
@@ -121,6 +125,7 @@ class BackgroundModel:
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
+            self._update_static(grey, fg, moving)
             return Motion(fg, moving, "ok", frac)
         # Abnormal change: many pixels changed. A light change scales the scene by a gain.
         gain = _global_gain(grey, bg_u8)
@@ -156,6 +161,51 @@ class BackgroundModel:
         else:
             cv2.accumulateWeighted(grey, self._bg, alpha, mask=cv2.bitwise_not(objects))
         self._bg_u8 = cv2.convertScaleAbs(self._bg)
+
+    def _update_static(self, grey: Mask, fg: Mask, moving: Mask) -> None:
+        """Count, per pixel, the frames it has been changed-but-still; absorb ghosts among them.
+
+        A *ghost* -- something that was in the background and left (a person who
+        stood still while the model learnt) -- changes pixels like a person does
+        but never moves. Regions that stayed changed and still for
+        ``ghost_frames`` are checked: a ghost's outline is an edge of the
+        background image but not of the current frame (where the wall is
+        smooth), a person's outline the reverse. Ghosts are copied into the
+        background; people who stand still are kept.
+        """
+        s = self.settings
+        still = cv2.bitwise_and(fg, cv2.bitwise_not(moving))
+        if self._static is None:
+            self._static = np.zeros_like(grey)
+        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        if self._frames % 4 or self._bg_u8 is None:
+            return
+        old = cv2.threshold(self._static, min(254, s.ghost_frames), 255, cv2.THRESH_BINARY)[1]
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
+        absorbed = False
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            if area < s.min_blob_px:
+                continue
+            mask = labels[y : y + h, x : x + w] == k
+            outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
+            cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+            was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+            score = float(was[outline].sum()) / (float(cur[outline].sum()) + 1.0)
+            if score < 1.5:
+                continue
+            assert self._bg is not None
+            sub = self._bg[y : y + h, x : x + w]
+            sub[mask] = grey[y : y + h, x : x + w][mask]
+            self._static[y : y + h, x : x + w][mask] = 0
+            self.ghosts += 1
+            absorbed = True
+            logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
+        if absorbed and self._bg is not None:
+            self._bg_u8 = cv2.convertScaleAbs(self._bg)
+
+
+_K3 = np.ones((3, 3), np.uint8)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

@@ -19,7 +19,7 @@ Layout (every table but ``[node]`` and ``[source]`` is optional)::
     kind = "sim"                 # sim | opencv | folder | detections (keys per kind below)
 
     [camera]                     # real cameras only (sim: the renderer's own models)
-    model = "panoramic"          # panoramic | pinhole | ptz
+    model = "panoramic"          # panoramic | pinhole
 
     [pose]                       # optional surveyed pose of the optical centre
     x_m = 2.0
@@ -156,7 +156,7 @@ SourceSettings = SimSource | OpenCvSource | FolderSource | DetectionsSource
 class CameraSettings(ConfigStruct, frozen=True):
     """``[camera]``: the calibrated model of a real camera (sim cameras use the renderer's models)."""
 
-    model: Literal["panoramic", "pinhole", "ptz"] = "panoramic"
+    model: Literal["panoramic", "pinhole"] = "panoramic"
     # -- panoramic (annular PAL image -> cylinder, paper Steps 1-3)
     image_size: Size2 = msgspec.field(default_factory=lambda: [768, 576])
     center_px: Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
@@ -174,11 +174,9 @@ class CameraSettings(ConfigStruct, frozen=True):
     v0_px: float = 93.0
     height_m: Pos = 1.1
     """Height of the virtual viewpoint above the floor (Step 3)."""
-    # -- pinhole / ptz
+    # -- pinhole
     calibration: str = ""
-    """Pinhole: calibration JSON (see DetectionsSource.calibration)."""
-    hfov_deg: Annotated[float, msgspec.Meta(gt=1.0, lt=170.0)] = 60.0
-    """PTZ: horizontal field of view at zoom 1 (position from ``[pose]``)."""
+    """Pinhole: calibration JSON (see DetectionsSource.calibration); bearings are then world azimuths."""
 
 
 class PoseSettings(ConfigStruct, frozen=True):
@@ -219,6 +217,12 @@ class PipelineSettings(ConfigStruct, frozen=True):
     warmup_frames: PosInt = 12
     """Frames whose median initialises the background; nothing is reported meanwhile. Higher: cleaner
     start with people present, longer blind start."""
+    warmup_stride: PosInt = 3
+    """Take every N-th frame for the warm-up median, so it spans ``warmup_frames * warmup_stride`` frames.
+    Higher: people who stand still for a while at start leave no ghost; longer blind start."""
+    ghost_frames: PosInt = 20
+    """Frames a changed region must stay still before it is tested for being a ghost (something that
+    left the background). Lower: ghosts vanish sooner, more tests; higher: the opposite."""
     min_component_px: PosInt = 6
     """Connected regions smaller than this are noise and ignored before grouping."""
     merge_gap_px: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
@@ -327,8 +331,6 @@ def validate(cfg: NodeConfig) -> NodeConfig:
             )
         if cfg.camera.model == "pinhole" and not cfg.camera.calibration:
             raise ConfigError(f"{src}: camera.calibration: expected a calibration JSON path for model 'pinhole'")
-        if cfg.camera.model == "ptz" and cfg.pose is None:
-            raise ConfigError(f"{src}: camera.model = 'ptz' needs a [pose] table (the head's position)")
     if isinstance(cfg.source, OpenCvSource) and cfg.source.reconnect_max_s < cfg.source.reconnect_min_s:
         raise ConfigError(
             f"{src}: source.reconnect_max_s: expected >= reconnect_min_s ({cfg.source.reconnect_min_s}), "

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import numpy as np
-from sn_synth import backdrop, draw_person, grey, noisy
 
 from sensor_node.background import BackgroundModel
 from sensor_node.config import PipelineSettings
+from tests.unit.sensor_node.sn_synth import backdrop, draw_person, grey, noisy
 
 
 def _warm(model: BackgroundModel, base: np.ndarray, rng: np.random.Generator) -> None:
-    for _ in range(model.settings.warmup_frames):
+    n = 0
+    while not model.ready:
         m = model.apply(grey(noisy(base, rng)))
         assert m.state == "warmup" and not m.reportable and not m.fg.any()
+        n += 1
+    s = model.settings
+    assert n == (s.warmup_frames - 1) * s.warmup_stride + 1
 
 
 def test_person_is_foreground_and_static_scene_is_not() -> None:
@@ -34,7 +38,7 @@ def test_person_is_foreground_and_static_scene_is_not() -> None:
 def test_people_in_the_warmup_frames_leave_no_ghost() -> None:
     rng = np.random.default_rng(2)
     base = backdrop(2)
-    model = BackgroundModel(PipelineSettings(warmup_frames=9))
+    model = BackgroundModel(PipelineSettings(warmup_frames=9, warmup_stride=1))
     for k in range(9):
         f = base.copy()
         draw_person(f, 100.0 + 30 * k)

@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 import pytest
-from sn_synth import backdrop, draw_person
 
 from common.cameras import PtzCamera, design_pal
 from common.codec import decode, encode
 from common.schema import Blob
 from sensor_node.blobs import RawBlob
 from sensor_node.features import PanoramicGeometry, PinholeGeometry, annotate, colour_histogram, to_wire
+from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 
 
 def _raw(img: np.ndarray, u0: int, v0: int, w: int, h: int, mask: np.ndarray) -> RawBlob:

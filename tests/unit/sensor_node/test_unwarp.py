@@ -5,11 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from sn_synth import backdrop, draw_person
 
 from common.cameras import design_pal
 from common.errors import SourceError
 from sensor_node.unwarp import Unwarper
+from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 
 
 def _annular(pano: np.ndarray, model) -> np.ndarray:  # type: ignore[no-untyped-def]

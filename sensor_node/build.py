@@ -1,0 +1,200 @@
+"""Wiring: from a NodeConfig to a frame source, a processor and the sensor's description.
+
+Pure of zenoh: the shell (:mod:`sensor_node.node`) publishes what this builds.
+Which pipeline a node runs follows from its source and camera:
+
+=========================  ==========================  ==================================
+source                     camera                      processing
+=========================  ==========================  ==================================
+sim, panoramic camera      the renderer's models       unwarp + image pipeline + sightings
+sim, PTZ camera            [pose] + site optics         image pipeline, world azimuths
+opencv / folder            ``[camera] panoramic``      unwarp + image pipeline + sightings
+opencv / folder            ``[camera] pinhole``        image pipeline, world azimuths
+detections                 calibration JSON            boxes -> Features (no image)
+=========================  ==========================  ==================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
+from common.errors import ConfigError
+from common.schema import Features, PanoramicModel, PinholeModel, Pose, SensorKind
+from common.site import load_site
+from sensor_node.config import (
+    DetectionsSource,
+    FolderSource,
+    NodeConfig,
+    OpenCvSource,
+    SimSource,
+    epoch_from,
+)
+from sensor_node.detections import DetectionFrames, camera_pose, features_from_detections, load_calibration
+from sensor_node.features import PanoramicGeometry, PinholeGeometry
+from sensor_node.pipeline import ImagePipeline
+from sensor_node.ptz import PtzDriver, SimulatedPtz
+from sensor_node.sources import Clock, FolderFrames, Frame, FrameSource, OpenCvFrames
+from sensor_node.sources_sim import SimFrames
+from sensor_node.tracks2d import Tracker2D
+from sensor_node.unwarp import Unwarper
+
+__all__ = ["DetectionProcessor", "NodeParts", "Processor", "build_node"]
+
+
+class Processor(Protocol):
+    """Turns one captured frame into Features."""
+
+    def process_frame(self, frame: Frame, seq: int) -> tuple[Features, str]:
+        """Features of the frame (``processing_ms`` 0) and the motion state ("ok", "warmup", ...)."""
+        ...
+
+
+class ImageProcessor:
+    """Frames with pixels through :class:`ImagePipeline` (PTZ: follows the head's pose)."""
+
+    def __init__(self, pipeline: ImagePipeline, ptz_base: Any = None) -> None:
+        self.pipeline = pipeline
+        self.ptz_base = ptz_base
+        self._ptz_state: tuple[float, float, float] | None = None
+
+    def process_frame(self, frame: Frame, seq: int) -> tuple[Features, str]:
+        assert frame.image is not None
+        pose = frame.extra.get("ptz")
+        if pose is not None and self.ptz_base is not None:
+            state = (pose.pan_rad, pose.tilt_rad, pose.zoom)
+            if state != self._ptz_state:
+                # The head moved: new rays, and the background must be learnt afresh.
+                self.pipeline.set_geometry(PinholeGeometry(self.ptz_base.with_state(*state).pinhole()))
+                self.pipeline.reset()
+                self._ptz_state = state
+        self.pipeline.seq = seq
+        out = self.pipeline.process(frame.image, frame.stamp_ns, frame.index)
+        return out.features, out.state
+
+
+class DetectionProcessor:
+    """Frames of a detection file (boxes) to Features."""
+
+    def __init__(self, sensor_id: str, camera: PinholeCamera, gate_rad: float = 0.05) -> None:
+        self.sensor_id = sensor_id
+        self.camera = camera
+        self.tracker = Tracker2D(gate=gate_rad, max_missed=3, period=2 * math.pi)
+
+    def process_frame(self, frame: Frame, seq: int) -> tuple[Features, str]:
+        f = features_from_detections(
+            frame.payload or [],
+            self.camera,
+            sensor_id=self.sensor_id,
+            seq=seq,
+            stamp_ns=frame.stamp_ns,
+            frame_index=frame.index,
+            tracker=self.tracker,
+        )
+        return f, "ok"
+
+
+@dataclass(slots=True)
+class NodeParts:
+    """Everything the shell needs besides the session."""
+
+    source: FrameSource
+    processor: Processor
+    kind: SensorKind
+    model: PanoramicModel | PinholeModel
+    pose: Pose | None
+    fps: float
+    ptz: PtzDriver | None = None
+    sim: SimFrames | None = None
+    """The simulated source (it takes view-plan goals), if any."""
+    ptz_base: Any = None
+    """PtzCamera at the head's position (PTZ nodes): its state gives the current model."""
+
+
+def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
+    if cfg.pose is None:
+        return None
+    yaw = math.atan2(math.sin(math.radians(cfg.pose.yaw_deg)), math.cos(math.radians(cfg.pose.yaw_deg)))
+    return Pose(x_m=cfg.pose.x_m, y_m=cfg.pose.y_m, z_m=cfg.pose.z_m, yaw_rad=yaw)
+
+
+def _panoramic(cfg: NodeConfig, annular: AnnularModel, cyl: CylindricalCamera) -> ImagePipeline:
+    return ImagePipeline(cfg.node.id, PanoramicGeometry(cyl), cfg.pipeline, Unwarper(annular), list(cfg.body))
+
+
+def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
+    """Build the source and processor a config describes.
+
+    Raises:
+        ConfigError: inconsistent config (e.g. a PTZ sim camera without a [pose]).
+        SourceError: a source that cannot start (missing folder, unreadable detection file).
+    """
+    src = cfg.source
+    where = cfg.path or "node config"
+    pose = _surveyed_pose(cfg)
+    if isinstance(src, SimSource):
+        site = load_site(cfg.resolve(src.site))
+        cam_id = src.camera or cfg.node.id
+        spec = site.camera_by_id(cam_id)
+        epoch = epoch_from(src.epoch_ns, clock())
+        fps = src.fps or site.site.fps
+        if spec.kind == "panoramic":
+            sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock)
+            annular, cyl = sim.models
+            if pose is not None and abs(pose.z_m - cyl.height_m) > 1e-6:
+                cyl = CylindricalCamera(cyl.width_px, cyl.height_px, cyl.f_v_px, cyl.v0_px, pose.z_m, cyl.direction)
+            proc = ImageProcessor(_panoramic(cfg, annular, cyl))
+            return NodeParts(sim, proc, "panoramic", cyl.to_model(), pose, fps, sim=sim)
+        if pose is None:
+            raise ConfigError(f"{where}: a simulated PTZ camera needs a [pose] table (the head's surveyed position)")
+        ptz = SimulatedPtz(math.radians(spec.pan_deg), math.radians(spec.tilt_deg), spec.zoom, clock)
+        sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock, ptz=ptz)
+        base = sim.ptz_camera(pose.x_m, pose.y_m, pose.z_m)
+        p0 = ptz.pose(clock())
+        geo = PinholeGeometry(base.with_state(p0.pan_rad, p0.tilt_rad, p0.zoom).pinhole())
+        pipe = ImagePipeline(cfg.node.id, geo, cfg.pipeline)
+        ptz_pose = Pose(x_m=pose.x_m, y_m=pose.y_m, z_m=pose.z_m, yaw_rad=0.0)
+        return NodeParts(sim, ImageProcessor(pipe, base), "ptz", geo.camera.to_model(), ptz_pose, fps, ptz, sim, base)
+    if isinstance(src, DetectionsSource):
+        camera = load_calibration(cfg.resolve(src.calibration))
+        frames = DetectionFrames(
+            cfg.resolve(src.file),
+            src.fps,
+            clock,
+            epoch_ns=epoch_from(src.epoch_ns, clock()),
+            min_confidence=src.min_confidence,
+            max_lag_s=src.max_lag_s,
+            loop=src.loop,
+        )
+        proc_d = DetectionProcessor(cfg.node.id, camera)
+        return NodeParts(frames, proc_d, "pinhole", camera.to_model(), camera_pose(camera), src.fps)
+    assert isinstance(src, OpenCvSource | FolderSource)
+    cam = cfg.camera
+    assert cam is not None  # validated in config
+    source: FrameSource
+    if isinstance(src, OpenCvSource):
+        source = OpenCvFrames(
+            src.uri,
+            clock,
+            fps=src.fps,
+            loop=src.loop,
+            reconnect_min_s=src.reconnect_min_s,
+            reconnect_max_s=src.reconnect_max_s,
+        )
+        fps = src.fps
+    else:
+        source = FolderFrames(cfg.resolve(src.path), src.glob, src.fps, clock, loop=src.loop)
+        fps = src.fps
+    if cam.model == "pinhole":
+        camera = load_calibration(cfg.resolve(cam.calibration))
+        pipe = ImagePipeline(cfg.node.id, PinholeGeometry(camera), cfg.pipeline)
+        return NodeParts(source, ImageProcessor(pipe), "pinhole", camera.to_model(), camera_pose(camera), fps)
+    (iw, ih), (pw, ph) = cam.image_size, cam.pano_size
+    a0, a1, a2 = cam.radial_poly
+    annular = AnnularModel(
+        iw, ih, cam.center_px[0], cam.center_px[1], a0, a1, a2, pw, ph, math.radians(cam.psi0_deg), cam.direction
+    )
+    cyl = CylindricalCamera(pw, ph, cam.f_v_px, cam.v0_px, pose.z_m if pose else cam.height_m, cam.direction)
+    return NodeParts(source, ImageProcessor(_panoramic(cfg, annular, cyl)), "panoramic", cyl.to_model(), pose, fps)

@@ -1,0 +1,222 @@
+"""Stage 7: sightings of the other robots' bodies, for mutual calibration (Eq. 3).
+
+Each robot is a white cylinder of known radius R with a coloured marking band
+(paper, "Dynamic Mutual Calibration": a body "with a distinctive appearance").
+In the panorama:
+
+1. **Find and identify**: pixels of each known body's band colour (hue within
+   a tolerance, saturated, not dark) below the horizon; the widest run of
+   columns holding them (the panorama wraps) is a candidate, accepted if it
+   has ``band_min_px`` pixels and a band-like shape (rows:columns). The band
+   colour names the robot (``[[body]]`` list).
+2. **Occluding boundaries, sub-pixel**: across the band rows, the colour
+   gradient magnitude |dI/du| (summed over channels, averaged over rows) peaks
+   where the silhouette's edge is; a parabola through the peak and its two
+   neighbours places it to a fraction of a pixel. Averaging over the rows
+   beats the per-pixel noise, and the gradient peak is where the edge is
+   whatever the (unknown) background level.
+3. **Eq. (3)**: alpha = angle between the two boundary rays; B = R / sin(alpha/2)
+   (exact for tangent rays); bearing = circular mean of the two boundaries
+   (the paper's beta).
+
+:func:`is_body_blob` tells the pipeline which motion blobs are a robot that
+moves, so bodies are never reported as people.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from common.cameras import CylindricalCamera
+from common.errors import GeometryError
+from common.geometry import baseline_exact, sighting_bearing
+from common.schema import Sighting
+from sensor_node.blobs import roi
+from sensor_node.config import BodySpec, PipelineSettings
+
+__all__ = ["BandFinder", "BodySighting", "is_body_blob"]
+
+Image = npt.NDArray[Any]
+
+
+@dataclass(frozen=True, slots=True)
+class BodySighting:
+    """One robot body found in the panorama."""
+
+    sighting: Sighting
+    """The wire form (bearings in the sensor frame)."""
+    left_col: float
+    """Sub-pixel column of the boundary with the lower column (may exceed W across the seam)."""
+    right_col: float
+    band_rows: tuple[int, int]
+    """First and last row of the band."""
+
+
+def _hue_ranges(rgb: list[int], tol_deg: float) -> list[tuple[int, int]]:
+    """OpenCV hue intervals (0..179) within ``tol_deg`` of the colour's hue (split at the wrap)."""
+    h, _, _ = colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))
+    c = h * 180.0
+    t = tol_deg / 2.0
+    lo, hi = c - t, c + t
+    if lo < 0:
+        return [(0, math.floor(hi)), (math.ceil(lo + 180), 179)]
+    if hi > 179:
+        return [(math.ceil(lo), 179), (0, math.floor(hi - 180))]
+    return [(math.ceil(lo), math.floor(hi))]
+
+
+def _runs(cols: npt.NDArray[np.bool_], wrap: bool) -> list[tuple[int, int]]:
+    """(start, length) of runs of True; a run crossing the seam starts near W and wraps."""
+    w = cols.size
+    idx = np.flatnonzero(np.diff(np.concatenate([[0], cols.astype(np.int8), [0]])))
+    runs = [(int(a), int(b - a)) for a, b in zip(idx[0::2], idx[1::2], strict=True)]
+    if wrap and len(runs) > 1 and runs[0][0] == 0 and runs[-1][0] + runs[-1][1] == w:
+        first, last = runs[0], runs[-1]
+        runs = [(last[0], last[1] + first[1]), *runs[1:-1]]
+    return runs
+
+
+def _peak(g: npt.NDArray[np.float64], lo: int, hi: int) -> float | None:
+    """Sub-pixel argmax of g in [lo, hi] by a parabola through the peak and its neighbours."""
+    lo, hi = max(lo, 1), min(hi, g.size - 2)
+    if hi < lo:
+        return None
+    k = lo + int(np.argmax(g[lo : hi + 1]))
+    a, b, c = float(g[k - 1]), float(g[k]), float(g[k + 1])
+    den = a - 2 * b + c
+    off = 0.5 * (a - c) / den if den < 0 else 0.0
+    return k + max(-0.5, min(0.5, off))
+
+
+class BandFinder:
+    """Finds the known robot bodies in panoramas of one camera.
+
+    Args:
+        bodies: the ``[[body]]`` list (id, band colour, radius, height).
+        camera: the panorama's cylindrical camera.
+        settings: ``band_min_px`` and ``band_tolerance`` knobs.
+    """
+
+    def __init__(self, bodies: list[BodySpec], camera: CylindricalCamera, settings: PipelineSettings) -> None:
+        self.bodies = bodies
+        self.camera = camera
+        self.settings = settings
+        tol_deg = 360.0 * settings.band_tolerance
+        self._ranges = [_hue_ranges(b.band_rgb, tol_deg) for b in bodies]
+        # Bands are below the camera: search from the horizon down.
+        self.row0 = max(0, min(camera.height_px - 1, math.floor(camera.v0_px)))
+
+    def find(self, pano_bgr: Image) -> list[BodySighting]:
+        """Every known body visible in this panorama (at most one per body)."""
+        if not self.bodies:
+            return []
+        lower = pano_bgr[self.row0 :]
+        hsv = cv2.cvtColor(lower, cv2.COLOR_BGR2HSV)
+        out = []
+        for body, ranges in zip(self.bodies, self._ranges, strict=True):
+            mask = None
+            for h0, h1 in ranges:
+                m = cv2.inRange(hsv, (h0, 90, 50), (h1, 255, 255))
+                mask = m if mask is None else cv2.bitwise_or(mask, m)
+            assert mask is not None
+            found = self._measure(pano_bgr, mask, body)
+            if found is not None:
+                out.append(found)
+        return out
+
+    def _measure(self, pano_bgr: Image, mask: Image, body: BodySpec) -> BodySighting | None:
+        width = pano_bgr.shape[1]
+        per_col = cv2.reduce(mask, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel() // 255
+        if int(per_col.sum()) < self.settings.band_min_px:
+            return None
+        runs = _runs(per_col >= 1, wrap=True)
+        best = None
+        for u0, n in runs:
+            cols = np.arange(u0, u0 + n) % width
+            count = int(per_col[cols].sum())
+            if count >= self.settings.band_min_px and (best is None or count > best[2]):
+                best = (u0, n, count)
+        if best is None:
+            return None
+        u0, n, _ = best
+        band = roi(mask, u0, 0, n, mask.shape[0])
+        rows = np.flatnonzero(band.any(axis=1))
+        r0, r1 = int(rows[0]) + self.row0, int(rows[-1]) + self.row0
+        if not 0.15 <= (r1 - r0 + 1) / n <= 1.5:
+            return None  # not band-shaped
+        if not self._white_beside(pano_bgr, u0, n, r0, r1):
+            return None  # the band colour without the white body around it (e.g. a shirt)
+        # Sub-pixel boundaries from the colour gradient across the band rows (inner rows only).
+        pad = 4
+        inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= 4 else (r0, r1)
+        strip = roi(pano_bgr, (u0 - pad) % width, inner0, n + 2 * pad, inner1 - inner0 + 1).astype(np.float32)
+        grad = np.abs(np.diff(strip, axis=1)).sum(axis=2).mean(axis=0).astype(np.float64)
+        # grad[j] is the step between strip columns j and j+1, i.e. at column u0 - pad + j + 0.5.
+        left = _peak(grad, pad - 3, pad + 2)
+        right = _peak(grad, pad + n - 3, pad + n + 2)
+        if left is None or right is None or right - left < 2:
+            return None
+        left_col = u0 - pad + left + 0.5
+        right_col = u0 - pad + right + 0.5
+        # The edge half-pixel: the step between pixel centres j, j+1 is the boundary at j + 0.5.
+        b_left = self.camera.bearing_from_col(left_col % width)
+        b_right = self.camera.bearing_from_col(right_col % width)
+        alpha = (right_col - left_col) / self.camera.f_h_px
+        try:
+            dist = baseline_exact(b_left, b_right, body.radius_m)
+        except GeometryError:
+            return None
+        s = Sighting(
+            target_id=body.id,
+            left_rad=_wrap_pi(b_left),
+            right_rad=_wrap_pi(b_right),
+            alpha_rad=float(alpha),
+            bearing_rad=_wrap_pi(sighting_bearing(b_left, b_right)),
+            distance_m=float(min(dist, 1e5)),
+            body_radius_m=float(body.radius_m),
+        )
+        return BodySighting(s, left_col, right_col, (r0, r1))
+
+    def _white_beside(self, pano_bgr: Image, u0: int, n: int, r0: int, r1: int) -> bool:
+        """True if the body right above (or, out of view, below) the band is white: bright and unsaturated."""
+        height, width = pano_bgr.shape[:2]
+        c0, cw = u0 + n // 4, max(1, n // 2)
+        for a, b in ((r0 - 5, r0 - 2), (r1 + 3, r1 + 6)):
+            if a < 0 or b > height:
+                continue
+            patch = roi(pano_bgr, c0 % width, a, cw, b - a)
+            hsv = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+            return bool(float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110)
+        return False
+
+
+def _wrap_pi(a: float) -> float:
+    w = math.atan2(math.sin(a), math.cos(a))
+    return min(math.pi, max(-math.pi, w))
+
+
+def is_body_blob(u0: int, w: int, width_px: int, sightings: list[BodySighting], margin_px: float = 3.0) -> bool:
+    """True if a blob spanning columns [u0, u0 + w) is mostly a sighted robot (the robot moved).
+
+    A blob is the robot when at least 60 % of its columns lie within the body's
+    boundaries (plus a margin) and it is not much wider than the body (a person
+    in front of a robot is wider than the robot's share of the blob).
+    """
+    for s in sightings:
+        lo, hi = s.left_col - margin_px, s.right_col + margin_px
+        body_w = s.right_col - s.left_col
+        if w > 1.6 * body_w + 2 * margin_px:
+            continue
+        for shift in (0, width_px, -width_px):
+            a, b = u0 + shift, u0 + w + shift
+            overlap = max(0.0, min(b, hi) - max(a, lo))
+            if overlap >= 0.6 * w:
+                return True
+    return False
