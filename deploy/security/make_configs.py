@@ -26,7 +26,8 @@ itself; key expressions from ``common/keys.py``, ``R = {prefix}/@v1``):
 sensor ``<id>``
     put ``R/sensor/<id>/features|info|status|ptz/state``; declare its liveliness token
     ``R/sensor/<id>`` and its info queryable (and reply on it); subscribe to its own PTZ
-    commands and view plans; see managers' presence.
+    commands and the view plans (``R/plan/*``: a simulated node needs every robot's goal); see
+    managers' presence.
 manager ``<id>``
     put ``R/tracks``, ``R/track/*``, ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands
     ``R/sensor/*/ptz``; serve ``R/track/**`` and ``R/manager/<id>/**`` queryables; read
@@ -72,14 +73,15 @@ def sensor_rules(root: str, sid: str) -> list[Rule]:
         ),
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
         _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], [f"{own}/info"]),
-        _rule(f"{n}-sub", "ingress", ["declare_subscriber"], [f"{own}/ptz", f"{root}/plan/{sid}"]),
+        # Plans of every camera: a simulated node replays every robot's goals to render the same world.
+        _rule(f"{n}-sub", "ingress", ["declare_subscriber"], [f"{own}/ptz", f"{root}/plan/*"]),
         _rule(
             f"{n}-watch",
             "ingress",
             ["declare_liveliness_subscriber", "liveliness_query"],
             [f"{root}/manager/*"],
         ),
-        _rule(f"{n}-recv", "egress", ["put"], [f"{own}/ptz", f"{root}/plan/{sid}"]),
+        _rule(f"{n}-recv", "egress", ["put"], [f"{own}/ptz", f"{root}/plan/*"]),
         # A query for every sensor's info (``R/sensor/*/info``) must reach this sensor too.
         _rule(f"{n}-queried", "egress", ["query"], [f"{root}/sensor/*/info"]),
         _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/manager/*"]),
