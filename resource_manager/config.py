@@ -90,6 +90,8 @@ class ManagerSection(ConfigStruct, frozen=True):
     """Where the track log and id counter persist (relative to the config file); "" = ``state/{id}``."""
     history_s: Pos = 600.0
     """How much track history is kept in memory, reloaded at start and served by ``?history=``."""
+    history_hz: Pos = 5.0
+    """States per track kept in the history (and its log) per second; the live stream is every tick."""
     segment_s: Pos = 60.0
     """Length of one track-log segment file."""
     retain_s: Pos = 3600.0
