@@ -156,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
                 sensors = {i for c, i in ids.values() if c == "node"}
                 managers = {i for c, i in ids.values() if c == "manager"}
                 t0 = time.monotonic()
+                last_wait_note = t0
                 ready = False
                 while not shutdown.is_set() and time.monotonic() - t0 < args.ready_timeout:
                     procs.poll()
@@ -164,7 +165,9 @@ def run(args: argparse.Namespace) -> int:
                     if sensors <= up_s and managers <= up_m:
                         ready = True
                         break
-                    print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
+                    if time.monotonic() - last_wait_note >= 5.0:
+                        last_wait_note = time.monotonic()
+                        print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
                     shutdown.sleep(0.5)
                 if not ready and not shutdown.is_set():
                     logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
@@ -242,18 +245,20 @@ def _finish(
     m = scored.metrics
     plot = plot_recording(rec, out / "top.png", gt, title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}")
     cams = len(set(rec.sensor_infos) | set(rec.node_status))
+    metrics = m.to_dict()
     summary: dict[str, Any] = {
-        "site": site.site.name,
-        "seed": site.site.seed,
-        "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
         "cameras": cams or len(site.camera),
         "people": len(gt.person_ids),
         "frames": m.frames,
         "tracks_published": scored.tracks_published,
-        **{k: v for k, v in m.to_dict().items() if k in _SUMMARY_METRICS},
+        **{k: metrics[k] for k in _SUMMARY_METRICS},
         "recording": str(recording),
         "plot": str(plot),
         "ground_truth": str(gt_path),
+        **{k: metrics[k] for k in _EXTRA_METRICS},
+        "site": site.site.name,
+        "seed": site.site.seed,
+        "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
         "recorded_samples": rec.samples,
         "restarts": restarts,
     }
@@ -263,17 +268,5 @@ def _finish(
     return 0
 
 
-_SUMMARY_METRICS = (
-    "mota",
-    "motp_m",
-    "idf1",
-    "id_switches",
-    "mean_error_m",
-    "p90_error_m",
-    "precision",
-    "recall",
-    "false_positives",
-    "misses",
-    "objects",
-    "threshold_m",
-)
+_SUMMARY_METRICS = ("mota", "motp_m", "idf1", "id_switches", "mean_error_m", "p90_error_m")
+_EXTRA_METRICS = ("precision", "recall", "false_positives", "misses", "objects", "threshold_m")
