@@ -57,6 +57,8 @@ class Cylinder:
     bands: tuple[tuple[float, BGR], ...]
     """(z from which this colour applies, colour), ascending; the first applies from z0."""
     label: int
+    shade_depth: float = 0.5
+    """How much darker the side gets towards the silhouette (0: flat; matte white bodies ~0.15)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,7 +159,8 @@ def platform_primitives(pl: PlatformState, index: int) -> list[Primitive]:
     if pl.radius_m > 0.0:
         b0, b1 = band_z_range(pl.body_height_m)
         bands = ((0.0, (70, 70, 72)), (0.05, WHITE_BGR), (b0, _bgr(pl.band_rgb)), (b1, WHITE_BGR))
-        parts.append(Cylinder(pl.x_m, pl.y_m, pl.radius_m, pl.radius_m, 0.0, 0.0, pl.body_height_m, bands, label))
+        # A matte white body in diffuse room light: its edges stay bright, so it stands out (Eq. 3 needs them).
+        parts.append(Cylinder(pl.x_m, pl.y_m, pl.radius_m, pl.radius_m, 0.0, 0.0, pl.body_height_m, bands, label, 0.08))
         top = pl.body_height_m
     if pl.kind == "ptz" and pl.radius_m <= 0.0:
         parts.append(Cylinder(pl.x_m, pl.y_m, 0.07, 0.07, 0.0, pl.z_m - 0.09, pl.z_m + 0.1, ((0.0, dark),), label))

@@ -156,7 +156,7 @@ def _paint_cylinder(
     zc = np.clip(z, c.z0_m, c.z1_m)
     colour = _band_colours(c.bands, zc)
     span = max(c.z1_m - c.z0_m, 1e-6)
-    shade = (0.45 + 0.45 * np.sqrt(lam))[None, :] * (0.85 + 0.15 * (zc - c.z0_m) / span)
+    shade = (1.0 - c.shade_depth + c.shade_depth * np.sqrt(lam))[None, :] * (0.88 + 0.12 * (zc - c.z0_m) / span)
     shade = np.where(cap, 0.8, shade)
     colour *= shade[..., None].astype(np.float32)
     _blend(pano, labels, cols, r0, alpha, colour, c.label)

@@ -93,7 +93,8 @@ def _cylinder(
     nx, ny = hx / c.b_m, hy / c.a_m
     lam = np.clip(-(nx * dlx * c.b_m + ny * dly * c.a_m) / (np.hypot(nx, ny) + 1e-12), 0.0, 1.0)
     span = max(c.z1_m - c.z0_m, 1e-6)
-    shade = np.where(t_near >= tz0, (0.45 + 0.45 * np.sqrt(lam)) * (0.85 + 0.15 * (z - c.z0_m) / span), 0.8)
+    side = (1.0 - c.shade_depth + c.shade_depth * np.sqrt(lam)) * (0.88 + 0.12 * (z - c.z0_m) / span)
+    shade = np.where(t_near >= tz0, side, 0.8)
     colour *= shade[..., None].astype(np.float32)
     return hit, entry, colour
 

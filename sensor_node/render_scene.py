@@ -110,12 +110,13 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
     lengths = [xs, ys, xs, ys]
     starts = np.cumsum([0.0, *lengths])
     ww, wh = round(starts[-1] * ppm) + 2, round(hz * ppm) + 2
-    img = np.empty((wh, ww, 3), np.float32)
-    paints = [(205, 215, 222), (180, 205, 215), (215, 212, 200), (200, 222, 205), (222, 208, 196)]
+    img = np.zeros((wh, ww, 3), np.float32)
+    # Mid-tone paint (BGR), so the white robot bodies stand out against the walls as they do in the paper.
+    paints = [(168, 178, 186), (150, 172, 182), (182, 176, 160), (160, 184, 166), (186, 170, 156)]
     order = rng.permutation(len(paints))
     light = [1.0, 0.9, 0.96, 0.86]  # each wall faces the lights differently
     for k in range(4):
-        c0, c1 = round(starts[k] * ppm), round(starts[k + 1] * ppm) + 1
+        c0, c1 = round(starts[k] * ppm), (round(starts[k + 1] * ppm) + 1 if k < 3 else ww)
         img[:, c0:c1] = np.array(paints[order[k]], np.float32) * light[k]
     img += _blotches(rng, wh, ww, 25, 7.0)[..., None] + rng.normal(0, 3.0, (wh, ww, 1)).astype(np.float32)
 
