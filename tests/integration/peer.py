@@ -25,6 +25,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from common.cli import run_main
 from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import Features, PanoramicModel, PtzCommand, PtzState, SensorInfo
@@ -153,13 +154,17 @@ def main() -> int:
     keys = Keys(args.prefix)
     emit("opening", connect=args.connect)
     settings = SessionSettings(mode="client", connect=[args.connect], connect_timeout_ms=args.connect_timeout_ms)
-    with open_session(settings) as session:
-        emit("opened")
-        if args.role == "sensor":
-            run_sensor(session, keys, args.id, args.period_s, shutdown)
-        else:
-            run_manager(session, keys, args.id, shutdown)
-    return 0
+
+    def body() -> int:
+        with open_session(settings) as session:
+            emit("opened")
+            if args.role == "sensor":
+                run_sensor(session, keys, args.id, args.period_s, shutdown)
+            else:
+                run_manager(session, keys, args.id, shutdown)
+        return 0
+
+    return run_main(body, f"peer {args.role}")
 
 
 if __name__ == "__main__":

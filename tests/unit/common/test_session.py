@@ -1,0 +1,264 @@
+"""Sessions: config from settings and flags, signals, and (with real processes) late routers and restarts."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from common.errors import ConfigError, SessionError
+from common.keys import Keys
+from common.session import (
+    DEFAULT_ROUTER,
+    SessionSettings,
+    Shutdown,
+    add_session_args,
+    install_signal_handlers,
+    open_session,
+    settings_from_args,
+    wait_until,
+    zenoh_config,
+)
+from tests.support import (
+    ManagedProcess,
+    RouterProcess,
+    client_session,
+    free_port,
+    wait_for,
+    wait_for_liveliness,
+)
+
+PEER = str(Path(__file__).resolve().parents[2] / "integration" / "peer.py")
+
+
+def cfg(settings: SessionSettings, key: str, extra: dict[str, Any] | None = None) -> Any:
+    return json.loads(zenoh_config(settings, extra).get_json(key))
+
+
+# -- config ----------------------------------------------------------------------
+
+
+def test_client_defaults() -> None:
+    s = SessionSettings()
+    assert cfg(s, "mode") == "client"
+    assert cfg(s, "connect/endpoints") == [DEFAULT_ROUTER] == ["tcp/127.0.0.1:7447"]
+    assert cfg(s, "listen/endpoints") == []  # never the default [::]:0
+    assert cfg(s, "scouting/multicast/enabled") is False
+    assert cfg(s, "connect/timeout_ms") == 10_000  # wait for a late router
+    assert cfg(s, "transport/link/tx/lease") == 3_000
+
+
+def test_router_and_peer_settings() -> None:
+    r = SessionSettings(mode="router", listen=["tcp/127.0.0.1:9000"])
+    assert cfg(r, "mode") == "router"
+    assert cfg(r, "listen/endpoints") == ["tcp/127.0.0.1:9000"]
+    assert cfg(r, "connect/endpoints") == []
+    p = SessionSettings(mode="peer", multicast_scouting=True)
+    assert cfg(p, "scouting/multicast/enabled") is True
+    assert cfg(p, "listen/endpoints") == []
+
+
+def test_extra_keys_and_auth() -> None:
+    s = SessionSettings(user="sensor1", password="pw")
+    assert cfg(s, "adminspace/enabled", {"adminspace/enabled": True}) is True
+    assert cfg(s, "transport/auth/usrpwd/user") == "sensor1"
+
+
+def test_flags_override_config() -> None:
+    p = argparse.ArgumentParser()
+    add_session_args(p)
+    base = SessionSettings(connect=["tcp/10.0.0.1:7447"], lease_ms=5000)
+    args = p.parse_args(["--mode", "peer", "--connect", "tcp/a:1", "--connect", "tcp/b:2", "--listen", "tcp/c:3"])
+    s = settings_from_args(args, base)
+    assert (s.mode, s.connect, s.listen, s.lease_ms) == ("peer", ["tcp/a:1", "tcp/b:2"], ["tcp/c:3"], 5000)
+    assert settings_from_args(p.parse_args([]), base) == base
+    s = settings_from_args(p.parse_args(["--zenoh-config", "z.json5", "--multicast-scouting"]))
+    assert (s.config_file, s.multicast_scouting) == ("z.json5", True)
+
+
+def test_config_file_is_used_and_flags_override_it(tmp_path: Path) -> None:
+    f = tmp_path / "z.json5"
+    f.write_text('{ mode: "peer", transport: { link: { tx: { batch_size: 8192 } } } }')
+    s = SessionSettings(mode="client", config_file=str(f), connect=["tcp/127.0.0.1:1"])
+    assert cfg(s, "transport/link/tx/batch_size") == 8192
+    assert cfg(s, "mode") == "client"
+    assert cfg(s, "connect/endpoints") == ["tcp/127.0.0.1:1"]
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [(None, "does not exist"), ("{ mode: ", "invalid zenoh configuration"), ("{ bogus_key: 1 }", "invalid zenoh")],
+)
+def test_bad_config_file(tmp_path: Path, content: str | None, match: str) -> None:
+    f = tmp_path / "z.json5"
+    if content is not None:
+        f.write_text(content)
+    with pytest.raises(ConfigError, match=match):
+        zenoh_config(SessionSettings(config_file=str(f)))
+
+
+def test_bad_endpoint_is_a_clear_error() -> None:
+    with (
+        pytest.raises((ConfigError, SessionError), match="nonsense"),
+        open_session(SessionSettings(connect=["nonsense"], connect_timeout_ms=200)),
+    ):
+        pass
+
+
+def test_unreachable_router_fails_after_the_timeout_naming_it() -> None:
+    port = free_port()
+    t0 = time.monotonic()
+    with (
+        pytest.raises(SessionError) as info,
+        open_session(SessionSettings(connect=[f"tcp/127.0.0.1:{port}"], connect_timeout_ms=500)),
+    ):
+        pass
+    elapsed = time.monotonic() - t0
+    assert f"tcp/127.0.0.1:{port}" in str(info.value)
+    assert " at /" not in str(info.value), "no Rust source paths in user-facing errors"
+    assert elapsed < 10.0
+
+
+def test_peer_session_delivers_locally_and_closes() -> None:
+    got: list[bytes] = []
+    with open_session(SessionSettings(mode="peer")) as s:
+        sub = s.declare_subscriber("t/local", lambda sample: got.append(sample.payload.to_bytes()))
+        s.put("t/local", b"x")
+        assert wait_until(lambda: bool(got), 5.0)
+        sub.undeclare()
+    assert s.is_closed()
+
+
+# -- signals -----------------------------------------------------------------------
+
+
+@pytest.fixture
+def restore_signals() -> Iterator[None]:
+    old = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for sig, handler in old.items():
+        signal.signal(sig, handler)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_sets_shutdown_then_second_signal_interrupts(restore_signals: None, signum: int) -> None:
+    flag = install_signal_handlers()
+    assert not flag.is_set()
+    os.kill(os.getpid(), signum)
+    assert wait_until(flag.is_set, 2.0)
+    assert flag.sleep(10.0) is True  # returns at once once set
+    with pytest.raises(KeyboardInterrupt):
+        os.kill(os.getpid(), signum)
+        time.sleep(1.0)  # the handler raises here
+
+
+def test_shutdown_sleep_times_out_false() -> None:
+    flag = Shutdown()
+    t0 = time.monotonic()
+    assert flag.sleep(0.05) is False
+    assert time.monotonic() - t0 >= 0.04
+    flag.set()
+    assert flag.wait(0) is True
+
+
+# -- processes: late router, restart, clean exit -------------------------------------
+
+
+def _sensor(spawn: Callable[..., ManagedProcess], endpoint: str, prefix: str) -> ManagedProcess:
+    return spawn(
+        [sys.executable, PEER, "sensor", "--id", "cam1", "--connect", endpoint, "--prefix", prefix], name="sensor"
+    )
+
+
+def _next_features(endpoint: str, keys: Keys, timeout_s: float) -> int:
+    """Open a fresh client session and return the seq of the next Features the sensor publishes."""
+    from common.codec import decode
+    from common.schema import Features
+
+    seqs: list[int] = []
+    with client_session(endpoint) as s:
+        sub = s.declare_subscriber(
+            keys.sensor_features("cam1"), lambda sample: seqs.append(decode(sample.payload.to_bytes(), Features).seq)
+        )
+        try:
+            wait_for(lambda: seqs, timeout_s, "Features from the sensor through the router")
+        finally:
+            sub.undeclare()
+    return seqs[0]
+
+
+@pytest.mark.integration
+def test_client_started_before_the_router_waits_then_connects(
+    spawn: Callable[..., ManagedProcess], router_factory: Callable[..., RouterProcess]
+) -> None:
+    port = free_port()
+    keys = Keys("latejoin")
+    sensor = _sensor(spawn, f"tcp/127.0.0.1:{port}", "latejoin")
+    sensor.wait_for_output(r'"event": "opening"', 10.0)
+    assert '"opened"' not in sensor.stdout_text(), "opened a session with no router up"
+    router = router_factory(port)  # now the router comes up
+    sensor.wait_for_output(r'"event": "ready"', 15.0)
+    with client_session(router.endpoint) as s:
+        wait_for_liveliness(s, keys.sensor("cam1"), 10.0)
+    assert sensor.alive
+
+
+@pytest.mark.integration
+def test_client_reconnects_after_router_restart(
+    spawn: Callable[..., ManagedProcess], router_factory: Callable[..., RouterProcess]
+) -> None:
+    keys = Keys("restart")
+    first = router_factory()
+    sensor = _sensor(spawn, first.endpoint, "restart")
+    before = _next_features(first.endpoint, keys, 15.0)
+    assert first.stop() == 0
+    second = router_factory(first.port)  # same port, new process
+    after = _next_features(second.endpoint, keys, 20.0)
+    assert after > before, "the sensor kept publishing across the restart"
+    assert sensor.alive
+    with client_session(second.endpoint) as s:
+        wait_for_liveliness(s, keys.sensor("cam1"), 10.0)  # its token came back too
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_client_with_callbacks_exits_cleanly_on_signal(
+    router: RouterProcess, spawn: Callable[..., ManagedProcess], signum: int
+) -> None:
+    sensor = _sensor(spawn, router.endpoint, f"sig{signum}")
+    sensor.wait_for_output(r'"event": "ready"', 15.0)
+    t0 = time.monotonic()
+    sensor.signal(signum)
+    assert sensor.wait(10.0) == 0, sensor.log()
+    assert time.monotonic() - t0 < 5.0, "exit hung (callback threads kept the process alive?)"
+    assert '"event": "stopped"' in sensor.stdout_text()
+    assert "Traceback" not in sensor.stderr_text()
+
+
+@pytest.mark.integration
+def test_client_gives_up_when_no_router_comes(spawn: Callable[..., ManagedProcess]) -> None:
+    port = free_port()
+    proc = spawn(
+        [
+            sys.executable,
+            PEER,
+            "sensor",
+            "--id",
+            "cam1",
+            "--connect",
+            f"tcp/127.0.0.1:{port}",
+            "--connect-timeout-ms",
+            "300",
+        ]
+    )
+    assert proc.wait(15.0) == 1
+    assert f"tcp/127.0.0.1:{port}" in proc.stderr_text()
+    assert "Traceback" not in proc.stderr_text()

@@ -1,0 +1,196 @@
+"""Inbox and TypedPublisher: bad payloads counted and dropped, ring drops oldest, FIFO drops newest, no blocking."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import pytest
+
+from common.codec import encode
+from common.schema import Features, PtzCommand
+from common.session import SessionSettings, open_session, wait_until
+from common.transport import Inbox, TypedPublisher
+
+
+@dataclass
+class FakePayload:
+    data: bytes
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class FakeSample:
+    key_expr: str
+    payload: FakePayload
+
+
+class FakeSubscriber:
+    def __init__(self) -> None:
+        self.undeclared = False
+
+    def undeclare(self) -> None:
+        self.undeclared = True
+
+
+class FakeSession:
+    """Stands in for zenoh: records the callback so the test can play zenoh's callback thread."""
+
+    def __init__(self) -> None:
+        self.callbacks: dict[str, Callable[[Any], None]] = {}
+        self.subscriber = FakeSubscriber()
+
+    def declare_subscriber(self, key_expr: str, callback: Callable[[Any], None]) -> FakeSubscriber:
+        self.callbacks[key_expr] = callback
+        return self.subscriber
+
+    def deliver(self, key: str, data: bytes) -> None:
+        self.callbacks[key](FakeSample(key, FakePayload(data)))
+
+
+def feat(seq: int, sensor: str = "cam1") -> Features:
+    return Features(sensor_id=sensor, seq=seq, stamp_ns=seq, frame_index=seq)
+
+
+KEY = "pano/@v1/sensor/cam1/features"
+
+
+def test_decodes_on_the_consumer_side() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features)
+    s.deliver(KEY, encode(feat(1)))
+    s.deliver(KEY, encode(feat(2)))
+    assert len(inbox) == 2  # still undecoded bytes
+    got = inbox.drain()
+    assert [r.msg for r in got] == [feat(1), feat(2)]
+    assert all(r.key == KEY and r.arrival_ns > 0 for r in got)
+    assert inbox.drain() == []
+    assert (inbox.counters.received, inbox.counters.decoded, inbox.counters.decode_errors) == (2, 2, 0)
+
+
+def test_bad_payloads_are_counted_dropped_and_logged_rate_limited(caplog: pytest.LogCaptureFixture) -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features, log_every_s=60.0)
+    bad = [b"", b"\xc1", encode(PtzCommand(manager_id="m", seq=1, stamp_ns=1, sensor_id="c", pan_rad=0, tilt_rad=0))]
+    with caplog.at_level(logging.WARNING, logger="common.transport"):
+        s.deliver(KEY, bad[0])
+        s.deliver(KEY, encode(feat(1)))
+        for b in bad * 3:
+            s.deliver(KEY, b)
+        s.deliver(KEY, encode(feat(2)))
+        got = inbox.drain()
+    assert [r.msg.seq for r in got] == [1, 2]
+    assert inbox.counters.decode_errors == 10
+    assert inbox.counters.decoded == 2
+    assert inbox.counters.received == 12
+    warnings = [r for r in caplog.records if "bad payload" in r.getMessage()]
+    assert len(warnings) == 1, "one warning per log interval, not one per bad payload"
+    assert KEY in warnings[0].getMessage()
+
+
+def test_get_skips_bad_payloads() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features)
+    s.deliver(KEY, b"junk")
+    s.deliver(KEY, encode(feat(5)))
+    r = inbox.get(timeout_s=1.0)
+    assert r is not None and r.msg.seq == 5
+    assert inbox.counters.decode_errors == 1
+
+
+def test_ring_drops_the_oldest() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features, capacity=3, drop_oldest=True)
+    for i in range(5):
+        s.deliver(KEY, encode(feat(i)))
+    assert [r.msg.seq for r in inbox.drain()] == [2, 3, 4]
+    assert inbox.counters.dropped == 2
+
+
+def test_fifo_drops_the_newest() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features, capacity=3, drop_oldest=False)
+    for i in range(5):
+        s.deliver(KEY, encode(feat(i)))
+    assert [r.msg.seq for r in inbox.drain()] == [0, 1, 2]
+    assert inbox.counters.dropped == 2
+    assert inbox.counters.received == 5
+
+
+def test_callback_never_blocks_even_when_full() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features, capacity=1, drop_oldest=False)
+    t0 = time.monotonic()
+    for i in range(2000):
+        s.deliver(KEY, encode(feat(i)))
+    assert time.monotonic() - t0 < 2.0
+    assert len(inbox) == 1 and inbox.counters.dropped == 1999
+
+
+def test_get_times_out_with_none() -> None:
+    inbox = Inbox(FakeSession(), KEY, Features)
+    t0 = time.monotonic()
+    assert inbox.get(timeout_s=0.05) is None
+    assert time.monotonic() - t0 >= 0.04
+
+
+def test_get_wakes_when_a_sample_arrives_from_another_thread() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features)
+    threading.Timer(0.05, lambda: s.deliver(KEY, encode(feat(9)))).start()
+    r = inbox.get(timeout_s=5.0)
+    assert r is not None and r.msg.seq == 9
+
+
+def test_close_undeclares() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features)
+    inbox.close()
+    assert s.subscriber.undeclared
+
+
+# -- with a real zenoh session (peer, local delivery only: no network) ---------------
+
+
+@pytest.fixture
+def session() -> Iterator[Any]:
+    with open_session(SessionSettings(mode="peer")) as s:
+        yield s
+
+
+@pytest.mark.parametrize("reliable_block", [False, True])
+def test_typed_publisher_to_inbox(session: Any, reliable_block: bool) -> None:
+    inbox = Inbox(session, "pano/@v1/sensor/*/features", Features)
+    pubs = [TypedPublisher(session, f"pano/@v1/sensor/{s}/features", reliable_block=reliable_block) for s in ("a", "b")]
+    for i in range(10):
+        pubs[i % 2].put(feat(i, sensor="ab"[i % 2]))
+    got: list[Any] = []
+
+    def all_ten() -> bool:
+        got.extend(inbox.drain())
+        return len(got) == 10
+
+    assert wait_until(all_ten, 5.0)
+    assert [r.msg.seq for r in got] == list(range(10))
+    assert {r.key for r in got} == {"pano/@v1/sensor/a/features", "pano/@v1/sensor/b/features"}
+    for p in pubs:
+        p.close()
+    inbox.close()
+
+
+def test_real_session_bad_payload_is_counted(session: Any) -> None:
+    import zenoh
+
+    inbox = Inbox(session, "pano/@v1/sensor/x/features", Features)
+    session.put("pano/@v1/sensor/x/features", b"\x00\x01not msgpack", encoding=zenoh.Encoding("application/msgpack"))
+    session.put("pano/@v1/sensor/x/features", encode(feat(3)))
+    r = inbox.get(timeout_s=5.0)
+    assert r is not None and r.msg.seq == 3
+    assert inbox.counters.decode_errors == 1
+    inbox.close()
