@@ -62,8 +62,8 @@ class BodySighting:
 def _hue_ranges(rgb: list[int], tol_deg: float) -> list[tuple[int, int]]:
     """OpenCV hue intervals (0..179) within ``tol_deg`` of the colour's hue (split at the wrap)."""
     h, _, _ = colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))
-    c = h * 180.0
-    t = tol_deg / 2.0
+    c = h * 180.0  # OpenCV hue: degrees / 2
+    t = tol_deg / 4.0
     lo, hi = c - t, c + t
     if lo < 0:
         return [(0, math.floor(hi)), (math.ceil(lo + 180), 179)]
@@ -136,23 +136,38 @@ class BandFinder:
         per_col = cv2.reduce(mask, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel() // 255
         if int(per_col.sum()) < self.settings.band_min_px:
             return None
-        runs = _runs(per_col >= 1, wrap=True)
-        best = None
-        for u0, n in runs:
-            cols = np.arange(u0, u0 + n) % width
-            count = int(per_col[cols].sum())
-            if count >= self.settings.band_min_px and (best is None or count > best[2]):
-                best = (u0, n, count)
-        if best is None:
-            return None
-        u0, n, _ = best
+        cands = []
+        for u0, n in _runs(per_col >= 1, wrap=True):
+            count = int(per_col[np.arange(u0, u0 + n) % width].sum())
+            if count >= self.settings.band_min_px:
+                cands.append((count, u0, n))
+        # Most band pixels first; the first run that looks like a band on a white body wins.
+        for _, u0, n in sorted(cands, reverse=True):
+            found = self._validate(pano_bgr, mask, u0, n)
+            if found is not None:
+                return self._boundaries(pano_bgr, body, (u0, n), found)
+        return None
+
+    def _validate(self, pano_bgr: Image, mask: Image, u0: int, n: int) -> tuple[int, int] | None:
+        """Band rows (r0, r1) of a candidate run, or None if it is not a band on a white body."""
         band = roi(mask, u0, 0, n, mask.shape[0])
-        rows = np.flatnonzero(band.any(axis=1))
+        # Band rows: at least half the run's columns are band-coloured (ignores the mast, logos, noise).
+        rows = np.flatnonzero(np.count_nonzero(band, axis=1) >= max(1, n // 2))
+        if rows.size == 0:
+            return None
         r0, r1 = int(rows[0]) + self.row0, int(rows[-1]) + self.row0
         if not 0.15 <= (r1 - r0 + 1) / n <= 1.5:
             return None  # not band-shaped
         if not self._white_beside(pano_bgr, u0, n, r0, r1):
             return None  # the band colour without the white body around it (e.g. a shirt)
+        return r0, r1
+
+    def _boundaries(
+        self, pano_bgr: Image, body: BodySpec, run: tuple[int, int], rows: tuple[int, int]
+    ) -> BodySighting | None:
+        """Sub-pixel occluding boundaries of the body around a validated band (columns ``run``), and Eq. (3)."""
+        width = pano_bgr.shape[1]
+        (u0, n), (r0, r1) = run, rows
         # Sub-pixel boundaries from the colour gradient across the band rows (inner rows only).
         pad = 4
         inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= 4 else (r0, r1)
