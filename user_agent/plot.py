@@ -43,6 +43,8 @@ class PlotInput:
     """x0, y0, x1, y1 of the room (None: fit the data)."""
     title: str = ""
     states: tuple[str, ...] = ("confirmed", "coasting")
+    gt_cameras: dict[str, list[tuple[float, float]]] | None = None
+    """True paths of the camera platforms (simulation), drawn in the ground-truth panel."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,7 +140,25 @@ def _cameras(img: Image, view: _View, inp: PlotInput) -> None:
             cv2.line(img, c, tip, (60, 60, 60), 1, cv2.LINE_AA)
         else:
             cv2.drawMarker(img, c, (60, 60, 60), cv2.MARKER_TRIANGLE_UP, 12, 2)
-        cv2.putText(img, sid, (c[0] + r + 2, c[1] - r), cv2.FONT_HERSHEY_SIMPLEX, 0.4, _INK, 1, cv2.LINE_AA)
+        _label(img, sid, (c[0] + r + 2, c[1] - r))
+
+
+def _label(img: Image, text: str, at: tuple[int, int], color: tuple[int, int, int] = _INK) -> None:
+    """Text that stays inside the image (moved left of the point near the right edge)."""
+    (tw, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+    x = at[0] if at[0] + tw < img.shape[1] - 2 else at[0] - tw - 24
+    cv2.putText(img, text, (x, at[1]), cv2.FONT_HERSHEY_SIMPLEX, 0.4, color, 1, cv2.LINE_AA)
+
+
+def _platforms(img: Image, view: _View, paths: dict[str, list[tuple[float, float]]]) -> None:
+    for sid, pts in sorted(paths.items()):
+        if not pts:
+            continue
+        arr = np.array([view.px(x, y) for x, y in pts], np.int32).reshape(-1, 1, 2)
+        cv2.polylines(img, [arr], False, (120, 120, 120), 1, cv2.LINE_AA)
+        c = view.px(*pts[-1])
+        cv2.circle(img, c, max(4, int(0.18 * view.scale)), (60, 60, 60), 2, cv2.LINE_AA)
+        _label(img, sid, (c[0] + 10, c[1] - 10))
 
 
 def _polyline(img: Image, view: _View, pts: list[tuple[float, float]], ident: str, label: str) -> None:
@@ -150,7 +170,7 @@ def _polyline(img: Image, view: _View, pts: list[tuple[float, float]], ident: st
     cv2.circle(img, view.px(*pts[0]), 3, col, -1, cv2.LINE_AA)
     end = view.px(*pts[-1])
     cv2.circle(img, end, 5, col, 2, cv2.LINE_AA)
-    cv2.putText(img, label, (end[0] + 6, end[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, col, 1, cv2.LINE_AA)
+    _label(img, label, (end[0] + 6, end[1] + 4), col)
 
 
 def render_top_view(inp: PlotInput, max_px: int = 900) -> Image:
@@ -172,7 +192,10 @@ def render_top_view(inp: PlotInput, max_px: int = 900) -> Image:
     if inp.ground_truth is None:
         return left
     right = _panel(view, inp, "ground truth")
-    _cameras(right, view, inp)
+    if inp.gt_cameras:
+        _platforms(right, view, inp.gt_cameras)
+    else:
+        _cameras(right, view, inp)
     for pid in inp.ground_truth.person_ids:
         pts = [(p.x_m, p.y_m) for p in inp.ground_truth.track_of(pid)]
         _polyline(right, view, pts, f"gt-{pid}", f"#{pid}")

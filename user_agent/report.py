@@ -70,6 +70,7 @@ def plot_recording(
     out: str | Path,
     ground_truth: GroundTruth | str | Path | None = None,
     title: str = "",
+    gt_cameras: dict[str, list[tuple[float, float]]] | None = None,
 ) -> Path:
     """Write the top-view PNG of a recording (ground truth beside it when given)."""
     r = rec if isinstance(rec, Recording) else load_recording(rec)
@@ -89,5 +90,6 @@ def plot_recording(
         ground_truth=gt,
         room_m=room_of(r),
         title=title,
+        gt_cameras=gt_cameras,
     )
     return save_top_view(inp, out)

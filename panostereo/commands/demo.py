@@ -211,6 +211,19 @@ def run(args: argparse.Namespace) -> int:
     )
 
 
+def _platform_paths(world: Any, rec: Any, epoch_ns: int) -> dict[str, list[tuple[float, float]]]:
+    """True camera platform paths over the recorded span (simulation truth, for the plot's truth panel)."""
+    if rec.tracksets:
+        t0, t1 = (rec.tracksets[0].stamp_ns - epoch_ns) / 1e9, (rec.tracksets[-1].stamp_ns - epoch_ns) / 1e9
+    else:
+        t0, t1 = 0.0, max(0.0, (rec.last_log_ns - epoch_ns) / 1e9)
+    paths: dict[str, list[tuple[float, float]]] = {}
+    for i in range(41):
+        for p in world.platforms_at(max(0.0, t0 + (t1 - t0) * i / 40)):
+            paths.setdefault(p.sensor_id, []).append((p.x_m, p.y_m))
+    return paths
+
+
 def _finish(
     site: SiteConfig,
     *,
@@ -228,6 +241,7 @@ def _finish(
 
     rec = load_recording(recording)
     gt_path = out / "gt.csv"
+    gt_cameras: dict[str, list[tuple[float, float]]] | None = None
     if site.dataset is not None:
         src = site.resolve(site.dataset.ground_truth)
         if not src.is_file():
@@ -240,10 +254,17 @@ def _finish(
             goals_from_plans(rec.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
         )
         write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
+        gt_cameras = _platform_paths(world, rec, epoch_ns)
     gt = read_gt_csv(gt_path)
     scored = score_recording(rec, gt, threshold_m=threshold_m)
     m = scored.metrics
-    plot = plot_recording(rec, out / "top.png", gt, title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}")
+    plot = plot_recording(
+        rec,
+        out / "top.png",
+        gt,
+        title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}",
+        gt_cameras=gt_cameras,
+    )
     cams = len(set(rec.sensor_infos) | set(rec.node_status))
     metrics = m.to_dict()
     summary: dict[str, Any] = {
