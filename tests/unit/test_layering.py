@@ -1,0 +1,164 @@
+"""Layering: who may import whom, checked by parsing every module's imports with ``ast``.
+
+Rules (contract.md, STYLE.md habit 2):
+
+* ``common`` imports no tier and not ``panostereo``;
+* a tier (``sensor_node``, ``resource_manager``, ``user_agent``) imports no other tier and not ``panostereo``;
+* only the shells import ``zenoh`` or ``mcap``: the files in :data:`SHELLS` below. Pure stages stay testable
+  without a network or a recorder.
+
+Imports inside functions count too, and so do ``importlib.import_module("x")`` / ``__import__("x")`` calls
+with a literal name.
+"""
+
+from __future__ import annotations
+
+import ast
+import fnmatch
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+TIERS = ("sensor_node", "resource_manager", "user_agent")
+PACKAGES = ("common", *TIERS, "panostereo")
+
+TRANSPORT_LIBS = ("zenoh", "mcap")
+"""Third-party libraries only the shells may import."""
+
+# The allow-list: paths (relative to the repo, fnmatch patterns) that may import zenoh or mcap.
+SHELLS = (
+    "common/session.py",  # opens sessions
+    "common/transport.py",  # typed publish/subscribe
+    "*/node.py",  # each tier's process shell
+    "*/cli.py",  # entry points
+    "user_agent/client.py",  # the agent's zenoh client
+    "user_agent/record.py",  # MCAP recorder
+    "user_agent/replay.py",  # MCAP replay
+    "user_agent/recording.py",  # MCAP reader: the recorder's counterpart (file I/O, not a pure stage)
+    "panostereo/*",  # the umbrella command may import anything
+    "panostereo/**/*",
+)
+
+
+@dataclass(frozen=True)
+class Violation:
+    path: str
+    line: int
+    imported: str
+    rule: str
+
+    def __str__(self) -> str:
+        return f"{self.path}:{self.line}: imports {self.imported} ({self.rule})"
+
+
+def imported_modules(tree: ast.AST, package: str) -> list[tuple[str, int]]:
+    """Absolute names of every module a file imports (relative imports resolved against ``package``)."""
+    out: list[tuple[str, int]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: max(0, len(package.split(".")) - node.level + 1)]
+                name = ".".join([*base, node.module] if node.module else base)
+            else:
+                name = node.module or ""
+            out.append((name, node.lineno))
+        elif (
+            isinstance(node, ast.Call)
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+            and (
+                (isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
+                or (isinstance(node.func, ast.Name) and node.func.id in ("__import__", "import_module"))
+            )
+        ):
+            out.append((node.args[0].value, node.lineno))
+    return out
+
+
+def is_shell(rel: str) -> bool:
+    return any(fnmatch.fnmatch(rel, pattern) for pattern in SHELLS)
+
+
+def check_tree(root: Path) -> tuple[list[Violation], int]:
+    """All layering violations under ``root``, and how many files were checked."""
+    violations: list[Violation] = []
+    files = 0
+    for top in PACKAGES:
+        for path in sorted((root / top).rglob("*.py")):
+            rel = path.relative_to(root).as_posix()
+            files += 1
+            package = ".".join(path.relative_to(root).with_suffix("").parts[:-1])
+            tree = ast.parse(path.read_text(encoding="utf-8"), filename=rel)
+            for name, line in imported_modules(tree, package):
+                head = name.split(".")[0]
+                if top == "common" and head in (*TIERS, "panostereo"):
+                    violations.append(Violation(rel, line, name, "common imports no tier and not panostereo"))
+                elif top in TIERS and head in (*TIERS, "panostereo") and head != top:
+                    violations.append(Violation(rel, line, name, "tiers never import each other nor panostereo"))
+                if head in TRANSPORT_LIBS and not is_shell(rel):
+                    violations.append(Violation(rel, line, name, "only shells import zenoh/mcap (see SHELLS)"))
+    return violations, files
+
+
+def test_repository_layering() -> None:
+    violations, files = check_tree(REPO)
+    assert files > 10, "found too few modules: is REPO right?"
+    assert not violations, "layering violations:\n" + "\n".join(map(str, violations))
+
+
+# -- the checker itself catches what it should (so the test above can fail) ---------
+
+
+def _write(root: Path, rel: str, text: str) -> None:
+    p = root / rel
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text)
+
+
+@pytest.mark.parametrize(
+    ("rel", "source", "rule"),
+    [
+        ("common/geo.py", "import sensor_node.blobs\n", "common imports no tier"),
+        ("common/geo.py", "from panostereo import cli\n", "common imports no tier"),
+        ("common/geo.py", "def f():\n    import zenoh\n", "only shells"),
+        ("common/geo.py", "import importlib\nimportlib.import_module('resource_manager.track')\n", "common imports"),
+        ("sensor_node/blobs.py", "from resource_manager.match import x\n", "tiers never import"),
+        ("sensor_node/blobs.py", "from mcap.writer import Writer\n", "only shells"),
+        ("user_agent/views.py", "import zenoh.ext\n", "only shells"),
+        ("user_agent/views.py", "from panostereo.launcher import x\n", "tiers never import"),
+        ("resource_manager/sub/x.py", "from ...sensor_node import blobs\n", "tiers never import"),
+    ],
+)
+def test_checker_flags_violations(tmp_path: Path, rel: str, source: str, rule: str) -> None:
+    _write(tmp_path, rel, source)
+    violations, _ = check_tree(tmp_path)
+    assert len(violations) == 1, violations
+    assert rule in violations[0].rule
+    assert violations[0].path == rel
+
+
+@pytest.mark.parametrize(
+    ("rel", "source"),
+    [
+        ("common/session.py", "import zenoh\n"),
+        ("common/transport.py", "import zenoh\n"),
+        ("sensor_node/node.py", "import zenoh\nfrom common import keys\n"),
+        ("resource_manager/cli.py", "import zenoh\n"),
+        ("user_agent/record.py", "from mcap.writer import Writer\n"),
+        ("user_agent/replay.py", "import mcap\n"),
+        ("user_agent/client.py", "import zenoh\n"),
+        ("panostereo/commands/up.py", "import zenoh\nimport sensor_node.cli\nimport resource_manager.node\n"),
+        ("sensor_node/blobs.py", "from . import background\nfrom .features import x\nimport numpy\n"),
+        ("common/geo.py", "from common import schema\nimport zenoh_like_name\n"),
+    ],
+)
+def test_checker_allows_shells_and_own_package(tmp_path: Path, rel: str, source: str) -> None:
+    _write(tmp_path, rel, source)
+    violations, _ = check_tree(tmp_path)
+    assert violations == []
