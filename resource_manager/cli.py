@@ -7,7 +7,9 @@ the session flags, hand over to :func:`resource_manager.node.run`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 import msgspec
 
@@ -21,7 +23,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Add the manager's arguments to ``parser`` (used by ``panostereo manager`` too)."""
     parser.add_argument("--config", required=True, metavar="FILE", help="manager config (TOML)")
     parser.add_argument(
-        "--state-dir", default=None, metavar="DIR", help="override [manager] state_dir (track log and id counter)"
+        "--state-dir",
+        default=None,
+        metavar="DIR",
+        help="override [manager] state_dir (track log and id counter); else $PANOSTEREO_STATE_DIR/{id} if set",
     )
     add_session_args(parser)
 
@@ -33,8 +38,11 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = load_manager_config(args.config)
     manager = cfg.manager
+    env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))
+    elif env_dir:  # the launcher's per-run state (demo runs must not reload an earlier run's log)
+        manager = msgspec.structs.replace(manager, state_dir=str(Path(env_dir) / manager.id))
     cfg = msgspec.structs.replace(cfg, manager=manager, zenoh=settings_from_args(args, cfg.zenoh))
     return run_manager(cfg)
 

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import m1_error, optimal_positions_world
+from common.error_model import OptimalConfig, m1_error, optimal_configuration
 from common.errors import GeometryError
 
 __all__ = ["PlanGoal", "PlannerParams", "ViewPlanner"]
@@ -130,10 +131,17 @@ class ViewPlanner:
 
     def _goal(self, cam: PlanCamera, main: PlanCamera, tgt: PlanTarget) -> PlanGoal | None:
         d1 = float(np.hypot(*(tgt.xy - main.xy)))
+        if d1 <= 1e-6:
+            return None
         try:
-            p_a, p_b, cfg = optimal_positions_world(main.xy, tgt.xy, cam.radius_m)
+            cfg = _optimal(round(d1, 2), round(cam.radius_m, 3))
         except GeometryError:
             return None
+        # Fig. 4's frame (O1 at the origin, T on +x) -> world.
+        c, s = (tgt.xy - main.xy) / d1
+        rot = np.array([[c, -s], [s, c]])
+        p_a = main.xy + rot @ np.asarray(cfg.o2_xy_pair[0])
+        p_b = main.xy + rot @ np.asarray(cfg.o2_xy_pair[1])
         goal = min((p_a, p_b), key=lambda p: float(np.hypot(*(p - cam.xy))))
         goal = self._clip(np.asarray(goal, dtype=np.float64))
         sigma = cam.sigma_rad
@@ -156,3 +164,9 @@ class ViewPlanner:
             predicted_error_m=min(at_goal, 1e5),
             current_error_m=min(now, 1e5),
         )
+
+
+@lru_cache(maxsize=4096)
+def _optimal(d1_m: float, radius_m: float) -> OptimalConfig:
+    """Fig. 4's optimum for (D1, R), cached (D1 rounded to 1 cm: the map is flat near its minimum)."""
+    return optimal_configuration(d1_m, radius_m)

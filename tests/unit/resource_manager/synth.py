@@ -35,6 +35,8 @@ class Cam:
     radius: float = 0.18
     sigma_rad: float = math.radians(0.2)
     max_range_m: float = 30.0
+    sights: bool = True
+    """False: this camera reports no sightings of other robots (e.g. a node without body detection)."""
 
 
 @dataclass
@@ -118,7 +120,7 @@ def features_for(
             )
         )
     sightings: list[Sighting] = []
-    for other in cams:
+    for other in cams if cam.sights else []:
         if other.id == cam.id or other.radius <= 0:
             continue
         dx, dy = other.x - cam.x, other.y - cam.y
