@@ -1,0 +1,88 @@
+"""Run every ``benchmarks/bench_*.py`` as ``python -m benchmarks.<name>`` and print their JSON.
+
+Usage::
+
+    python -m benchmarks.run_all [--only PATTERN] [--timeout-s S]
+
+Prints one JSON object ``{"<name>": <that benchmark's JSON object>, ...}``; a benchmark that fails or
+prints no JSON appears as ``{"error": ..., "returncode": ...}`` and makes the exit code 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+
+
+def discover(pattern: str = "*") -> list[str]:
+    """Module names of the benchmarks, sorted."""
+    return sorted(p.stem for p in HERE.glob("bench_*.py") if fnmatch.fnmatch(p.stem, pattern))
+
+
+def parse_json_object(text: str) -> dict[str, Any] | None:
+    """The JSON object a benchmark printed: the whole output, else the last line that is one."""
+    text = text.strip()
+    try:
+        value = json.loads(text)
+        return value if isinstance(value, dict) else None
+    except json.JSONDecodeError:
+        pass
+    for line in reversed(text.splitlines()):
+        try:
+            value = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(value, dict):
+            return value
+    return None
+
+
+def run_one(name: str, timeout_s: float) -> dict[str, Any]:
+    t0 = time.monotonic()
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", f"benchmarks.{name}"],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout_s:g} s", "returncode": None}
+    result = parse_json_object(proc.stdout)
+    if proc.returncode != 0 or result is None:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-5:]
+        return {"error": " | ".join(tail) or "no JSON object printed", "returncode": proc.returncode}
+    result.setdefault("wall_s", round(time.monotonic() - t0, 2))
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.run_all", description=__doc__.split("\n\n")[0])
+    p.add_argument("--only", default="*", metavar="PATTERN", help="run only benchmarks matching (e.g. 'bench_tr*')")
+    p.add_argument("--timeout-s", type=float, default=600.0, help="per-benchmark time limit")
+    args = p.parse_args(argv)
+    names = discover(args.only)
+    if not names:
+        sys.stderr.write(f"no benchmark matches {args.only!r}\n")
+        return 1
+    results: dict[str, Any] = {}
+    for name in names:
+        sys.stderr.write(f"running {name} ...\n")
+        results[name] = run_one(name, args.timeout_s)
+    sys.stdout.write(json.dumps(results, indent=2) + "\n")
+    return 1 if any("error" in r for r in results.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
