@@ -211,7 +211,7 @@ def test_ptz_node_obeys_commands(tmp_path: Path, router: RouterProcess, spawn: A
         wait_for_liveliness(s, keys.sensor("ptz1"), 20.0)
         info = _query_info(s, keys.sensor_info("ptz1"))
         assert info.kind == "ptz" and info.pose is not None and info.pose.yaw_rad == 0.0
-        wait_for(lambda: features.drain(), 15.0, "Features from ptz1")
+        wait_for(features.drain, 15.0, "Features from ptz1")
         pub = TypedPublisher(s, keys.sensor_ptz("ptz1"), reliable_block=True)
         cmd = PtzCommand(
             manager_id="m1", seq=0, stamp_ns=time.time_ns(), sensor_id="ptz1", pan_rad=-2.0, tilt_rad=-0.3, zoom=2.0
