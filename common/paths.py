@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.errors import ConfigError
 from common.site import WorldSpec
 
 __all__ = ["DT_S", "Door", "WalkerLook", "WalkerSample", "WalkerSim"]
@@ -44,6 +45,13 @@ __all__ = ["DT_S", "Door", "WalkerLook", "WalkerSample", "WalkerSim"]
 DT_S = 0.05
 """Simulation step (s); samples between steps are interpolated."""
 CHECKPOINT_STEPS = 20
+KEEP_S = 300.0
+"""Frames kept for direct sampling behind the newest simulated time (older ones are re-simulated)."""
+SPARSE_CHECKPOINT_S = 30.0
+"""Spacing of the checkpoints kept from before the window."""
+OLD_SEGMENT_S = 10.0
+MAX_CATCH_UP_S = 4 * 3600.0
+"""Most world time simulated in one go; beyond it the epoch must be wrong."""
 PERSON_RADIUS_M = 0.28
 """Clearance a person keeps from a platform's surface (half shoulder width + a little)."""
 PERSON_GAP_M = 0.5
@@ -175,7 +183,10 @@ class WalkerSim:
         self._walkers = [_Walker() for _ in range(n)]
         self._route = self._route_points()
         self._init_walkers()
-        self._frames: list[npt.NDArray[np.float64]] = [self._record()]
+        self._base = 0
+        """Step number of ``_frames[0]``."""
+        self._frames: list[npt.NDArray[np.float64]] = [self._record(self._walkers)]
+        self._old: tuple[int, list[npt.NDArray[np.float64]]] = (0, [])
         self._checkpoints: dict[int, list[tuple[float | int, ...]]] = {0: [w.snapshot() for w in self._walkers]}
 
     # -- set-up -------------------------------------------------------------------------------------
@@ -269,12 +280,13 @@ class WalkerSim:
             w.speed = 0.0 if w.mode == _OUTSIDE else self.looks[i].speed_mps * 0.5
 
     # -- stepping -----------------------------------------------------------------------------------
-    def _record(self) -> npt.NDArray[np.float64]:
+    @staticmethod
+    def _record(walkers: list[_Walker]) -> npt.NDArray[np.float64]:
         rows = [
             (w.x, w.y, w.heading, w.speed, w.phase, float(w.mode != _OUTSIDE and w.y > 0.0), float(w.mode != _OUTSIDE))
-            for w in self._walkers
+            for w in walkers
         ]
-        return np.asarray(rows, dtype=np.float64).reshape(len(self._walkers), 7)
+        return np.asarray(rows, dtype=np.float64).reshape(len(walkers), 7)
 
     def _arrive(self, i: int, w: _Walker, t_s: float) -> None:
         rng = self._rng(i, w.ndec)
@@ -439,40 +451,87 @@ class WalkerSim:
             elif t_s - w.leg_start > STUCK_S or not self._clear_of(w.tx, w.ty, t_s, PERSON_RADIUS_M):
                 self._arrive(i, w, t_s)  # blocked (e.g. a robot parked on the target): go elsewhere
 
+    def _step_all(self, walkers: list[_Walker], k: int, others: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Advance everyone from step k to k + 1; returns the record of step k + 1."""
+        t_s = k * DT_S
+        obst = [o for o in self._obstacles(t_s) if o[2] > 0.0]
+        for i, w in enumerate(walkers):
+            self._step_one(i, w, t_s, others, obst)
+        return self._record(walkers)
+
     def _advance_to(self, step: int) -> None:
-        while len(self._frames) <= step:
-            k = len(self._frames) - 1
-            t_s = k * DT_S
-            others = self._frames[k]
-            obst = [o for o in self._obstacles(t_s) if o[2] > 0.0]
-            for i, w in enumerate(self._walkers):
-                self._step_one(i, w, t_s, others, obst)
-            self._frames.append(self._record())
-            if (k + 1) % CHECKPOINT_STEPS == 0:
-                self._checkpoints[k + 1] = [w.snapshot() for w in self._walkers]
+        """Simulate the live state up to ``step``, keeping a window of frames and sparse checkpoints."""
+        frontier = self._base + len(self._frames) - 1
+        if (step - frontier) * DT_S > MAX_CATCH_UP_S:
+            raise ConfigError(
+                f"world time {step * DT_S:.0f} s is more than {MAX_CATCH_UP_S:.0f} s ahead of the simulation "
+                f"({frontier * DT_S:.0f} s): is the common epoch set (PANOSTEREO_EPOCH_NS / [source] epoch_ns)?"
+            )
+        while frontier < step:
+            self._frames.append(self._step_all(self._walkers, frontier, self._frames[-1]))
+            frontier += 1
+            if frontier % CHECKPOINT_STEPS == 0:
+                self._checkpoints[frontier] = [w.snapshot() for w in self._walkers]
+        # Bound memory: frames older than KEEP_S are dropped (recomputed from a checkpoint if asked
+        # for again); older checkpoints thin out to one every SPARSE_CHECKPOINT_S.
+        drop = len(self._frames) - round(KEEP_S / DT_S)
+        if drop > 2 * CHECKPOINT_STEPS:
+            drop -= drop % CHECKPOINT_STEPS
+            del self._frames[:drop]
+            self._base += drop
+            sparse = round(SPARSE_CHECKPOINT_S / DT_S)
+            for k in [k for k in self._checkpoints if k < self._base and k % sparse]:
+                del self._checkpoints[k]
+
+    def _old_pair(self, k0: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Frames k0 and k0 + 1 from before the kept window: re-simulated from a checkpoint (cached)."""
+        seg_start, seg = self._old
+        if not (seg_start <= k0 and k0 + 1 < seg_start + len(seg)):
+            cp = max(k for k in self._checkpoints if k <= k0)
+            walkers = [_Walker() for _ in self._walkers]
+            for w, snap in zip(walkers, self._checkpoints[cp], strict=True):
+                w.restore(snap)
+            seg = [self._record(walkers)]
+            for k in range(cp, max(k0 + 1, cp + round(OLD_SEGMENT_S / DT_S))):
+                seg.append(self._step_all(walkers, k, seg[-1]))
+            seg_start = cp
+            self._old = (seg_start, seg)
+        return seg[k0 - seg_start], seg[k0 + 1 - seg_start]
 
     # -- public -------------------------------------------------------------------------------------
     def invalidate_from(self, t_s: float) -> None:
         """Forget states after ``t_s`` (the platforms' trajectories changed from then on)."""
         with self._lock:
             step = max(0, math.floor(t_s / DT_S))
+            self._old = (0, [])
             cp = max(k for k in self._checkpoints if k <= step)
-            if cp >= len(self._frames) - 1:
+            if cp >= self._base + len(self._frames) - 1:
                 return
             for w, snap in zip(self._walkers, self._checkpoints[cp], strict=True):
                 w.restore(snap)
-            del self._frames[cp + 1 :]
+            if cp >= self._base:
+                del self._frames[cp - self._base + 1 :]
+            else:
+                self._frames, self._base = [self._record(self._walkers)], cp
             for k in [k for k in self._checkpoints if k > cp]:
                 del self._checkpoints[k]
 
     def sample(self, t_s: float) -> WalkerSample:
-        """Everyone's state at world time ``t_s`` (clamped at 0), interpolated between steps."""
+        """Everyone's state at world time ``t_s`` (clamped at 0), interpolated between steps.
+
+        Raises:
+            ConfigError: ``t_s`` is implausibly far ahead (more than ``MAX_CATCH_UP_S`` beyond what has
+                been simulated), which means the world-time epoch is wrong.
+        """
         pos = max(0.0, float(t_s)) / DT_S
         k0 = math.floor(pos)
         frac = pos - k0
         with self._lock:
             self._advance_to(k0 + 1)
-            a, b = self._frames[k0], self._frames[k0 + 1]
+            if k0 >= self._base:
+                a, b = self._frames[k0 - self._base], self._frames[k0 + 1 - self._base]
+            else:
+                a, b = self._old_pair(k0)
         dh = (b[:, 2] - a[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
         heading = (a[:, 2] + frac * dh + math.pi) % (2.0 * math.pi) - math.pi
         # A jump (entering through the door from outside) is not interpolated.

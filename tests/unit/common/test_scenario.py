@@ -210,3 +210,22 @@ def test_sensor_bearing_is_relative_to_the_camera_heading() -> None:
     pl = world.platform_at("pano2", 0.0)  # yaw 200 deg
     b = sensor_bearing(pl, pl.x_m + 1.0, pl.y_m)
     assert b == pytest.approx(math.radians(-200.0 + 360.0))
+
+
+def test_old_times_are_recomputed_after_the_kept_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    import common.paths
+
+    ref = World.from_site(_site())
+    expect = [ref.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)]
+    monkeypatch.setattr(common.paths, "KEEP_S", 10.0)
+    small = World.from_site(_site())
+    small.people_at(80.0)  # frames before ~70 s are dropped, checkpoints thinned
+    assert [small.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)] == expect
+    small.set_goal("r1", 6.0, 1.0, 20.0)
+    ref.set_goal("r1", 6.0, 1.0, 20.0)
+    assert small.people_at(50.0) == ref.people_at(50.0)
+
+
+def test_a_wrong_epoch_is_reported_not_simulated() -> None:
+    with pytest.raises(ConfigError, match="epoch"):
+        World.from_site(_site()).people_at(1.7e9)
