@@ -31,24 +31,31 @@ from __future__ import annotations
 import bisect
 import logging
 import math
+import os
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import msgspec
 import numpy as np
 
 from common.errors import ConfigError
 from common.paths import Door, WalkerLook, WalkerSim
+from common.schema import ViewPlan
 from common.site import CameraSpec, SiteConfig, WorldSpec
 
 __all__ = [
+    "SEED_ENV",
     "Goal",
     "GroundTruth",
     "PersonState",
     "PlatformState",
     "World",
+    "goals_from_plans",
     "sensor_bearing",
+    "site_with_seed_from_env",
+    "world_time_s",
     "write_gt_csv",
 ]
 
@@ -56,6 +63,9 @@ logger = logging.getLogger(__name__)
 
 RGB = tuple[int, int, int]
 ROBOT_WALL_CLEARANCE_M = 0.05
+SEED_ENV = "PANOSTEREO_SEED"
+"""Environment variable that overrides the site's seed (``panostereo demo --seed N`` sets it for every process)."""
+SAME_GOAL_M = 0.01
 
 
 @dataclass(frozen=True, slots=True)
@@ -368,3 +378,46 @@ def sensor_bearing(platform: PlatformState, x_m: float, y_m: float) -> float:
     """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a world point seen from a platform."""
     b = math.atan2(y_m - platform.y_m, x_m - platform.x_m) - platform.yaw_rad
     return float(np.mod(b + math.pi, 2.0 * math.pi) - math.pi)
+
+
+def world_time_s(stamp_ns: int, epoch_ns: int) -> float:
+    """World time of a capture stamp: (stamp - epoch) / 1e9 seconds."""
+    return (int(stamp_ns) - int(epoch_ns)) / 1e9
+
+
+def site_with_seed_from_env(site: SiteConfig, env: Mapping[str, str] | None = None) -> SiteConfig:
+    """The site with its seed replaced by ``PANOSTEREO_SEED`` when that is set (every sim process and the
+    ground-truth writer call this, so they all simulate the same world).
+
+    Raises:
+        ConfigError: the variable is set but is not an integer.
+    """
+    raw = (os.environ if env is None else env).get(SEED_ENV, "").strip()
+    if not raw:
+        return site
+    try:
+        seed = int(raw)
+    except ValueError as err:
+        raise ConfigError(f"{SEED_ENV} must be an integer, got {raw!r}") from err
+    return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=seed))
+
+
+def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Goal]:
+    """Run-time goals from the manager's view plans, the one way every process turns plans into goals.
+
+    Plans are taken in (stamp_ns, sensor_id, seq) order; a plan becomes
+    ``Goal(sensor_id, goal_x_m, goal_y_m, issued_s=(stamp_ns - epoch_ns) / 1e9)`` unless the previous goal of
+    the same sensor is within 1 cm of it (a re-published plan is not a new goal). Sim nodes apply the goals
+    as plans arrive; the ground-truth writer applies the recorded ones after the run: both get the same
+    trajectories.
+    """
+    goals: list[Goal] = []
+    last: dict[str, tuple[float, float]] = {}
+    for plan in sorted(plans, key=lambda p: (p.stamp_ns, p.sensor_id, p.seq)):
+        xy = (float(plan.goal_x_m), float(plan.goal_y_m))
+        prev = last.get(plan.sensor_id)
+        if prev is not None and math.dist(prev, xy) < SAME_GOAL_M:
+            continue
+        last[plan.sensor_id] = xy
+        goals.append(Goal(plan.sensor_id, xy[0], xy[1], max(0.0, world_time_s(plan.stamp_ns, epoch_ns))))
+    return goals

@@ -23,10 +23,11 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import msgspec
 import numpy as np
 
-from common.errors import ConfigError, SourceError
-from common.scenario import World, sensor_bearing
+from common.errors import ConfigError
+from common.scenario import World, sensor_bearing, site_with_seed_from_env
 from common.site import load_site
 from sensor_node.render import PanoramicRenderer, PtzRenderer
 
@@ -41,7 +42,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--camera", required=True, help="camera id in the site")
     parser.add_argument("--time", type=float, default=0.0, help="world time in seconds (default 0)")
     parser.add_argument("--out", required=True, help="output PNG (a panoramic camera also writes <stem>_pano.png)")
-    parser.add_argument("--seed", type=int, default=None, help="override the site's seed")
+    parser.add_argument("--seed", type=int, default=None, help="override the site's seed (else env PANOSTEREO_SEED)")
     parser.add_argument("--no-noise", action="store_true", help="render without sensor noise")
     parser.add_argument("--pan", type=float, default=None, help="PTZ pan in degrees (world azimuth)")
     parser.add_argument("--tilt", type=float, default=None, help="PTZ tilt in degrees (> 0 up)")
@@ -49,17 +50,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _write(path: Path, img: np.ndarray[Any, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), img):
-        raise SourceError(f"could not write image {path}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        ok = cv2.imwrite(str(path), img)
+    except (OSError, cv2.error) as err:
+        reason = " ".join(str(err).split())
+        raise ConfigError(f"--out {path}: cannot write the image ({reason})") from err
+    if not ok:
+        raise ConfigError(f"--out {path}: cannot write the image (unsupported extension or unwritable file)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Render the frame(s) and print the summary."""
-    site = load_site(args.site)
+    site = site_with_seed_from_env(load_site(args.site))
     if args.seed is not None:
-        import msgspec
-
         site = msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=int(args.seed)))
     if not math.isfinite(args.time) or args.time < 0:
         raise ConfigError(f"--time must be a finite number >= 0, got {args.time}")
@@ -67,8 +71,6 @@ def run(args: argparse.Namespace) -> int:
     world = World.from_site(site)
     lighting = site.world.lighting
     if args.no_noise:
-        import msgspec
-
         lighting = msgspec.structs.replace(lighting, noise_sigma=0.0)
     rng = np.random.default_rng([site.site.seed, round(args.time * 1000)])
     out = Path(args.out)
