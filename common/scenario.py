@@ -286,7 +286,8 @@ class World:
 
         The goal is clamped into the room (the body stays clear of the walls).
         Goals are ordered by issue time (ties: by the order they were given), so
-        the trajectory does not depend on when the call is made.
+        the trajectory does not depend on when the call is made; a goal already
+        applied is ignored.
 
         Returns:
             The goal as applied (after clamping).
@@ -310,6 +311,8 @@ class World:
             )
         goal = Goal(sensor_id=sensor_id, x_m=gx, y_m=gy, issued_s=max(0.0, float(issued_s)))
         with self._lock:
+            if goal in self._goals:
+                return goal  # already applied: giving the same goal twice changes nothing
             self._goals.append(goal)
             self._motion[sensor_id].add_goal(goal.issued_s, (gx, gy))
         self._walkers.invalidate_from(goal.issued_s)

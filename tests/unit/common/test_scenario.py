@@ -268,3 +268,12 @@ def test_seed_from_environment() -> None:
     assert site_with_seed_from_env(site, {"PANOSTEREO_SEED": " 42 "}).site.seed == 42
     with pytest.raises(ConfigError, match="PANOSTEREO_SEED"):
         site_with_seed_from_env(site, {"PANOSTEREO_SEED": "x"})
+
+
+def test_the_same_goal_twice_changes_nothing() -> None:
+    a = World.from_site(_site())
+    a.set_goal("r1", 5.0, 2.0, 3.0)
+    a.people_at(20.0)
+    a.set_goal("r1", 5.0, 2.0, 3.0)
+    assert a.goals == (Goal("r1", 5.0, 2.0, 3.0),)
+    assert len(a._walkers._frames) > 300  # nothing was invalidated
