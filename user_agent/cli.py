@@ -92,6 +92,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true")
     p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
     p.add_argument("--fps", type=float, default=None, help="ground-truth fps (default: from the recording)")
+    p.add_argument(
+        "--score-from-ns",
+        type=int,
+        default=None,
+        help="score frames from this Unix ns on (default: the recording's score_from_ns, e.g. a demo's warm-up end)",
+    )
 
 
 def _session_and_prefix(args: argparse.Namespace) -> tuple[SessionSettings, str, str | None]:
@@ -198,7 +204,12 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     rec = load_recording(args.input)
     scored = score_recording(
-        rec, read_gt_csv(args.ground_truth), threshold_m=args.threshold, epoch_ns=args.epoch_ns, fps=args.fps
+        rec,
+        read_gt_csv(args.ground_truth),
+        threshold_m=args.threshold,
+        epoch_ns=args.epoch_ns,
+        fps=args.fps,
+        start_ns=args.score_from_ns,
     )
     out: dict[str, Any] = dict(scored.metrics.to_dict())
     out["tracks_published"] = scored.tracks_published

@@ -292,6 +292,7 @@ def hypotheses_from_tracksets(
     *,
     max_gap_s: float = 0.25,
     states: Sequence[str] = DEFAULT_STATES,
+    start_ns: int | None = None,
 ) -> tuple[dict[int, list[HypPoint]], list[int]]:
     """Line recorded TrackSets up with ground-truth frames.
 
@@ -300,7 +301,8 @@ def hypotheses_from_tracksets(
     ``max_gap_s``) is taken and each track moved to the frame's instant by its
     own velocity (a gap of at most half a fusion tick). Only frames inside the
     recorded span are scored; a frame inside it with no TrackSet near enough
-    has no hypotheses (all its people count as misses).
+    has no hypotheses (all its people count as misses). ``start_ns`` (e.g. the
+    end of a run's warm-up) skips the frames before it.
 
     Returns:
         (hypotheses by frame, the frames to score).
@@ -321,7 +323,7 @@ def hypotheses_from_tracksets(
     scored: list[int] = []
     for k in sorted(frames):
         t_ns = epoch_ns + round((k - 1) / fps * 1e9)
-        if t_ns < first - gap_ns or t_ns > last + gap_ns:
+        if t_ns < first - gap_ns or t_ns > last + gap_ns or (start_ns is not None and t_ns < start_ns):
             continue
         scored.append(k)
         pts: list[HypPoint] = []

@@ -35,16 +35,17 @@ def _open(path: str | Path) -> Path:
 
 
 def read_metadata(path: str | Path) -> dict[str, str]:
-    """The ``panostereo`` metadata record (site, epoch_ns, fps, room) or {}."""
+    """The ``panostereo*`` metadata records merged (site, epoch_ns, fps, room, score_from_ns) or {}."""
     p = _open(path)
+    out: dict[str, str] = {}
     try:
         with p.open("rb") as fh:
             for rec in make_reader(fh).iter_metadata():
-                if rec.name == META_NAME:
-                    return dict(rec.metadata)
+                if rec.name == META_NAME or rec.name.startswith(META_NAME + "."):
+                    out.update(rec.metadata)
     except (McapError, ValueError, EOFError, OSError) as err:
         raise ConfigError(f"{p}: not a readable MCAP recording: {err}") from err
-    return {}
+    return out
 
 
 def iter_raw(path: str | Path) -> Iterator[RawSample]:

@@ -31,11 +31,13 @@ def score_recording(
     epoch_ns: int | None = None,
     fps: float | None = None,
     max_gap_s: float = 0.25,
+    start_ns: int | None = None,
 ) -> Scored:
     """Evaluate a recording's TrackSets against ground truth.
 
-    ``epoch_ns`` and ``fps`` default to the recording's metadata (written by
-    the recorder from the site and ``PANOSTEREO_EPOCH_NS``).
+    ``epoch_ns``, ``fps`` and ``start_ns`` (end of the run's warm-up) default
+    to the recording's metadata (written by the recorder from the site,
+    ``PANOSTEREO_EPOCH_NS`` and, for a demo run, its warm-up).
 
     Raises:
         ConfigError: if the epoch or fps is neither given nor in the recording.
@@ -46,7 +48,10 @@ def score_recording(
         raise ConfigError("the recording has no epoch_ns metadata: pass --epoch-ns (the run's PANOSTEREO_EPOCH_NS)")
     if rate <= 0:
         raise ConfigError("the recording has no fps metadata: pass --fps (the ground truth's frame rate)")
-    hyps, frames = hypotheses_from_tracksets(rec.tracksets, epoch, rate, gt.frame_numbers, max_gap_s=max_gap_s)
+    start = start_ns if start_ns is not None else rec.meta_int("score_from_ns", -1)
+    hyps, frames = hypotheses_from_tracksets(
+        rec.tracksets, epoch, rate, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start if start >= 0 else None
+    )
     metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames)
     published = {t.track_id for ts in rec.tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
     return Scored(metrics, len(published), len(rec.tracksets), len(frames))

@@ -66,6 +66,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--listen", default=DEFAULT_LISTEN, metavar="ENDPOINT", help="router endpoint")
     parser.add_argument("--threshold", type=float, default=0.5, help="evaluation match distance (m)")
     parser.add_argument("--ready-timeout", type=float, default=60.0, help="wait this long for every process")
+    parser.add_argument(
+        "--warmup",
+        type=float,
+        default=5.0,
+        help="seconds after every process is up that are not scored (background models, track confirmation)",
+    )
     parser.add_argument("--no-view", action="store_true", help="no live view (progress lines only)")
 
 
@@ -124,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
         duration = site.site.duration_s
     if not duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {duration}")
+    if not 0 <= args.warmup < duration:
+        raise ConfigError(f"--warmup must be in [0, duration={duration:g}) s, got {args.warmup}")
     out = Path(args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ids = process_ids(site)
@@ -174,6 +182,10 @@ def run(args: argparse.Namespace) -> int:
                 for view in client.sensors(timeout_s=1.0):  # make sure the poses are in the file
                     if view.info is not None:
                         recorder.sink.write(keys.sensor_info(view.sensor_id), encode(view.info), time.time_ns())
+                score_from_ns = time.time_ns() + int(args.warmup * 1e9)
+                recorder.sink.add_metadata(
+                    "panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(args.warmup)}
+                )
                 start = time.monotonic()
                 last_view = 0.0
                 sensor_views = client.sensors(timeout_s=0.5)
@@ -280,6 +292,7 @@ def _finish(
         "site": site.site.name,
         "seed": site.site.seed,
         "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
+        "scored_from_s": round((rec.meta_int("score_from_ns", epoch_ns) - epoch_ns) / 1e9, 2),
         "recorded_samples": rec.samples,
         "restarts": restarts,
     }

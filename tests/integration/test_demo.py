@@ -96,7 +96,8 @@ def test_replayed_recording_scores_the_same(demo_run: tuple[Path, dict], router,
         assert rep.returncode == 0, rep.log()
     assert rec.stop() == 0
     res = subprocess.run(
-        [*agent, "evaluate", str(again), "--ground-truth", str(out / "gt.csv"), "--json"],
+        [*agent, "evaluate", str(again), "--ground-truth", str(out / "gt.csv"), "--json",
+         "--score-from-ns", meta["score_from_ns"]],
         capture_output=True, text=True, timeout=60, check=True,
     )  # fmt: skip
     replayed = json.loads(res.stdout)

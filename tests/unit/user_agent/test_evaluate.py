@@ -132,3 +132,5 @@ def test_tracksets_are_aligned_to_frames_with_velocity_and_span() -> None:
     (p,) = hyps[7]  # 0.6 s: second set (x=1)
     assert p.x_m == pytest.approx(1.0)
     assert hyps[11] == []  # tentative tracks are not scored
+    _, late = hypotheses_from_tracksets(sets, epoch, 10.0, range(1, 30), max_gap_s=0.25, start_ns=epoch + int(0.7e9))
+    assert late == list(range(8, 13))  # a warm-up end at 0.7 s drops frames 4..7
