@@ -1,0 +1,118 @@
+"""Poses: surveyed, overrides, mutual calibration chained from known cameras, unknown stays unknown."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from resource_manager.align import AlignedSighting
+from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
+from tests.unit.resource_manager.synth import Cam, features_for, info_for
+
+PX = math.radians(0.2)
+
+
+def sightings(cams: list[Cam], rng: np.random.Generator, noise: float) -> dict[str, list[AlignedSighting]]:
+    out = {}
+    for c in cams:
+        f = features_for(c, [], cams, 1, 0, rng, boundary_noise_rad=noise)
+        out[c.id] = [AlignedSighting(s.target_id, s.left_rad, s.right_rad, s.body_radius_m) for s in f.sightings]
+    return out
+
+
+def solver(cams: list[Cam], **params: object) -> PoseSolver:
+    s = PoseSolver(MutualParams(**params))  # type: ignore[arg-type]
+    for c in cams:
+        s.update_info(info_for(c))
+    return s
+
+
+@pytest.mark.parametrize(
+    ("cams", "known", "unknown"),
+    [
+        # a surveyed camera sights the robot (range + bearing); the robot sights it back (yaw)
+        ([Cam("p1", 0, 0), Cam("r1", 3, 1, yaw=2.0, mobile=True, surveyed=False)], ["p1", "r1"], []),
+        # chained: p1 -> r1 -> r2 (p1 sees only r1, within its 4 m range; r2 is located through r1)
+        (
+            [
+                Cam("p1", 0, 0, max_range_m=4.0),
+                Cam("r1", 3, 0, yaw=1.0, mobile=True, surveyed=False),
+                Cam("r2", 5, 3, yaw=-2.0, mobile=True, surveyed=False),
+            ],
+            ["p1", "r1", "r2"],
+            [],
+        ),
+        # two robots that see only each other: no anchor, no pose
+        (
+            [
+                Cam("p1", 0, 0, radius=0.0, sights=False),
+                Cam("r1", 3, 0, mobile=True, surveyed=False),
+                Cam("r2", 5, 3, mobile=True, surveyed=False),
+            ],
+            ["p1"],
+            ["r1", "r2"],
+        ),
+        # resection: the robot sees two surveyed bodies that do not report sightings
+        (
+            [
+                Cam("p1", 0, 0, sights=False),
+                Cam("p2", 4, 0, sights=False),
+                Cam("r1", 2, 3, yaw=0.5, mobile=True, surveyed=False),
+            ],
+            ["p1", "p2", "r1"],
+            [],
+        ),
+    ],
+)
+def test_pose_chaining(cams: list[Cam], known: list[str], unknown: list[str]) -> None:
+    s = solver(cams)
+    poses = s.solve(sightings(cams, np.random.default_rng(0), 0.0), 1)
+    assert sorted(poses) == known
+    for c in cams:
+        if c.id in poses:
+            p = poses[c.id]
+            assert math.hypot(p.x_m - c.x, p.y_m - c.y) < 1e-6
+            assert abs(math.remainder(p.yaw_rad - c.yaw, 2 * math.pi)) < 1e-6
+        else:
+            assert c.id in unknown
+
+
+def test_override_wins_and_unknown_source_ignored() -> None:
+    cams = [Cam("p1", 0, 0), Cam("p2", 4, 0, surveyed=False)]
+    s = solver(cams)
+    s.overrides["p1"] = PoseEstimate("p1", 1.0, 2.0, 1.5, 0.3, "surveyed")
+    poses = s.solve({}, 1)
+    assert poses["p1"].x_m == 1.0 and poses["p1"].yaw_rad == 0.3
+    assert "p2" not in poses  # not mobile, not surveyed, not sighted: unknown
+
+
+def test_smoothing_shrinks_noise_and_reports_sigma() -> None:
+    cams = [Cam("p1", 0, 0), Cam("r1", 4, 0.5, yaw=1.0, mobile=True, surveyed=False)]
+    s = solver(cams, smoothing_s=1.0)
+    rng = np.random.default_rng(1)
+    raw_err, smooth_err = [], []
+    for k in range(100):
+        sg = sightings(cams, rng, PX)
+        raw = s.solve_raw(sg, s.surveyed())["r1"]
+        p = s.solve(sg, 1 + k * 100_000_000)["r1"]
+        if k >= 30:
+            raw_err.append(math.hypot(raw.x_m - 4, raw.y_m - 0.5))
+            smooth_err.append(math.hypot(p.x_m - 4, p.y_m - 0.5))
+    assert np.mean(smooth_err) < 0.5 * np.mean(raw_err)
+    # error model: sigma_B ~ B^2 sigma_alpha / (2R) for one view, averaged over two views
+    b = math.hypot(4, 0.5)
+    expected_raw = b * b * math.sqrt(2) * PX / (2 * 0.18) / math.sqrt(2)
+    assert raw.sigma_xy_m == pytest.approx(expected_raw, rel=0.5)
+    assert 0 < p.sigma_xy_m < raw.sigma_xy_m
+
+
+def test_pose_expires_without_sightings() -> None:
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s = solver(cams, timeout_s=1.0)
+    assert "r1" in s.solve(sightings(cams, np.random.default_rng(0), 0.0), 1)
+    assert "r1" not in s.solve({}, 1 + 500_000_000)  # not re-solved at this instant: not claimed as known
+    assert "r1" not in s.filters or s.solve({}, 1 + 2_000_000_000) is not None
+    s.solve({}, 1 + 2_000_000_000)
+    assert "r1" not in s.filters

@@ -1,0 +1,254 @@
+"""Pair ranking, localisation, tracker, PTZ allocation, planner, history and config of the manager."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import msgspec
+import numpy as np
+import pytest
+
+from common.error_model import pair_position_error
+from common.errors import ConfigError
+from common.schema import PinholeModel, Pose, SensorInfo, Track
+from resource_manager.config import load_manager_config
+from resource_manager.history import IdAllocator, TrackLog, TrackStore, read_segments
+from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
+from resource_manager.pairs import CameraGeom, rank_pairs
+from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
+from resource_manager.ptz import PtzAllocator, PtzTarget
+from resource_manager.track import Tracker, TrackParams
+from tests.support import REPO
+from tests.unit.resource_manager.test_rm_match import view
+
+SIG = math.radians(0.2)
+
+
+# -- pairs and localisation ---------------------------------------------------------------------------
+def test_rank_pairs_prefers_the_wide_angle_pair() -> None:
+    target = np.array([3.0, 3.0])
+    cams = [
+        CameraGeom("near-line", np.array([0.0, 0.0]), SIG),
+        CameraGeom("same-line", np.array([1.0, 1.0]), SIG),  # colinear with near-line and the target
+        CameraGeom("side", np.array([6.0, 0.0]), SIG),
+    ]
+    ranked = rank_pairs(target, cams)
+    assert len(ranked) == 3
+    assert {ranked[0].a, ranked[0].b} == {"same-line", "side"} or {ranked[0].a, ranked[0].b} == {"near-line", "side"}
+    assert {ranked[-1].a, ranked[-1].b} == {"near-line", "same-line"}
+    assert ranked[0].error_m < ranked[-1].error_m
+
+
+def test_rank_pairs_counts_mutual_calibration_baseline_error() -> None:
+    target = np.array([3.0, 3.0])
+    a = CameraGeom("a", np.array([0.0, 0.0]), SIG)
+    b_survey = CameraGeom("b", np.array([6.0, 0.0]), SIG)
+    b_mutual = CameraGeom("b", np.array([6.0, 0.0]), SIG, sigma_xy_m=0.15)
+    assert rank_pairs(target, [a, b_mutual])[0].error_m > rank_pairs(target, [a, b_survey])[0].error_m
+
+
+def test_localize_triangulation_covariance_matches_error_model() -> None:
+    v1 = view("p1", (0.0, 0.0), [(2.0, 3.0, 1.8, 1)])
+    v2 = view("p2", (5.0, 0.0), [(2.0, 3.0, 1.8, 1)])
+    m = localize_best_pair(v1, 0, v2, 0, min_sigma_m=0.0)
+    assert m is not None and m.method == "triangulation"
+    assert np.allclose(m.xy, [2.0, 3.0], atol=1e-9)
+    assert m.height_m == pytest.approx(1.8, abs=1e-6)
+    predicted = pair_position_error((0, 0), (5, 0), (2, 3), SIG)
+    assert math.sqrt(np.trace(m.cov)) == pytest.approx(predicted, rel=1e-6)
+    assert m.predicted_error_m == pytest.approx(predicted, rel=1e-6)
+
+
+def test_localize_least_squares_all_views() -> None:
+    vs = [view(f"p{k}", o, [(2.0, 3.0, 1.7, 1)]) for k, o in enumerate([(0.0, 0.0), (5.0, 0.0), (5.0, 6.0)])]
+    m = localize_least_squares([(v, 0) for v in vs], {})
+    assert m is not None and m.method == "least_squares" and np.allclose(m.xy, [2.0, 3.0], atol=1e-6)
+    assert len(m.sensors) == 3
+
+
+# -- tracker --------------------------------------------------------------------------------------
+def _meas(x: float, y: float) -> Measurement:
+    return Measurement(np.array([x, y]), np.eye(2) * 0.02**2, 1.7, "triangulation", ("a", "b"), 0.02, ())
+
+
+def test_tracker_birth_velocity_death_and_ids() -> None:
+    n = iter(range(1, 100))
+    tr = Tracker(TrackParams(birth_hits=3, birth_window=5, max_misses=4), lambda: f"m-{next(n)}")
+    t = tr.spawn(_meas(0.0, 0.0), 0, {"a": 1})
+    assert t.state == "tentative" and not t.track_id
+    for k in range(1, 20):
+        tr.predict(k * 100_000_000)
+        tr.update(t, _meas(0.1 * k, 0.0), {"a": 1})
+        tr.prune()
+    assert t.track_id == "m-1" and t.state == "confirmed"
+    assert t.x[2] == pytest.approx(1.0, abs=0.1) and abs(t.x[3]) < 0.1  # 1 m/s along x
+    ended = []
+    for k in range(20, 26):
+        tr.predict(k * 100_000_000)
+        tr.miss(t)
+        ended += tr.prune()
+    assert t.state == "coasting" and [e.track_id for e in ended] == ["m-1"] and not tr.tracks
+
+
+def test_tracker_gate() -> None:
+    tr = Tracker(TrackParams(), lambda: "x")
+    t = tr.spawn(_meas(1.0, 1.0), 0, {})
+    assert math.isfinite(tr.gate_distance(t, _meas(1.05, 1.0)))
+    assert math.isinf(tr.gate_distance(t, _meas(3.0, 1.0)))
+
+
+# -- PTZ allocation -------------------------------------------------------------------------------
+def _ptz(sid: str, x: float, y: float) -> SensorInfo:
+    return SensorInfo(
+        sensor_id=sid,
+        seq=0,
+        stamp_ns=1,
+        kind="ptz",
+        model=PinholeModel(width_px=640, height_px=480, k=[500.0, 0, 320, 0, 500, 240, 0, 0, 1]),
+        pose=Pose(x_m=x, y_m=y, z_m=2.5, yaw_rad=0.0),
+        pose_source="surveyed",
+    )
+
+
+def test_ptz_priority_preemption_release_and_track_end() -> None:
+    alloc = PtzAllocator()
+    alloc.update_info(_ptz("z1", 0.0, 0.0))
+    alloc.update_info(_ptz("z2", 50.0, 0.0))  # too far from the person
+    person = PtzTarget("m-1", 3.0, 4.0, 1.8)
+    assert alloc.acquire("a1", person, "m-1", 1, 10) == ("z1", "")
+    sid, why = alloc.acquire("a2", person, "m-1", 1, 11)
+    assert sid == "" and "priority" in why  # equal priority does not preempt
+    assert alloc.acquire("a3", person, "m-1", 5, 12) == ("z1", "")  # higher priority preempts
+    assert alloc.ended[-1][0].agent_id == "a1" and "preempted" in alloc.ended[-1][1]
+    (aim,) = alloc.tick({"m-1": person})
+    assert aim.pan_rad == pytest.approx(math.atan2(4.0, 3.0))
+    assert aim.tilt_rad == pytest.approx(math.atan2(1.8 * 0.85 - 2.5, 5.0))
+    assert 1.0 <= aim.zoom <= 10.0
+    assert alloc.release("a3", "m-1") == ("z1", "")
+    assert alloc.release("a3", "m-1")[0] == ""
+    assert alloc.acquire("a1", person, "m-1", 0, 13) == ("z1", "")
+    assert alloc.tick({}) == [] and not alloc.assignments  # the track ended
+    assert alloc.acquire("a1", None, "m-9", 0, 14)[1].startswith("no current track")
+
+
+def test_ptz_none_can_see() -> None:
+    alloc = PtzAllocator()
+    alloc.update_info(_ptz("z2", 50.0, 0.0))
+    sid, why = alloc.acquire("a1", PtzTarget("m-1", 3.0, 4.0, 1.8), "m-1", 0, 1)
+    assert sid == "" and "can see" in why
+
+
+# -- planner --------------------------------------------------------------------------------------
+def test_planner_fig4_optimum_relative_to_target() -> None:
+    planner = ViewPlanner(PlannerParams(period_ns=0))
+    main = PlanCamera("p1", np.array([0.0, 0.0]), 0.18, SIG, False)
+    robot = PlanCamera("r1", np.array([1.0, 3.0]), 0.18, SIG, True)
+    target = PlanTarget("m-1", np.array([0.0, 6.0]), 0.3, ("p1", "r1"))
+    (goal,) = planner.plan(1, [main, robot], [target])
+    assert goal.partner_id == "p1" and goal.track_id == "m-1"
+    assert goal.baseline_m == pytest.approx(2.1655, abs=0.02)  # notes/geometry.md: B* for D1 = 6 m, R = 0.18
+    assert math.degrees(goal.phi1_rad) == pytest.approx(59.45, abs=0.3)
+    assert goal.goal_xy[0] > 0  # the optimum on the robot's side of the O1-T line
+    assert goal.predicted_error_m < goal.current_error_m
+
+
+def test_planner_clips_to_room_and_respects_period() -> None:
+    planner = ViewPlanner(PlannerParams(period_ns=10, room=(0.0, 0.0, 1.0, 8.0), margin_m=0.2))
+    cams = [
+        PlanCamera("p1", np.array([0.5, 0.0]), 0.18, SIG, False),
+        PlanCamera("r1", np.array([0.5, 1.0]), 0.18, SIG, True),
+    ]
+    tgt = [PlanTarget("m-1", np.array([0.5, 6.0]), 0.3, ("p1",))]
+    (goal,) = planner.plan(100, cams, tgt)
+    assert 0.2 <= goal.goal_xy[0] <= 0.8
+    assert planner.plan(105, cams, tgt) == []
+
+
+# -- history --------------------------------------------------------------------------------------
+def _track(tid: str, t_ns: int, x: float = 0.0) -> Track:
+    return Track(
+        manager_id="m",
+        seq=1,
+        stamp_ns=t_ns,
+        track_id=tid,
+        x_m=x,
+        y_m=0.0,
+        height_m=1.7,
+        vx_mps=0.0,
+        vy_mps=0.0,
+        cov_xx_m2=0.01,
+        cov_xy_m2=0.0,
+        cov_yy_m2=0.01,
+        state="confirmed",
+        method="triangulation",
+    )
+
+
+def test_id_allocator_never_repeats_across_crashes(tmp_path: Path) -> None:
+    a = IdAllocator(tmp_path, "mgr", block=4)
+    ids = [a() for _ in range(6)]
+    assert ids == [f"mgr-{k}" for k in range(1, 7)]
+    b = IdAllocator(tmp_path, "mgr", block=4)  # "crash": no clean shutdown of a
+    nxt = b()
+    assert int(nxt.split("-")[1]) > 6
+    (tmp_path / "next_id").write_text("garbage")
+    with pytest.raises(ConfigError, match="integer"):
+        IdAllocator(tmp_path, "mgr")
+
+
+def test_track_log_roundtrip_torn_tail_and_store(tmp_path: Path) -> None:
+    log = TrackLog(tmp_path, segment_s=1.0, retain_s=10.0)
+    for k in range(30):
+        log.append([_track("m-1", k * 100_000_000, x=k), _track("m-2", k * 100_000_000)], k * 100_000_000)
+    log.close()
+    segs = sorted(tmp_path.glob("tracks-*.log"))
+    assert len(segs) == 3
+    with segs[-1].open("ab") as fh:
+        fh.write(b"\x50\x00\x00\x00partial")  # a record torn by a crash
+    back = read_segments(tmp_path, 1_500_000_000)
+    assert [t.stamp_ns for t in back] == sorted(t.stamp_ns for t in back)
+    assert {t.track_id for t in back} == {"m-1", "m-2"} and len(back) == 30
+    store = TrackStore(history_s=1.0, rate_hz=5.0)
+    kept = [store.add(t) for t in read_segments(tmp_path, 0) if t.track_id == "m-1"]
+    assert sum(kept) == 15  # 10 Hz in, 5 Hz kept
+    assert store.latest("m-1") is not None and store.latest("m-1").x_m == 28.0  # type: ignore[union-attr]
+    assert [t.x_m for t in store.path("m-1", 2_500_000_000)] == [26.0, 28.0]
+    store.prune(3_000_000_000)
+    assert all(t.stamp_ns >= 2_000_000_000 for t in store.path("m-1", 0))
+
+
+# -- config ---------------------------------------------------------------------------------------
+def test_example_config_loads() -> None:
+    cfg = load_manager_config(REPO / "deploy/nodes/examples/manager.toml")
+    assert cfg.manager.id == "mgr1" and cfg.manager.matcher == "greedy" and cfg.keys.root == "pano/@v1"
+    assert Path(cfg.manager.state_dir).is_absolute()
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('[manager]\nid = "m1"\nmatcher = "best"\n', "matcher"),
+        ('[manager]\nid = "M 1"\n', "manager.id"),
+        ('[manager]\nid = "m1"\nbogus = 1\n', "unknown key 'manager.bogus'"),
+        ('[manager]\nid = "m1"\n[planner]\nroom = [0, 0, -1, 5]\n', "planner.room"),
+        (
+            '[manager]\nid = "m1"\n' + '[[pose]]\nid = "a"\nx_m = 0\ny_m = 0\nz_m = 1\n' * 2,
+            "unique",
+        ),
+        ("[zenoh]\n", "missing required key 'manager'"),
+        ('[manager]\nid = "m1"\nrate_hz = 0\n', "rate_hz"),
+    ],
+)
+def test_bad_configs(tmp_path: Path, text: str, message: str) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_manager_config(p)
+
+
+def test_config_is_frozen() -> None:
+    cfg = load_manager_config(REPO / "deploy/nodes/examples/manager.toml")
+    with pytest.raises(AttributeError):
+        cfg.manager.id = "x"  # type: ignore[misc]
+    assert msgspec.structs.replace(cfg.manager, rate_hz=5.0).rate_hz == 5.0
