@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import shutil
 import sys
 import time
@@ -76,30 +75,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int, mobile: set[str]) -> list[Any]:
-    """Goals the simulated robots received, as the sim nodes derive them (shared rule).
+    """Goals the simulated robots received, by the one rule the sim nodes use (common.scenario)."""
+    from common.scenario import goals_from_plans as shared
 
-    A plan is a goal for its (mobile) camera issued at the plan's stamp; a
-    re-published plan with the same goal changes nothing (the robot keeps
-    driving straight to the same point), so it is skipped.
-    """
-    from common import scenario
-
-    shared = getattr(scenario, "goals_from_plans", None)
-    if shared is not None:
-        return list(shared(plans, epoch_ns))
-    Goal = scenario.Goal
-
-    goals: list[Any] = []
-    last: dict[str, tuple[float, float]] = {}
-    for p in sorted(plans, key=lambda p: (p.stamp_ns, p.sensor_id)):
-        if p.sensor_id not in mobile:
-            continue
-        prev = last.get(p.sensor_id)
-        if prev is not None and math.hypot(prev[0] - p.goal_x_m, prev[1] - p.goal_y_m) < 0.01:
-            continue
-        last[p.sensor_id] = (p.goal_x_m, p.goal_y_m)
-        goals.append(Goal(p.sensor_id, p.goal_x_m, p.goal_y_m, (p.stamp_ns - epoch_ns) / 1e9))
-    return goals
+    return list(shared([p for p in plans if p.sensor_id in mobile], epoch_ns))
 
 
 def _with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
