@@ -41,7 +41,8 @@ import msgspec
 import numpy as np
 
 from common.errors import ConfigError
-from common.paths import Door, WalkerLook, WalkerSim
+from common.paths import WalkerSim
+from common.people import Door, WalkerLook
 from common.schema import ViewPlan
 from common.site import CameraSpec, SiteConfig, WorldSpec
 
