@@ -38,7 +38,13 @@ def setup_logging(level: str = "INFO") -> None:
 
 
 def run_main(fn: Callable[[], int], prog: str) -> int:
-    """Call ``fn`` and turn expected errors into one line on stderr and an exit code."""
+    """Call ``fn`` and turn expected errors into one line on stderr and an exit code.
+
+    ``PanoError`` (bad config, unreachable router, corrupt file): one line, exit
+    :data:`EXIT_ERROR`. KeyboardInterrupt: exit 0. Any other exception is a bug:
+    its traceback is logged and the exit code is :data:`EXIT_BUG`, so a
+    supervisor restarts the process and the log says why.
+    """
     try:
         return fn()
     except KeyboardInterrupt:
@@ -51,3 +57,6 @@ def run_main(fn: Callable[[], int], prog: str) -> int:
         return EXIT_ERROR
     except BrokenPipeError:
         return EXIT_ERROR
+    except Exception:  # a bug: full traceback in the log, a distinct exit code for the supervisor
+        logging.getLogger(prog.replace(" ", ".")).exception("unexpected error (a bug): exiting with %d", EXIT_BUG)
+        return EXIT_BUG

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 import msgspec
+import zenoh
 
 from common.codec import decode, encode
 from common.errors import SchemaError
@@ -42,6 +43,8 @@ class Counters:
     decode_errors: int = 0
     dropped: int = 0
     """Samples lost to a full buffer."""
+    deletes: int = 0
+    """DELETE samples (no payload) seen and ignored."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +93,10 @@ class Inbox(Generic[T]):
 
     def _on_sample(self, sample: Any) -> None:
         # Runs on zenoh's callback thread: copy and enqueue only.
+        if sample.kind == zenoh.SampleKind.DELETE:
+            with self._cond:
+                self.counters.deletes += 1
+            return
         item = (str(sample.key_expr), sample.payload.to_bytes(), time.time_ns())
         with self._cond:
             self.counters.received += 1
@@ -166,8 +173,6 @@ class TypedPublisher:
     """
 
     def __init__(self, session: Any, key: str, *, reliable_block: bool = False, express: bool = True) -> None:
-        import zenoh
-
         self.key = key
         self._pub = session.declare_publisher(
             key,

@@ -6,10 +6,11 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
+import zenoh
 
 from common.codec import encode
 from common.schema import Features, PtzCommand
@@ -29,6 +30,7 @@ class FakePayload:
 class FakeSample:
     key_expr: str
     payload: FakePayload
+    kind: Any = field(default_factory=lambda: zenoh.SampleKind.PUT)
 
 
 class FakeSubscriber:
@@ -148,6 +150,15 @@ def test_get_wakes_when_a_sample_arrives_from_another_thread() -> None:
     assert r is not None and r.msg.seq == 9
 
 
+def test_delete_samples_are_counted_not_decoded() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features)
+    s.callbacks[KEY](FakeSample(KEY, FakePayload(b""), zenoh.SampleKind.DELETE))
+    s.deliver(KEY, encode(feat(1)))
+    assert [r.msg.seq for r in inbox.drain()] == [1]
+    assert (inbox.counters.deletes, inbox.counters.decode_errors, inbox.counters.received) == (1, 0, 1)
+
+
 def test_close_undeclares() -> None:
     s = FakeSession()
     inbox = Inbox(s, KEY, Features)
@@ -184,13 +195,13 @@ def test_typed_publisher_to_inbox(session: Any, reliable_block: bool) -> None:
     inbox.close()
 
 
-def test_real_session_bad_payload_is_counted(session: Any) -> None:
-    import zenoh
-
+def test_real_session_bad_payload_and_delete(session: Any) -> None:
     inbox = Inbox(session, "pano/@v1/sensor/x/features", Features)
     session.put("pano/@v1/sensor/x/features", b"\x00\x01not msgpack", encoding=zenoh.Encoding("application/msgpack"))
+    session.delete("pano/@v1/sensor/x/features")
     session.put("pano/@v1/sensor/x/features", encode(feat(3)))
     r = inbox.get(timeout_s=5.0)
     assert r is not None and r.msg.seq == 3
     assert inbox.counters.decode_errors == 1
+    assert inbox.counters.deletes == 1
     inbox.close()

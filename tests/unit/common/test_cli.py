@@ -1,0 +1,39 @@
+"""run_main: expected errors are one line and exit 1, interrupts exit 0, bugs exit 70 with a traceback in the log."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from common.cli import EXIT_BUG, EXIT_ERROR, run_main
+from common.errors import ConfigError, SessionError
+
+
+def _raise(exc: BaseException) -> int:
+    raise exc
+
+
+@pytest.mark.parametrize("exc", [ConfigError("node.toml: fps: expected a number"), SessionError("router down")])
+def test_expected_errors_are_one_line(capsys: pytest.CaptureFixture[str], exc: Exception) -> None:
+    assert run_main(lambda: _raise(exc), "panostereo node") == EXIT_ERROR
+    err = capsys.readouterr().err
+    assert err == f"panostereo node: error: {exc}\n"
+
+
+def test_return_code_passes_through() -> None:
+    assert run_main(lambda: 0, "x") == 0
+    assert run_main(lambda: 3, "x") == 3
+
+
+def test_keyboard_interrupt_is_a_clean_exit() -> None:
+    assert run_main(lambda: _raise(KeyboardInterrupt()), "x") == 0
+
+
+def test_bug_exits_with_exit_bug_and_logs_the_traceback(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.ERROR):
+        assert run_main(lambda: _raise(ZeroDivisionError("oops")), "panostereo manager") == EXIT_BUG
+    assert EXIT_BUG == 70
+    rec = caplog.records[-1]
+    assert rec.exc_info is not None and rec.exc_info[0] is ZeroDivisionError
+    assert "a bug" in rec.getMessage()
