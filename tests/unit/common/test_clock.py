@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 import os
+import pwd
 import shutil
 import signal
+import socket
 import subprocess
 import time
 from collections.abc import Iterator
@@ -159,18 +161,17 @@ def chronyd(tmp_path: Path) -> Iterator[int]:
     if exe is None:
         skip_or_fail("chronyd not found on PATH or in .venv/sys (run tests/system_deps.sh as root)")
         return
-    port = free_port(kind=__import__("socket").SOCK_DGRAM)
+    port = free_port(kind=socket.SOCK_DGRAM)
     conf = tmp_path / "chrony.conf"
     conf.write_text(
         f"port {port}\nbindaddress 127.0.0.1\nallow 127.0.0.1\nlocal stratum 8\ncmdport 0\n"
         f"pidfile {tmp_path}/chronyd.pid\ndriftfile {tmp_path}/drift\n"
     )
     tmp_path.chmod(0o777)
-    args = [exe, "-d", "-x", "-f", str(conf)]
-    if os.geteuid() == 0:
-        args[1:1] = ["-U", "-u", "nobody"]
-    else:
-        args[1:1] = ["-U"]
+    # -U: no root check; -x: never touch the system clock; -d: foreground. -u: the user to run as (root drops
+    # to nobody; anyone else stays themselves), else chronyd looks for the Debian user _chrony.
+    user = "nobody" if os.geteuid() == 0 else pwd.getpwuid(os.geteuid()).pw_name
+    args = [exe, "-U", "-u", user, "-d", "-x", "-f", str(conf)]
     log = (tmp_path / "chronyd.log").open("wb")
     proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     client = ntplib.NTPClient()
