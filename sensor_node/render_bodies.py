@@ -114,9 +114,9 @@ def person_primitives(p: PersonState) -> list[Primitive]:
         return (p.x_m + forward_m * cos_h - lateral_m * sin_h, p.y_m + forward_m * sin_h + lateral_m * cos_h)
 
     for side in (1.0, -1.0):
-        x, y = at(side * 0.085, side * 0.15 * swing)
+        x, y = at(side * 0.075, side * 0.07 * swing)
         parts.append(
-            Cylinder(x, y, 0.07, 0.075, p.heading_rad, 0.0, hip, ((0.0, _bgr(p.shoe_rgb)), (0.07, pants)), body)
+            Cylinder(x, y, 0.065, 0.07, p.heading_rad, 0.0, hip - 0.03, ((0.0, _bgr(p.shoe_rgb)), (0.07, pants)), body)
         )
     parts.append(
         Cylinder(
