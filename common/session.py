@@ -35,12 +35,15 @@ import msgspec
 from common.errors import ConfigError, SessionError
 
 __all__ = [
+    "DEFAULT_ROUTER",
     "MSGPACK",
     "SessionSettings",
+    "Shutdown",
     "add_session_args",
     "install_signal_handlers",
     "open_session",
     "settings_from_args",
+    "wait_until",
     "zenoh_config",
 ]
 
