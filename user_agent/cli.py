@@ -133,6 +133,15 @@ def _watch(args: argparse.Namespace) -> int:
     with _client(args) as agent:
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
         sensors = agent.sensors(timeout_s=1.0)
+        # Statuses come at 1 Hz: give the first screen a moment to have them.
+        first = time.monotonic()
+        while time.monotonic() - first < 1.5 and not shutdown.is_set():
+            if all(v.status is not None for v in sensors if v.alive) and all(
+                m.status is not None for m in agent.managers(timeout_s=0.3)
+            ):
+                break
+            shutdown.sleep(0.2)
+            sensors = agent.sensors(timeout_s=0.3)
         last_sensors = time.monotonic()
         while True:
             if time.monotonic() - last_sensors > 3.0:
