@@ -47,15 +47,21 @@ U8Image = npt.NDArray[np.uint8]
 PANO_MARGIN_ROWS = 3
 """Rows rendered beyond each edge of the panorama (the ring's edges interpolate into them)."""
 
-_TEXTURES: dict[tuple[int, int], RoomTextures] = {}
+_TEXTURES: dict[tuple[float, ...], RoomTextures] = {}
+_TEXTURE_CACHE_SIZE = 8
 
 
 def _textures(world: World) -> RoomTextures:
-    """The room textures, drawn once per world (they depend only on the site and seed)."""
-    key = (id(world), world.seed)
-    if key not in _TEXTURES:
-        _TEXTURES[key] = make_textures(world)
-    return _TEXTURES[key]
+    """The room textures, drawn once per room and seed (they depend on nothing else)."""
+    d = world.door
+    key = (float(world.seed), world.room_x_m, world.room_y_m, world.wall_height_m, d.x0_m, d.x1_m, d.height_m)
+    tex = _TEXTURES.get(key)
+    if tex is None:
+        tex = make_textures(world)
+        while len(_TEXTURES) >= _TEXTURE_CACHE_SIZE:
+            del _TEXTURES[next(iter(_TEXTURES))]
+        _TEXTURES[key] = tex
+    return tex
 
 
 def _camera_seed(world: World, camera: CameraSpec) -> int:
