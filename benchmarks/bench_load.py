@@ -126,6 +126,7 @@ def make_room(sensors: int, people: int, seed: int, room_m: float = 10.0) -> tup
                 math.remainder(rng.uniform(-math.pi, math.pi), 2 * math.pi),
             )
         )
+    rng = random.Random(f"people-{seed}")  # the people do not depend on how many cameras watch them
     walkers = []
     for p in range(people):
         raw = [rng.random() ** 3 for _ in range(HIST_BINS)]
