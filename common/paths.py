@@ -277,14 +277,22 @@ class WalkerSim:
             rx, ry = ox - w.x, oy - w.y
             d = math.hypot(rx, ry)
             gap = d - r - PERSON_RADIUS_M
-            if gap > 1.2 or d < 1e-6:
+            if gap > 1.5 or d < 1e-6:
                 continue
             ux, uy = rx / d, ry / d
-            ahead = max(0.0, ux * gx + uy * gy)
-            k = (1.2 - max(gap, 0.0)) / 1.2 * (0.3 + ahead) * 1.6
-            side = 1.0 if (ux * gy - uy * gx) > 0 else -1.0  # pass on the side the target is on
-            px += -ux * k * 0.6 + side * (-uy) * k
-            py += -uy * k * 0.6 + side * ux * k
+            along = rx * gx + ry * gy  # how far ahead on the way to the target
+            lateral = ux * gy - uy * gx  # > 0: the platform is to the right of the way
+            beside = abs(rx * gy - ry * gx)  # distance of its centre from the straight way
+            if along > 0.0 and along < dist + r and beside < r + PERSON_RADIUS_M + 0.15:
+                # On a collision course: veer round it, on the side away from its centre.
+                k = (1.5 - max(gap, 0.0)) / 1.5 * 2.0
+                side = 1.0 if lateral > 0 else -1.0  # +1: veer left (counter-clockwise), away from it
+                px -= side * uy * k
+                py += side * ux * k
+            if gap < 0.25:
+                k = (0.25 - max(gap, 0.0)) / 0.25 * 1.5  # too close: step away
+                px -= ux * k
+                py -= uy * k
         return math.atan2(gy + py, gx + px)
 
     def _crowding(self, i: int, w: _Walker, others: npt.NDArray[np.float64]) -> float:

@@ -277,3 +277,15 @@ def test_the_same_goal_twice_changes_nothing() -> None:
     a.set_goal("r1", 5.0, 2.0, 3.0)
     assert a.goals == (Goal("r1", 5.0, 2.0, 3.0),)
     assert len(a._walkers._frames) > 300  # nothing was invalidated
+
+
+def test_line_paths_go_back_and_forth_between_the_end_points() -> None:
+    world = World.from_site(_site(people=1, paths="line", rectangle=[1.0, 4.0, 7.0, 4.5]))
+    tr = _track(world, 60.0, 0.2)
+    x, y = tr["x"][:, 0], tr["y"][:, 0]
+    # On the segment (within a turning radius) and reaching both ends.
+    d = np.abs(0.5 * (x - 1.0) - 6.0 * (y - 4.0)) / math.hypot(6.0, 0.5)
+    assert np.percentile(d, 95) < 0.3
+    assert np.hypot(x - 1.0, y - 4.0).min() < 0.35 and np.hypot(x - 7.0, y - 4.5).min() < 0.35
+    turns = np.sum(np.diff(np.sign(np.diff(x))) != 0)
+    assert turns >= 4
