@@ -260,7 +260,7 @@ def _finish(
     metrics = m.to_dict()
     summary: dict[str, Any] = {
         "cameras": cams or len(site.camera),
-        "people": len(gt.person_ids),
+        "people": m.gt_ids if m.frames else len(gt.person_ids),
         "frames": m.frames,
         "tracks_published": scored.tracks_published,
         **{k: metrics[k] for k in _SUMMARY_METRICS},
