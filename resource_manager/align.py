@@ -100,7 +100,9 @@ def _sighting_at(s0: Sighting | None, t0: int, s1: Sighting | None, t1: int, t: 
     return AlignedSighting(s.target_id, s.left_rad, s.right_rad, s.body_radius_m)
 
 
-def _pair(f0: Features, f1: Features, t: int, max_one_sided_ns: int) -> tuple[list[AlignedBlob], list[AlignedSighting]]:
+def _pair(
+    f0: Features, f1: Features, t: int, max_one_sided_ns: int, want_s: bool = True
+) -> tuple[list[AlignedBlob], list[AlignedSighting]]:
     """Interpolate (or extrapolate) between two frames; one-sided blobs only near their own frame."""
     t0, t1 = f0.stamp_ns, f1.stamp_ns
     by0 = {b.local_id: b for b in f0.blobs}
@@ -115,6 +117,8 @@ def _pair(f0: Features, f1: Features, t: int, max_one_sided_ns: int) -> tuple[li
     for lid, b0 in by0.items():
         if lid not in by1 and abs(t - t0) <= max_one_sided_ns and t1 > t:
             blobs.append(_blob_at(b0, t0, None, t1, t))
+    if not want_s:
+        return blobs, []
     s0 = {s.target_id: s for s in f0.sightings if s.target_id}
     s1 = {s.target_id: s for s in f1.sightings if s.target_id}
     sightings = [_sighting_at(s0.get(k), t0, s, t1, t) for k, s in s1.items()]
@@ -122,7 +126,9 @@ def _pair(f0: Features, f1: Features, t: int, max_one_sided_ns: int) -> tuple[li
     return blobs, sightings
 
 
-def align_sensor(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams) -> AlignedView | None:
+def align_sensor(
+    buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, sightings: bool = True
+) -> AlignedView | None:
     """The sensor's blobs and sightings at ``t_ns``, or None if it must sit this tick out.
 
     Args:
@@ -130,14 +136,19 @@ def align_sensor(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignPara
         sensor_id: for the result.
         t_ns: the fusion instant.
         params: extrapolation, staleness and gap limits.
+        sightings: False skips the sightings (every pose is surveyed: mutual calibration has nothing to do).
     """
+    return _align(buf, sensor_id, t_ns, params, sightings)
+
+
+def _align(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, want_s: bool) -> AlignedView | None:
     newest = buf.newest_stamp()
     if newest is None or t_ns - newest > params.stale_ns:
         return None
     before, after = buf.bracket(t_ns)
     half = params.max_extrapolation_ns
     if before is not None and after is not None and after.stamp_ns - before.stamp_ns <= params.max_gap_ns:
-        blobs, sightings = _pair(before, after, t_ns, max(half, (after.stamp_ns - before.stamp_ns)))
+        blobs, sightings = _pair(before, after, t_ns, max(half, (after.stamp_ns - before.stamp_ns)), want_s)
         return AlignedView(sensor_id, t_ns, blobs, sightings, "interpolated")
     if before is not None and (after is None or t_ns - before.stamp_ns <= after.stamp_ns - t_ns):
         if t_ns - before.stamp_ns > half:
@@ -145,13 +156,13 @@ def align_sensor(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignPara
         prev = buf.previous(before)
         if prev is not None and before.stamp_ns - prev.stamp_ns <= params.max_gap_ns:
             # Short constant-rate extrapolation past the newest frame, blob by blob.
-            blobs, sightings = _pair(prev, before, t_ns, half)
+            blobs, sightings = _pair(prev, before, t_ns, half, want_s)
             return AlignedView(sensor_id, t_ns, blobs, sightings, "extrapolated")
         return AlignedView(
             sensor_id,
             t_ns,
             [_blob_at(b, before.stamp_ns, None, 0, t_ns) for b in before.blobs],
-            [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id],
+            [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id and want_s],
             "held",
         )
     if after is not None and after.stamp_ns - t_ns <= half:
@@ -159,7 +170,7 @@ def align_sensor(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignPara
             sensor_id,
             t_ns,
             [_blob_at(None, 0, b, after.stamp_ns, t_ns) for b in after.blobs],
-            [_sighting_at(None, 0, s, after.stamp_ns, t_ns) for s in after.sightings if s.target_id],
+            [_sighting_at(None, 0, s, after.stamp_ns, t_ns) for s in after.sightings if s.target_id and want_s],
             "held",
         )
     return None

@@ -31,7 +31,7 @@ from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrix
-from resource_manager.pairs import CameraGeom, rank_pairs
+from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.poses import PoseEstimate
 from resource_manager.track import Tracker, TrackRecord
 
@@ -39,6 +39,8 @@ __all__ = ["Associator", "Outcome", "build_views"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+RERANK_MOVE_M = 0.25
+"""A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
 
 @dataclass(slots=True)
@@ -105,6 +107,8 @@ class Associator:
         )
         self.threshold = mc.threshold
         self._birth_rr = 0
+        self._gates: tuple[FloatArray, FloatArray] | None = None
+        self._all: _AllBlobs | None = None
 
     # -- step 1 -----------------------------------------------------------------
     def support(
@@ -138,8 +142,12 @@ class Associator:
                 if lid is not None:
                     hit = np.nonzero(v.local_id == lid)[0]
                     if hit.size and norm[hit[0], t] < 3.0:
-                        out[t][sid] = int(hit[0])
-                        claimed.add(int(hit[0]))
+                        i = int(hit[0])
+                        if i in claimed:  # an older track holds it: a copy of that track, or hidden behind it
+                            shared[t][sid] = i
+                        else:
+                            out[t][sid] = i
+                            claimed.add(i)
                         continue
                 pending.append(t)
             for t in pending:
@@ -155,6 +163,7 @@ class Associator:
                     shared[t][sid] = i
                 else:
                     out[t][sid] = i
+                    claimed.add(i)  # each blob localises one track only
         return out, shared
 
     # -- step 2 -----------------------------------------------------------------
@@ -204,6 +213,7 @@ class Associator:
         t_ns: int,
     ) -> Outcome:
         views = build_views(aligned, poses, sigma_of)
+        self._all = _AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
         support, shared = self.support(views, tracks)
@@ -264,7 +274,22 @@ class Associator:
         if len(sup) < 2:
             return None, None, {}
         cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
-        ranked = rank_pairs(tr.x[:2].copy(), cams, max_cams)
+        key = frozenset(sup)
+        pc = tr.pair_cache
+        if pc is not None and pc[2] == key and math.hypot(tr.x[0] - pc[0], tr.x[1] - pc[1]) < RERANK_MOVE_M:
+            ranked: list[PairCandidate] = pc[3]  # type: ignore[assignment]
+        else:
+            ranked = rank_pairs(tr.x[:2].copy(), cams, max_cams)
+            tr.pair_cache = (float(tr.x[0]), float(tr.x[1]), key, list(ranked))
+        tol = self.config.match.pair_reuse_tolerance
+        if tol > 1.0 and ranked and tuple(sorted((ranked[0].a, ranked[0].b))) not in cache:
+            # A pair already matched this tick and nearly as good saves a whole Eq. 7 matrix.
+            reuse = next(
+                (c for c in ranked[1:] if c.error_m <= tol * ranked[0].error_m and tuple(sorted((c.a, c.b))) in cache),
+                None,
+            )
+            if reuse is not None:
+                ranked = [reuse, *[c for c in ranked if c is not reuse]]
         for cand in ranked[:3]:
             a_id, b_id = sorted((cand.a, cand.b))
             a, b = views[a_id], views[b_id]
@@ -297,7 +322,7 @@ class Associator:
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
                 agree, against = self._consistent(meas, used, views)
-                if against > len(agree) - 2:
+                if against > len(agree) - 2 or not self._agreement_ok(meas):
                     continue  # a ghost of two other people's rays: the other cameras look elsewhere
                 used = {s: used[s] for s in agree}
                 if self.config.manager.fuse_all and len(used) >= 3:
@@ -316,6 +341,7 @@ class Associator:
         pose_sigma: dict[str, float],
         t_ns: int,
     ) -> int:
+        self._gates = None  # track positions have just been updated
         left = {sid: [i for i in range(v.n) if i not in used[sid]] for sid, v in views.items()}
         left = {sid: idx for sid, idx in left.items() if idx}
         if len(left) < 2:
@@ -343,7 +369,7 @@ class Associator:
                 if meas is None or self._near_track(meas):
                     continue
                 support, against = self._third_views(meas, views, (a_id, b_id))
-                if against >= self.config.match.ghost_veto_views:
+                if against >= self.config.match.ghost_veto_views and not self._agreement_ok(meas):
                     continue
                 links = {a_id: left[a_id][ii], b_id: left[b_id][jj]}
                 hyps.append((support, meas.predicted_error_m, meas, links))
@@ -364,10 +390,26 @@ class Associator:
         return born
 
     def _near_track(self, meas: Measurement) -> bool:
-        for tr in self.tracker.tracks:
-            if float(np.hypot(*(meas.xy - tr.x[:2]))) < self.tracker.position_gate_m(tr):
-                return True
-        return False
+        if self._gates is None:
+            tracks = self.tracker.tracks
+            self._gates = (
+                np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2),
+                np.array([self.tracker.position_gate_m(tr) for tr in tracks]),
+            )
+        xy, radius = self._gates
+        if not radius.size:
+            return False
+        return bool(np.any(np.hypot(xy[:, 0] - meas.xy[0], xy[:, 1] - meas.xy[1]) < radius))
+
+    def _agreement_ok(self, meas: Measurement) -> bool:
+        """Enough of the cameras that could see the spot have a blob (own or an occluder's) toward it."""
+        a = self._all
+        if a is None:
+            return True
+        agree, total = a.agreement(meas.xy, self.params.max_range_m)
+        if total < 3:
+            return True
+        return agree >= self.config.match.min_view_agreement * total
 
     def _third_views(self, meas: Measurement, views: dict[str, ViewBlobs], pair: tuple[str, str]) -> tuple[int, int]:
         """Cameras outside the pair that do / do not see a blob toward the hypothesis."""
@@ -415,3 +457,48 @@ def _reindex(meas: Measurement, links: dict[str, int]) -> Measurement:
         predicted_error_m=meas.predicted_error_m,
         blobs=tuple((s, links[s]) for s, _ in meas.blobs),
     )
+
+
+@dataclass(frozen=True, slots=True)
+class _AllBlobs:
+    """Every blob of every view in flat arrays, to ask "how many cameras see something toward (x, y)?" at once."""
+
+    origin: FloatArray
+    """(n, 2) camera position of each blob."""
+    bearing: FloatArray
+    half_width: FloatArray
+    sigma_gate: FloatArray
+    view: npt.NDArray[np.int64]
+    """(n,) index of the blob's view."""
+    view_origin: FloatArray
+    """(v, 2) every view's position (views without blobs included)."""
+
+    @staticmethod
+    def of(views: dict[str, ViewBlobs], k_sigma: float) -> _AllBlobs:
+        vs = list(views.values())
+        counts = [v.n for v in vs]
+        idx = np.repeat(np.arange(len(vs)), counts).astype(np.int64)
+        vo = np.array([v.origin_xy for v in vs]).reshape(-1, 2)
+        return _AllBlobs(
+            origin=vo[idx] if idx.size else np.zeros((0, 2)),
+            bearing=np.concatenate([v.bearing_rad for v in vs]) if vs else np.zeros(0),
+            half_width=0.5 * np.concatenate([v.width_rad for v in vs]) if vs else np.zeros(0),
+            sigma_gate=np.repeat([k_sigma * v.sigma_rad for v in vs], counts) if vs else np.zeros(0),
+            view=idx,
+            view_origin=vo,
+        )
+
+    def agreement(self, xy: FloatArray, max_range_m: float) -> tuple[int, int]:
+        """(views with a blob toward ``xy``, views within range of ``xy``)."""
+        d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
+        in_range = (d_view > 0.3) & (d_view <= max_range_m)
+        total = int(np.count_nonzero(in_range))
+        if total == 0 or self.bearing.size == 0:
+            return 0, total
+        rel = xy[None, :] - self.origin
+        dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
+        pred = np.arctan2(rel[:, 1], rel[:, 0])
+        ok = np.abs(_wrap(self.bearing - pred)) - self.half_width < self.sigma_gate + 0.25 / dist
+        seen = np.zeros(self.view_origin.shape[0], dtype=bool)
+        seen[self.view[ok]] = True
+        return int(np.count_nonzero(seen & in_range)), total

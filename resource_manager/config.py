@@ -137,9 +137,15 @@ class MatchSection(ConfigStruct, frozen=True):
     2D tracks (same local ids) and it lies within this distance of the prediction (sharp turns)."""
     max_birth_pairs: PosInt = 12
     """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
+    pair_reuse_tolerance: Annotated[float, msgspec.Meta(ge=1.0, le=10.0)] = 1.5
+    """A camera pair already matched this tick is used when its predicted error is within this factor of the
+    best pair's (1.0: always the best pair; raising it saves Eq. 7 matrices with many cameras)."""
     max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
     """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
     ghost_veto_views: PosInt = 1
+    min_view_agreement: Frac = 0.8
+    """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
+    (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not)."""
     """A new person is refused when this many other cameras that should see the spot see nothing there."""
 
 

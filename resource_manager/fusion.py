@@ -195,10 +195,15 @@ class Fusion:
         self.last_t_ns = t_ns
         self.ingest.last_fusion_ns = t_ns
         aligned: dict[str, AlignedView] = {}
+        surveyed = self.poses.surveyed()
+        # Mutual calibration matters only while some present sensor has no surveyed pose.
+        need_sightings = self.poses.params.enabled and any(
+            sid not in surveyed for sid in self.ingest.buffers if self.present.get(sid, True)
+        )
         for sid, buf in self.ingest.buffers.items():
             if not self.present.get(sid, True):
                 continue
-            view = align_sensor(buf, sid, t_ns, self.align_params)
+            view = align_sensor(buf, sid, t_ns, self.align_params, sightings=need_sightings)
             if view is not None:
                 aligned[sid] = view
         poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)

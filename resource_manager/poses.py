@@ -157,13 +157,17 @@ class PoseSolver:
             return info.pose.z_m
         return self.params.default_height_m
 
-    def _observations(self, sightings: dict[str, list[AlignedSighting]]) -> dict[tuple[str, str], _Obs]:
+    def _observations(
+        self, sightings: dict[str, list[AlignedSighting]], known: dict[str, PoseEstimate]
+    ) -> dict[tuple[str, str], _Obs]:
         obs: dict[tuple[str, str], _Obs] = {}
         for observer, items in sightings.items():
             sigma_b = self.params.boundary_sigma_rad or self.bearing_sigma(observer)
             for s in items:
                 if not s.target_id or s.target_id == observer or s.body_radius_m <= 0:
                     continue
+                if observer in known and s.target_id in known:
+                    continue  # both poses known: this sighting can locate nobody
                 alpha = abs(float(wrap_angle(s.left_rad - s.right_rad)))
                 if not 0.0 < alpha < math.pi:
                     continue
@@ -177,7 +181,7 @@ class PoseSolver:
         self, sightings: dict[str, list[AlignedSighting]], known: dict[str, PoseEstimate]
     ) -> dict[str, RawPose]:
         """One instant's mutual calibration, chained from ``known`` poses (no smoothing)."""
-        obs = self._observations(sightings)
+        obs = self._observations(sightings, known)
         full: dict[str, tuple[float, float, float, float, float]] = {
             k: (p.x_m, p.y_m, p.yaw_rad, p.sigma_xy_m, p.sigma_yaw_rad) for k, p in known.items()
         }

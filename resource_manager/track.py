@@ -66,6 +66,8 @@ class TrackRecord:
     predicted_error_m: float = 0.0
     links: dict[str, int] = field(default_factory=dict)
     """sensor id -> the node's local blob id last associated with this track."""
+    pair_cache: tuple[float, float, frozenset[str], list[object]] | None = None
+    """(x, y, cameras, ranked pairs) of the last pair ranking (re-ranked when the track moved or views changed)."""
 
     @property
     def xy(self) -> FloatArray:

@@ -24,6 +24,8 @@ class RunResult:
     errors_m: list[float]
     tick_ms: list[float]
     ids: set[str]
+    tick_cpu_ms: list[float] = field(default_factory=list)
+    """Thread CPU time per tick (robust to other processes sharing the cores)."""
     results: list[TickResult] = field(default_factory=list)
 
     @property
@@ -64,6 +66,7 @@ def run_scenario(
     hyp: list[dict[str, tuple[float, float]]] = []
     errors: list[float] = []
     tick_ms: list[float] = []
+    cpu_ms: list[float] = []
     ids: set[str] = set()
     results: list[TickResult] = []
     infos_sent = False
@@ -85,7 +88,9 @@ def run_scenario(
             fusion.absorb(Batch(features=batch, infos=infos))
             continue
         start = time.perf_counter()
+        cpu0 = time.thread_time()
         res = fusion.step(Batch(features=batch, infos=infos), T0_NS + int(t_fuse * 1e9))
+        cpu_ms.append((time.thread_time() - cpu0) * 1e3)
         tick_ms.append((time.perf_counter() - start) * 1e3)
         if keep_results:
             results.append(res)
@@ -101,4 +106,4 @@ def run_scenario(
         ids.update(h)
         for x, y in h.values():
             errors.append(min(math.hypot(x - p.x, y - p.y) for p in truth) if truth else math.inf)
-    return RunResult(mota(gt, hyp), errors, tick_ms, ids, results)
+    return RunResult(mota(gt, hyp), errors, tick_ms, ids, tick_cpu_ms=cpu_ms, results=results)
