@@ -79,6 +79,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--speed", type=float, default=1.0)
     _net(p)
 
+    p = sub.add_parser("foxglove", help="serve the live 3D scene to Foxglove over WebSocket (foxglove extra)")
+    p.add_argument("--host", default="127.0.0.1", help="WebSocket listen address")
+    p.add_argument("--port", type=int, default=8765, help="WebSocket port (0: any free port)")
+    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    _net(p)
+
     p = sub.add_parser("plot", help="top-view PNG of a recording (ground truth beside it)")
     p.add_argument("input", metavar="IN.mcap")
     p.add_argument("--out", required=True, metavar="PNG")
@@ -206,6 +212,26 @@ def _replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _foxglove(args: argparse.Namespace) -> int:
+    from user_agent.live import FoxgloveBridge
+
+    settings, prefix, agent_id = _session_and_prefix(args)
+    shutdown = install_signal_handlers()
+    with open_session(settings) as session:
+        bridge = FoxgloveBridge(session, Keys(prefix), args.host, args.port)
+        token = session.liveliness().declare_token(Keys(prefix).agent(agent_id or f"foxglove-{os.getpid()}"))
+        print(f"Foxglove: open ws://{args.host}:{bridge.port}", file=sys.stderr, flush=True)
+        end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+        try:
+            bridge.refresh_sensors()
+            while not shutdown.is_set() and time.monotonic() < end:
+                bridge.pump(0.1)
+        finally:
+            token.undeclare()
+            bridge.close()
+    return 0
+
+
 def _evaluate(args: argparse.Namespace) -> int:
     from user_agent.groundtruth import read_gt_csv
     from user_agent.recording import load_recording
@@ -246,6 +272,8 @@ def run(args: argparse.Namespace) -> int:
         return _replay(args)
     if action == "evaluate":
         return _evaluate(args)
+    if action == "foxglove":
+        return _foxglove(args)
     if action == "plot":
         from user_agent.report import plot_recording
 

@@ -1,0 +1,116 @@
+"""``agent foxglove``: serve the live 3D scene over Foxglove's WebSocket protocol (needs the ``foxglove`` extra).
+
+Open Foxglove, "Open connection", ``ws://HOST:PORT``, and add a 3D panel: the
+same channels as a recording — ``/scene/tracks`` and ``/scene/cameras``
+(``foxglove.SceneUpdate``), ``/tf`` (``foxglove.FrameTransform``) and
+``/tracks`` (the TrackSet as JSON with its schema). The WebSocket server is
+foxglove-sdk's (subprotocol ``foxglove.sdk.v1``); zenoh callbacks only enqueue
+(common.transport), the bridge's own loop converts and logs.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from typing import Any
+
+import msgspec
+
+from common.codec import decode
+from common.errors import ConfigError, SchemaError
+from common.keys import Keys
+from common.schema import SensorInfo, TrackSet
+from common.transport import Inbox
+from user_agent.foxglove import (
+    FRAME_TRANSFORM_SCHEMA,
+    SCENE_UPDATE_SCHEMA,
+    cameras_scene,
+    frame_transform,
+    tracks_scene,
+)
+
+__all__ = ["FoxgloveBridge"]
+
+logger = logging.getLogger(__name__)
+
+
+def _foxglove() -> Any:
+    try:
+        import foxglove
+    except ImportError as err:
+        raise ConfigError("agent foxglove needs foxglove-sdk: pip install 'panostereo[foxglove]'") from err
+    return foxglove
+
+
+class FoxgloveBridge:
+    """Zenoh tracks and sensor info -> a Foxglove WebSocket server.
+
+    Args:
+        session: an open zenoh session.
+        keys: the site's keys.
+        host, port: where the WebSocket server listens (port 0: any free port, see :attr:`port`).
+    """
+
+    def __init__(self, session: Any, keys: Keys, host: str = "127.0.0.1", port: int = 8765) -> None:
+        fg = _foxglove()
+        self._session = session
+        self._keys = keys
+        self._ctx = fg.Context()
+
+        def channel(topic: str, name: str, schema: dict[str, Any]) -> Any:
+            sch = fg.Schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode())
+            return fg.Channel(topic, schema=sch, message_encoding="json", context=self._ctx)
+
+        try:
+            self.server = fg.start_server(name="panostereo", host=host, port=port, context=self._ctx)
+        except Exception as err:  # address in use, bad host
+            raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {err}") from err
+        self._tracks = channel("/scene/tracks", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
+        self._cameras = channel("/scene/cameras", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
+        self._tf = channel("/tf", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
+        self._raw = channel("/tracks", "pano.TrackSet", msgspec.json.schema(TrackSet))
+        self._infos: dict[str, SensorInfo] = {}
+        self._in_tracks = Inbox(session, keys.tracks(), TrackSet, capacity=64)
+        self._in_info = Inbox(session, keys.all_sensor_info, SensorInfo, capacity=64)
+        self.messages = 0
+
+    @property
+    def port(self) -> int:
+        return int(self.server.port)
+
+    def refresh_sensors(self, timeout_s: float = 1.0) -> None:
+        """Query every sensor's info (it is put only on change, so a late bridge asks)."""
+        for reply in self._session.get(self._keys.all_sensor_info, timeout=timeout_s):
+            if reply.ok is None:
+                continue
+            try:
+                self._add_info(decode(reply.ok.payload.to_bytes(), SensorInfo))
+            except SchemaError as err:
+                logger.warning("bad SensorInfo reply dropped: %s", err)
+
+    def _add_info(self, info: SensorInfo) -> None:
+        self._infos[info.sensor_id] = info
+        self._cameras.log(cameras_scene(list(self._infos.values()), info.stamp_ns), log_time=info.stamp_ns)
+        tf = frame_transform(info, info.stamp_ns)
+        if tf is not None:
+            self._tf.log(tf, log_time=info.stamp_ns)
+        self.messages += 1
+
+    def pump(self, timeout_s: float = 0.1) -> int:
+        """Forward what arrived (waits up to ``timeout_s`` for a TrackSet); returns messages logged."""
+        before = self.messages
+        for r in self._in_info.drain():
+            self._add_info(r.msg)
+        first = self._in_tracks.get(timeout_s)
+        for rt in ([first] if first is not None else []) + self._in_tracks.drain():
+            ts = rt.msg
+            xyz = {s: (i.pose.x_m, i.pose.y_m, i.pose.z_m) for s, i in self._infos.items() if i.pose is not None}
+            self._tracks.log(tracks_scene(ts, xyz), log_time=ts.stamp_ns)
+            self._raw.log(msgspec.to_builtins(ts), log_time=ts.stamp_ns)
+            self.messages += 2
+        return self.messages - before
+
+    def close(self) -> None:
+        self._in_tracks.close()
+        self._in_info.close()
+        self.server.stop()
