@@ -29,7 +29,7 @@ from typing import Any
 import msgspec
 
 from common.codec import encode
-from common.errors import ConfigError
+from common.errors import ConfigError, SessionError
 from common.keys import Keys
 from common.schema import ViewPlan
 from common.session import SessionSettings, install_signal_handlers, open_session
@@ -81,6 +81,24 @@ def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int, mobile: set[str])
     return list(shared([p for p in plans if p.sensor_id in mobile], epoch_ns))
 
 
+def _wait_router(router: Supervisor, endpoint: str, log: Path, timeout_s: float = 15.0) -> None:
+    """Wait until our router says it listens; fail clearly if it died (port taken by another router?).
+
+    Connecting is not proof: another router on the same port would accept too.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        router.poll()
+        text = log.read_text(errors="replace") if log.exists() else ""
+        if not router.alive("router"):
+            tail = text.strip().splitlines()[-1:]
+            raise SessionError(f"the demo's router could not start on {endpoint}: {' '.join(tail) or 'it exited'}")
+        if "listening on" in text:
+            return
+        time.sleep(0.1)
+    raise SessionError(f"the demo's router did not report listening on {endpoint} within {timeout_s:g} s")
+
+
 def _with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
     if seed is None:
         return site
@@ -127,13 +145,15 @@ def run(args: argparse.Namespace) -> int:
         meta |= {"room_x_m": str(site.world.room_x_m), "room_y_m": str(site.world.room_y_m)}
 
     shutdown = install_signal_handlers()
-    router = Supervisor([router_plan([args.listen], log_path=out / "logs" / "router.log")], grace_s=3.0)
+    router_log = out / "logs" / "router.log"
+    router = Supervisor([router_plan([args.listen], log_path=router_log)], restart=False, grace_s=3.0)
     procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
     tty = sys.stdout.isatty() and not args.no_view
     router.start()
     recording = out / "recording.mcap"
     t_stop_ns = epoch_ns
     try:
+        _wait_router(router, endpoint, router_log)
         settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
             recorder = Recorder(session, keys.all, McapSink(recording, meta))
