@@ -200,13 +200,13 @@ class FaultSite:
         return "".join(p.log() for p in self.procs)
 
 
-@pytest.fixture
-def site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
+def make_fault_site(tmp_path: Path, prefix: str = "faults") -> FaultSite:
+    """The room, its detection files and an unused router port (nothing started yet)."""
     cams, walkers = make_room(SENSORS, PEOPLE, SEED)
     files = write_detection_cameras(tmp_path / "cams", cams, walkers, FPS, LOOP_S)
-    s = FaultSite(
+    return FaultSite(
         tmp=tmp_path,
-        prefix="faults",
+        prefix=prefix,
         port=free_port(),
         epoch_ns=time.time_ns(),
         cams=cams,
@@ -214,6 +214,11 @@ def site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
         files=files,
         log_dir=tmp_path / "logs",
     )
+
+
+@contextlib.contextmanager
+def running(s: FaultSite, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
+    """Stop every process of the site at the end; print their logs if the test failed."""
     try:
         yield s
     finally:
@@ -221,6 +226,12 @@ def site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
         rep = getattr(request.node, "rep_call", None)
         if rep is not None and rep.failed:
             sys.stderr.write(s.logs())
+
+
+@pytest.fixture
+def site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
+    with running(make_fault_site(tmp_path), request) as s:
+        yield s
 
 
 @contextlib.contextmanager
@@ -482,7 +493,7 @@ def test_late_and_out_of_order_frames_are_counted_and_tracking_holds(site: Fault
         first, last = obs.status_since(t0)[0], obs.status_since(t0)[-1]
         assert last.out_of_order_msgs > first.out_of_order_msgs, (first, last)
         assert last.late_msgs > first.late_msgs, (first, last)
-        assert obs.tracking_with(t0, extra, min_sets=10)
+        wait_for(lambda: obs.tracking_with(t0, extra, min_sets=10), 15.0, "the faulty cameras still in use")
         # The tracks stay on the people: each confirmed track near someone (ground truth scores, never feeds).
         recent = [s for s in obs.sets_since(t0) if obs.confirmed(s)][-5:]
         for ts in recent:
