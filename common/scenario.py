@@ -42,7 +42,7 @@ import numpy as np
 from common.errors import ConfigError
 from common.paths import WalkerSim
 from common.people import Door, WalkerLook
-from common.robots import RobotMotion
+from common.robots import ROBOT_CLEARANCE_M, RobotMotion, stop_short
 from common.schema import ViewPlan
 from common.site import CameraSpec, SiteConfig, WorldSpec
 
@@ -238,9 +238,11 @@ class World:
         """Send a mobile robot to (x, y) from world time ``issued_s`` at its ``max_speed_mps``.
 
         The goal is clamped into the room (the body stays clear of the walls).
-        Goals are ordered by issue time (ties: by the order they were given), so
-        the trajectory does not depend on when the call is made; a goal already
-        applied is ignored.
+        All goals are replayed in (issue time, sensor, x, y) order, so the
+        trajectories do not depend on when or in which order the calls are made;
+        a goal already applied is ignored. The robot stops short of any other
+        platform in its way (where it is at the issue time, and where its latest
+        goal takes it).
 
         Returns:
             The goal as applied (after clamping).
@@ -267,9 +269,27 @@ class World:
             if goal in self._goals:
                 return goal  # already applied: giving the same goal twice changes nothing
             self._goals.append(goal)
-            self._motion[sensor_id].add_goal(goal.issued_s, (gx, gy))
+            self._replay_goals()
         self._walkers.invalidate_from(goal.issued_s)
         return goal
+
+    def _replay_goals(self) -> None:
+        """Rebuild every robot's trajectory from all goals, in (issue time, sensor, x, y) order."""
+        for motion in self._motion.values():
+            motion.clear_goals()
+        for g in sorted(self._goals, key=lambda g: (g.issued_s, g.sensor_id, g.x_m, g.y_m)):
+            me = self._motion[g.sensor_id]
+            blockers = []
+            for cam in self.cameras:
+                other = self._motion[cam.id]
+                if cam.id == g.sensor_id or (cam.kind == "ptz" and cam.body_radius_m <= 0.0):
+                    continue
+                keep = me.radius_m + max(cam.body_radius_m, 0.1) + ROBOT_CLEARANCE_M
+                blockers.append((*other.xy(g.issued_s), keep))
+                dest = other.destination(g.issued_s)
+                if dest is not None:
+                    blockers.append((*dest, keep))
+            me.append_goal(g.issued_s, stop_short(me.xy(g.issued_s), (g.x_m, g.y_m), blockers))
 
     def with_goals(self, goals: Iterable[Goal]) -> World:
         """A new world with these goals added to the ones already set."""

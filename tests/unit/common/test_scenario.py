@@ -289,3 +289,23 @@ def test_line_paths_go_back_and_forth_between_the_end_points() -> None:
     assert np.hypot(x - 1.0, y - 4.0).min() < 0.35 and np.hypot(x - 7.0, y - 4.5).min() < 0.35
     turns = np.sum(np.diff(np.sign(np.diff(x))) != 0)
     assert turns >= 4
+
+
+def test_robots_stop_short_of_other_platforms_whatever_the_goal_order() -> None:
+    goals = [Goal("r1", 4.0, 3.0, 5.0), Goal("r2", 4.0, 3.0, 5.0), Goal("r1", 4.0, 4.9, 30.0)]
+    a = World.from_site(_site(), goals)
+    b = World.from_site(_site())
+    for g in reversed(goals):
+        b.set_goal(g.sensor_id, g.x_m, g.y_m, g.issued_s)
+    for t in (10.0, 25.0, 40.0, 60.0):
+        assert a.platforms_at(t) == b.platforms_at(t)
+    for t in np.arange(0.0, 60.0, 0.5):
+        pls = [p for p in a.platforms_at(float(t)) if p.radius_m > 0]
+        for p, q in itertools.combinations(pls, 2):
+            assert math.hypot(p.x_m - q.x_m, p.y_m - q.y_m) >= p.radius_m + q.radius_m + 0.05
+    r1, r2 = a.platform_at("r1", 25.0), a.platform_at("r2", 25.0)
+    assert (r1.x_m, r1.y_m) == pytest.approx((4.0, 3.0))  # first by sensor id at a tie: it gets there
+    assert math.hypot(r2.x_m - 4.0, r2.y_m - 3.0) == pytest.approx(0.18 + 0.18 + 0.1, abs=0.02)
+    post = a.platform_at("post", 60.0)  # r1's last goal is inside the post: it stops at its bumper
+    r1 = a.platform_at("r1", 60.0)
+    assert math.hypot(r1.x_m - post.x_m, r1.y_m - post.y_m) == pytest.approx(0.18 + 0.18 + 0.1, abs=0.02)
