@@ -26,7 +26,7 @@ from pathlib import Path
 from common.errors import ConfigError
 from common.session import install_signal_handlers
 from common.site import load_site
-from panostereo.launcher import EPOCH_ENV, ProcessPlan, Supervisor, router_plan, site_plans
+from panostereo.launcher import EPOCH_ENV, STATE_ENV, ProcessPlan, Supervisor, router_plan, site_plans
 
 __all__ = ["configure", "run"]
 
@@ -40,6 +40,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--listen", action="append", default=None, metavar="ENDPOINT", help="router endpoint(s)")
     parser.add_argument("--connect", default=None, metavar="ENDPOINT", help="override every process's router")
     parser.add_argument("--log-dir", default=None, metavar="DIR", help="per-process log files (default: inherit)")
+    parser.add_argument(
+        "--state-dir",
+        default=None,
+        metavar="DIR",
+        help="managers keep their track logs in DIR/<id> (env PANOSTEREO_STATE_DIR)",
+    )
     parser.add_argument("--grace", type=float, default=5.0, help="seconds between SIGTERM and SIGKILL at stop")
     parser.add_argument("--backoff-max", type=float, default=30.0, help="longest restart delay (s)")
 
@@ -47,6 +53,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     env = {EPOCH_ENV: os.environ.get(EPOCH_ENV) or str(time.time_ns())}
+    if args.state_dir:
+        env[STATE_ENV] = str(Path(args.state_dir).resolve())
     log_dir = Path(args.log_dir) if args.log_dir else None
     plans: list[ProcessPlan] = []
     if args.router:
