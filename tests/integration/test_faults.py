@@ -509,10 +509,72 @@ def _dist(w: Walker, t_s: float, trk: Track) -> float:
     return float(((x - trk.x_m) ** 2 + (y - trk.y_m) ** 2) ** 0.5)
 
 
-# Helpers kept for the manager-restart test below.
+# ---------------------------------------------------------------------------
+# kill -9 the manager under `panostereo up`
+# ---------------------------------------------------------------------------
+
 _TRACK_NUM = re.compile(r"-(\d+)$")
 
 
 def _track_number(track_id: str) -> int:
     m = _TRACK_NUM.search(track_id)
     return int(m.group(1)) if m else -1
+
+
+def _child_pid(up_log: ManagedProcess, name: str, after: int = 0) -> int:
+    """The pid the supervisor logged for its ``after``-th start of ``name``."""
+    pids = [int(m.group(1)) for m in re.finditer(rf"started {re.escape(name)} \(pid (\d+)\)", up_log.stderr_text())]
+    return pids[after] if len(pids) > after else 0
+
+
+def _history(session: Any, keys: Keys, track_id: str, seconds: float) -> list[Track]:
+    import zenoh
+
+    selector = zenoh.Selector(keys.track(track_id), {"history": f"{seconds:g}"})
+    return [decode(r.ok.payload.to_bytes(), Track) for r in session.get(selector, timeout=3.0) if r.ok is not None]
+
+
+def test_kill9_manager_under_up_restarts_ids_continue_history_served(site: FaultSite) -> None:
+    lines = [f'[site]\nname = "faults"\nprefix = "{site.prefix}"\nrouter = "{site.endpoint}"\n']
+    lines.append(f'[[process]]\nname = "manager"\ncommand = "manager"\nconfig = "{site.manager_config()}"\n')
+    for sid in site.ids:
+        lines.append(f'[[process]]\nname = "{sid}"\ncommand = "node"\nconfig = "{site.node_config(sid)}"\n')
+    site_file = site.tmp / "site.toml"
+    site_file.write_text("\n".join(lines))
+    up = site._spawn(
+        [sys.executable, "-m", "panostereo", "up", str(site_file), "--router", "--log-dir", str(site.tmp / "up")], "up"
+    )
+    wait_for_port(site.port, 20.0, proc=up)
+    with observing(site) as obs, open_session(SessionSettings(mode="client", connect=[site.endpoint])) as s:
+        _up_to_speed(site, obs)
+        t_pre = time.monotonic()
+        wait_for(lambda: obs.tracking_with(t_pre, set(site.ids), min_sets=20), 20.0, "two seconds of tracking")
+        pre_ids = {t.track_id for ts in obs.sets_since(0) for t in ts.tracks}
+        victim_track = max(
+            (t for ts in obs.sets_since(t_pre) for t in obs.confirmed(ts)), key=lambda t: t.hits
+        ).track_id
+        pid = wait_for(lambda: _child_pid(up, "manager"), 5.0, "the manager's pid in the supervisor's log")
+        crash_ns = time.time_ns()
+        t_kill = time.monotonic()
+        os.kill(pid, signal.SIGKILL)
+        mgr_key = site.keys.manager(MANAGER_ID)
+        wait_for(lambda: obs.alive_change(mgr_key, False, t_kill), 5.0, "the manager's token to go")
+        # The supervisor restarts it; it announces itself and tracks again.
+        wait_for(lambda: _child_pid(up, "manager", after=1), 15.0, "the supervisor to restart the manager")
+        wait_for(lambda: obs.alive_change(mgr_key, True, t_kill), 20.0, "the restarted manager's token")
+        t_back = time.monotonic()
+        _up_to_speed(site, obs, timeout_s=30.0)
+        post_ids = {t.track_id for ts in obs.sets_since(t_back) for t in ts.tracks}
+        new_ids = post_ids - pre_ids
+        assert new_ids, "no track was born after the restart"
+        # Ids continue: everything born after the crash numbers above everything handed out before.
+        assert min(map(_track_number, new_ids)) > max(map(_track_number, pre_ids)), (sorted(pre_ids), sorted(new_ids))
+        # History from before the crash is still served by the restarted manager.
+        past = _history(s, site.keys, victim_track, 600.0)
+        assert past, f"no history for {victim_track} after the restart"
+        assert all(t.track_id == victim_track for t in past)
+        assert any(t.stamp_ns < crash_ns for t in past), "the history holds nothing from before the crash"
+        assert [t.stamp_ns for t in past] == sorted(t.stamp_ns for t in past), "history not oldest first"
+    assert up.alive, up.log()
+    up.signal(signal.SIGTERM)
+    assert up.wait(30.0) == 0, up.log()
