@@ -161,6 +161,9 @@ class World:
         self.door = Door(x0_m=x1 - door_w, x1_m=x1, height_m=min(2.1, 0.9 * spec.wall_height_m))
         self._motion = {cam.id: RobotMotion(cam) for cam in self.cameras}
         self._goals: list[Goal] = []
+        self._goal_set: set[Goal] = set()
+        self._applied_key: tuple[float, str, float, float] | None = None
+        self._last_target: dict[str, tuple[float, float]] = {}
         self._lock = threading.Lock()
         self._walkers = WalkerSim(spec, self.seed, self._obstacles, self.door)
         for g in goals:
@@ -238,11 +241,12 @@ class World:
         """Send a mobile robot to (x, y) from world time ``issued_s`` at its ``max_speed_mps``.
 
         The goal is clamped into the room (the body stays clear of the walls).
-        All goals are replayed in (issue time, sensor, x, y) order, so the
-        trajectories do not depend on when or in which order the calls are made;
-        a goal already applied is ignored. The robot stops short of any other
-        platform in its way (where it is at the issue time, and where its latest
-        goal takes it).
+        Goals take effect in canonical (issue time, sensor, x, y) order, so the
+        trajectories do not depend on when or in which order the calls are made.
+        A goal within 1 cm of the same robot's previous goal is a repeat (a
+        re-published plan) and changes nothing, as in :func:`goals_from_plans`.
+        The robot stops short of any other platform in its way (where it is at
+        the issue time, and where its latest goal takes it).
 
         Returns:
             The goal as applied (after clamping).
@@ -266,30 +270,48 @@ class World:
             )
         goal = Goal(sensor_id=sensor_id, x_m=gx, y_m=gy, issued_s=max(0.0, float(issued_s)))
         with self._lock:
-            if goal in self._goals:
+            if goal in self._goal_set:
                 return goal  # already applied: giving the same goal twice changes nothing
             self._goals.append(goal)
-            self._replay_goals()
-        self._walkers.invalidate_from(goal.issued_s)
+            self._goal_set.add(goal)
+            if self._applied_key is None or _goal_key(goal) > self._applied_key:
+                changed = self._apply_goal(goal)  # the usual case: goals arrive in time order
+            else:
+                self._replay_goals()  # a late goal: rebuild everything in canonical order
+                changed = True
+        if changed:
+            self._walkers.invalidate_from(goal.issued_s)
         return goal
 
+    def _apply_goal(self, g: Goal) -> bool:
+        """Append one goal (the latest in canonical order); False when it repeats the robot's previous goal."""
+        self._applied_key = _goal_key(g)
+        prev = self._last_target.get(g.sensor_id)
+        if prev is not None and math.dist(prev, (g.x_m, g.y_m)) < SAME_GOAL_M:
+            return False  # a re-published plan: not a new goal
+        self._last_target[g.sensor_id] = (g.x_m, g.y_m)
+        me = self._motion[g.sensor_id]
+        blockers = []
+        for cam in self.cameras:
+            other = self._motion[cam.id]
+            if cam.id == g.sensor_id or (cam.kind == "ptz" and cam.body_radius_m <= 0.0):
+                continue
+            keep = me.radius_m + max(cam.body_radius_m, 0.1) + ROBOT_CLEARANCE_M
+            blockers.append((*other.xy(g.issued_s), keep))
+            dest = other.destination(g.issued_s)
+            if dest is not None:
+                blockers.append((*dest, keep))
+        me.append_goal(g.issued_s, stop_short(me.xy(g.issued_s), (g.x_m, g.y_m), blockers))
+        return True
+
     def _replay_goals(self) -> None:
-        """Rebuild every robot's trajectory from all goals, in (issue time, sensor, x, y) order."""
+        """Rebuild every robot's trajectory from all goals, in canonical (issue time, sensor, x, y) order."""
         for motion in self._motion.values():
             motion.clear_goals()
-        for g in sorted(self._goals, key=lambda g: (g.issued_s, g.sensor_id, g.x_m, g.y_m)):
-            me = self._motion[g.sensor_id]
-            blockers = []
-            for cam in self.cameras:
-                other = self._motion[cam.id]
-                if cam.id == g.sensor_id or (cam.kind == "ptz" and cam.body_radius_m <= 0.0):
-                    continue
-                keep = me.radius_m + max(cam.body_radius_m, 0.1) + ROBOT_CLEARANCE_M
-                blockers.append((*other.xy(g.issued_s), keep))
-                dest = other.destination(g.issued_s)
-                if dest is not None:
-                    blockers.append((*dest, keep))
-            me.append_goal(g.issued_s, stop_short(me.xy(g.issued_s), (g.x_m, g.y_m), blockers))
+        self._last_target = {}
+        self._applied_key = None
+        for g in sorted(self._goals, key=_goal_key):
+            self._apply_goal(g)
 
     def with_goals(self, goals: Iterable[Goal]) -> World:
         """A new world with these goals added to the ones already set."""
@@ -354,6 +376,10 @@ def sensor_bearing(platform: PlatformState, x_m: float, y_m: float) -> float:
     """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a world point seen from a platform."""
     b = math.atan2(y_m - platform.y_m, x_m - platform.x_m) - platform.yaw_rad
     return float(np.mod(b + math.pi, 2.0 * math.pi) - math.pi)
+
+
+def _goal_key(g: Goal) -> tuple[float, str, float, float]:
+    return (g.issued_s, g.sensor_id, g.x_m, g.y_m)
 
 
 def world_time_s(stamp_ns: int, epoch_ns: int) -> float:

@@ -309,3 +309,18 @@ def test_robots_stop_short_of_other_platforms_whatever_the_goal_order() -> None:
     post = a.platform_at("post", 60.0)  # r1's last goal is inside the post: it stops at its bumper
     r1 = a.platform_at("r1", 60.0)
     assert math.hypot(r1.x_m - post.x_m, r1.y_m - post.y_m) == pytest.approx(0.18 + 0.18 + 0.1, abs=0.02)
+
+
+def test_repeated_plans_are_not_new_goals() -> None:
+    once = World.from_site(_site(), [Goal("r1", 5.0, 2.0, 3.0)])
+    many = World.from_site(_site())
+    for k in range(200):  # a plan re-published at 10 Hz
+        many.set_goal("r1", 5.0 + 0.001 * (k % 3), 2.0, 3.0 + 0.1 * k)
+    for t in (3.0, 5.0, 9.0, 30.0):
+        assert many.platforms_at(t) == once.platforms_at(t)
+    late = World.from_site(_site())
+    late.set_goal("r1", 5.0, 2.0, 8.0)
+    late.set_goal("r1", 3.0, 4.0, 5.0)  # arrives late: now the 8 s goal is no longer a repeat
+    ordered = World.from_site(_site(), [Goal("r1", 3.0, 4.0, 5.0), Goal("r1", 5.0, 2.0, 8.0)])
+    for t in (6.0, 9.0, 30.0):
+        assert late.platforms_at(t) == ordered.platforms_at(t)
