@@ -174,13 +174,17 @@ class BackgroundModel:
         background; people who stand still are kept.
         """
         s = self.settings
+        # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
+        if self._frames % STATIC_EVERY or self._bg_u8 is None:
+            return
         still = cv2.bitwise_and(fg, cv2.bitwise_not(moving))
         if self._static is None:
             self._static = np.zeros_like(grey)
         self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
-        if self._frames % 4 or self._bg_u8 is None:
+        samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
+        old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
+        if cv2.countNonZero(old) < s.min_blob_px:
             return
-        old = cv2.threshold(self._static, min(254, s.ghost_frames), 255, cv2.THRESH_BINARY)[1]
         n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
         absorbed = False
         for k in range(1, n):
@@ -204,6 +208,9 @@ class BackgroundModel:
         if absorbed and self._bg is not None:
             self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
+
+STATIC_EVERY = 4
+"""Frames between samples of the changed-but-still counter (ghost detection)."""
 
 _K3 = np.ones((3, 3), np.uint8)
 

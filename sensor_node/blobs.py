@@ -100,31 +100,38 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
 def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True) -> list[RawBlob]:
     """Group the foreground pixels of one frame into validated blobs.
 
+    Grouping runs on a ``group_scale``-times reduced mask (a reduced pixel is set
+    if any of its pixels is): connected components cost in proportion to the
+    pixels scanned, and people are far larger than a reduced pixel. Each
+    group's box is then cut from the full-resolution mask and trimmed to it, so
+    boxes, masks and heads keep full resolution.
+
     Args:
         fg: (H, W) 255 = changed against the background.
         moving: (H, W) 255 = changed since the previous frame (frame differencing).
         settings: grouping and validation knobs.
         wrap: the image is a 360-degree panorama (columns wrap around).
     """
-    width = fg.shape[1]
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8, ltype=cv2.CV_32S)
+    height, width = fg.shape
+    k = settings.group_scale
+    small = fg if k == 1 else cv2.resize(fg, (width // k, height // k), interpolation=cv2.INTER_AREA)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=cv2.CV_32S)
     if n <= 1:
         return []
+    width_s = small.shape[1]
     st = stats[1:].astype(np.int64)
-    keep = np.flatnonzero(st[:, cv2.CC_STAT_AREA] >= settings.min_component_px)
-    if keep.size == 0:
+    st = st[st[:, cv2.CC_STAT_AREA] * k * k >= settings.min_component_px]
+    if st.shape[0] == 0:
         return []
-    st = st[keep]
-    ids = keep + 1
     a0 = st[:, cv2.CC_STAT_LEFT]
     a1 = a0 + st[:, cv2.CC_STAT_WIDTH] - 1
     b0 = st[:, cv2.CC_STAT_TOP]
     b1 = b0 + st[:, cv2.CC_STAT_HEIGHT] - 1
-    gx, gy = settings.merge_gap_px
+    gx, gy = (-(-g // k) for g in settings.merge_gap_px)
     # Pairwise box gaps (<= 0: overlapping or touching), columns also across the seam.
     gap_x = np.maximum(a0[:, None], a0[None, :]) - np.minimum(a1[:, None], a1[None, :]) - 1
     if wrap:
-        for shift in (width, -width):
+        for shift in (width_s, -width_s):
             g = np.maximum(a0[:, None], a0[None, :] + shift) - np.minimum(a1[:, None], a1[None, :] + shift) - 1
             gap_x = np.minimum(gap_x, g)
     gap_y = np.maximum(b0[:, None], b0[None, :]) - np.minimum(b1[:, None], b1[None, :]) - 1
@@ -132,26 +139,41 @@ def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = 
     out: list[RawBlob] = []
     for members in _groups(adj):
         m = np.asarray(members)
-        area = int(st[m, cv2.CC_STAT_AREA].sum())
-        v0, v1 = int(b0[m].min()), int(b1[m].max())
-        h = v1 - v0 + 1
-        if area < settings.min_blob_px or h < settings.min_blob_height_px:
+        if int(st[m, cv2.CC_STAT_AREA].sum()) * k * k < settings.min_blob_px:
             continue
         if wrap and len(m) > 1:
-            u0 = _circular_start(a0[m], a1[m], width)
-            s0 = np.where(a0[m] < u0, a0[m] + width, a0[m])
-            s1 = s0 + (a1[m] - a0[m])
-            w = int(s1.max()) - u0 + 1
+            u0 = _circular_start(a0[m], a1[m], width_s)
+            s0 = np.where(a0[m] < u0, a0[m] + width_s, a0[m])
+            ws = int((s0 + (a1[m] - a0[m])).max()) - u0 + 1
         else:
             u0 = int(a0[m].min())
-            w = int(a1[m].max()) - u0 + 1
-        w = min(w, width)
-        changed = area / float(w * h)
-        if changed < settings.min_changed_frac:
+            ws = int(a1[m].max()) - u0 + 1
+        v0 = int(b0[m].min())
+        box = (u0 * k, v0 * k, min(ws * k, width), (int(b1[m].max()) - v0 + 1) * k)
+        blob = _cut(fg, moving, box, wrap)
+        if blob is None or blob.area_px < settings.min_blob_px or blob.h < settings.min_blob_height_px:
             continue
-        lab = roi(labels, u0, v0, w, h)
-        mask = lab == ids[m[0]] if len(m) == 1 else np.isin(lab, ids[m])
-        mov = roi(moving, u0, v0, w, h)
-        moving_px = int(np.count_nonzero(mov[mask]))
-        out.append(RawBlob(u0, v0, w, h, mask, area, min(1.0, changed), moving_px / max(area, 1)))
+        if blob.changed_frac < settings.min_changed_frac:
+            continue
+        out.append(blob)
     return out
+
+
+def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
+    """The blob in a full-resolution box (u0, v0, w, h): its changed pixels, the box trimmed to them."""
+    height, width = fg.shape
+    u0, v0, w, h = box
+    h = min(h, height - v0)
+    if not wrap:
+        w = min(w, width - u0)
+    mask: npt.NDArray[np.bool_] = np.asarray(roi(fg, u0, v0, w, h)) > 0
+    cols = np.flatnonzero(mask.any(axis=0))
+    rows = np.flatnonzero(mask.any(axis=1))
+    if cols.size == 0:
+        return None
+    c0, c1, r0, r1 = int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1])
+    mask = mask[r0 : r1 + 1, c0 : c1 + 1]
+    u0, v0, w, h = (u0 + c0) % width, v0 + r0, c1 - c0 + 1, r1 - r0 + 1
+    area = int(np.count_nonzero(mask))
+    moving_px = int(np.count_nonzero(roi(moving, u0, v0, w, h)[mask]))
+    return RawBlob(u0, v0, w, h, mask, area, area / float(w * h), moving_px / max(area, 1))

@@ -209,7 +209,7 @@ class PipelineSettings(ConfigStruct, frozen=True):
     learning_rate: Frac = 0.05
     """Weight of the current frame in the background average (outside objects). Higher: follows slow
     light drift faster but absorbs people who stand still sooner; lower: the opposite."""
-    update_every: PosInt = 2
+    update_every: PosInt = 4
     """Update the background every N frames (the rate is scaled to match). Higher: cheaper, slower."""
     abnormal_frac: Frac = 0.35
     """Fraction of changed pixels that means a sudden global change (light switch, camera moved) rather
@@ -223,6 +223,9 @@ class PipelineSettings(ConfigStruct, frozen=True):
     ghost_frames: PosInt = 20
     """Frames a changed region must stay still before it is tested for being a ghost (something that
     left the background). Lower: ghosts vanish sooner, more tests; higher: the opposite."""
+    group_scale: PosInt = 2
+    """Reduction of the mask that connected components and grouping run on (1: full resolution).
+    Higher: cheaper; thin or tiny regions may be missed. Boxes and heads stay full resolution."""
     min_component_px: PosInt = 6
     """Connected regions smaller than this are noise and ignored before grouping."""
     merge_gap_px: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
@@ -246,7 +249,7 @@ class PipelineSettings(ConfigStruct, frozen=True):
     fast motion, more swaps between neighbours."""
     track_max_missed: Annotated[int, msgspec.Meta(ge=0)] = 5
     """Frames a 2D track survives without a blob before its local id is retired."""
-    sighting_every: PosInt = 1
+    sighting_every: PosInt = 2
     """Look for other robots' bodies every N frames (their last sightings are repeated in between)."""
     band_min_px: PosInt = 12
     """Pixels of a body's band colour needed to accept a sighting. Lower: farther robots, more false hits."""

@@ -48,29 +48,28 @@ def extract_head(mask: npt.NDArray[np.bool_], head_ratio: float = 1.5) -> Head:
         raise ValueError("extract_head needs a non-empty blob mask")
     top = int(rows[0])
     h = int(rows[-1]) - top + 1
-    # Crown rows: about the top tenth of the body, at least 2 rows.
+    # Crown rows: about the top tenth of the body, at least 2 rows; their extents give the head width.
     k = max(2, min(h, round(0.1 * h)))
     crown = mask[top : top + k]
-    widths = []
-    for r in crown:
-        cols = np.flatnonzero(r)
-        if cols.size:
-            widths.append(int(cols[-1] - cols[0] + 1))
-    head_w = max(2, int(np.median(widths)) if widths else 2)
+    width = crown.shape[1]
+    first = crown.argmax(axis=1)
+    last = width - 1 - crown[:, ::-1].argmax(axis=1)
+    filled = crown[np.arange(crown.shape[0]), first]
+    widths = sorted((last - first + 1)[filled].tolist())
+    head_w = max(2, int(widths[len(widths) // 2]))
     head_h = max(2, min(h, round(head_ratio * head_w)))
     region = mask[top : top + head_h]
     # Per-row pixel centroids, averaged over the rows that are head-wide (a shoulder row that
     # slipped into the box would pull the centroid towards the body).
     counts = region.sum(axis=1)
-    col_idx = np.arange(region.shape[1], dtype=np.float64)
     ok = (counts > 0) & (counts <= max(1.5 * head_w, 2))
     if not ok.any():
         ok = counts > 0
-    row_u = (region[ok] @ col_idx) / counts[ok]
-    row_v = np.flatnonzero(ok).astype(np.float64)
+    row_u = (region[ok] @ np.arange(width, dtype=np.float64)) / counts[ok]
+    row_v = np.flatnonzero(ok)
     return Head(
-        u_px=float(row_u.mean()),
-        v_px=float(row_v.mean()) + top,
+        u_px=float(row_u.sum()) / row_u.size,
+        v_px=float(row_v.sum()) / row_v.size + top,
         top_px=top,
         width_px=head_w,
         height_px=head_h,

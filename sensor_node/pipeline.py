@@ -18,7 +18,6 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -29,7 +28,7 @@ from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import ImageGeometry, PanoramicGeometry, annotate, to_wire
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
 from sensor_node.tracks2d import Tracker2D
-from sensor_node.unwarp import Unwarper
+from sensor_node.unwarp import PanoFrame, Unwarper
 
 __all__ = ["FrameResult", "ImagePipeline"]
 
@@ -45,8 +44,8 @@ class FrameResult:
     """The background model's verdict on this frame."""
     body_blobs: int
     """Motion blobs recognised as robot bodies (not reported as people)."""
-    pano: Image
-    """The processed (unwarped) colour image."""
+    frame: PanoFrame
+    """The processed frame (grey panorama, reduced colour)."""
 
 
 class ImagePipeline:
@@ -95,12 +94,12 @@ class ImagePipeline:
     def process(self, frame: Image, stamp_ns: int, frame_index: int) -> FrameResult:
         """Run every stage on one frame and build its Features (``processing_ms`` left 0)."""
         s = self.settings
-        pano = self.unwarper.apply(frame) if self.unwarper is not None else frame
-        grey = cv2.cvtColor(pano, cv2.COLOR_BGR2GRAY)
+        pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
+        grey = pf.grey
         motion = self.background.apply(grey)
         width = grey.shape[1]
         if self.bands is not None and self._frames % s.sighting_every == 0:
-            self._last_sightings = self.bands.find(pano)
+            self._last_sightings = self.bands.find(pf)
         self._frames += 1
         sightings = self._last_sightings
         raws = find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps) if motion.reportable else []
@@ -113,7 +112,7 @@ class ImagePipeline:
             if sightings and is_body_blob(raw.u0, raw.w, width, sightings):
                 n_body += 1
                 continue
-            people.append(annotate(raw, pano, self.geometry, s.head_ratio, s.hist_bins))
+            people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins))
         if self._tracker is None:
             self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
         ids = self._tracker.update(
@@ -129,7 +128,7 @@ class ImagePipeline:
             sightings=[b.sighting for b in sightings][:32],
         )
         self.seq += 1
-        return FrameResult(features, motion.state, n_body, pano)
+        return FrameResult(features, motion.state, n_body, pf)
 
 
 def _paint_box(mask: Image, u0: int, v0: int, w: int, h: int) -> None:

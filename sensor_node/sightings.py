@@ -40,6 +40,7 @@ from common.geometry import baseline_exact, sighting_bearing
 from common.schema import Sighting
 from sensor_node.blobs import roi
 from sensor_node.config import BodySpec, PipelineSettings
+from sensor_node.unwarp import PanoFrame
 
 __all__ = ["BandFinder", "BodySighting", "is_body_blob"]
 
@@ -113,11 +114,18 @@ class BandFinder:
         # Bands are below the camera: search from the horizon down.
         self.row0 = max(0, min(camera.height_px - 1, math.floor(camera.v0_px)))
 
-    def find(self, pano_bgr: Image) -> list[BodySighting]:
-        """Every known body visible in this panorama (at most one per body)."""
+    def find(self, frame: PanoFrame) -> list[BodySighting]:
+        """Every known body visible in this frame (at most one per body).
+
+        The colour search runs on the frame's reduced colour panorama; the
+        boundaries are measured on full-resolution colour around the band only.
+        """
         if not self.bodies:
             return []
-        lower = pano_bgr[self.row0 :]
+        s = frame.scale
+        r0s = self.row0 // s
+        hs, ws = frame.grey.shape[0] // s, frame.grey.shape[1] // s
+        lower = frame.small_box(0, r0s, ws, hs - r0s)
         hsv = cv2.cvtColor(lower, cv2.COLOR_BGR2HSV)
         out = []
         for body, ranges in zip(self.bodies, self._ranges, strict=True):
@@ -126,69 +134,74 @@ class BandFinder:
                 m = cv2.inRange(hsv, (h0, 90, 50), (h1, 255, 255))
                 mask = m if mask is None else cv2.bitwise_or(mask, m)
             assert mask is not None
-            found = self._measure(pano_bgr, mask, body)
+            found = self._measure(frame, lower, mask, r0s, body)
             if found is not None:
                 out.append(found)
         return out
 
-    def _measure(self, pano_bgr: Image, mask: Image, body: BodySpec) -> BodySighting | None:
-        width = pano_bgr.shape[1]
+    def _measure(self, frame: PanoFrame, lower: Image, mask: Image, r0s: int, body: BodySpec) -> BodySighting | None:
+        s = frame.scale
+        width_s = mask.shape[1]
         per_col = cv2.reduce(mask, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel() // 255
-        if int(per_col.sum()) < self.settings.band_min_px:
+        min_px = max(1, self.settings.band_min_px // (s * s))
+        if int(per_col.sum()) < min_px:
             return None
         cands = []
         for u0, n in _runs(per_col >= 1, wrap=True):
-            count = int(per_col[np.arange(u0, u0 + n) % width].sum())
-            if count >= self.settings.band_min_px:
+            count = int(per_col[np.arange(u0, u0 + n) % width_s].sum())
+            if count >= min_px:
                 cands.append((count, u0, n))
         # Most band pixels first; the first run that looks like a band on a white body wins.
         for _, u0, n in sorted(cands, reverse=True):
-            found = self._validate(pano_bgr, mask, u0, n)
-            if found is not None:
-                return self._boundaries(pano_bgr, body, (u0, n), found)
+            rows = self._validate(lower, mask, r0s, u0, n)
+            if rows is not None:
+                r0, r1 = rows[0] * s, rows[1] * s + s - 1
+                return self._boundaries(frame, body, (u0 * s, n * s), (r0, r1))
         return None
 
-    def _validate(self, pano_bgr: Image, mask: Image, u0: int, n: int) -> tuple[int, int] | None:
-        """Band rows (r0, r1) of a candidate run, or None if it is not a band on a white body."""
+    def _validate(self, lower: Image, mask: Image, r0s: int, u0: int, n: int) -> tuple[int, int] | None:
+        """Band rows (r0, r1) of a candidate run in the reduced image, or None if it is not a band on a white body.
+
+        ``lower`` and ``mask`` are the reduced image's rows from ``r0s`` down.
+        """
         band = roi(mask, u0, 0, n, mask.shape[0])
         # Band rows: at least half the run's columns are band-coloured (ignores the mast, logos, noise).
         rows = np.flatnonzero(np.count_nonzero(band, axis=1) >= max(1, n // 2))
         if rows.size == 0:
             return None
-        r0, r1 = int(rows[0]) + self.row0, int(rows[-1]) + self.row0
+        r0, r1 = int(rows[0]), int(rows[-1])
         if not 0.15 <= (r1 - r0 + 1) / n <= 1.5:
             return None  # not band-shaped
-        if not self._white_beside(pano_bgr, u0, n, r0, r1):
+        if not _white_beside(lower, u0, n, r0, r1):
             return None  # the band colour without the white body around it (e.g. a shirt)
-        return r0, r1
+        return r0 + r0s, r1 + r0s
 
     def _boundaries(
-        self, pano_bgr: Image, body: BodySpec, run: tuple[int, int], rows: tuple[int, int]
+        self, frame: PanoFrame, body: BodySpec, run: tuple[int, int], rows: tuple[int, int]
     ) -> BodySighting | None:
-        """Sub-pixel occluding boundaries of the body around a validated band (columns ``run``), and Eq. (3)."""
-        width = pano_bgr.shape[1]
+        """Sub-pixel occluding boundaries of the body around a band (full-resolution ``run``), and Eq. (3)."""
+        width = self.camera.width_px
         (u0, n), (r0, r1) = run, rows
         # Sub-pixel boundaries from the colour gradient across the band rows (inner rows only).
-        pad = 4
+        pad = 3 + frame.scale
         inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= 4 else (r0, r1)
-        strip = roi(pano_bgr, (u0 - pad) % width, inner0, n + 2 * pad, inner1 - inner0 + 1).astype(np.float32)
+        strip = frame.colour(u0 - pad, inner0, n + 2 * pad, inner1 - inner0 + 1).astype(np.float32)
         grad = np.abs(np.diff(strip, axis=1)).sum(axis=2).mean(axis=0).astype(np.float64)
-        # grad[j] is the step between strip columns j and j+1, i.e. at column u0 - pad + j + 0.5.
-        left = _peak(grad, pad - 3, pad + 2)
-        right = _peak(grad, pad + n - 3, pad + n + 2)
+        # grad[j] is the step between strip columns j and j+1: the boundary at column u0 - pad + j + 0.5.
+        left = _peak(grad, 1, pad + frame.scale)
+        right = _peak(grad, pad + n - frame.scale - 2, pad + n + pad - 2)
         if left is None or right is None or right - left < 2:
             return None
         left_col = u0 - pad + left + 0.5
         right_col = u0 - pad + right + 0.5
-        # The edge half-pixel: the step between pixel centres j, j+1 is the boundary at j + 0.5.
         b_left = self.camera.bearing_from_col(left_col % width)
         b_right = self.camera.bearing_from_col(right_col % width)
         alpha = (right_col - left_col) / self.camera.f_h_px
         try:
-            dist = baseline_exact(b_left, b_right, body.radius_m)
+            dist = baseline_exact(b_left, b_right, body.radius_m)  # Eq. (3)
         except GeometryError:
             return None
-        s = Sighting(
+        sighting = Sighting(
             target_id=body.id,
             left_rad=_wrap_pi(b_left),
             right_rad=_wrap_pi(b_right),
@@ -197,19 +210,20 @@ class BandFinder:
             distance_m=float(min(dist, 1e5)),
             body_radius_m=float(body.radius_m),
         )
-        return BodySighting(s, left_col, right_col, (r0, r1))
+        return BodySighting(sighting, left_col, right_col, (r0, r1))
 
-    def _white_beside(self, pano_bgr: Image, u0: int, n: int, r0: int, r1: int) -> bool:
-        """True if the body right above (or, out of view, below) the band is white: bright and unsaturated."""
-        height, width = pano_bgr.shape[:2]
-        c0, cw = u0 + n // 4, max(1, n // 2)
-        for a, b in ((r0 - 5, r0 - 2), (r1 + 3, r1 + 6)):
-            if a < 0 or b > height:
-                continue
-            patch = roi(pano_bgr, c0 % width, a, cw, b - a)
-            hsv = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV).reshape(-1, 3)
-            return bool(float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110)
-        return False
+
+def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:
+    """True if the body right above (or, out of view, below) the band is white: bright and unsaturated."""
+    height, width = small.shape[:2]
+    c0, cw = u0 + n // 4, max(1, n // 2)
+    for a, b in ((r0 - 3, r0 - 1), (r1 + 2, r1 + 4)):
+        if a < 0 or b > height:
+            continue
+        patch = roi(small, c0 % width, a, cw, b - a)
+        hsv = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+        return bool(float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110)
+    return False
 
 
 def _wrap_pi(a: float) -> float:

@@ -12,6 +12,7 @@ from common.codec import decode, encode
 from common.schema import Blob
 from sensor_node.blobs import RawBlob
 from sensor_node.features import PanoramicGeometry, PinholeGeometry, annotate, colour_histogram, to_wire
+from sensor_node.unwarp import PanoFrame
 from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 
 
@@ -25,7 +26,7 @@ def test_panoramic_annotation_matches_camera_model() -> None:
     mask = np.zeros((100, 20), bool)
     mask[0:12, 6:14] = True  # head centred on column 9.5 of the box
     mask[12:, :] = True
-    f = annotate(_raw(img, 500, 40, 20, 100, mask), img, PanoramicGeometry(cam))
+    f = annotate(_raw(img, 500, 40, 20, 100, mask), PanoFrame.from_image(img), PanoramicGeometry(cam))
     assert f.bearing_rad == pytest.approx(cam.bearing_from_col(509.5), abs=1e-9)
     assert f.width_rad == pytest.approx(20 / cam.f_h_px)
     assert f.top_elev_rad == pytest.approx(cam.elevation_from_row(39.5))
@@ -40,7 +41,7 @@ def test_bearing_wraps_across_the_seam() -> None:
     _, cam = design_pal()
     img = backdrop(0)
     mask = np.ones((60, 20), bool)  # box 1075..1094 -> centre 1084.5 -> column 4.5
-    f = annotate(_raw(img, 1075, 102, 20, 60, mask), img, PanoramicGeometry(cam))
+    f = annotate(_raw(img, 1075, 102, 20, 60, mask), PanoFrame.from_image(img), PanoramicGeometry(cam))
     assert f.bearing_rad == pytest.approx(cam.bearing_from_col(4.5), abs=1e-9)
     assert not f.feet_visible  # touches the bottom row
     assert -math.pi <= to_wire(f, 0).bearing_rad <= math.pi

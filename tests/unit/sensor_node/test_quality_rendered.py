@@ -83,7 +83,9 @@ def _pipeline(site: SiteConfig, cam_id: str) -> tuple[PanoramicRenderer, ImagePi
         for c in site.camera
         if c.id != cam_id
     ]
-    pipe = ImagePipeline(cam_id, PanoramicGeometry(cyl), PipelineSettings(), Unwarper(annular), bodies)
+    # Sightings every frame, so each frame's baseline can be scored against that frame's truth.
+    settings = PipelineSettings(sighting_every=1)
+    pipe = ImagePipeline(cam_id, PanoramicGeometry(cyl), settings, Unwarper(annular), bodies)
     return renderer, pipe, world
 
 

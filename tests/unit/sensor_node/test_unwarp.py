@@ -18,12 +18,13 @@ def _annular(pano: np.ndarray, model) -> np.ndarray:  # type: ignore[no-untyped-
     return cv2.remap(padded, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
 
-@pytest.mark.parametrize("fixed_point", [True, False])
-def test_round_trip_recovers_panorama(fixed_point: bool) -> None:
+def test_round_trip_recovers_panorama() -> None:
     model, _ = design_pal()
     pano = backdrop(3)
     draw_person(pano, 500.0)
-    back = Unwarper(model, fixed_point=fixed_point).apply(_annular(pano, model))
+    unwarper = Unwarper(model)
+    annular = _annular(pano, model)
+    back = unwarper.apply(annular)
     assert back.shape == pano.shape
     # The ring is sampled coarser than the panorama near its inner edge: compare the mean error.
     err = np.abs(back.astype(np.int16) - pano.astype(np.int16))
@@ -32,9 +33,20 @@ def test_round_trip_recovers_panorama(fixed_point: bool) -> None:
     g = cv2.cvtColor(back, cv2.COLOR_BGR2GRAY).astype(np.float32)
     g0 = cv2.cvtColor(pano, cv2.COLOR_BGR2GRAY).astype(np.float32)
     assert np.argmax(np.abs(np.diff(g[100, 480:520]))) == np.argmax(np.abs(np.diff(g0[100, 480:520])))
+    # The pipeline's frame: grey at full resolution, colour at half, full colour on demand (wrapping).
+    pf = unwarper.frame(annular)
+    assert pf.grey.shape == (162, 1080) and pf.small.shape == (81, 540, 3)
+    assert np.abs(pf.grey.astype(int) - cv2.cvtColor(back, cv2.COLOR_BGR2GRAY).astype(int)).mean() < 2.0
+    assert np.abs(pf.small.astype(int) - back[::2, ::2].astype(int)).mean() < 8.0
+    box = pf.colour(1070, 20, 20, 30)
+    assert box.shape == (30, 20, 3)
+    ref = np.concatenate([back[20:50, 1070:], back[20:50, :10]], axis=1)
+    assert np.abs(box.astype(int) - ref.astype(int)).mean() < 1.0
 
 
 def test_wrong_frame_size_is_a_source_error() -> None:
     model, _ = design_pal()
     with pytest.raises(SourceError, match="768x576"):
         Unwarper(model).apply(np.zeros((480, 640, 3), np.uint8))
+    with pytest.raises(SourceError):
+        Unwarper(model).frame(np.zeros((480, 640, 3), np.uint8))
