@@ -112,6 +112,28 @@ def settings_from_args(args: argparse.Namespace, base: SessionSettings | None = 
     return msgspec.structs.replace(s, **changes) if changes else s
 
 
+_RUST_AT_RE = re.compile(r"\s*\bat /\S+?\.rs:\d+\.?")
+_PEST_RE = re.compile(r"-->\s*(?P<line>\d+):(?P<col>\d+).*?=\s*(?P<msg>.+)$", re.S)
+_SERDE_RE = re.compile(
+    r'msg: "(?P<msg>.*?)", location: Some\(Location \{ line: (?P<line>\d+), column: (?P<col>\d+) \}\)', re.S
+)
+
+
+def _zerror_text(err: BaseException, with_location: bool = False) -> str:
+    """A zenoh error as one readable line: no Rust source locations or Debug wrappers.
+
+    Args:
+        with_location: keep the line/column zenoh reports (meaningful for a
+            config file, not for a value inserted from a flag).
+    """
+    text = _RUST_AT_RE.sub("", str(err))
+    if m := _SERDE_RE.search(text):
+        text = m.group("msg") + (f" (line {m.group('line')}, column {m.group('col')})" if with_location else "")
+    elif m := _PEST_RE.search(text):
+        text = f"syntax error at line {m.group('line')}, column {m.group('col')}: {m.group('msg')}"
+    return " ".join(text.split())
+
+
 def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None) -> Any:
     """Build a ``zenoh.Config`` from settings.
 
@@ -130,7 +152,10 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
             path = Path(settings.config_file)
             if not path.is_file():
                 raise ConfigError(f"zenoh config file {settings.config_file!r} does not exist")
-            conf = zenoh.Config.from_file(str(path))
+            try:
+                conf = zenoh.Config.from_file(str(path))
+            except Exception as err:  # ZError: syntax error, unknown key, bad value
+                raise ConfigError(f"zenoh config file {settings.config_file}: {_zerror_text(err, True)}") from err
         else:
             conf = zenoh.Config()
         conf.insert_json5("mode", json.dumps(settings.mode))
@@ -161,16 +186,8 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
     except ConfigError:
         raise
     except Exception as err:  # zenoh raises ZError for any bad value
-        raise ConfigError(f"invalid zenoh configuration: {err}") from err
+        raise ConfigError(f"invalid zenoh configuration: {_zerror_text(err)}") from err
     return conf
-
-
-_RUST_AT_RE = re.compile(r" at /\S+?\.rs:\d+\.?")
-
-
-def _zerror_text(err: BaseException) -> str:
-    """A zenoh error as one readable line (without Rust source locations)."""
-    return " ".join(_RUST_AT_RE.sub("", str(err)).split())
 
 
 @contextmanager

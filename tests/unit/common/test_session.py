@@ -95,14 +95,40 @@ def test_config_file_is_used_and_flags_override_it(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("content", "match"),
-    [(None, "does not exist"), ("{ mode: ", "invalid zenoh configuration"), ("{ bogus_key: 1 }", "invalid zenoh")],
+    [
+        (None, r"zenoh config file '.*z\.json5' does not exist"),
+        ("{ mode: ", r"zenoh config file .*z\.json5: syntax error at line 1, column 9: expected"),
+        (
+            "{ bogus_key: 1 }",
+            r"zenoh config file .*z\.json5: unknown field `bogus_key`, expected one of .* \(line 1, column",
+        ),
+        ('{ mode: "sideways" }', r"zenoh config file .*z\.json5: unknown variant `sideways`"),
+    ],
 )
-def test_bad_config_file(tmp_path: Path, content: str | None, match: str) -> None:
+def test_bad_config_file_is_one_clean_line(tmp_path: Path, content: str | None, match: str) -> None:
     f = tmp_path / "z.json5"
     if content is not None:
         f.write_text(content)
-    with pytest.raises(ConfigError, match=match):
+    with pytest.raises(ConfigError, match=match) as info:
         zenoh_config(SessionSettings(config_file=str(f)))
+    text = str(info.value)
+    assert "\n" not in text and ".rs:" not in text and "Location {" not in text, text
+
+
+@pytest.mark.parametrize(
+    ("settings", "match"),
+    [
+        (
+            SessionSettings(connect=["not-an-endpoint"]),
+            r"^invalid zenoh configuration: Endpoints must be .*: not-an-endpoint$",
+        ),
+        (SessionSettings(mode="router", listen=["nope"]), r"^invalid zenoh configuration: .*nope$"),
+    ],
+)
+def test_bad_endpoint_in_settings_is_one_clean_line(settings: SessionSettings, match: str) -> None:
+    with pytest.raises(ConfigError, match=match) as info:
+        zenoh_config(settings)
+    assert ".rs:" not in str(info.value) and "Json5Err" not in str(info.value)
 
 
 def test_bad_endpoint_is_a_clear_error() -> None:
