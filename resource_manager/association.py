@@ -101,6 +101,7 @@ class Associator:
         self.params = MatchParams(
             max_range_m=mc.max_range_m,
             width_sigma=mc.width_sigma,
+            width_floor=mc.width_floor,
             height_sigma=mc.height_sigma,
             use_colour=mc.use_colour,
             temporal_weight=mc.temporal_weight,
@@ -109,6 +110,7 @@ class Associator:
         self._birth_rr = 0
         self._gates: tuple[FloatArray, FloatArray] | None = None
         self._all: _AllBlobs | None = None
+        self._rng = np.random.default_rng(0)
 
     # -- step 1 -----------------------------------------------------------------
     def support(
@@ -279,10 +281,18 @@ class Associator:
         if pc is not None and pc[2] == key and math.hypot(tr.x[0] - pc[0], tr.x[1] - pc[1]) < RERANK_MOVE_M:
             ranked: list[PairCandidate] = pc[3]  # type: ignore[assignment]
         else:
-            ranked = rank_pairs(tr.x[:2].copy(), cams, max_cams)
+            random_pairs = self.config.match.pair_choice == "random"
+            ranked = rank_pairs(tr.x[:2].copy(), cams, len(cams) if random_pairs else max_cams)
             tr.pair_cache = (float(tr.x[0]), float(tr.x[1]), key, list(ranked))
+        if self.config.match.pair_choice == "random":
+            ranked = [ranked[int(i)] for i in self._rng.permutation(len(ranked))]
         tol = self.config.match.pair_reuse_tolerance
-        if tol > 1.0 and ranked and tuple(sorted((ranked[0].a, ranked[0].b))) not in cache:
+        if (
+            self.config.match.pair_choice == "error_model"
+            and tol > 1.0
+            and ranked
+            and tuple(sorted((ranked[0].a, ranked[0].b))) not in cache
+        ):
             # A pair already matched this tick and nearly as good saves a whole Eq. 7 matrix.
             reuse = next(
                 (c for c in ranked[1:] if c.error_m <= tol * ranked[0].error_m and tuple(sorted((c.a, c.b))) in cache),

@@ -124,6 +124,8 @@ class MatchSection(ConfigStruct, frozen=True):
     """r_rc = 0 when a hypothesised target lies further than this from either camera."""
     width_sigma: Pos = 0.35
     """Spread of ln(W1/W2) in r_wc (frontal vs side widths differ by ~0.6)."""
+    width_floor: Frac = 0.0
+    """Smallest r_wc: raise it (e.g. 0.3) when the nodes merge occluding people into one wide blob."""
     height_sigma: Pos = 0.12
     """Spread of ln(H1/H2) in r_hc."""
     use_colour: bool = True
@@ -137,6 +139,9 @@ class MatchSection(ConfigStruct, frozen=True):
     2D tracks (same local ids) and it lies within this distance of the prediction (sharp turns)."""
     max_birth_pairs: PosInt = 12
     """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
+    pair_choice: Literal["error_model", "random"] = "error_model"
+    """How the localising pair is chosen: by the error model (the paper), or at random among the cameras that
+    see the person (a baseline to compare against)."""
     pair_reuse_tolerance: Annotated[float, msgspec.Meta(ge=1.0, le=10.0)] = 1.5
     """A camera pair already matched this tick is used when its predicted error is within this factor of the
     best pair's (1.0: always the best pair; raising it saves Eq. 7 matrices with many cameras)."""

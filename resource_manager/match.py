@@ -86,6 +86,8 @@ class MatchParams:
     height_sigma: float = 0.12
     use_colour: bool = True
     temporal_weight: float = 1.0
+    width_floor: float = 0.0
+    """Smallest r_wc (merged blobs of occluding people are wide; 0: strict)."""
     colinear_sigmas: float = 2.0
     """A target within this many bearing sigmas (or its own half width) of the baseline is size-ratio."""
 
@@ -184,7 +186,9 @@ def match_matrix(
     # Width consistency: metric widths from both views (1 where Eq. 2 made them equal by construction).
     width1 = 2.0 * d1 * np.tan(w1 / 2.0)
     width2 = 2.0 * d2 * np.tan(w2 / 2.0)
-    r_wc = np.where(use_sr, 1.0, _log_ratio_score(width1, width2, params.width_sigma))
+    # A blob much wider than its partner is usually two people merged (occlusion), not a wrong match:
+    # the width term never drops below ``width_floor``.
+    r_wc = np.where(use_sr, 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor))
     # Height consistency: head-top height from each view.
     h1 = a.z_m + d1 * np.tan(a.top_elev_rad[:, None])
     h2 = b.z_m + d2 * np.tan(b.top_elev_rad[None, :])
