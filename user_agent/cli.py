@@ -18,7 +18,7 @@ import msgspec
 
 from common.cli import add_logging_args, run_main, setup_logging
 from common.errors import ConfigError
-from common.keys import DEFAULT_PREFIX, Keys
+from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
 
 __all__ = ["configure", "main", "run"]
@@ -202,8 +202,10 @@ def _record(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    from user_agent.recording import read_metadata
     from user_agent.replay import replay
 
+    read_metadata(args.input)  # a missing or corrupt file is an error before any network
     settings, _, _ = _session_and_prefix(args)
     shutdown = install_signal_handlers()
     with open_session(settings) as session:
@@ -281,6 +283,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from user_agent.views import history_table, tracks_table
 
+    if action in ("history", "view"):
+        validate_id(args.track_id, "track id")  # before any network
     with _client(args) as agent:
         if action == "tracks":
             tracks = agent.tracks(timeout_s=args.timeout)
