@@ -63,7 +63,7 @@ def test_six_people_four_cameras(matcher: str) -> None:
     assert run.mean_error_m <= 0.10
 
 
-MOTA_6X4 = 0.85
+MOTA_6X4 = 0.8
 """Lenient bound for the synthetic crowd (the real figure is reported by benchmarks/bench_accuracy.py)."""
 
 
