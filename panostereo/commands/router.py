@@ -23,7 +23,7 @@ import re
 from typing import Any
 
 from common.errors import SessionError
-from common.session import SessionSettings, install_signal_handlers, open_session
+from common.session import SessionSettings, install_signal_handlers, open_session, zenoh_config
 
 __all__ = ["DEFAULT_LISTEN", "configure", "run"]
 
@@ -69,6 +69,20 @@ def _settings(args: argparse.Namespace) -> SessionSettings:
     )
 
 
+def _listen_endpoints(settings: SessionSettings) -> list[str]:
+    """The endpoints the router is configured to listen on (flags, else its zenoh config file)."""
+    if settings.listen:
+        return list(settings.listen)
+    try:
+        value = json.loads(zenoh_config(settings).get_json("listen/endpoints"))
+    except Exception as err:  # reported properly when the session opens
+        logger.debug("cannot read listen endpoints: %s", err)
+        return []
+    if isinstance(value, dict):  # per-mode form: {router: [...], peer: [...]}
+        value = value.get("router", [])
+    return [str(v) for v in value] if isinstance(value, list) else []
+
+
 def _locators(session: Any, configured: list[str]) -> list[str]:
     """The locators the router really listens on.
 
@@ -97,19 +111,18 @@ def run(args: argparse.Namespace) -> int:
     """
     settings = _settings(args)
     shutdown = install_signal_handlers()
-    wants_port0 = any(ep.rsplit(":", 1)[-1] == "0" for ep in settings.listen)
+    configured = _listen_endpoints(settings)
+    wants_port0 = any(ep.rsplit(":", 1)[-1] == "0" for ep in configured)
     try:
         with open_session(settings, extra={"adminspace/enabled": True} if wants_port0 else None) as session:
-            locators = _locators(session, list(settings.listen))
-            logger.info(
-                "zenoh router %s listening on %s", session.zid(), ", ".join(locators) or "(config file endpoints)"
-            )
+            locators = _locators(session, configured)
+            logger.info("zenoh router %s listening on %s", session.zid(), ", ".join(locators) or "(no endpoint)")
             while not shutdown.wait(0.5):
                 pass
             logger.info("router stopping")
     except SessionError as err:
         if _IN_USE_RE.search(str(err)):
-            where = ", ".join(settings.listen)
+            where = ", ".join(configured)
             raise SessionError(
                 f"cannot listen on {where}: address already in use (is another router running?)"
             ) from err

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import signal
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -73,3 +75,18 @@ def test_router_unknown_config_file_is_an_error(spawn: Callable[..., ManagedProc
     assert proc.wait(15.0) == 1
     assert "missing.json5" in proc.stderr_text()
     assert "does not exist" in proc.stderr_text()
+
+
+def test_router_from_config_file_logs_its_endpoints(spawn: Callable[..., ManagedProcess], tmp_path: Path) -> None:
+    port = free_port()
+    conf = tmp_path / "router.json5"
+    endpoint = json.dumps(f"tcp/127.0.0.1:{port}")
+    conf.write_text(
+        f'{{ mode: "router", listen: {{ endpoints: [{endpoint}] }}, scouting: {{ multicast: {{ enabled: false }} }} }}'
+    )
+    proc = spawn([sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(conf)])
+    proc.wait_for_output(rf"listening on tcp/127\.0\.0\.1:{port}", 15.0)
+    with client_session(f"tcp/127.0.0.1:{port}", connect_timeout_ms=3000) as s:
+        assert s.info.routers_zid()
+    proc.signal(signal.SIGTERM)
+    assert proc.wait(10.0) == 0
