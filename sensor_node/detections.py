@@ -206,7 +206,7 @@ class DetectionFrames:
         self.epoch_ns = epoch_ns
         self.max_lag_ns = int(max_lag_s * 1e9)
         self.loop = loop
-        self._pacer = Pacer(fps, clock, epoch_ns)
+        self._pacer = Pacer(fps, clock, epoch_ns, max_late_ns=self.max_lag_ns)
         self.state: SourceState = "starting"
         self.message = ""
 
@@ -224,9 +224,6 @@ class DetectionFrames:
             elif frame > self.last_frame:
                 self.state, self.message = "ended", f"end of {self.path.name} (frame {self.last_frame})"
                 return None
-            if self.clock() - stamp > self.max_lag_ns:
-                skipped += 1
-                continue
             self.state, self.message = "ok", ""
             return Frame(index=frame - 1, stamp_ns=stamp, payload=self.by_frame.get(frame, []), skipped=skipped)
         return None

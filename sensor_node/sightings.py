@@ -214,15 +214,23 @@ class BandFinder:
 
 
 def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:
-    """True if the body right above (or, out of view, below) the band is white: bright and unsaturated."""
+    """True if the band sits on a white body: right above it (or, out of view, below) the image is
+    bright and unsaturated over the band's columns, and differs from what is beside them (a band-
+    coloured shirt below a pale wall has the same wall above it on both sides)."""
     height, width = small.shape[:2]
     c0, cw = u0 + n // 4, max(1, n // 2)
+    side = max(1, n // 3)
     for a, b in ((r0 - 3, r0 - 1), (r1 + 2, r1 + 4)):
         if a < 0 or b > height:
             continue
-        patch = roi(small, c0 % width, a, cw, b - a)
-        hsv = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV).reshape(-1, 3)
-        return bool(float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110)
+        inside = np.ascontiguousarray(roi(small, c0 % width, a, cw, b - a))
+        hsv = cv2.cvtColor(inside, cv2.COLOR_BGR2HSV).reshape(-1, 3)
+        if not (float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110):
+            return False
+        level = float(inside.mean())
+        left = roi(small, (u0 - 1 - side) % width, a, side, b - a)
+        right = roi(small, (u0 + n + 1) % width, a, side, b - a)
+        return max(abs(level - float(left.mean())), abs(level - float(right.mean()))) > 20.0
     return False
 
 

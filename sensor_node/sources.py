@@ -66,20 +66,31 @@ class FrameSource(Protocol):
 
 
 class Pacer:
-    """Frame slots k at times ``epoch + k / fps`` on a clock: wait for the next, skipping missed ones."""
+    """Frame slots k at times ``epoch + k / fps`` on a clock: wait for the next, skipping missed ones.
 
-    def __init__(self, fps: float, clock: Clock, epoch_ns: int) -> None:
+    Args:
+        fps: slots per second.
+        clock: the node clock.
+        epoch_ns: time of slot 0.
+        max_late_ns: a slot at most this late is still served (late); an older one is skipped
+            to the current slot (0: always jump to the slot at or after now).
+    """
+
+    def __init__(self, fps: float, clock: Clock, epoch_ns: int, max_late_ns: int = 0) -> None:
         if fps <= 0:
             raise SourceError(f"frame rate must be > 0, got {fps}")
         self.period_ns = round(1e9 / fps)
         self.clock = clock
         self.epoch_ns = epoch_ns
+        self.max_late_ns = max_late_ns
         self.next_k = 0
 
     def wait(self, stop: threading.Event) -> tuple[int, int, int] | None:
         """Sleep until the next slot; return (k, slot stamp ns, slots skipped), or None if stopped."""
         now = self.clock()
-        k = max(self.next_k, -((self.epoch_ns - now) // self.period_ns))  # ceil((now - epoch) / period)
+        k = self.next_k
+        if self.epoch_ns + k * self.period_ns < now - self.max_late_ns:
+            k = max(k, -((self.epoch_ns - now) // self.period_ns))  # ceil((now - epoch) / period)
         skipped = k - self.next_k if self.next_k > 0 else 0
         stamp = self.epoch_ns + k * self.period_ns
         delay = (stamp - now) / 1e9

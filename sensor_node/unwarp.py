@@ -95,7 +95,7 @@ class PanoFrame:
     def colour(self, u0: int, v0: int, w: int, h: int) -> Image:
         """Full-resolution colour of the box (u0, v0, w, h); columns wrap around on a panorama."""
         if self.maps is None:
-            return np.ascontiguousarray(self.source[max(0, v0) : v0 + h, max(0, u0) : u0 + w])
+            return np.ascontiguousarray(_wrap_cols(self.source, u0, v0, w, h))
         m1 = np.ascontiguousarray(_wrap_cols(self.maps[0], u0, v0, w, h))
         m2 = np.ascontiguousarray(_wrap_cols(self.maps[1], u0, v0, w, h))
         return cv2.remap(self.source, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

@@ -1,0 +1,82 @@
+"""Sightings: band colour -> robot id, validation against shirts, sub-pixel boundaries, Eq. (3); body blobs."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from common.cameras import design_pal
+from sensor_node.config import BodySpec, PipelineSettings
+from sensor_node.sightings import BandFinder, _hue_ranges, _runs, is_body_blob
+from sensor_node.unwarp import PanoFrame
+from tests.unit.sensor_node.sn_synth import backdrop as _backdrop
+
+_, CAM = design_pal()
+
+
+def backdrop(seed: int) -> np.ndarray:
+    """A pale, low-saturation wall (like a room's), brighter than the synthetic default."""
+    img = _backdrop(seed).astype(np.float32)
+    grey = img.mean(axis=2, keepdims=True)
+    return np.clip(0.3 * img + 0.7 * grey + 40, 0, 255).astype(np.uint8)
+
+
+BODIES = [BodySpec(id="red", band_rgb=[220, 40, 40]), BodySpec(id="blue", band_rgb=[40, 80, 220])]
+
+
+def _draw_body(
+    img: np.ndarray, left: float, right: float, band_bgr: tuple[int, int, int], rows: tuple[int, int]
+) -> None:
+    """A white cylinder from ``left`` to ``right`` (sub-pixel, anti-aliased by coverage) with a band."""
+    width = img.shape[1]
+    for c in range(math.floor(left), math.ceil(right) + 1):
+        cover = max(0.0, min(c + 0.5, right) - max(c - 0.5, left))
+        if cover <= 0:
+            continue
+        col = c % width
+        for r in range(rows[0] - 25, img.shape[0]):
+            colour = np.array(band_bgr if rows[0] <= r <= rows[1] else (236, 238, 238), np.float32)
+            img[r, col] = (cover * colour + (1 - cover) * img[r, col].astype(np.float32) + 0.5).astype(np.uint8)
+
+
+@pytest.mark.parametrize(("left", "right"), [(500.3, 521.1), (1070.6, 1091.2)])  # the second crosses the seam
+def test_finds_and_measures_a_body(left: float, right: float) -> None:
+    img = backdrop(2)
+    _draw_body(img, left, right, (220, 80, 40), (130, 142))  # blue band (BGR)
+    found = BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img))
+    assert [b.sighting.target_id for b in found] == ["blue"]
+    b = found[0]
+    assert b.left_col == pytest.approx(left, abs=0.25) and b.right_col == pytest.approx(right, abs=0.25)
+    alpha = (right - left) / CAM.f_h_px
+    assert b.sighting.alpha_rad == pytest.approx(alpha, rel=0.02)
+    assert b.sighting.distance_m == pytest.approx(0.18 / math.sin(alpha / 2), rel=0.02)  # Eq. (3)
+    mid = CAM.bearing_from_col(((left + right) / 2) % 1080)
+    assert math.cos(b.sighting.bearing_rad - mid) == pytest.approx(1.0, abs=1e-5)
+
+
+def test_a_shirt_of_the_band_colour_is_not_a_robot() -> None:
+    img = backdrop(3)
+    cv2.rectangle(img, (300, 95), (325, 161), (40, 40, 220), -1)  # a red shirt: no white body around it
+    assert BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img)) == []
+
+
+def test_hue_ranges_and_runs_wrap() -> None:
+    assert _hue_ranges([220, 40, 40], 43.2) == [(0, 10), (170, 179)]  # red straddles hue 0
+    ((lo, hi),) = _hue_ranges([40, 80, 220], 43.2)
+    assert lo < 113 < hi
+    cols = np.zeros(20, bool)
+    cols[[0, 1, 5, 6, 7, 18, 19]] = True
+    assert _runs(cols, wrap=True) == [(18, 4), (5, 3)]
+    assert _runs(cols, wrap=False) == [(0, 2), (5, 3), (18, 2)]
+
+
+def test_is_body_blob() -> None:
+    img = backdrop(2)
+    _draw_body(img, 500.3, 521.1, (220, 80, 40), (130, 142))
+    (s,) = BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img))
+    assert is_body_blob(499, 24, 1080, [s])  # the moving robot itself (mast and head included)
+    assert not is_body_blob(480, 70, 1080, [s])  # a person in front, much wider than the body
+    assert not is_body_blob(600, 20, 1080, [s])
