@@ -6,7 +6,6 @@ import threading
 import time
 from pathlib import Path
 
-
 from common.site import load_site
 from sensor_node.build import build_node
 from sensor_node.config import load_node_config
