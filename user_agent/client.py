@@ -127,6 +127,8 @@ class AgentClient:
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
         self._tracksets: dict[str, TrackSet] = {}
+        self._heard: dict[str, float] = {}
+        """Manager id -> monotonic time its last TrackSet arrived."""
         self._node_status: dict[str, NodeStatus] = {}
         self._mgr_status: dict[str, ManagerStatus] = {}
         self._plans: dict[str, ViewPlan] = {}
@@ -177,6 +179,7 @@ class AgentClient:
                     old = self._tracksets.get(r.msg.manager_id)
                     if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
                         self._tracksets[r.msg.manager_id] = r.msg
+                    self._heard[r.msg.manager_id] = time.monotonic()
                 for s in self._in_status.drain():
                     self._node_status[s.msg.sensor_id] = s.msg
                 for m in self._in_mgr.drain():
@@ -235,15 +238,21 @@ class AgentClient:
         return out
 
     # -- tracks -------------------------------------------------------------
-    def track_sets(self, timeout_s: float = 0.0) -> dict[str, TrackSet]:
-        """The newest TrackSet of every manager (waits up to ``timeout_s`` for a first one)."""
-        self._wait(lambda: bool(self._tracksets), timeout_s)
-        with self._lock:
-            return dict(self._tracksets)
+    def track_sets(self, timeout_s: float = 0.0, stale_s: float = 2.0) -> dict[str, TrackSet]:
+        """The newest TrackSet of every manager heard from in the last ``stale_s`` seconds.
 
-    def tracks(self, timeout_s: float = 2.0) -> list[Track]:
-        """Every current track of every manager, by track id."""
-        sets = self.track_sets(timeout_s)
+        Waits up to ``timeout_s`` for a first one. A manager that stopped
+        publishing (crashed, partitioned) drops out after ``stale_s``, so its
+        tracks are not shown as current.
+        """
+        self._wait(lambda: bool(self._tracksets), timeout_s)
+        now = time.monotonic()
+        with self._lock:
+            return {m: ts for m, ts in self._tracksets.items() if now - self._heard.get(m, 0.0) <= stale_s}
+
+    def tracks(self, timeout_s: float = 2.0, stale_s: float = 2.0) -> list[Track]:
+        """Every current track of every live manager, by track id."""
+        sets = self.track_sets(timeout_s, stale_s)
         return sorted((t for ts in sets.values() for t in ts.tracks), key=lambda t: t.track_id)
 
     def subscribe(self, callback: Callable[[TrackSet], None]) -> Subscription:

@@ -106,6 +106,8 @@ class Driver:
             i += 1
 
     def close(self) -> None:
+        if self._stop.is_set():
+            return
         self._stop.set()
         self._thread.join(5)
         for e in (self.q_track, self.q_info, self.q_ptz, *self.tokens):
@@ -148,6 +150,8 @@ def test_python_client_reads_and_queries(router: Any, driver: Driver) -> None:
         assert reply.ok and reply.sensor_id == "ptz1"
         assert not agent.request_view("mgr1-9").ok
         assert agent.release_view("mgr1-7").ok
+        driver.close()  # the manager goes silent: its tracks stop being current after stale_s
+        wait_for(lambda: not agent.tracks(timeout_s=0, stale_s=0.5), 5, "stale tracks to drop out")
     assert [(r.action, r.track_id, r.agent_id) for r in driver.requests] == [
         ("acquire", "mgr1-7", "tester"),
         ("acquire", "mgr1-9", "tester"),
