@@ -82,6 +82,7 @@ def build_views(
             top_elev_rad=np.array([b.top_elev_rad for b in av.blobs], dtype=np.float64),
             hist=hist,
             local_id=np.array([b.local_id for b in av.blobs], dtype=np.int64),
+            hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
         )
     return out
 
@@ -453,6 +454,7 @@ def _subset(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
         top_elev_rad=v.top_elev_rad[sel],
         hist=None if v.hist is None else v.hist[sel],
         local_id=v.local_id[sel],
+        hist_sqrt=None if v.hist_sqrt is None else v.hist_sqrt[sel],
     )
 
 

@@ -71,6 +71,8 @@ class ViewBlobs:
     """(n, k) L1-normalised histograms, or None when the sensor sends none."""
     local_id: npt.NDArray[np.int64]
     """(n,) the node's 2D track ids."""
+    hist_sqrt: FloatArray | None = None
+    """Element-wise square roots of ``hist`` (for the Bhattacharyya coefficient), precomputed per view."""
 
     @property
     def n(self) -> int:
@@ -131,7 +133,6 @@ def match_matrix(
         params: measure settings.
         temporal: (na, nb) c_t in [0, 1] from the current tracks, or None.
         threshold: tau; the temporal term is added only where r itself exceeds it.
-        threshold: tau; the temporal term is added only where r itself exceeds it.
     """
     na, nb = a.n, b.n
     o1, o2 = a.origin_xy, b.origin_xy
@@ -142,10 +143,10 @@ def match_matrix(
     th1 = a.bearing_rad[:, None]
     th2 = b.bearing_rad[None, :]
     # Signed inner angles at O1 and O2 (notes/geometry.md §4).
-    a1 = _wrap(th1 - psi12) * np.ones((1, nb))
-    a2 = _wrap(psi12 + math.pi - th2) * np.ones((na, 1))
+    a1 = _wrap(th1 - psi12)  # (na, 1)
+    a2 = _wrap(psi12 + math.pi - th2)  # (1, nb)
     abs1, abs2 = np.abs(a1), np.abs(a2)
-    same_side = np.sign(a1) == np.sign(a2)
+    same_side = np.sign(a1) == np.sign(a2)  # (na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)
     phi0 = math.pi - abs1 - abs2
     margin = np.where(
@@ -159,19 +160,19 @@ def match_matrix(
     # Eq. 1 (triangulation) where the triangle is proper.
     with np.errstate(divide="ignore", invalid="ignore"):
         d1_t, d2_t = triangulate(base, abs1, abs2)
-    d1_t = np.asarray(d1_t, dtype=np.float64) * np.ones((na, nb))
-    d2_t = np.asarray(d2_t, dtype=np.float64) * np.ones((na, nb))
+    d1_t = np.broadcast_to(np.asarray(d1_t, dtype=np.float64), (na, nb))
+    d2_t = np.broadcast_to(np.asarray(d2_t, dtype=np.float64), (na, nb))
     # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
     # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
-    w1 = a.width_rad[:, None] * np.ones((1, nb))
-    w2 = b.width_rad[None, :] * np.ones((na, 1))
+    w1 = np.broadcast_to(a.width_rad[:, None], (na, nb))
+    w2 = np.broadcast_to(b.width_rad[None, :], (na, nb))
     colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
     use_sr = col_d < colinear_gap
     d1_s = np.full((na, nb), np.nan)
     d2_s = np.full((na, nb), np.nan)
     for i, j in np.argwhere(use_sr):
-        c1 = 1.0 if abs1[i, j] < math.pi / 2 else -1.0
-        c2 = 1.0 if abs2[i, j] < math.pi / 2 else -1.0
+        c1 = 1.0 if abs1[i, 0] < math.pi / 2 else -1.0
+        c2 = 1.0 if abs2[0, j] < math.pi / 2 else -1.0
         try:  # Eq. 2 with sizes sin(w/2) (exact for a cylinder of the target's width)
             d1_s[i, j], d2_s[i, j] = size_ratio(base, math.sin(w1[i, j] / 2), math.sin(w2[i, j] / 2), c1, c2)
         except GeometryError:
@@ -195,7 +196,9 @@ def match_matrix(
     r_hc = _log_ratio_score(h1, h2, params.height_sigma)
     # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
     if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
-        r_is = np.clip(np.sqrt(np.clip(a.hist, 0, None)) @ np.sqrt(np.clip(b.hist, 0, None)).T, 0.0, 1.0)
+        sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
+        sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
+        r_is = np.clip(sa @ sb.T, 0.0, 1.0)
     else:
         r_is = np.ones((na, nb))
     r = r_is * r_rc * r_wc * r_hc
@@ -206,7 +209,7 @@ def match_matrix(
         r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
     # Hypothesised positions along camera 1's ray.
     xy = np.empty((na, nb, 2))
-    xy[..., 0] = o1[0] + d1 * np.cos(th1)
+    xy[..., 0] = o1[0] + d1 * np.cos(th1)  # (na, 1) broadcast
     xy[..., 1] = o1[1] + d1 * np.sin(th1)
     parts = {"r_is": r_is, "r_rc": r_rc, "r_wc": r_wc, "r_hc": r_hc, "c_t": c_t}
     return MatchMatrix(r=r, d1_m=d1, d2_m=d2, xy=xy, size_ratio=use_sr & valid, parts=parts)
