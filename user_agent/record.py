@@ -141,7 +141,9 @@ class McapSink:
             mtype = type_for_key(keys, key) if keys is not None else None
             assert mtype is not None
             name = f"pano.{mtype.__name__}"
-            sid = self._schema(name, msgspec.json.schema(mtype))
+            sid = self._schemas.get(name)
+            if sid is None:
+                sid = self._schema(name, msgspec.json.schema(mtype))
             cid = self._channel(f"/json/{key}", MessageEncoding.JSON, sid, {"zenoh_key": key, "kind": "json"})
             self._add(cid, log_time_ns, pub_ns, msgspec.json.encode(msg))
             if self._foxglove:
