@@ -64,13 +64,13 @@ def sensor_rules(root: str, sid: str) -> list[Rule]:
     """What sensor ``sid`` may do (ingress: sensor -> router; egress: router -> sensor)."""
     own = f"{root}/sensor/{sid}"
     n = f"sensor-{sid}"
+    outputs = [f"{own}/features", f"{own}/info", f"{own}/status", f"{own}/ptz/state"]
     return [
-        _rule(
-            f"{n}-put",
-            "ingress",
-            ["put"],
-            [f"{own}/features", f"{own}/info", f"{own}/status", f"{own}/ptz/state"],
-        ),
+        _rule(f"{n}-put", "ingress", ["put"], outputs),
+        # A declared publisher sends only while it knows of a matching subscriber (write-side
+        # filtering), so it must see the declarations of the subscribers to its keys. Those are
+        # wildcards (the manager subscribes to R/sensor/*/features): the rule must include them.
+        _rule(f"{n}-subscribers", "egress", ["declare_subscriber"], [f"{root}/sensor/**"]),
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
         _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], [f"{own}/info"]),
         # Plans of every camera: a simulated node replays every robot's goals to render the same world.
@@ -97,8 +97,15 @@ def manager_rules(root: str, mid: str) -> list[Rule]:
     read = [f"{root}/sensor/**", f"{root}/manager/**", f"{root}/plan/*", f"{root}/tracks", f"{root}/track/**"]
     return [
         _rule(f"{n}-put", "ingress", ["put", "delete"], outputs),
+        _rule(
+            f"{n}-subscribers",
+            "egress",
+            ["declare_subscriber"],
+            [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/**", f"{root}/manager/**", f"{root}/sensor/*/ptz"],
+        ),
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
         _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], served),
+        _rule(f"{n}-queryables", "egress", ["declare_queryable"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
         _rule(f"{n}-query", "ingress", ["query"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
         _rule(f"{n}-watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], [f"{root}/**"]),
@@ -125,6 +132,7 @@ def agent_rules(root: str, aid: str) -> list[Rule]:
     return [
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
         _rule(f"{n}-query", "ingress", ["query"], queries),
+        _rule(f"{n}-queryables", "egress", ["declare_queryable"], queries),
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [f"{root}/agent/{aid}"]),
         _rule(f"{n}-watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], [f"{root}/**"]),
         _rule(f"{n}-recv", "egress", ["put", "delete"], read),

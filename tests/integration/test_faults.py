@@ -131,6 +131,8 @@ class FaultSite:
     files: dict[str, tuple[Path, Path]]
     log_dir: Path
     procs: list[ManagedProcess] = field(default_factory=list)
+    connect_to: str = ""
+    """Endpoint the site's processes connect to, if not ``tcp/127.0.0.1:{port}`` (e.g. a TLS one)."""
 
     @property
     def keys(self) -> Keys:
@@ -138,7 +140,7 @@ class FaultSite:
 
     @property
     def endpoint(self) -> str:
-        return f"tcp/127.0.0.1:{self.port}"
+        return self.connect_to or f"tcp/127.0.0.1:{self.port}"
 
     @property
     def ids(self) -> list[str]:
@@ -182,15 +184,17 @@ class FaultSite:
         )
         return path
 
-    def start_node(self, sid: str, config: Path | None = None, netns: str | None = None) -> ManagedProcess:
-        args = [sys.executable, "-m", "panostereo", "node", "--config", str(config or self.node_config(sid))]
+    def start_node(
+        self, sid: str, config: Path | None = None, netns: str | None = None, extra: tuple[str, ...] = ()
+    ) -> ManagedProcess:
+        args = [sys.executable, "-m", "panostereo", "node", "--config", str(config or self.node_config(sid)), *extra]
         if netns:
             args = ["ip", "netns", "exec", netns, *args]
         return self._spawn(args, f"node-{sid}")
 
-    def start_manager(self, config: Path | None = None) -> ManagedProcess:
+    def start_manager(self, config: Path | None = None, extra: tuple[str, ...] = ()) -> ManagedProcess:
         cfg = config or self.manager_config()
-        return self._spawn([sys.executable, "-m", "panostereo", "manager", "--config", str(cfg)], "manager")
+        return self._spawn([sys.executable, "-m", "panostereo", "manager", "--config", str(cfg), *extra], "manager")
 
     def stop_all(self) -> None:
         for p in reversed(self.procs):

@@ -11,11 +11,13 @@ same receiver does get the legitimate message, through the same router, in the s
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -448,3 +450,86 @@ def test_routers_stay_up(site: SecureSite) -> None:
     """Refused and denied clients never take the routers down."""
     assert site.router.alive, site.router.log()
     assert site.usr_router.alive, site.usr_router.log()
+
+
+# ---------------------------------------------------------------------------
+# The real processes on the secured network
+# ---------------------------------------------------------------------------
+
+
+def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Path, request: Any) -> None:
+    """Router (TLS + ACL), real manager and sensor nodes with their certificates, an agent: tracks flow;
+    an agent certificate publishing fake tracks and a sensor certificate publishing another camera's
+    features change nothing."""
+    from tests.integration.test_faults import MANAGER_ID, _up_to_speed, make_fault_site, running
+    from user_agent.client import AgentClient
+
+    fsite = make_fault_site(tmp_path, prefix="secure")
+    certs, cfg = tmp_path / "certs", tmp_path / "cfg"
+    ids = " ".join(fsite.ids)
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), "--sensors", ids, "--managers", MANAGER_ID])
+    _run(
+        [
+            sys.executable,
+            str(SECURITY / "make_configs.py"),
+            "--certs",
+            str(certs),
+            "--out",
+            str(cfg),
+            "--prefix",
+            fsite.prefix,
+            "--sensors",
+            ids,
+            "--managers",
+            MANAGER_ID,
+            "--listen",
+            f"tls/127.0.0.1:{fsite.port}",
+        ]
+    )
+    fsite.connect_to = f"tls/localhost:{fsite.port}"
+    with running(fsite, request):
+        router = fsite._spawn(
+            [sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(cfg / "router-tls.json5")], "router"
+        )
+        wait_for_port(fsite.port, 20.0, proc=router)
+        fsite.start_manager(extra=("--zenoh-config", str(cfg / f"manager-{MANAGER_ID}.json5")))
+        for sid in fsite.ids:
+            fsite.start_node(sid, extra=("--zenoh-config", str(cfg / f"sensor-{sid}.json5")))
+        agent_settings = _settings(cfg / "agent-a1.json5", fsite.endpoint)
+        with (
+            AgentClient(settings=agent_settings, prefix=fsite.prefix, agent_id="a1") as agent,
+            open_session(_settings(cfg / "agent-a1.json5", fsite.endpoint)) as rogue_agent,
+            open_session(_settings(cfg / f"sensor-{fsite.ids[3]}.json5", fsite.endpoint)) as rogue_sensor,
+        ):
+            keys = Keys(fsite.prefix)
+            forged = Collector(agent.session, keys.tracks(), TrackSet)
+            with observing_session(agent.session, fsite) as obs:
+                try:
+                    _up_to_speed(fsite, obs)
+                except AssertionError as err:
+                    raise AssertionError(f"{err}\n{fsite.logs()}") from err
+                t0 = time.monotonic()
+                for i in range(50):
+                    rogue_agent.put(keys.tracks(), encode(_trackset(MANAGER_ID, 10**9 + i)))
+                    rogue_sensor.put(keys.sensor_features(fsite.ids[0]), encode(_features(fsite.ids[0], 10**9 + i)))
+                # The manager goes on (its tick after the forgeries arrives), all four cameras in use.
+                wait_for(lambda: obs.tracking_with(t0, set(fsite.ids), min_sets=10), 20.0, "tracks after the forgeries")
+                assert not forged.where(lambda k, m: m.seq >= 10**9), "a forged TrackSet reached an agent"
+                assert agent.tracks(timeout_s=2.0), "the agent API sees no tracks over TLS"
+                assert {v.sensor_id for v in agent.sensors()} >= set(fsite.ids)
+        assert router.alive, router.log()
+
+
+@contextlib.contextmanager
+def observing_session(session: Any, fsite: Any) -> Iterator[Any]:
+    """An Observer (tests/integration/test_faults.py) on an already open session."""
+    from tests.integration.test_faults import Observer
+
+    obs = Observer(fsite.keys)
+    entities = obs.attach(session)
+    try:
+        yield obs
+    finally:
+        for e in entities:
+            with contextlib.suppress(Exception):
+                e.undeclare()
