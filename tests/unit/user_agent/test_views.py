@@ -1,0 +1,46 @@
+"""Terminal views: the columns a user reads."""
+
+from __future__ import annotations
+
+from common.schema import ManagerStatus, NodeStatus, Track
+from user_agent.client import ManagerView, SensorView
+from user_agent.views import format_table, history_table, tracks_table, watch_screen
+
+
+def _track(tid: str, stamp: int, sensors: list[str]) -> Track:
+    return Track(manager_id="m", seq=0, stamp_ns=stamp, track_id=tid, x_m=1.25, y_m=-2.5, height_m=1.78, vx_mps=0.3,
+                 vy_mps=0.4, cov_xx_m2=0.0, cov_xy_m2=0.0, cov_yy_m2=0.0, state="confirmed", method="size_ratio",
+                 sensors=sensors, predicted_error_m=0.123)  # fmt: skip
+
+
+def test_format_table_aligns_columns() -> None:
+    text = format_table(("a", "bbb"), [(1, "x"), ("long", "y")])
+    lines = text.splitlines()
+    assert lines[0] == "a     bbb" and lines[1] == "----  ---" and lines[3] == "long  y"
+
+
+def test_tracks_table_shows_position_height_speed_pair_and_predicted_error() -> None:
+    row = tracks_table([_track("m-1", 0, ["pano1", "pano2"])]).splitlines()[2].split()
+    assert row == ["m-1", "confirmed", "1.25", "-2.50", "1.78", "0.50", "pano1+pano2", "size_ratio", "0.123", "0.0"]
+
+
+def test_history_table_is_relative_to_the_first_state() -> None:
+    text = history_table([_track("m-1", 10**18, []), _track("m-1", 10**18 + 500_000_000, ["a", "b"])])
+    assert [ln.split()[0] for ln in text.splitlines()[2:]] == ["0.00", "0.50"]
+    assert history_table([]) == "(no history)"
+
+
+def test_watch_screen_has_sensor_fps_drops_clock_and_manager_tick() -> None:
+    st = NodeStatus(sensor_id="pano1", seq=1, stamp_ns=1, fps=14.9, frames=300, dropped_frames=7, processing_ms=9.5,
+                    clock_offset_ns=-1_250_000, clock_uncertainty_ns=10, clock_source="ntp", decode_errors=0,
+                    source_state="ok")  # fmt: skip
+    ms = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0,
+                       sensors_in_use=["pano1"], tracks=1)  # fmt: skip
+    text = watch_screen(
+        [_track("mgr1-1", 0, [])], [SensorView("pano1", True, None, st)], [ManagerView("mgr1", True, ms)], "hdr"
+    )
+    sensor_row = next(ln for ln in text.splitlines() if ln.startswith("pano1"))
+    assert sensor_row.split()[4:9] == ["14.9", "300", "7", "9.5", "-1.25"]
+    mgr_row = next(ln for ln in text.splitlines() if ln.startswith("mgr1 "))
+    assert mgr_row.split()[:5] == ["mgr1", "up", "2.50", "4.00", "10.0"]
+    assert text.startswith("hdr\nTRACKS (1)")
