@@ -14,6 +14,7 @@ dropped; they never raise into the consumer.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections import deque
@@ -167,13 +168,36 @@ class Inbox(Generic[T]):
 class TypedPublisher:
     """A zenoh publisher of one message type, with the msgpack encoding set.
 
+    msgspec checks constraints only when decoding, so a sender could build a
+    message every receiver refuses (a NaN bearing, a bad id) and never know.
+    With ``validate`` (the default) each message is checked before it is
+    sent: an invalid one is not sent, is counted in :attr:`invalid`, and is
+    logged with its field path (at most once per ``log_every_s``).
+
     Args:
         reliable_block: BLOCK congestion control (tracks, commands) instead of
             DROP (high-rate features, where freshness beats completeness).
+        validate: check each message against its schema before sending
+            (a decode of the encoded bytes: a few µs per message).
     """
 
-    def __init__(self, session: Any, key: str, *, reliable_block: bool = False, express: bool = True) -> None:
+    def __init__(
+        self,
+        session: Any,
+        key: str,
+        *,
+        reliable_block: bool = False,
+        express: bool = True,
+        validate: bool = True,
+        log_every_s: float = 5.0,
+    ) -> None:
         self.key = key
+        self.sent = 0
+        self.invalid = 0
+        """Messages not sent because they broke their schema (a bug in the sender)."""
+        self._validate = validate
+        self._log_every_s = log_every_s
+        self._last_log = -math.inf
         self._pub = session.declare_publisher(
             key,
             encoding=MSGPACK,
@@ -181,8 +205,28 @@ class TypedPublisher:
             express=express,
         )
 
-    def put(self, msg: msgspec.Struct) -> None:
-        self._pub.put(encode(msg))
+    def put(self, msg: msgspec.Struct) -> bool:
+        """Send ``msg``; returns False (and sends nothing) if it breaks its schema."""
+        data = encode(msg)
+        if self._validate:
+            try:
+                decode(data, type(msg))
+            except SchemaError as err:
+                self.invalid += 1
+                now = time.monotonic()
+                if now - self._last_log >= self._log_every_s:
+                    self._last_log = now
+                    logger.warning(
+                        "not sending an invalid %s on %s (%d so far): %s",
+                        type(msg).__name__,
+                        self.key,
+                        self.invalid,
+                        err,
+                    )
+                return False
+        self._pub.put(data)
+        self.sent += 1
+        return True
 
     def close(self) -> None:
         try:

@@ -195,6 +195,25 @@ def test_typed_publisher_to_inbox(session: Any, reliable_block: bool) -> None:
     inbox.close()
 
 
+def test_typed_publisher_refuses_invalid_messages(session: Any, caplog: pytest.LogCaptureFixture) -> None:
+    inbox = Inbox(session, "pano/@v1/sensor/v/features", Features)
+    pub = TypedPublisher(session, "pano/@v1/sensor/v/features", log_every_s=60.0)
+    bad_id = Features(sensor_id="Not An Id", seq=1, stamp_ns=1, frame_index=1)
+    bad_seq = Features(sensor_id="v", seq=-1, stamp_ns=1, frame_index=1)
+    with caplog.at_level(logging.WARNING, logger="common.transport"):
+        assert pub.put(bad_id) is False
+        assert pub.put(bad_seq) is False
+        assert pub.put(feat(7, sensor="v")) is True
+    r = inbox.get(timeout_s=5.0)
+    assert r is not None and r.msg.seq == 7
+    assert inbox.get(timeout_s=0.2) is None, "an invalid message went out"
+    assert (pub.sent, pub.invalid) == (1, 2)
+    warnings = [rec.getMessage() for rec in caplog.records if "not sending" in rec.getMessage()]
+    assert len(warnings) == 1 and "$.sensor_id" in warnings[0]
+    pub.close()
+    inbox.close()
+
+
 def test_real_session_bad_payload_and_delete(session: Any) -> None:
     inbox = Inbox(session, "pano/@v1/sensor/x/features", Features)
     session.put("pano/@v1/sensor/x/features", b"\x00\x01not msgpack", encoding=zenoh.Encoding("application/msgpack"))
