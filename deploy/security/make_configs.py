@@ -251,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--listen", default="tls/127.0.0.1:7447", help="router TLS endpoint")
     p.add_argument("--listen-tcp", default="tcp/127.0.0.1:7447", help="router endpoint of the usrpwd variant")
     p.add_argument("--router-host", default="localhost", help="name clients connect to (must be in the SAN)")
+    p.add_argument("--tls-only", action="store_true", help="skip the user/password variant (no secrets written)")
     args = p.parse_args(argv)
     if not PREFIX_RE.match(args.prefix):
         raise SystemExit(f"make_configs.py: error: --prefix must be chunks of [A-Za-z0-9_-], got {args.prefix!r}")
@@ -261,7 +262,6 @@ def main(argv: list[str] | None = None) -> int:
     certs = args.certs.rstrip("/") or "/"
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "usrpwd").mkdir(exist_ok=True)
     port = args.listen.rsplit(":", 1)[-1]
     tcp_port = args.listen_tcp.rsplit(":", 1)[-1]
     who = identities(root, sensors, managers, agents)
@@ -278,8 +278,12 @@ def main(argv: list[str] | None = None) -> int:
             f"panostereo client {name}: TLS with its own certificate (mutual TLS)",
         )
 
+    if args.tls_only:
+        print(f"make_configs.py: wrote router-tls.json5 and {len(who)} client configs in {out}")
+        return 0
     passwords = {name: secrets.token_urlsafe(18) for name, _ in who}
     router_pw = secrets.token_urlsafe(18)
+    (out / "usrpwd").mkdir(exist_ok=True)
     users = out / "users.txt"
     users.write_text("".join(f"{n}:{pw}\n" for n, pw in passwords.items()))
     users.chmod(0o600)

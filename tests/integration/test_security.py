@@ -452,6 +452,38 @@ def test_routers_stay_up(site: SecureSite) -> None:
     assert site.usr_router.alive, site.usr_router.log()
 
 
+def test_committed_demo_configs_match_the_generator(tmp_path: Path) -> None:
+    """deploy/security/demo/ is what make_configs.py writes for the demo site (no hand edits drift)."""
+    demo = SECURITY / "demo"
+    out = tmp_path / "demo"
+    _run(
+        [
+            sys.executable,
+            str(SECURITY / "make_configs.py"),
+            "--certs",
+            "deploy/security/generated",
+            "--out",
+            str(out),
+            "--sensors",
+            "pano1 pano2 pano3 ptz1",
+            "--managers",
+            "mgr1",
+            "--agents",
+            "agent1",
+            "--tls-only",
+        ]
+    )
+    committed = sorted(p.name for p in demo.glob("*.json5"))
+    assert committed == sorted(p.name for p in out.glob("*.json5"))
+    for name in committed:
+        assert (demo / name).read_text() == (out / name).read_text(), f"{name} differs from the generator's"
+    # The demo's processes use exactly these identities.
+    from common.site import load_site
+
+    site = load_site(REPO / "deploy" / "sites" / "demo.toml")
+    assert {f"sensor-{c.id}.json5" for c in site.camera} <= set(committed)
+
+
 # ---------------------------------------------------------------------------
 # The real processes on the secured network
 # ---------------------------------------------------------------------------
