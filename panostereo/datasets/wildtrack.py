@@ -3,7 +3,8 @@
 Input layout (annotations and calibration only; no images needed)::
 
     annotations_positions/NNNNNNNN.json   one per annotated frame (N = video frame, every 5th at 10 fps)
-    calibrations/intrinsic_zero/intr_<CAM>.xml   OpenCV FileStorage: camera_matrix (undistorted images)
+    calibrations/intrinsic_zero/intr_<CAM>.xml   OpenCV FileStorage: camera_matrix (undistorted images;
+                                                 MultiviewX: calibrations/intrinsic/)
     calibrations/extrinsic/extr_<CAM>.xml        rvec, tvec (world -> camera), tvec in centimetres
 
 Each annotation lists ``{personID, positionID, views: [{viewNum, xmin, ymin,
@@ -106,7 +107,10 @@ def camera_id(name: str) -> str:
 
 def calibration(root: Path, name: str, grid: GridSpec, image_size: tuple[int, int]) -> dict[str, Any]:
     """The pinhole calibration JSON of one camera (metres)."""
-    k = _read_fs(root / "calibrations" / "intrinsic_zero" / f"intr_{name}.xml", "camera_matrix").reshape(3, 3)
+    intr = root / "calibrations" / "intrinsic_zero" / f"intr_{name}.xml"
+    if not intr.is_file():  # MultiviewX: synthetic, undistorted images with one intrinsic folder
+        intr = root / "calibrations" / "intrinsic" / f"intr_{name}.xml"
+    k = _read_fs(intr, "camera_matrix").reshape(3, 3)
     extr = root / "calibrations" / "extrinsic" / f"extr_{name}.xml"
     rvec = _read_fs(extr, "rvec").reshape(3)
     tvec = _read_fs(extr, "tvec").reshape(3)
