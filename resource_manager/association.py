@@ -59,29 +59,59 @@ class _PairMatch:
 
 
 def build_views(
-    aligned: dict[str, AlignedView], poses: dict[str, PoseEstimate], sigma_of: Callable[[str], float]
+    aligned: dict[str, AlignedView],
+    poses: dict[str, PoseEstimate],
+    sigma_of: Callable[[str], float],
+    bodies: dict[str, float] | None = None,
 ) -> dict[str, ViewBlobs]:
-    """World-frame blobs of every aligned sensor whose pose is known."""
+    """World-frame blobs of every aligned sensor whose pose is known.
+
+    Args:
+        aligned: every sensor's blobs at the fusion instant.
+        poses: the known poses.
+        sigma_of: a sensor's bearing sigma.
+        bodies: sensor id -> body radius (m) of the robots/tripods; a blob that is one of those bodies seen by
+            another camera (same bearing, about its angular size) is dropped: known bodies are not people.
+    """
     out: dict[str, ViewBlobs] = {}
     for sid, av in aligned.items():
         pose = poses.get(sid)
         if pose is None:
             continue
-        n = len(av.blobs)
-        hist_len = {len(b.hist) for b in av.blobs}
+        sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
+        blobs = av.blobs
+        for other, radius in (bodies or {}).items():
+            op = poses.get(other)
+            if other == sid or op is None or radius <= 0:
+                continue
+            dist = math.hypot(op.x_m - pose.x_m, op.y_m - pose.y_m)
+            if dist <= radius:
+                continue
+            half = math.asin(radius / dist)
+            az = math.atan2(op.y_m - pose.y_m, op.x_m - pose.x_m) - pose.yaw_rad
+            blobs = [
+                b
+                for b in blobs
+                if not (
+                    abs(math.remainder(b.bearing_rad - az, 2 * math.pi)) < half + 3 * sigma
+                    and b.width_rad < 3.0 * half + 6 * sigma
+                )
+            ]
+        n = len(blobs)
+        hist_len = {len(b.hist) for b in blobs}
         hist = None
         if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
-            hist = np.array([b.hist for b in av.blobs], dtype=np.float64)
+            hist = np.array([b.hist for b in blobs], dtype=np.float64)
         out[sid] = ViewBlobs(
             sensor_id=sid,
             origin_xy=pose.origin,
             z_m=pose.z_m,
-            sigma_rad=math.hypot(sigma_of(sid), pose.sigma_yaw_rad),
-            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in av.blobs], dtype=np.float64),
-            width_rad=np.array([b.width_rad for b in av.blobs], dtype=np.float64),
-            top_elev_rad=np.array([b.top_elev_rad for b in av.blobs], dtype=np.float64),
+            sigma_rad=sigma,
+            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in blobs], dtype=np.float64),
+            width_rad=np.array([b.width_rad for b in blobs], dtype=np.float64),
+            top_elev_rad=np.array([b.top_elev_rad for b in blobs], dtype=np.float64),
             hist=hist,
-            local_id=np.array([b.local_id for b in av.blobs], dtype=np.int64),
+            local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
             hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
         )
     return out
@@ -214,8 +244,9 @@ class Associator:
         poses: dict[str, PoseEstimate],
         sigma_of: Callable[[str], float],
         t_ns: int,
+        bodies: dict[str, float] | None = None,
     ) -> Outcome:
-        views = build_views(aligned, poses, sigma_of)
+        views = build_views(aligned, poses, sigma_of, bodies)
         self._all = _AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))

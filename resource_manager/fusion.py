@@ -209,7 +209,8 @@ class Fusion:
         poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)
         self.last_poses = poses
         self.tracker.predict(t_ns)
-        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns)
+        bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
+        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns, bodies)
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
         plans = self._plans(t_ns, poses)

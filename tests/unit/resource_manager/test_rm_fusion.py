@@ -148,8 +148,8 @@ def test_pair_choice_published_with_predicted_error() -> None:
 
 def test_view_plan_moves_robot_and_error_falls() -> None:
     """Closed loop: the mobile camera drives to the planned goal and the predicted error drops."""
-    cams = [Cam("p1", 0.5, 0.5), Cam("r1", 0.9, 0.5, mobile=True, surveyed=False)]
-    target = Person(6.5, 0.9, 1.75)  # nearly colinear with the short baseline: a poor pair
+    cams = [Cam("p1", 0.5, 0.5), Cam("r1", 0.5, 1.0, mobile=True, surveyed=False)]
+    target = Person(6.5, 0.9, 1.75)  # far away across a 0.5 m baseline: a poor pair
 
     def people(t: float) -> list[Person]:
         return [target]
