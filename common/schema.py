@@ -268,6 +268,8 @@ class NodeStatus(_Msg, frozen=True, tag="pano.NodeStatus"):
     source_state: SourceState
     message: Text = ""
     """Human-readable detail, e.g. why the source failed."""
+    dropped_msgs: Count = 0
+    """Incoming messages (PTZ commands, plans) lost to a full buffer."""
 
 
 class PtzCommand(_Msg, frozen=True, tag="pano.PtzCommand"):
