@@ -25,6 +25,7 @@ __all__ = [
     "cameras_scene",
     "frame_transform",
     "tracks_scene",
+    "truth_scene",
 ]
 
 WORLD_FRAME: Final = "world"
@@ -330,3 +331,29 @@ def frame_transform(info: SensorInfo, stamp_ns: int) -> dict | None:
         "translation": {"x": p.x_m, "y": p.y_m, "z": p.z_m},
         "rotation": _yaw_quat(p.yaw_rad),
     }
+
+
+def truth_scene(people: list[tuple[str, float, float, float]], stamp_ns: int, lifetime_s: float) -> dict:
+    """A SceneUpdate of ground-truth people ``(id, x_m, y_m, height_m)``: translucent grey figures, for comparison."""
+    grey = {"r": 0.6, "g": 0.6, "b": 0.6, "a": 0.35}
+    entities = []
+    for pid, x, y, h in people:
+        hh = h if h > 0.5 else 1.7
+        entities.append(
+            _entity(
+                stamp_ns,
+                f"truth/{pid}",
+                int(lifetime_s * 1e9),
+                cylinders=[
+                    {
+                        "pose": _pose(x, y, hh / 2),
+                        "size": {"x": 0.5, "y": 0.5, "z": hh},
+                        "bottom_scale": 1.0,
+                        "top_scale": 1.0,
+                        "color": grey,
+                    }
+                ],
+                texts=[_text(x, y, hh + 0.45, f"truth #{pid}")],
+            )
+        )
+    return {"deletions": [], "entities": entities}

@@ -31,7 +31,7 @@ from mcap.writer import CompressionType, Writer
 
 from common.errors import ConfigError
 from common.keys import VERSION, Keys
-from common.schema import SensorInfo, TrackSet
+from common.schema import SensorInfo, TrackSet, ViewPlan
 from user_agent.foxglove import (
     FRAME_TRANSFORM_SCHEMA,
     SCENE_UPDATE_SCHEMA,
@@ -85,6 +85,8 @@ class McapSink:
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
         self._infos: dict[str, SensorInfo] = {}
+        self.plans: list[ViewPlan] = []
+        """Every view plan written (the simulator's ground truth depends on them)."""
         self._lock = threading.Lock()
         self.messages = 0
         """Raw samples written."""
@@ -118,6 +120,8 @@ class McapSink:
     def add_json(self, topic: str, schema_name: str, schema: dict[str, Any], obj: Any, log_time_ns: int) -> None:
         """Write one JSON message on a channel of its own (e.g. a ground-truth scene)."""
         with self._lock:
+            if self._closed:
+                return
             cid = self._channel(topic, MessageEncoding.JSON, self._schema(schema_name, schema), {"kind": "extra"})
             self._add(cid, log_time_ns, log_time_ns, json.dumps(obj).encode())
 
@@ -138,6 +142,8 @@ class McapSink:
             if msg is None:
                 self.undecodable += 1
                 return
+            if isinstance(msg, ViewPlan):
+                self.plans.append(msg)
             mtype = type_for_key(keys, key) if keys is not None else None
             assert mtype is not None
             name = f"pano.{mtype.__name__}"
@@ -227,8 +233,8 @@ class Recorder:
     def messages(self) -> int:
         return self.sink.messages
 
-    def stop(self) -> None:
-        """Undeclare, write what is buffered and finish the file."""
+    def stop(self, close: bool = True) -> None:
+        """Undeclare, write what is buffered and (unless ``close=False``) finish the file."""
         try:
             self._sub.undeclare()
         except Exception as err:  # session already closed
@@ -237,6 +243,7 @@ class Recorder:
             self._stop = True
             self._cond.notify()
         self._thread.join(timeout=30)
-        self.sink.close()
+        if close:
+            self.sink.close()
         if self.dropped:
             logger.warning("recorder dropped %d samples (writer too slow)", self.dropped)

@@ -150,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
     tty = sys.stdout.isatty() and not args.no_view
     router.start()
+    sink: Any = None
     recording = out / "recording.mcap"
     t_stop_ns = epoch_ns
     try:
@@ -157,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
         settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
             recorder = Recorder(session, keys.all, McapSink(recording, meta))
+            sink = recorder.sink
             client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo")
             try:
                 procs.start()
@@ -205,39 +207,59 @@ def run(args: argparse.Namespace) -> int:
                     shutdown.sleep(0.2)
                 t_stop_ns = time.time_ns()
             finally:
-                recorder.stop()
+                recorder.stop(close=False)  # the ground-truth scene is added before the file is finished
                 client.close()
                 procs.stop()
+    except BaseException:
+        if sink is not None:
+            sink.close()
+        raise
     finally:
         router.stop()
-    return _finish(
-        site,
-        out=out,
-        recording=recording,
-        epoch_ns=epoch_ns,
-        t_stop_ns=t_stop_ns,
-        fps=fps,
-        threshold_m=args.threshold,
-        restarts=procs.restarts(),
-    )
+    try:
+        return _finish(
+            site,
+            sink=sink,
+            out=out,
+            recording=recording,
+            epoch_ns=epoch_ns,
+            t_stop_ns=t_stop_ns,
+            fps=fps,
+            threshold_m=args.threshold,
+            restarts=procs.restarts(),
+        )
+    finally:
+        sink.close()
 
 
-def _platform_paths(world: Any, rec: Any, epoch_ns: int) -> dict[str, list[tuple[float, float]]]:
-    """True camera platform paths over the recorded span (simulation truth, for the plot's truth panel)."""
-    if rec.tracksets:
-        t0, t1 = (rec.tracksets[0].stamp_ns - epoch_ns) / 1e9, (rec.tracksets[-1].stamp_ns - epoch_ns) / 1e9
-    else:
-        t0, t1 = 0.0, max(0.0, (rec.last_log_ns - epoch_ns) / 1e9)
+def _platform_paths(world: Any, t1_s: float) -> dict[str, list[tuple[float, float]]]:
+    """True camera platform paths over the run (simulation truth, for the plot's truth panel)."""
     paths: dict[str, list[tuple[float, float]]] = {}
-    for i in range(41):
-        for p in world.platforms_at(max(0.0, t0 + (t1 - t0) * i / 40)):
+    for i in range(61):
+        for p in world.platforms_at(max(0.0, t1_s * i / 60)):
             paths.setdefault(p.sensor_id, []).append((p.x_m, p.y_m))
     return paths
+
+
+def _write_truth_scene(sink: Any, gt: Any, epoch_ns: int, fps: float) -> None:
+    """Ground-truth people as ``/scene/ground_truth`` (foxglove.SceneUpdate), to compare with the tracks in Foxglove.
+
+    Written after the run, on its own channel (``kind=extra``): replay republishes raw channels only, so the
+    truth never reaches a pipeline.
+    """
+    from user_agent.foxglove import SCENE_UPDATE_SCHEMA, truth_scene
+
+    for k in gt.frame_numbers:
+        stamp = epoch_ns + round((k - 1) / fps * 1e9)
+        people = [(p.person_id, p.x_m, p.y_m, p.z_m) for p in gt.frames[k]]
+        scene = truth_scene(people, stamp, lifetime_s=1.5 / fps)
+        sink.add_json("/scene/ground_truth", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, scene, stamp)
 
 
 def _finish(
     site: SiteConfig,
     *,
+    sink: Any,
     out: Path,
     recording: Path,
     epoch_ns: int,
@@ -250,7 +272,6 @@ def _finish(
     from user_agent.recording import load_recording
     from user_agent.report import plot_recording, score_recording
 
-    rec = load_recording(recording)
     gt_path = out / "gt.csv"
     gt_cameras: dict[str, list[tuple[float, float]]] | None = None
     if site.dataset is not None:
@@ -262,11 +283,14 @@ def _finish(
         from common.scenario import World, write_gt_csv
 
         world = World.from_site(site).with_goals(
-            goals_from_plans(rec.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
+            goals_from_plans(sink.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
         )
         write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
-        gt_cameras = _platform_paths(world, rec, epoch_ns)
+        gt_cameras = _platform_paths(world, (t_stop_ns - epoch_ns) / 1e9)
     gt = read_gt_csv(gt_path)
+    _write_truth_scene(sink, gt, epoch_ns, fps)
+    sink.close()
+    rec = load_recording(recording)
     scored = score_recording(rec, gt, threshold_m=threshold_m)
     m = scored.metrics
     plot = plot_recording(
