@@ -71,6 +71,13 @@ def test_demo_tracks_people_accurately(demo_run: tuple[Path, dict]) -> None:
     assert Path(s["recording"]).stat().st_size > 10_000
     assert Path(s["plot"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "gt.csv").read_text().startswith("frame,id,x_m,y_m")
+    from mcap.reader import make_reader
+
+    with Path(s["recording"]).open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    topics = {c.topic for c in summary.channels.values()}
+    assert {"/scene/tracks", "/scene/ground_truth", "/tf", "pano/@v1/tracks"} <= topics
 
 
 def test_replayed_recording_scores_the_same(demo_run: tuple[Path, dict], router, spawn, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
