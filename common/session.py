@@ -32,6 +32,7 @@ from typing import Any, Literal
 
 import msgspec
 
+from common.codec import MAX_PAYLOAD_BYTES
 from common.errors import ConfigError, SessionError
 
 __all__ = [
@@ -177,6 +178,9 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
                 json.dumps({"period_init_ms": 200, "period_max_ms": 1000, "period_increase_factor": 2}),
             )
         conf.insert_json5("transport/link/tx/lease", json.dumps(settings.lease_ms))
+        # Oversize messages are dropped by the receiving session (router included), so a
+        # flood of them never reaches, or fills, a process's buffers.
+        conf.insert_json5("transport/link/rx/max_message_size", json.dumps(2 * MAX_PAYLOAD_BYTES))
         if settings.user:
             conf.insert_json5(
                 "transport/auth/usrpwd", json.dumps({"user": settings.user, "password": settings.password})

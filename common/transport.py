@@ -24,7 +24,7 @@ from typing import Any, Generic, TypeVar
 import msgspec
 import zenoh
 
-from common.codec import decode, encode
+from common.codec import MAX_PAYLOAD_BYTES, decode, encode
 from common.errors import SchemaError
 from common.session import MSGPACK
 
@@ -97,6 +97,12 @@ class Inbox(Generic[T]):
         if sample.kind == zenoh.SampleKind.DELETE:
             with self._cond:
                 self.counters.deletes += 1
+            return
+        if len(sample.payload) > MAX_PAYLOAD_BYTES:
+            # Refuse before copying: a flood of oversize payloads must not grow memory.
+            with self._cond:
+                self.counters.received += 1
+                self.counters.decode_errors += 1
             return
         item = (str(sample.key_expr), sample.payload.to_bytes(), time.time_ns())
         with self._cond:

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 import zenoh
 
-from common.codec import encode
+from common.codec import MAX_PAYLOAD_BYTES, encode
 from common.schema import Features, PtzCommand
 from common.session import SessionSettings, open_session, wait_until
 from common.transport import Inbox, TypedPublisher
@@ -24,6 +24,9 @@ class FakePayload:
 
     def to_bytes(self) -> bytes:
         return self.data
+
+    def __len__(self) -> int:
+        return len(self.data)
 
 
 @dataclass
@@ -104,6 +107,18 @@ def test_get_skips_bad_payloads() -> None:
     r = inbox.get(timeout_s=1.0)
     assert r is not None and r.msg.seq == 5
     assert inbox.counters.decode_errors == 1
+
+
+def test_oversize_payloads_are_refused_before_buffering() -> None:
+    s = FakeSession()
+    inbox = Inbox(s, KEY, Features, capacity=8)
+    for _ in range(50):
+        s.deliver(KEY, b"\x00" * (MAX_PAYLOAD_BYTES + 1))
+    s.deliver(KEY, encode(feat(7)))
+    assert len(inbox) == 1  # nothing oversize was ever held
+    assert [r.msg.seq for r in inbox.drain()] == [7]
+    assert inbox.counters.decode_errors == 50
+    assert inbox.counters.received == 51
 
 
 def test_ring_drops_the_oldest() -> None:
