@@ -127,14 +127,19 @@ class BackgroundModel:
         if frac <= s.abnormal_frac:
             self._update_static(grey, fg, moving)
             return Motion(fg, moving, "ok", frac)
-        # Abnormal change: many pixels changed. A light change scales the scene by a gain.
+        # Abnormal change: many pixels changed. A light change scales the scene by a gain -- not
+        # quite uniformly (lamps, windows, saturated highlights), so the gain is a smooth map.
         gain = _global_gain(grey, bg_u8)
-        relit = cv2.convertScaleAbs(self._bg, alpha=gain)
-        fg2 = _threshold(cv2.absdiff(grey, relit), s.fg_threshold)
+        assert self._bg is not None
+        new_bg = self._bg * _gain_map(grey, bg_u8, gain)
+        # Where the scaled background nears saturation, colour channels clip one by one and the grey
+        # level is no longer a product: take what the camera sees there.
+        near = new_bg > 230.0
+        new_bg[near] = grey[near]
+        fg2 = _threshold(cv2.absdiff(grey, cv2.convertScaleAbs(new_bg)), s.fg_threshold)
         frac2 = cv2.countNonZero(fg2) / n
         if frac2 <= s.abnormal_frac:
-            assert self._bg is not None
-            self._set_background(np.minimum(self._bg * np.float32(gain), np.float32(255.0)))
+            self._set_background(new_bg)
             self.relights += 1
             logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
             # The frame of the jump is not reported: frame differencing is meaningless across it.
@@ -185,18 +190,21 @@ class BackgroundModel:
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
         if cv2.countNonZero(old) < s.min_blob_px:
             return
+        # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
+        # would measure texture, not the silhouette.
+        old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
         absorbed = False
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
-            if area < s.min_blob_px:
+            if area < s.min_blob_px or area < 0.3 * w * h:
                 continue
             mask = labels[y : y + h, x : x + w] == k
             outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
             cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             score = float(was[outline].sum()) / (float(cur[outline].sum()) + 1.0)
-            if score < 1.5:
+            if score < GHOST_SCORE:
                 continue
             assert self._bg is not None
             sub = self._bg[y : y + h, x : x + w]
@@ -212,11 +220,32 @@ class BackgroundModel:
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
 
+GHOST_SCORE = 2.5
+"""Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""
+
 _K3 = np.ones((3, 3), np.uint8)
+_K5 = np.ones((5, 5), np.uint8)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:
     return cv2.threshold(diff, level, 255, cv2.THRESH_BINARY)[1]
+
+
+def _gain_map(grey: Mask, bg: Mask, gain: float, block: int = 16) -> npt.NDArray[np.float32]:
+    """Per-pixel brightness ratio frame/background, smooth: block medians of the ratio.
+
+    A median over 7 x 7 blocks of ``block`` px (about 110 px, several people wide)
+    ignores the people, a minority of any such neighbourhood; pixels without a
+    usable ratio take the global ``gain``. The ratio is quantised to 1 %.
+    """
+    h, w = grey.shape
+    g = grey.astype(np.float32)
+    b = bg.astype(np.float32)
+    ratio = np.where((b > 16) & (g < 250), g / np.maximum(b, 1.0), np.float32(gain)).astype(np.float32)
+    small = cv2.resize(ratio, (max(1, w // block), max(1, h // block)), interpolation=cv2.INTER_AREA)
+    q = np.clip(small * 100.0 + 0.5, 1, 255).astype(np.uint8)  # medianBlur > 5 needs 8 bits
+    smooth = cv2.medianBlur(q, 7).astype(np.float32) / np.float32(100.0)
+    return cv2.resize(smooth, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
 
 
 def _global_gain(grey: Mask, bg: Mask) -> float:

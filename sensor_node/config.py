@@ -201,7 +201,7 @@ class BodySpec(ConfigStruct, frozen=True):
 class PipelineSettings(ConfigStruct, frozen=True):
     """``[pipeline]``: image-pipeline knobs. Each says what raising or lowering it does."""
 
-    fg_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 22
+    fg_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 16
     """Grey-level difference from the background that counts as changed. Lower: fainter people found,
     more noise specks; higher: fewer false pixels, low-contrast clothing breaks up."""
     diff_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 22
