@@ -101,8 +101,17 @@ def _write_files(tmp: Path, closed_port: str) -> None:
         '[source]\nkind = "detections"\nfile = "{file}"\ncalibration = "{calib}"\nfps = 10.0\n'
     )
     files["bad-calibration.json"] = "{ not json"
+    files["calibration.json"] = json.dumps(
+        {
+            "model": "pinhole",
+            "image_size": [640, 480],
+            "K": [[400.0, 0.0, 320.0], [0.0, 400.0, 240.0], [0.0, 0.0, 1.0]],
+            "R": [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+            "t": [0.0, 2.0, 0.0],
+        }
+    )
     files["det.txt"] = "1,1,10,10,50,100,0.9,-1,-1,-1\n"
-    files["node-missing-detections.toml"] = det.format(file=tmp / "absent-det.txt", calib=tmp / "bad-calibration.json")
+    files["node-missing-detections.toml"] = det.format(file=tmp / "absent-det.txt", calib=tmp / "calibration.json")
     files["node-bad-calibration.toml"] = det.format(file=tmp / "det.txt", calib=tmp / "bad-calibration.json")
     mgr = (REPO / "deploy" / "nodes" / "examples" / "manager.toml").read_text()
     mgr = re.sub(r"(?m)^connect = .*$", f'connect = ["tcp/127.0.0.1:{closed_port}"]\nconnect_timeout_ms = 1000', mgr)
