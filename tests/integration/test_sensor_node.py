@@ -234,3 +234,33 @@ def test_ptz_node_obeys_commands(tmp_path: Path, router: RouterProcess, spawn: A
         assert az[0] == pytest.approx(-2.0, abs=1e-3)
         pub.close()
         _stop_cleanly(proc, s, keys.sensor("ptz1"))
+
+
+def test_opencv_node_reports_a_failing_camera_and_keeps_retrying(
+    tmp_path: Path, router: RouterProcess, spawn: Any
+) -> None:
+    missing = tmp_path / "no-such-camera.mp4"
+    camera = (
+        '\n[camera]\nmodel = "panoramic"\ncenter_px = [388.0, 284.0]\nradial_poly = [254.0, -1.06, 0.0008]\n'
+        "f_v_px = 234.0\nv0_px = 84.7\n"
+    )
+    source = f'kind = "opencv"\nuri = "{missing}"\nreconnect_min_s = 0.2\nreconnect_max_s = 0.4'
+    cfg = _node_config(tmp_path, router, "cam9", source, camera)
+    keys = Keys("it")
+    with client_session(router.endpoint) as s:
+        status = Inbox(s, keys.sensor_status("cam9"), NodeStatus)
+        proc = spawn([sys.executable, "-m", "sensor_node", "--config", cfg])
+        wait_for_liveliness(s, keys.sensor("cam9"), 20.0)
+        seen: list[NodeStatus] = []
+
+        def retrying() -> bool:
+            seen.extend(r.msg for r in status.drain())
+            return len([m for m in seen if m.source_state == "reconnecting"]) >= 2
+
+        wait_for(retrying, 15.0, "two NodeStatus saying the source is reconnecting")
+        bad = [m for m in seen if m.source_state == "reconnecting"]
+        assert str(missing) in bad[-1].message and "retrying" in bad[-1].message
+        assert all(m.frames == 0 for m in seen)
+        info = _query_info(s, keys.sensor_info("cam9"))
+        assert info.kind == "panoramic" and info.model.width_px == 1080
+        _stop_cleanly(proc, s, keys.sensor("cam9"))
