@@ -9,9 +9,10 @@ integrates four parts, all here:
   frames) from people, and gives each blob its motion evidence;
 * **abnormal-change detection** -- when more than ``abnormal_frac`` of the
   image changed at once (a light switched, the camera moved), the model is
-  re-initialised instead of reporting the whole image as people: first by the
-  robust global gain ``median(I / B)`` (a light change scales the scene), and
-  if that does not explain the change, from the current frame;
+  re-initialised instead of reporting the whole image as people: first by a
+  smooth gain map around the robust global gain ``median(I / B)`` (a light
+  change scales the scene), and if that does not explain the change (the
+  robot drives, the scene changed) by learning afresh from still frames;
 * **background update** -- ``B <- (1 - a) B + a I`` pixel-wise, *only outside
   object regions* (the caller passes the mask of accepted objects), so people
   who pause are not absorbed while the slow light drift is followed.
@@ -79,6 +80,7 @@ class BackgroundModel:
         self._bg_u8: Mask | None = None
         self._prev: Mask | None = None
         self._warm: list[Mask] = []
+        self._warm_seen = 0
         self._static: Mask | None = None
         self._frames = 0
         self._updates = 0
@@ -111,12 +113,17 @@ class BackgroundModel:
         moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
         empty = np.zeros_like(grey)
         if self._bg is None:
-            if (self._frames - 1) % s.warmup_stride == 0:
-                self._warm.append(grey.copy())
+            if prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size:
+                # The camera is moving (or the light flickers): learn only from a still view.
+                self._warm, self._warm_seen = [], 0
+            else:
+                if self._warm_seen % s.warmup_stride == 0:
+                    self._warm.append(grey.copy())
+                self._warm_seen += 1
             if len(self._warm) >= s.warmup_frames:
                 stack = np.stack(self._warm)
                 self._set_background(np.median(stack, axis=0).astype(np.float32))
-                self._warm = []
+                self._warm, self._warm_seen = [], 0
                 logger.debug("background initialised from %d frames", s.warmup_frames)
             return Motion(empty, moving, "warmup", 0.0)
         bg_u8 = self._bg_u8
@@ -131,6 +138,8 @@ class BackgroundModel:
         # quite uniformly (lamps, windows, saturated highlights), so the gain is a smooth map.
         gain = _global_gain(grey, bg_u8)
         assert self._bg is not None
+        if abs(gain - 1.0) < MIN_LIGHT_STEP:
+            return self._restart(frac, gain, "the view changed, not the light")
         new_bg = self._bg * _gain_map(grey, bg_u8, gain)
         # Where the scaled background nears saturation, colour channels clip one by one and the grey
         # level is no longer a product: take what the camera sees there.
@@ -144,9 +153,22 @@ class BackgroundModel:
             logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
             # The frame of the jump is not reported: frame differencing is meaningless across it.
             return Motion(empty, empty, "relit", frac, gain)
-        self._set_background(grey.astype(np.float32))
+        return self._restart(frac, gain, "not explained by a light change")
+
+    def _restart(self, frac: float, gain: float, why: str) -> Motion:
+        """Re-initialise: forget the background and learn it again from the next still frames.
+
+        A moving camera (a robot driving) or a changed scene cannot be compensated;
+        learning afresh from a median of still frames (rather than from this one
+        frame) keeps the people now in view out of the new background.
+        """
+        self._bg = None
+        self._bg_u8 = None
+        self._warm, self._warm_seen = [], 0
+        self._static = None
         self.reinits += 1
-        logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f): background reset", 100 * frac, gain)
+        logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
+        empty = np.zeros(self._prev.shape if self._prev is not None else (1, 1), np.uint8)
         return Motion(empty, empty, "reinit", frac, gain)
 
     def update(self, grey: Mask, objects: Mask | None) -> None:
@@ -219,6 +241,9 @@ class BackgroundModel:
 
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
+
+MIN_LIGHT_STEP = 0.04
+"""A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
 
 GHOST_SCORE = 2.5
 """Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""

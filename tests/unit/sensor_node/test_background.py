@@ -71,8 +71,22 @@ def test_scene_change_reinitialises() -> None:
     _warm(model, backdrop(4), rng)
     other = (255 - backdrop(4)).astype(np.uint8)  # a different scene (camera moved), not a gain
     m = model.apply(grey(noisy(other, rng)))
-    assert m.state == "reinit" and not m.fg.any() and model.reinits == 1
+    assert m.state == "reinit" and not m.fg.any() and model.reinits == 1 and not model.ready
+    _warm(model, other, rng)  # learnt afresh from the new view
     assert model.apply(grey(noisy(other, rng))).changed_frac < 0.002
+
+
+def test_a_moving_camera_is_not_learnt_until_it_stops() -> None:
+    rng = np.random.default_rng(6)
+    model = BackgroundModel(PipelineSettings(warmup_stride=1, warmup_frames=5))
+    base = backdrop(6, w=1900)
+    for k in range(20):  # panning: every frame shifted by 40 columns
+        m = model.apply(grey(noisy(base[:, 40 * k : 40 * k + 1080].copy(), rng)))
+        assert m.state == "warmup" and not model.ready
+    view = base[:, 100:1180].copy()
+    for _ in range(6):
+        model.apply(grey(noisy(view, rng)))
+    assert model.ready and model.apply(grey(noisy(view, rng))).changed_frac < 0.002
 
 
 def test_update_only_outside_objects() -> None:
