@@ -36,6 +36,7 @@ from tests.support import (
     ManagedProcess,
     free_port,
     router_command,
+    skip_or_fail,
     spawn,
     wait_for,
     wait_for_port,
@@ -356,7 +357,7 @@ class CameraHost:
 @contextlib.contextmanager
 def camera_host() -> Iterator[CameraHost]:
     if os.geteuid() != 0:
-        pytest.skip("network namespaces need root (CI runs as root)")
+        skip_or_fail("network namespaces and veth pairs need root (CI runs as root)")
     tag = f"{os.getpid() % 100000}"
     net = 1 + os.getpid() % 250
     ns, here, there = f"psns{tag}", f"psh{tag}", f"psc{tag}"
