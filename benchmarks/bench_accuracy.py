@@ -104,11 +104,14 @@ def _abs_site(site: Path, out: Path, manager_cfg: Path | None) -> Path:
         return f'config = "{(base / m.group(1)).resolve()}"'
 
     text = re.sub(r'^config = "([^"]+)"', fix, text, flags=re.M)
+    text = re.sub(
+        r'^ground_truth = "([^"]+)"', lambda m: f'ground_truth = "{(base / m.group(1)).resolve()}"', text, flags=re.M
+    )
     if manager_cfg is not None:
         text = re.sub(
             r'(command = "manager"\s*\nconfig = )"[^"]+"', lambda m: f'{m.group(1)}"{manager_cfg}"', text, flags=re.M
         )
-    dest = out / f"{site.stem}-bench.toml"
+    dest = out / f"{site.stem}-{manager_cfg.stem if manager_cfg else 'bench'}.toml"
     dest.write_text(text)
     return dest
 

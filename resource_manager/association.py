@@ -39,6 +39,8 @@ __all__ = ["Associator", "Outcome", "build_views"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+BODY_TOP_MARGIN_M = 0.2
+"""A blob on a robot body's bearing whose top is below the robot's camera + this is the body, not a person."""
 RERANK_MOVE_M = 0.25
 """A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
@@ -89,12 +91,15 @@ def build_views(
                 continue
             half = math.asin(radius / dist)
             az = math.atan2(op.y_m - pose.y_m, op.x_m - pose.x_m) - pose.yaw_rad
+            # The body ends at the other camera (on its axis); a person behind it shows a taller top.
+            top = math.atan2(op.z_m + BODY_TOP_MARGIN_M - pose.z_m, dist)
             blobs = [
                 b
                 for b in blobs
                 if not (
                     abs(math.remainder(b.bearing_rad - az, 2 * math.pi)) < half + 3 * sigma
                     and b.width_rad < 3.0 * half + 6 * sigma
+                    and b.top_elev_rad < top
                 )
             ]
         n = len(blobs)
@@ -270,6 +275,13 @@ class Associator:
                 claimed=claimed,
             )
             if meas is None:
+                # No pair localises it this tick: the views that still follow it (same node-side blob) steer it
+                # by bearing alone, so the prediction stays on the person while the stereo pair is broken.
+                if mc.bearing_updates:
+                    for sid, i in sup.items():
+                        v = views[sid]
+                        if tr.links.get(sid) == int(v.local_id[i]):
+                            self.tracker.bearing_update(tr, v.origin_xy, float(v.bearing_rad[i]), v.sigma_rad)
                 self.tracker.miss(tr)
                 continue
             claimed.update(used_blobs.items())

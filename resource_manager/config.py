@@ -137,6 +137,8 @@ class MatchSection(ConfigStruct, frozen=True):
     link_gate_m: Pos = 1.0
     """A measurement outside the motion gate is still taken when both blobs continue the track's node-side
     2D tracks (same local ids) and it lies within this distance of the prediction (sharp turns)."""
+    bearing_updates: bool = False
+    """When no pair localises a track, the cameras that still follow it update it by bearing alone (EKF)."""
     max_birth_pairs: PosInt = 12
     """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
     pair_choice: Literal["error_model", "random"] = "error_model"

@@ -149,6 +149,23 @@ class Tracker:
         else:
             tr.state = "confirmed"
 
+    def bearing_update(self, tr: TrackRecord, origin_xy: FloatArray, bearing_rad: float, sigma_rad: float) -> bool:
+        """Extended Kalman update with one camera's bearing (a single ray); False if outside the gate."""
+        dx, dy = float(tr.x[0] - origin_xy[0]), float(tr.x[1] - origin_xy[1])
+        r2 = dx * dx + dy * dy
+        if r2 < 0.09:
+            return False
+        h = np.array([[-dy / r2, dx / r2, 0.0, 0.0]])
+        nu = math.remainder(bearing_rad - math.atan2(dy, dx), 2 * math.pi)
+        s = float((h @ tr.p @ h.T)[0, 0]) + sigma_rad**2
+        if nu * nu / s > self.params.gate_chi2:
+            return False
+        k = (tr.p @ h.T) / s
+        tr.x = tr.x + (k * nu).ravel()
+        tr.p = (np.eye(4) - k @ h) @ tr.p
+        tr.p = 0.5 * (tr.p + tr.p.T)
+        return True
+
     def miss(self, tr: TrackRecord) -> None:
         tr.misses += 1
         tr.method = "predicted"

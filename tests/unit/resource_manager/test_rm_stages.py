@@ -260,14 +260,16 @@ def test_known_bodies_are_not_people() -> None:
     from resource_manager.poses import PoseEstimate
 
     def b(lid: int, bearing: float, width: float) -> AlignedBlob:
-        return AlignedBlob(lid, bearing, width, 0.1, -0.3, [], True)
+        return AlignedBlob(lid, bearing, width, 0.0 if lid == 1 else 0.15, -0.3, [], True)
 
     poses = {
         "p1": PoseEstimate("p1", 0.0, 0.0, 1.1, 0.0, "surveyed"),
         "r1": PoseEstimate("r1", 3.0, 0.0, 1.1, 0.0, "mutual"),
     }
-    # p1 sees r1's body (R = 0.18 m at 3 m: 0.12 rad wide) straight ahead, and a person at 0.5 rad
-    av = AlignedView("p1", 1, [b(1, 0.002, 0.12), b(2, 0.5, 0.1), b(3, 0.01, 0.8)], [], "interpolated")
+    # p1 sees r1's body (R = 0.18 m at 3 m: 0.12 rad wide, top at the camera) straight ahead, a person at
+    # 0.5 rad, people merged in front of it (wide), and a person right behind it (taller top)
+    blobs = [b(1, 0.002, 0.12), b(2, 0.5, 0.1), b(3, 0.01, 0.8), b(4, 0.003, 0.1)]
+    av = AlignedView("p1", 1, blobs, [], "interpolated")
     views = build_views({"p1": av}, poses, lambda s: SIG, {"r1": 0.18})
-    assert list(views["p1"].local_id) == [2, 3]  # the body is gone; a wide blob (people in front of it) stays
-    assert list(build_views({"p1": av}, poses, lambda s: SIG)["p1"].local_id) == [1, 2, 3]
+    assert list(views["p1"].local_id) == [2, 3, 4]  # only the body is gone
+    assert list(build_views({"p1": av}, poses, lambda s: SIG)["p1"].local_id) == [1, 2, 3, 4]
