@@ -479,6 +479,10 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
 
     py = sys.executable
     arrivals: list[tuple[int, int, int, int]] = []  # (arrival_ns, stamp_ns, seq, n_tracks)
+    errors_m: list[float] = []
+    """Distance of each confirmed track state to the nearest simulated person (scoring only)."""
+    epoch_ns = time.time_ns()
+    _, walkers = make_room(args.sensors, args.people, args.seed)
     statuses: list[ManagerStatus] = []
     lock = threading.Lock()
     rss: list[tuple[float, int]] = []
@@ -493,8 +497,15 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
             def on_tracks(sample: Any) -> None:
                 now = time.time_ns()
                 ts = decode(sample.payload.to_bytes(), TrackSet)
+                t_s = (ts.stamp_ns - epoch_ns) / 1e9
+                errs = [
+                    min(math.hypot(t.x_m - x, t.y_m - y) for x, y in (w.at(t_s) for w in walkers))
+                    for t in ts.tracks
+                    if t.state == "confirmed"
+                ]
                 with lock:
                     arrivals.append((now, ts.stamp_ns, ts.seq, len(ts.tracks)))
+                    errors_m.extend(errs)
 
             def on_status(sample: Any) -> None:
                 with lock:
@@ -537,6 +548,8 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
                     str(args.seed),
                     "--stats",
                     str(fleet_out),
+                    "--epoch-ns",
+                    str(epoch_ns),
                 ],
             )
             t0 = time.monotonic()
@@ -579,6 +592,12 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
             "manager_late_msgs": last.late_msgs if last else None,
             "manager_decode_errors": last.decode_errors if last else None,
             "manager_out_of_order_msgs": last.out_of_order_msgs if last else None,
+            "manager_sensors_in_use_max": max((len(st.sensors_in_use) for st in statuses), default=0),
+            "track_error_m": {
+                "p50": round(statistics.median(errors_m), 3) if errors_m else None,
+                "p90": round(statistics.quantiles(errors_m, n=10)[8], 3) if len(errors_m) > 1 else None,
+                "n": len(errors_m),
+            },
             "manager_tick_ms": last.tick_ms if last else None,
             "manager_tick_p99_ms": last.tick_p99_ms if last else None,
             "latency_ms": _percentiles(lat_warm or lat),
