@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from common.schema import PairEntry
+from common.schema import PairEntry, PinholeModel
 from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
@@ -65,6 +65,7 @@ def build_views(
     poses: dict[str, PoseEstimate],
     sigma_of: Callable[[str], float],
     bodies: dict[str, float] | None = None,
+    fovs: dict[str, tuple[float, float]] | None = None,
 ) -> dict[str, ViewBlobs]:
     """World-frame blobs of every aligned sensor whose pose is known.
 
@@ -74,6 +75,7 @@ def build_views(
         sigma_of: a sensor's bearing sigma.
         bodies: sensor id -> body radius (m) of the robots/tripods; a blob that is one of those bodies seen by
             another camera (same bearing, about its angular size) is dropped: known bodies are not people.
+        fovs: sensor id -> (axis azimuth, half width) of perspective cameras (see :func:`pinhole_fov`).
     """
     out: dict[str, ViewBlobs] = {}
     for sid, av in aligned.items():
@@ -118,8 +120,25 @@ def build_views(
             hist=hist,
             local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
             hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
+            bottom_elev_rad=np.array(
+                [b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64
+            ),
+            fov=(fovs or {}).get(sid),
         )
     return out
+
+
+def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, float] | None:
+    """(world azimuth of the optical axis, horizontal half field of view) of a perspective camera.
+
+    None when the camera looks nearly straight down (it then sees every azimuth around its foot).
+    """
+    r, k = model.r, model.k
+    axis_x, axis_y, axis_z = r[6], r[7], r[8]  # the camera z axis in the world: third row of R
+    if abs(axis_z) > 0.9 or k[0] <= 0:
+        return None
+    half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
+    return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
 
 
 def _wrap(a: FloatArray) -> FloatArray:
@@ -138,6 +157,7 @@ class Associator:
             max_range_m=mc.max_range_m,
             width_sigma=mc.width_sigma,
             width_floor=mc.width_floor,
+            floor_sigma_m=mc.floor_sigma_m,
             height_sigma=mc.height_sigma,
             use_colour=mc.use_colour,
             temporal_weight=mc.temporal_weight,
@@ -249,9 +269,11 @@ class Associator:
         poses: dict[str, PoseEstimate],
         sigma_of: Callable[[str], float],
         t_ns: int,
+        *,
         bodies: dict[str, float] | None = None,
+        fovs: dict[str, tuple[float, float]] | None = None,
     ) -> Outcome:
-        views = build_views(aligned, poses, sigma_of, bodies)
+        views = build_views(aligned, poses, sigma_of, bodies, fovs)
         self._all = _AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
@@ -477,6 +499,8 @@ class Associator:
             if dist > self.params.max_range_m or dist < 0.3:
                 continue
             pred = math.atan2(rel[1], rel[0])
+            if not v.sees(pred):
+                continue
             gate = k * v.sigma_rad + 0.3 / dist
             if v.n and float(np.min(np.abs(_wrap(v.bearing_rad - pred)) - 0.5 * v.width_rad)) < gate:
                 support += 1
@@ -498,6 +522,8 @@ def _subset(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
         hist=None if v.hist is None else v.hist[sel],
         local_id=v.local_id[sel],
         hist_sqrt=None if v.hist_sqrt is None else v.hist_sqrt[sel],
+        bottom_elev_rad=None if v.bottom_elev_rad is None else v.bottom_elev_rad[sel],
+        fov=v.fov,
     )
 
 
@@ -527,6 +553,8 @@ class _AllBlobs:
     """(n,) index of the blob's view."""
     view_origin: FloatArray
     """(v, 2) every view's position (views without blobs included)."""
+    view_fov: FloatArray
+    """(v, 2) axis azimuth and half field of view (half = pi: panoramic)."""
 
     @staticmethod
     def of(views: dict[str, ViewBlobs], k_sigma: float) -> _AllBlobs:
@@ -541,12 +569,15 @@ class _AllBlobs:
             sigma_gate=np.repeat([k_sigma * v.sigma_rad for v in vs], counts) if vs else np.zeros(0),
             view=idx,
             view_origin=vo,
+            view_fov=np.array([v.fov if v.fov is not None else (0.0, math.pi) for v in vs]).reshape(-1, 2),
         )
 
     def agreement(self, xy: FloatArray, max_range_m: float) -> tuple[int, int]:
         """(views with a blob toward ``xy``, views within range of ``xy``)."""
         d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
         in_range = (d_view > 0.3) & (d_view <= max_range_m)
+        az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
+        in_range &= np.abs(_wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
         total = int(np.count_nonzero(in_range))
         if total == 0 or self.bearing.size == 0:
             return 0, total

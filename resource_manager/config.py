@@ -124,6 +124,9 @@ class MatchSection(ConfigStruct, frozen=True):
     """r_rc = 0 when a hypothesised target lies further than this from either camera."""
     width_sigma: Pos = 0.35
     """Spread of ln(W1/W2) in r_wc (frontal vs side widths differ by ~0.6)."""
+    floor_sigma_m: NonNeg = 0.25
+    """Part of r_hc: where a blob's feet are visible, z_cam + D tan(bottom) must be the floor within this
+    (plus the bearing error times D); 0 disables. Ghosts of crossing rays stand above or below the floor."""
     width_floor: Frac = 0.0
     """Smallest r_wc: raise it (e.g. 0.3) when the nodes merge occluding people into one wide blob."""
     height_sigma: Pos = 0.12

@@ -31,6 +31,7 @@ from common.schema import (
     Features,
     PairChoice,
     PairEntry,
+    PinholeModel,
     PtzCommand,
     PtzState,
     SensorInfo,
@@ -39,7 +40,7 @@ from common.schema import (
     ViewPlan,
 )
 from resource_manager.align import AlignedView, AlignParams, align_sensor
-from resource_manager.association import Associator
+from resource_manager.association import Associator, pinhole_fov
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest import Ingest
 from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
@@ -210,7 +211,7 @@ class Fusion:
         self.last_poses = poses
         self.tracker.predict(t_ns)
         bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
-        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns, bodies)
+        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns, bodies=bodies, fovs=self._fovs())
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
         plans = self._plans(t_ns, poses)
@@ -218,6 +219,16 @@ class Fusion:
         return self._result(
             outcome.pair_entries, plans, commands, ended, in_use=outcome.sensors_in_use, aligned=aligned
         )
+
+    def _fovs(self) -> dict[str, tuple[float, float]]:
+        """Horizontal fields of view of the fixed perspective cameras (PTZ heads move: not limited here)."""
+        out: dict[str, tuple[float, float]] = {}
+        for sid, info in self.poses.infos.items():
+            if info.kind == "pinhole" and isinstance(info.model, PinholeModel):
+                fov = pinhole_fov(info.model)
+                if fov is not None:
+                    out[sid] = fov
+        return out
 
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackRecord]:

@@ -73,6 +73,16 @@ class ViewBlobs:
     """(n,) the node's 2D track ids."""
     hist_sqrt: FloatArray | None = None
     """Element-wise square roots of ``hist`` (for the Bhattacharyya coefficient), precomputed per view."""
+    bottom_elev_rad: FloatArray | None = None
+    """(n,) elevations of the blob bottoms (feet), NaN where the feet are not visible; None: unknown."""
+    fov: tuple[float, float] | None = None
+    """(world azimuth of the optical axis, half width) of a perspective camera; None: 360 deg (panoramic)."""
+
+    def sees(self, azimuth_rad: float) -> bool:
+        """Whether a world azimuth is inside this camera's horizontal field of view."""
+        if self.fov is None:
+            return True
+        return abs(math.remainder(azimuth_rad - self.fov[0], 2 * math.pi)) <= self.fov[1]
 
     @property
     def n(self) -> int:
@@ -88,6 +98,8 @@ class MatchParams:
     height_sigma: float = 0.12
     use_colour: bool = True
     temporal_weight: float = 1.0
+    floor_sigma_m: float = 0.0
+    """Spread of the feet height z_cam + D tan(bottom) around the floor (0: not used)."""
     width_floor: float = 0.0
     """Smallest r_wc (merged blobs of occluding people are wide; 0: strict)."""
     colinear_sigmas: float = 2.0
@@ -194,6 +206,16 @@ def match_matrix(
     h1 = a.z_m + d1 * np.tan(a.top_elev_rad[:, None])
     h2 = b.z_m + d2 * np.tan(b.top_elev_rad[None, :])
     r_hc = _log_ratio_score(h1, h2, params.height_sigma)
+    # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
+    if params.floor_sigma_m > 0:
+        for v, dist, col in ((a, d1, True), (b, d2, False)):
+            if v.bottom_elev_rad is None:
+                continue
+            bottom = v.bottom_elev_rad[:, None] if col else v.bottom_elev_rad[None, :]
+            with np.errstate(invalid="ignore"):
+                zf = v.z_m + dist * np.tan(bottom)
+            sig = params.floor_sigma_m + dist * v.sigma_rad * 4.0
+            r_hc = r_hc * np.where(np.isfinite(zf), np.exp(-(np.nan_to_num(zf) ** 2) / (2.0 * sig**2)), 1.0)
     # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
     if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
         sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))

@@ -273,3 +273,22 @@ def test_known_bodies_are_not_people() -> None:
     views = build_views({"p1": av}, poses, lambda s: SIG, {"r1": 0.18})
     assert list(views["p1"].local_id) == [2, 3, 4]  # only the body is gone
     assert list(build_views({"p1": av}, poses, lambda s: SIG)["p1"].local_id) == [1, 2, 3, 4]
+
+
+def test_pinhole_field_of_view() -> None:
+    from resource_manager.association import pinhole_fov
+    from resource_manager.match import ViewBlobs
+
+    # camera looking along world +y, level: R rows are the camera axes in world coordinates
+    model = PinholeModel(
+        width_px=640, height_px=480, k=[320.0, 0, 320, 0, 320, 240, 0, 0, 1], r=[1.0, 0, 0, 0, 0, -1, 0, 1, 0]
+    )
+    fov = pinhole_fov(model, margin_rad=0.0)
+    assert fov is not None
+    assert fov[0] == pytest.approx(math.pi / 2) and fov[1] == pytest.approx(math.pi / 4)
+    v = ViewBlobs(
+        "c", np.zeros(2), 1.0, SIG, np.zeros(0), np.zeros(0), np.zeros(0), None, np.zeros(0, np.int64), fov=fov
+    )
+    assert v.sees(math.pi / 2 + 0.7) and not v.sees(0.0)
+    down = PinholeModel(width_px=640, height_px=480, k=[320.0, 0, 320, 0, 320, 240, 0, 0, 1])  # R = I: looks down z
+    assert pinhole_fov(down) is None
