@@ -596,6 +596,8 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
             "track_error_m": {
                 "p50": round(statistics.median(errors_m), 3) if errors_m else None,
                 "p90": round(statistics.quantiles(errors_m, n=10)[8], 3) if len(errors_m) > 1 else None,
+                "p99": round(statistics.quantiles(errors_m, n=100)[98], 3) if len(errors_m) > 1 else None,
+                "share_within_0_5m": round(sum(e < 0.5 for e in errors_m) / len(errors_m), 4) if errors_m else None,
                 "n": len(errors_m),
             },
             "manager_tick_ms": last.tick_ms if last else None,
