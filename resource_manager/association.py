@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from common.schema import PairEntry, PinholeModel
+from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
@@ -34,13 +34,12 @@ from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matc
 from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.poses import PoseEstimate
 from resource_manager.track import Tracker, TrackRecord
+from resource_manager.views import AllBlobs, build_views, subset_view, wrap
 
-__all__ = ["Associator", "Outcome", "build_views"]
+__all__ = ["Associator", "Outcome"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
-BODY_TOP_MARGIN_M = 0.2
-"""A blob on a robot body's bearing whose top is below the robot's camera + this is the body, not a person."""
 RERANK_MOVE_M = 0.25
 """A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
@@ -58,91 +57,6 @@ class _PairMatch:
     mm: MatchMatrix
     pairs: dict[int, int]
     """row -> column of the accepted matches."""
-
-
-def build_views(
-    aligned: dict[str, AlignedView],
-    poses: dict[str, PoseEstimate],
-    sigma_of: Callable[[str], float],
-    bodies: dict[str, float] | None = None,
-    fovs: dict[str, tuple[float, float]] | None = None,
-) -> dict[str, ViewBlobs]:
-    """World-frame blobs of every aligned sensor whose pose is known.
-
-    Args:
-        aligned: every sensor's blobs at the fusion instant.
-        poses: the known poses.
-        sigma_of: a sensor's bearing sigma.
-        bodies: sensor id -> body radius (m) of the robots/tripods; a blob that is one of those bodies seen by
-            another camera (same bearing, about its angular size) is dropped: known bodies are not people.
-        fovs: sensor id -> (axis azimuth, half width) of perspective cameras (see :func:`pinhole_fov`).
-    """
-    out: dict[str, ViewBlobs] = {}
-    for sid, av in aligned.items():
-        pose = poses.get(sid)
-        if pose is None:
-            continue
-        sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
-        blobs = av.blobs
-        for other, radius in (bodies or {}).items():
-            op = poses.get(other)
-            if other == sid or op is None or radius <= 0:
-                continue
-            dist = math.hypot(op.x_m - pose.x_m, op.y_m - pose.y_m)
-            if dist <= radius:
-                continue
-            half = math.asin(radius / dist)
-            az = math.atan2(op.y_m - pose.y_m, op.x_m - pose.x_m) - pose.yaw_rad
-            # The body ends at the other camera (on its axis); a person behind it shows a taller top.
-            top = math.atan2(op.z_m + BODY_TOP_MARGIN_M - pose.z_m, dist)
-            blobs = [
-                b
-                for b in blobs
-                if not (
-                    abs(math.remainder(b.bearing_rad - az, 2 * math.pi)) < half + 3 * sigma
-                    and b.width_rad < 3.0 * half + 6 * sigma
-                    and b.top_elev_rad < top
-                )
-            ]
-        n = len(blobs)
-        hist_len = {len(b.hist) for b in blobs}
-        hist = None
-        if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
-            hist = np.array([b.hist for b in blobs], dtype=np.float64)
-        out[sid] = ViewBlobs(
-            sensor_id=sid,
-            origin_xy=pose.origin,
-            z_m=pose.z_m,
-            sigma_rad=sigma,
-            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in blobs], dtype=np.float64),
-            width_rad=np.array([b.width_rad for b in blobs], dtype=np.float64),
-            top_elev_rad=np.array([b.top_elev_rad for b in blobs], dtype=np.float64),
-            hist=hist,
-            local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
-            hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
-            bottom_elev_rad=np.array(
-                [b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64
-            ),
-            fov=(fovs or {}).get(sid),
-        )
-    return out
-
-
-def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, float] | None:
-    """(world azimuth of the optical axis, horizontal half field of view) of a perspective camera.
-
-    None when the camera looks nearly straight down (it then sees every azimuth around its foot).
-    """
-    r, k = model.r, model.k
-    axis_x, axis_y, axis_z = r[6], r[7], r[8]  # the camera z axis in the world: third row of R
-    if abs(axis_z) > 0.9 or k[0] <= 0:
-        return None
-    half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
-    return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 class Associator:
@@ -165,7 +79,7 @@ class Associator:
         self.threshold = mc.threshold
         self._birth_rr = 0
         self._gates: tuple[FloatArray, FloatArray] | None = None
-        self._all: _AllBlobs | None = None
+        self._all: AllBlobs | None = None
         self._rng = np.random.default_rng(0)
 
     # -- step 1 -----------------------------------------------------------------
@@ -191,7 +105,7 @@ class Associator:
             dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
             pred = np.arctan2(rel[:, 1], rel[:, 0])
             gate = k * np.sqrt(v.sigma_rad**2 + tvar / dist**2) + 0.25 / dist
-            diff = np.abs(_wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
+            diff = np.abs(wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
             norm = diff / gate[None, :]
             claimed: set[int] = set()
             pending: list[int] = []
@@ -257,7 +171,7 @@ class Associator:
             dist = max(float(np.hypot(*rel)), 0.3)
             pred = math.atan2(rel[1], rel[0])
             gate = k * v.sigma_rad + 0.25 / dist
-            if abs(float(_wrap(np.array(v.bearing_rad[i] - pred)))) < gate:
+            if abs(float(wrap(np.array(v.bearing_rad[i] - pred)))) < gate:
                 agree.append(sid)
             else:
                 against += 1
@@ -274,7 +188,7 @@ class Associator:
         fovs: dict[str, tuple[float, float]] | None = None,
     ) -> Outcome:
         views = build_views(aligned, poses, sigma_of, bodies, fovs)
-        self._all = _AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
+        self._all = AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
         support, shared = self.support(views, tracks)
@@ -430,7 +344,7 @@ class Associator:
             self._birth_rr += budget
         hyps: list[tuple[int, float, Measurement, dict[str, int]]] = []
         for a_id, b_id in pairs:
-            a, b = _subset(views[a_id], left[a_id]), _subset(views[b_id], left[b_id])
+            a, b = subset_view(views[a_id], left[a_id]), subset_view(views[b_id], left[b_id])
             mm = match_matrix(a, b, self.params, None)
             for ii, jj in self.matcher.match(mm.r, self.threshold):
                 meas = localize_best_pair(
@@ -502,29 +416,11 @@ class Associator:
             if not v.sees(pred):
                 continue
             gate = k * v.sigma_rad + 0.3 / dist
-            if v.n and float(np.min(np.abs(_wrap(v.bearing_rad - pred)) - 0.5 * v.width_rad)) < gate:
+            if v.n and float(np.min(np.abs(wrap(v.bearing_rad - pred)) - 0.5 * v.width_rad)) < gate:
                 support += 1
             else:
                 against += 1
         return support, against
-
-
-def _subset(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
-    sel = np.asarray(idx, dtype=np.int64)
-    return ViewBlobs(
-        sensor_id=v.sensor_id,
-        origin_xy=v.origin_xy,
-        z_m=v.z_m,
-        sigma_rad=v.sigma_rad,
-        bearing_rad=v.bearing_rad[sel],
-        width_rad=v.width_rad[sel],
-        top_elev_rad=v.top_elev_rad[sel],
-        hist=None if v.hist is None else v.hist[sel],
-        local_id=v.local_id[sel],
-        hist_sqrt=None if v.hist_sqrt is None else v.hist_sqrt[sel],
-        bottom_elev_rad=None if v.bottom_elev_rad is None else v.bottom_elev_rad[sel],
-        fov=v.fov,
-    )
 
 
 def _reindex(meas: Measurement, links: dict[str, int]) -> Measurement:
@@ -538,53 +434,3 @@ def _reindex(meas: Measurement, links: dict[str, int]) -> Measurement:
         predicted_error_m=meas.predicted_error_m,
         blobs=tuple((s, links[s]) for s, _ in meas.blobs),
     )
-
-
-@dataclass(frozen=True, slots=True)
-class _AllBlobs:
-    """Every blob of every view in flat arrays, to ask "how many cameras see something toward (x, y)?" at once."""
-
-    origin: FloatArray
-    """(n, 2) camera position of each blob."""
-    bearing: FloatArray
-    half_width: FloatArray
-    sigma_gate: FloatArray
-    view: npt.NDArray[np.int64]
-    """(n,) index of the blob's view."""
-    view_origin: FloatArray
-    """(v, 2) every view's position (views without blobs included)."""
-    view_fov: FloatArray
-    """(v, 2) axis azimuth and half field of view (half = pi: panoramic)."""
-
-    @staticmethod
-    def of(views: dict[str, ViewBlobs], k_sigma: float) -> _AllBlobs:
-        vs = list(views.values())
-        counts = [v.n for v in vs]
-        idx = np.repeat(np.arange(len(vs)), counts).astype(np.int64)
-        vo = np.array([v.origin_xy for v in vs]).reshape(-1, 2)
-        return _AllBlobs(
-            origin=vo[idx] if idx.size else np.zeros((0, 2)),
-            bearing=np.concatenate([v.bearing_rad for v in vs]) if vs else np.zeros(0),
-            half_width=0.5 * np.concatenate([v.width_rad for v in vs]) if vs else np.zeros(0),
-            sigma_gate=np.repeat([k_sigma * v.sigma_rad for v in vs], counts) if vs else np.zeros(0),
-            view=idx,
-            view_origin=vo,
-            view_fov=np.array([v.fov if v.fov is not None else (0.0, math.pi) for v in vs]).reshape(-1, 2),
-        )
-
-    def agreement(self, xy: FloatArray, max_range_m: float) -> tuple[int, int]:
-        """(views with a blob toward ``xy``, views within range of ``xy``)."""
-        d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
-        in_range = (d_view > 0.3) & (d_view <= max_range_m)
-        az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
-        in_range &= np.abs(_wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
-        total = int(np.count_nonzero(in_range))
-        if total == 0 or self.bearing.size == 0:
-            return 0, total
-        rel = xy[None, :] - self.origin
-        dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
-        pred = np.arctan2(rel[:, 1], rel[:, 0])
-        ok = np.abs(_wrap(self.bearing - pred)) - self.half_width < self.sigma_gate + 0.25 / dist
-        seen = np.zeros(self.view_origin.shape[0], dtype=bool)
-        seen[self.view[ok]] = True
-        return int(np.count_nonzero(seen & in_range)), total

@@ -40,13 +40,14 @@ from common.schema import (
     ViewPlan,
 )
 from resource_manager.align import AlignedView, AlignParams, align_sensor
-from resource_manager.association import Associator, pinhole_fov
+from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest import Ingest
 from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
 from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.ptz import PtzAllocator, PtzParams, PtzTarget
 from resource_manager.track import Tracker, TrackParams, TrackRecord
+from resource_manager.views import pinhole_fov
 
 __all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
 

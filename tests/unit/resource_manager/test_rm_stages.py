@@ -256,8 +256,8 @@ def test_config_is_frozen() -> None:
 
 def test_known_bodies_are_not_people() -> None:
     from resource_manager.align import AlignedBlob, AlignedView
-    from resource_manager.association import build_views
     from resource_manager.poses import PoseEstimate
+    from resource_manager.views import build_views
 
     def b(lid: int, bearing: float, width: float) -> AlignedBlob:
         return AlignedBlob(lid, bearing, width, 0.0 if lid == 1 else 0.15, -0.3, [], True)
@@ -276,8 +276,8 @@ def test_known_bodies_are_not_people() -> None:
 
 
 def test_pinhole_field_of_view() -> None:
-    from resource_manager.association import pinhole_fov
     from resource_manager.match import ViewBlobs
+    from resource_manager.views import pinhole_fov
 
     # camera looking along world +y, level: R rows are the camera axes in world coordinates
     model = PinholeModel(

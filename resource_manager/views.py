@@ -1,0 +1,182 @@
+"""World-frame views of the cameras at the fusion instant, and "who sees something toward (x, y)".
+
+Each aligned sensor with a known pose becomes a :class:`~resource_manager.match.ViewBlobs`: bearings
+rotated into the world (``yaw + bearing``), the sensor's bearing error plus its pose's yaw error, and
+blobs that are a known robot/tripod body seen by another camera removed (known bodies are not people).
+:class:`AllBlobs` flattens every view's blobs so the ghost checks can ask, for a position, how many of the
+cameras that could see it (in range, in their field of view) have a blob toward it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from common.schema import PinholeModel
+from resource_manager.align import AlignedView
+from resource_manager.match import ViewBlobs
+from resource_manager.poses import PoseEstimate
+
+__all__ = ["BODY_TOP_MARGIN_M", "AllBlobs", "build_views", "pinhole_fov", "subset_view", "wrap"]
+
+FloatArray = npt.NDArray[np.float64]
+TWO_PI = 2.0 * math.pi
+BODY_TOP_MARGIN_M = 0.2
+"""A blob on a robot body's bearing whose top is below the robot's camera + this is the body, not a person."""
+
+
+def build_views(
+    aligned: dict[str, AlignedView],
+    poses: dict[str, PoseEstimate],
+    sigma_of: Callable[[str], float],
+    bodies: dict[str, float] | None = None,
+    fovs: dict[str, tuple[float, float]] | None = None,
+) -> dict[str, ViewBlobs]:
+    """World-frame blobs of every aligned sensor whose pose is known.
+
+    Args:
+        aligned: every sensor's blobs at the fusion instant.
+        poses: the known poses.
+        sigma_of: a sensor's bearing sigma.
+        bodies: sensor id -> body radius (m) of the robots/tripods; a blob that is one of those bodies seen by
+            another camera (same bearing, about its angular size) is dropped: known bodies are not people.
+        fovs: sensor id -> (axis azimuth, half width) of perspective cameras (see :func:`pinhole_fov`).
+    """
+    out: dict[str, ViewBlobs] = {}
+    for sid, av in aligned.items():
+        pose = poses.get(sid)
+        if pose is None:
+            continue
+        sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
+        blobs = av.blobs
+        for other, radius in (bodies or {}).items():
+            op = poses.get(other)
+            if other == sid or op is None or radius <= 0:
+                continue
+            dist = math.hypot(op.x_m - pose.x_m, op.y_m - pose.y_m)
+            if dist <= radius:
+                continue
+            half = math.asin(radius / dist)
+            az = math.atan2(op.y_m - pose.y_m, op.x_m - pose.x_m) - pose.yaw_rad
+            # The body ends at the other camera (on its axis); a person behind it shows a taller top.
+            top = math.atan2(op.z_m + BODY_TOP_MARGIN_M - pose.z_m, dist)
+            blobs = [
+                b
+                for b in blobs
+                if not (
+                    abs(math.remainder(b.bearing_rad - az, 2 * math.pi)) < half + 3 * sigma
+                    and b.width_rad < 3.0 * half + 6 * sigma
+                    and b.top_elev_rad < top
+                )
+            ]
+        n = len(blobs)
+        hist_len = {len(b.hist) for b in blobs}
+        hist = None
+        if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
+            hist = np.array([b.hist for b in blobs], dtype=np.float64)
+        out[sid] = ViewBlobs(
+            sensor_id=sid,
+            origin_xy=pose.origin,
+            z_m=pose.z_m,
+            sigma_rad=sigma,
+            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in blobs], dtype=np.float64),
+            width_rad=np.array([b.width_rad for b in blobs], dtype=np.float64),
+            top_elev_rad=np.array([b.top_elev_rad for b in blobs], dtype=np.float64),
+            hist=hist,
+            local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
+            hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
+            bottom_elev_rad=np.array(
+                [b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64
+            ),
+            fov=(fovs or {}).get(sid),
+        )
+    return out
+
+
+def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, float] | None:
+    """(world azimuth of the optical axis, horizontal half field of view) of a perspective camera.
+
+    None when the camera looks nearly straight down (it then sees every azimuth around its foot).
+    """
+    r, k = model.r, model.k
+    axis_x, axis_y, axis_z = r[6], r[7], r[8]  # the camera z axis in the world: third row of R
+    if abs(axis_z) > 0.9 or k[0] <= 0:
+        return None
+    half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
+    return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
+
+
+def wrap(a: FloatArray) -> FloatArray:
+    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
+
+
+def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
+    sel = np.asarray(idx, dtype=np.int64)
+    return ViewBlobs(
+        sensor_id=v.sensor_id,
+        origin_xy=v.origin_xy,
+        z_m=v.z_m,
+        sigma_rad=v.sigma_rad,
+        bearing_rad=v.bearing_rad[sel],
+        width_rad=v.width_rad[sel],
+        top_elev_rad=v.top_elev_rad[sel],
+        hist=None if v.hist is None else v.hist[sel],
+        local_id=v.local_id[sel],
+        hist_sqrt=None if v.hist_sqrt is None else v.hist_sqrt[sel],
+        bottom_elev_rad=None if v.bottom_elev_rad is None else v.bottom_elev_rad[sel],
+        fov=v.fov,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class AllBlobs:
+    """Every blob of every view in flat arrays, to ask "how many cameras see something toward (x, y)?" at once."""
+
+    origin: FloatArray
+    """(n, 2) camera position of each blob."""
+    bearing: FloatArray
+    half_width: FloatArray
+    sigma_gate: FloatArray
+    view: npt.NDArray[np.int64]
+    """(n,) index of the blob's view."""
+    view_origin: FloatArray
+    """(v, 2) every view's position (views without blobs included)."""
+    view_fov: FloatArray
+    """(v, 2) axis azimuth and half field of view (half = pi: panoramic)."""
+
+    @staticmethod
+    def of(views: dict[str, ViewBlobs], k_sigma: float) -> AllBlobs:
+        vs = list(views.values())
+        counts = [v.n for v in vs]
+        idx = np.repeat(np.arange(len(vs)), counts).astype(np.int64)
+        vo = np.array([v.origin_xy for v in vs]).reshape(-1, 2)
+        return AllBlobs(
+            origin=vo[idx] if idx.size else np.zeros((0, 2)),
+            bearing=np.concatenate([v.bearing_rad for v in vs]) if vs else np.zeros(0),
+            half_width=0.5 * np.concatenate([v.width_rad for v in vs]) if vs else np.zeros(0),
+            sigma_gate=np.repeat([k_sigma * v.sigma_rad for v in vs], counts) if vs else np.zeros(0),
+            view=idx,
+            view_origin=vo,
+            view_fov=np.array([v.fov if v.fov is not None else (0.0, math.pi) for v in vs]).reshape(-1, 2),
+        )
+
+    def agreement(self, xy: FloatArray, max_range_m: float) -> tuple[int, int]:
+        """(views with a blob toward ``xy``, views within range of ``xy``)."""
+        d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
+        in_range = (d_view > 0.3) & (d_view <= max_range_m)
+        az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
+        in_range &= np.abs(wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
+        total = int(np.count_nonzero(in_range))
+        if total == 0 or self.bearing.size == 0:
+            return 0, total
+        rel = xy[None, :] - self.origin
+        dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
+        pred = np.arctan2(rel[:, 1], rel[:, 0])
+        ok = np.abs(wrap(self.bearing - pred)) - self.half_width < self.sigma_gate + 0.25 / dist
+        seen = np.zeros(self.view_origin.shape[0], dtype=bool)
+        seen[self.view[ok]] = True
+        return int(np.count_nonzero(seen & in_range)), total
