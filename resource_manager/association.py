@@ -163,15 +163,15 @@ class Associator:
     def _consistent(self, meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs]) -> tuple[list[str], int]:
         """Supporting cameras whose blob points at the measurement, and how many point elsewhere."""
         k = self.config.match.bearing_gate_sigmas
+        x, y = float(meas.xy[0]), float(meas.xy[1])
         agree: list[str] = []
         against = 0
-        for sid, i in sup.items():
+        for sid, i in sup.items():  # plain floats: a handful of views, numpy per element would cost more
             v = views[sid]
-            rel = meas.xy - v.origin_xy
-            dist = max(float(np.hypot(*rel)), 0.3)
-            pred = math.atan2(rel[1], rel[0])
-            gate = k * v.sigma_rad + 0.25 / dist
-            if abs(float(wrap(np.array(v.bearing_rad[i] - pred)))) < gate:
+            dx, dy = x - float(v.origin_xy[0]), y - float(v.origin_xy[1])
+            dist = max(math.hypot(dx, dy), 0.3)
+            off = math.remainder(float(v.bearing_rad[i]) - math.atan2(dy, dx), 2 * math.pi)
+            if abs(off) < k * v.sigma_rad + 0.25 / dist:
                 agree.append(sid)
             else:
                 against += 1

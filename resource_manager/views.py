@@ -47,32 +47,39 @@ def build_views(
         fovs: sensor id -> (axis azimuth, half width) of perspective cameras (see :func:`pinhole_fov`).
     """
     out: dict[str, ViewBlobs] = {}
+    body_list = [(sid, r) for sid, r in (bodies or {}).items() if r > 0 and sid in poses]
     for sid, av in aligned.items():
         pose = poses.get(sid)
         if pose is None:
             continue
         sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
         blobs = av.blobs
-        for other, radius in (bodies or {}).items():
-            op = poses.get(other)
-            if other == sid or op is None or radius <= 0:
-                continue
-            dist = math.hypot(op.x_m - pose.x_m, op.y_m - pose.y_m)
-            if dist <= radius:
-                continue
-            half = math.asin(radius / dist)
-            az = math.atan2(op.y_m - pose.y_m, op.x_m - pose.x_m) - pose.yaw_rad
+        bearing = np.array([b.bearing_rad for b in blobs], dtype=np.float64)
+        width = np.array([b.width_rad for b in blobs], dtype=np.float64)
+        top = np.array([b.top_elev_rad for b in blobs], dtype=np.float64)
+        keep = np.ones(len(blobs), dtype=bool)
+        others = [(poses[o], r) for o, r in body_list if o != sid]
+        if blobs and others:
+            ox = np.array([p.x_m for p, _ in others]) - pose.x_m
+            oy = np.array([p.y_m for p, _ in others]) - pose.y_m
+            oz = np.array([p.z_m for p, _ in others]) - pose.z_m
+            radius = np.array([r for _, r in others])
+            dist = np.hypot(ox, oy)
+            ok = dist > radius
+            half = np.arcsin(np.where(ok, radius / np.maximum(dist, 1e-9), 0.0))
+            az = np.arctan2(oy, ox) - pose.yaw_rad
             # The body ends at the other camera (on its axis); a person behind it shows a taller top.
-            top = math.atan2(op.z_m + BODY_TOP_MARGIN_M - pose.z_m, dist)
-            blobs = [
-                b
-                for b in blobs
-                if not (
-                    abs(math.remainder(b.bearing_rad - az, 2 * math.pi)) < half + 3 * sigma
-                    and b.width_rad < 3.0 * half + 6 * sigma
-                    and b.top_elev_rad < top
-                )
-            ]
+            body_top = np.arctan2(oz + BODY_TOP_MARGIN_M, np.maximum(dist, 1e-9))
+            is_body = (
+                ok[None, :]
+                & (np.abs(wrap(bearing[:, None] - az[None, :])) < half[None, :] + 3 * sigma)
+                & (width[:, None] < 3.0 * half[None, :] + 6 * sigma)
+                & (top[:, None] < body_top[None, :])
+            )
+            keep = ~np.any(is_body, axis=1)
+        if not keep.all():
+            blobs = [b for b, k in zip(blobs, keep, strict=True) if k]
+            bearing, width, top = bearing[keep], width[keep], top[keep]
         n = len(blobs)
         hist_len = {len(b.hist) for b in blobs}
         hist = None
@@ -83,9 +90,9 @@ def build_views(
             origin_xy=pose.origin,
             z_m=pose.z_m,
             sigma_rad=sigma,
-            bearing_rad=np.array([pose.yaw_rad + b.bearing_rad for b in blobs], dtype=np.float64),
-            width_rad=np.array([b.width_rad for b in blobs], dtype=np.float64),
-            top_elev_rad=np.array([b.top_elev_rad for b in blobs], dtype=np.float64),
+            bearing_rad=bearing + pose.yaw_rad,
+            width_rad=width,
+            top_elev_rad=top,
             hist=hist,
             local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
             hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
