@@ -258,9 +258,11 @@ class Associator:
         cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
         key = frozenset(sup)
         pc = tr.pair_cache
-        if pc is not None and pc[2] == key and math.hypot(tr.x[0] - pc[0], tr.x[1] - pc[1]) < RERANK_MOVE_M:
-            ranked: list[PairCandidate] = pc[3]  # type: ignore[assignment]
-        else:
+        ranked: list[PairCandidate] = []
+        if pc is not None and key <= pc[2] and math.hypot(tr.x[0] - pc[0], tr.x[1] - pc[1]) < RERANK_MOVE_M:
+            # Same place, no new camera: the earlier ranking restricted to the cameras that see it now.
+            ranked = [c for c in pc[3] if c.a in key and c.b in key]
+        if not ranked:
             random_pairs = self.config.match.pair_choice == "random"
             ranked = rank_pairs(tr.x[:2].copy(), cams, len(cams) if random_pairs else max_cams)
             tr.pair_cache = (float(tr.x[0]), float(tr.x[1]), key, list(ranked))

@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from common.schema import Method, TrackState
 from resource_manager.localize import Measurement
+from resource_manager.pairs import PairCandidate
 
 __all__ = ["TrackParams", "TrackRecord", "Tracker"]
 
@@ -66,7 +67,7 @@ class TrackRecord:
     predicted_error_m: float = 0.0
     links: dict[str, int] = field(default_factory=dict)
     """sensor id -> the node's local blob id last associated with this track."""
-    pair_cache: tuple[float, float, frozenset[str], list[object]] | None = None
+    pair_cache: tuple[float, float, frozenset[str], list[PairCandidate]] | None = None
     """(x, y, cameras, ranked pairs) of the last pair ranking (re-ranked when the track moved or views changed)."""
 
     @property
