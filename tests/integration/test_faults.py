@@ -279,7 +279,7 @@ def test_kill9_sensor_node_tracking_continues_and_it_rejoins(site: FaultSite) ->
         # Presence goes at once (the OS closes the socket), and the manager stops using the camera.
         wait_for(lambda: obs.alive_change(site.keys.sensor(victim), False, t_kill), 5.0, f"{victim}'s token to go")
         wait_for(
-            lambda: any(victim not in s.sensors_in_use for s in obs.status_since(t_kill + 1.5)),
+            lambda: any(victim not in s.sensors_in_use for s in obs.status_since(t_kill + 0.5)),
             10.0,
             f"the manager's status to leave {victim} out",
         )
