@@ -353,6 +353,22 @@ def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: 
             rss.sample()
     for data in hostile_payloads(SensorInfo, 100, 10):
         list(attacker.get(k.sensor_info(real[0]), payload=data, timeout=2.0))
+    # Malformed history parameters on the track queryable: each answered with an error, none crashes it.
+    import zenoh
+
+    bad_params = ["abc", "-5", "nan", "inf", "1e309", "", "0x10", "9" * 400, "1;history=2", "\u00e9"]
+    errs = 0
+    for value in bad_params * 10:
+        for r in attacker.get(zenoh.Selector(k.all_tracks, {"history": value}), timeout=2.0):
+            errs += 1 if r.err is not None else 0
+    assert errs >= 90, f"only {errs} of 100 malformed history queries were answered with an error"
+    # Liveliness tokens of made-up sensors, valid ids or not: presence churn must not disturb tracking.
+    tokens = [attacker.liveliness().declare_token(k.all_sensors.replace("*", f"ghost{i:04d}")) for i in range(300)]
+    tokens += [
+        attacker.liveliness().declare_token(f"{k.root}/sensor/{bad}") for bad in ("UPPER", "a_b", "-x", "x" * 60)
+    ]
+    for t in tokens:
+        t.undeclare()
 
     mgr_after = _settled(
         lambda: _counted(obs.status_since(t_flood)) if obs.status_since(t_flood) else -1,
