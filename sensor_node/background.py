@@ -171,10 +171,18 @@ class BackgroundModel:
         empty = np.zeros(self._prev.shape if self._prev is not None else (1, 1), np.uint8)
         return Motion(empty, empty, "reinit", frac, gain)
 
-    def update(self, grey: Mask, objects: Mask | None) -> None:
-        """Weighted-average update of the background *outside* ``objects`` (255 = object pixel).
+    def update(self, grey: Mask, fg: Mask | None = None, boxes: list[tuple[int, int, int, int]] | None = None) -> None:
+        """Weighted-average update of the background outside object regions.
+
+        Object regions are the changed pixels ``fg`` (grown by 2 px) and the
+        boxes (u0, v0, w, h; wrapping) of the accepted blobs (grown by 2 px): no
+        part of a person, even one that fell out of its blob, is learnt.
 
         Runs every ``update_every`` frames with the learning rate scaled to match.
+        Object regions take none of the current frame (paper: update only in the
+        non-object regions), but they follow the global light drift measured
+        outside them: otherwise a region that held a person for a while would
+        keep the old brightness and later show as a false object.
         """
         if self._bg is None:
             return
@@ -183,10 +191,17 @@ class BackgroundModel:
         if self._updates % k:
             return
         alpha = min(1.0, self.settings.learning_rate * k)
+        objects = _object_mask(grey.shape, fg, boxes or [])
         if objects is None:
             cv2.accumulateWeighted(grey, self._bg, alpha)
         else:
-            cv2.accumulateWeighted(grey, self._bg, alpha, mask=cv2.bitwise_not(objects))
+            outside = cv2.bitwise_not(objects)
+            before = cv2.mean(self._bg, mask=outside)[0]
+            cv2.accumulateWeighted(grey, self._bg, alpha, mask=outside)
+            after = cv2.mean(self._bg, mask=outside)[0]
+            if before > 1.0:
+                drift = self._bg * np.float32(after / before)
+                cv2.copyTo(drift, objects, self._bg)
         self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
     def _update_static(self, grey: Mask, fg: Mask, moving: Mask) -> None:
@@ -229,9 +244,14 @@ class BackgroundModel:
             if score < GHOST_SCORE:
                 continue
             assert self._bg is not None
-            sub = self._bg[y : y + h, x : x + w]
-            sub[mask] = grey[y : y + h, x : x + w][mask]
-            self._static[y : y + h, x : x + w][mask] = 0
+            # The ghost's fringe too: its changed pixels up to 4 px around the still region.
+            y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
+            region = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
+            take = (cv2.dilate(region, _K9) > 0) & (fg[y0:y1, x0:x1] > 0)
+            sub = self._bg[y0:y1, x0:x1]
+            sub[take] = grey[y0:y1, x0:x1][take]
+            self._static[y0:y1, x0:x1][take] = 0
             self.ghosts += 1
             absorbed = True
             logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
@@ -250,6 +270,27 @@ GHOST_SCORE = 2.5
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
+_K9 = np.ones((9, 9), np.uint8)
+
+
+def _object_mask(shape: tuple[int, ...], fg: Mask | None, boxes: list[tuple[int, int, int, int]]) -> Mask | None:
+    """255 on the changed pixels and blob boxes, grown by 2 px; None if there is nothing."""
+    if fg is not None and cv2.countNonZero(fg) > 0:
+        mask = cv2.dilate(fg, _K5)
+    elif boxes:
+        mask = np.zeros(shape[:2], np.uint8)
+    else:
+        return None
+    width = mask.shape[1]
+    for u0, v0, w, h in boxes:
+        rows = slice(max(0, v0 - 2), v0 + h + 2)
+        a, b = u0 - 2, u0 + w + 2
+        if a < 0:
+            mask[rows, a % width :] = 255
+        if b > width:
+            mask[rows, : b - width] = 255
+        mask[rows, max(a, 0) : min(b, width)] = 255
+    return mask
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

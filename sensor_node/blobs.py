@@ -153,6 +153,8 @@ def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = 
         blob = _cut(fg, moving, box, wrap)
         if blob is None or blob.area_px < settings.min_blob_px or blob.h < settings.min_blob_height_px:
             continue
+        if blob.w < settings.min_blob_width_px:
+            continue
         if blob.changed_frac < settings.min_changed_frac:
             continue
         out.append(blob)

@@ -238,6 +238,8 @@ class PipelineSettings(ConfigStruct, frozen=True):
     min_changed_frac: Frac = 0.25
     """A blob is kept only if this fraction of its bounding box changed (paper: enough pixels changed)."""
     min_blob_height_px: PosInt = 10
+    min_blob_width_px: PosInt = 5
+    """Narrower blobs are dropped (a person 10 m away is ~7 px wide in a 1080 px panorama)."""
     head_ratio: Pos = 1.5
     """Head box height:width (paper: 3:2). Only the head's bearing is used, so it is not critical."""
     hist_bins: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(

@@ -18,7 +18,6 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import numpy.typing as npt
 
 from common.schema import Features
@@ -103,12 +102,9 @@ class ImagePipeline:
         self._frames += 1
         sightings = self._last_sightings
         raws = find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps) if motion.reportable else []
-        objects = np.zeros_like(grey) if raws else None
         people = []
         n_body = 0
         for raw in raws:
-            if objects is not None:
-                _paint_box(objects, raw.u0, raw.v0, raw.w, raw.h)
             if sightings and is_body_blob(raw.u0, raw.w, width, sightings):
                 n_body += 1
                 continue
@@ -118,7 +114,7 @@ class ImagePipeline:
         ids = self._tracker.update(
             [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people]
         )
-        self.background.update(grey, objects)
+        self.background.update(grey, motion.fg, [(r.u0, r.v0, r.w, r.h) for r in raws])
         features = Features(
             sensor_id=self.sensor_id,
             seq=self.seq,
@@ -129,20 +125,6 @@ class ImagePipeline:
         )
         self.seq += 1
         return FrameResult(features, motion.state, n_body, pf)
-
-
-def _paint_box(mask: Image, u0: int, v0: int, w: int, h: int) -> None:
-    """Mark a (possibly wrapping) box as an object region, grown by 2 px."""
-    width = mask.shape[1]
-    v_lo, v_hi = max(0, v0 - 2), v0 + h + 2
-    a, b = u0 - 2, u0 + w + 2
-    if a < 0:
-        mask[v_lo:v_hi, a % width :] = 255
-        a = 0
-    if b > width:
-        mask[v_lo:v_hi, : b - width] = 255
-        b = width
-    mask[v_lo:v_hi, a:b] = 255
 
 
 def timed_process(pipeline: ImagePipeline, frame: Image, stamp_ns: int, frame_index: int) -> tuple[FrameResult, float]:
