@@ -13,6 +13,7 @@ import pytest
 
 from common.errors import SourceError
 from sensor_node.sources import FolderFrames, OpenCvFrames, Pacer
+from tests.support import skip_or_fail
 
 
 class FakeClock:
@@ -105,7 +106,7 @@ def test_opencv_file_source_ends_or_loops(tmp_path: Path) -> None:
     path = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 50.0, (64, 48))
     if not writer.isOpened():
-        pytest.skip("no MJPG writer in this OpenCV build")
+        skip_or_fail("no MJPG video writer in this OpenCV build")
     for k in range(5):
         writer.write(np.full((48, 64, 3), 40 * k, np.uint8))
     writer.release()
