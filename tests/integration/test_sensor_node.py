@@ -25,7 +25,14 @@ from common.keys import Keys
 from common.schema import Features, NodeStatus, PtzCommand, PtzState, SensorInfo
 from common.session import MSGPACK
 from common.transport import Inbox, TypedPublisher
-from tests.support import RouterProcess, client_session, wait_for, wait_for_liveliness, wait_for_no_liveliness
+from tests.support import (
+    FakeNtpServer,
+    RouterProcess,
+    client_session,
+    wait_for,
+    wait_for_liveliness,
+    wait_for_no_liveliness,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -264,3 +271,26 @@ def test_opencv_node_reports_a_failing_camera_and_keeps_retrying(
         info = _query_info(s, keys.sensor_info("cam9"))
         assert info.kind == "panoramic" and info.model.width_px == 1080
         _stop_cleanly(proc, s, keys.sensor("cam9"))
+
+
+def test_stamps_are_on_the_ntp_corrected_clock(tmp_path: Path, router: RouterProcess, spawn: Any) -> None:
+    calib, _ = _calibration(tmp_path)
+    det = tmp_path / "det.txt"
+    det.write_text("".join(f"{k},1,900,400,60,200,0.9\n" for k in range(1, 200)))
+    source = f'kind = "detections"\nfile = "det.txt"\ncalibration = "{calib.name}"\nfps = 5.0'
+    keys = Keys("it")
+    with FakeNtpServer(skew_s=3.0) as ntp, client_session(router.endpoint) as s:
+        clock = f'\n[clock]\nntp_server = "127.0.0.1"\nntp_port = {ntp.port}\nsamples = 4\n'
+        cfg = _node_config(tmp_path, router, "c2", source, clock)
+        features = Inbox(s, keys.sensor_features("c2"), Features)
+        status = Inbox(s, keys.sensor_status("c2"), NodeStatus)
+        proc = spawn([sys.executable, "-m", "sensor_node", "--config", cfg])  # epoch: the node's (NTP) start
+        wait_for_liveliness(s, keys.sensor("c2"), 20.0)
+        info = _query_info(s, keys.sensor_info("c2"))
+        assert info.clock_source == "ntp" and abs(info.clock_offset_ns - 3e9) < 0.1e9
+        got: list[Features] = wait_for(lambda: [r.msg for r in features.drain()], 10.0, "Features from c2")
+        lead_s = (got[-1].stamp_ns - time.time_ns()) / 1e9
+        assert 2.0 < lead_s < 4.0, f"stamps should be ~3 s ahead of this host's clock, got {lead_s:.2f} s"
+        st = wait_for(lambda: [r.msg for r in status.drain() if r.msg.clock_source == "ntp"], 10.0, "NTP status")
+        assert abs(st[-1].clock_offset_ns - 3e9) < 0.1e9 and st[-1].clock_uncertainty_ns > 0
+        _stop_cleanly(proc, s, keys.sensor("c2"))
