@@ -213,7 +213,9 @@ class BackgroundModel:
         ``ghost_frames`` are checked: a ghost's outline is an edge of the
         background image but not of the current frame (where the wall is
         smooth), a person's outline the reverse. Ghosts are copied into the
-        background; people who stand still are kept.
+        background; people who stand still are kept -- up to
+        ``still_absorb_frames``, after which anything still is background (on
+        a textured floor the edge test cannot tell, and a ghost must not stay).
         """
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
@@ -231,6 +233,7 @@ class BackgroundModel:
         # would measure texture, not the silhouette.
         old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
+        long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
         absorbed = False
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
@@ -241,7 +244,7 @@ class BackgroundModel:
             cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             score = float(was[outline].sum()) / (float(cur[outline].sum()) + 1.0)
-            if score < GHOST_SCORE:
+            if score < GHOST_SCORE and int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
                 continue
             assert self._bg is not None
             # The ghost's fringe too: its changed pixels up to 4 px around the still region.

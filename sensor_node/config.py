@@ -226,6 +226,9 @@ class PipelineSettings(ConfigStruct, frozen=True):
     group_scale: PosInt = 2
     """Reduction of the mask that connected components and grouping run on (1: full resolution).
     Higher: cheaper; thin or tiny regions may be missed. Boxes and heads stay full resolution."""
+    still_absorb_frames: PosInt = 90
+    """Frames after which any changed region that has not moved becomes background, ghost or not.
+    Higher: people who pause stay detected longer; lower: ghosts on textured floors vanish sooner."""
     min_component_px: PosInt = 6
     """Connected regions smaller than this are noise and ignored before grouping."""
     merge_gap_px: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
