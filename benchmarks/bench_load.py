@@ -3,6 +3,7 @@
 Usage::
 
     python -m benchmarks.bench_load [--sensors 16] [--fps 30] [--duration 60] [--people 6] [--out FILE]
+    python -m benchmarks.bench_load --nodes real      # one real `panostereo node` process per camera
 
 What runs (all real processes on loopback, multicast scouting off):
 
@@ -18,6 +19,9 @@ What runs (all real processes on loopback, multicast scouting off):
   exercises everything downstream of the image pipeline: transport, ingest, alignment, pair
   choice, matching, localisation, tracking, publication.) Capture stamps are the fleet's clock
   at the frame time;
+* or, with ``--nodes real``, one real ``panostereo node`` process per camera, each playing a
+  detection file of the same room (a pinhole camera at the same place looking at the room's
+  centre; ``write_detection_cameras``): the real node start-up, pacing, session and publication;
 * the user agent: this process, subscribed to ``{root}/tracks``; for every TrackSet it notes the
   arrival time.
 
@@ -525,44 +529,80 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
             if not statuses:
                 raise SystemExit(f"bench_load: no ManagerStatus within 30 s:\n{(tmp / 'manager.log').read_text()}")
             fleet_out = tmp / "fleet.json"
-            fleet = start(
-                "fleet",
-                [
-                    py,
-                    "-m",
-                    "benchmarks.bench_load",
-                    "fleet",
-                    "--connect",
-                    endpoint,
-                    "--prefix",
-                    prefix,
-                    "--sensors",
-                    str(args.sensors),
-                    "--fps",
-                    str(args.fps),
-                    "--people",
-                    str(args.people),
-                    "--duration",
-                    str(args.duration),
-                    "--seed",
-                    str(args.seed),
-                    "--stats",
-                    str(fleet_out),
-                    "--epoch-ns",
-                    str(epoch_ns),
-                ],
-            )
+            node_frames: dict[str, int] = {}
+
+            def on_node_status(sample: Any) -> None:
+                st = decode(sample.payload.to_bytes(), NodeStatus)
+                with lock:
+                    node_frames[st.sensor_id] = st.frames
+
+            subs.append(s.declare_subscriber(keys.all_sensor_status, on_node_status))
+            if args.nodes == "real":
+                # One real `panostereo node` process per camera, each playing its detection file.
+                cams, _ = make_room(args.sensors, args.people, args.seed)
+                epoch_ns = time.time_ns() + int(args.startup_s * 1e9)
+                files = write_detection_cameras(tmp / "cams", cams, walkers, args.fps, args.duration + 5)
+                runners = []
+                for cam in cams:
+                    det, calib = files[cam.sensor_id]
+                    cfg = tmp / f"node-{cam.sensor_id}.toml"
+                    cfg.write_text(
+                        f'[node]\nid = "{cam.sensor_id}"\nprefix = "{prefix}"\n[zenoh]\nconnect = ["{endpoint}"]\n'
+                        f'[source]\nkind = "detections"\nfile = "{det}"\ncalibration = "{calib}"\n'
+                        f"fps = {args.fps}\nepoch_ns = {epoch_ns}\n"
+                    )
+                    runners.append(
+                        start(f"node-{cam.sensor_id}", [py, "-m", "panostereo", "node", "--config", str(cfg)])
+                    )
+                end_s = time.monotonic() + args.startup_s + args.duration
+            else:
+                runners = [
+                    start(
+                        "fleet",
+                        [
+                            py,
+                            "-m",
+                            "benchmarks.bench_load",
+                            "fleet",
+                            "--connect",
+                            endpoint,
+                            "--prefix",
+                            prefix,
+                            "--sensors",
+                            str(args.sensors),
+                            "--fps",
+                            str(args.fps),
+                            "--people",
+                            str(args.people),
+                            "--duration",
+                            str(args.duration),
+                            "--seed",
+                            str(args.seed),
+                            "--stats",
+                            str(fleet_out),
+                            "--epoch-ns",
+                            str(epoch_ns),
+                        ],
+                    )
+                ]
+                end_s = time.monotonic() + args.duration + 60
             t0 = time.monotonic()
-            while fleet.poll() is None and time.monotonic() - t0 < args.duration + 60:
-                r = _rss_kib(mgr.pid)
-                if r is not None:
-                    rss.append((time.monotonic() - t0, r))
+            while any(r.poll() is None for r in runners) and time.monotonic() < end_s:
+                r_kib = _rss_kib(mgr.pid)
+                if r_kib is not None:
+                    rss.append((time.monotonic() - t0, r_kib))
                 time.sleep(1.0)
-            fleet.wait(timeout=30)
-            time.sleep(1.5)  # the last ticks and a status after the fleet stopped
+            for r in runners:
+                if r.poll() is None:
+                    r.send_signal(signal.SIGTERM)
+                r.wait(timeout=30)
+            time.sleep(1.5)  # the last ticks and a status after the cameras stopped
             for sub in subs:
                 sub.undeclare()
         fleet_stats = json.loads(fleet_out.read_text()) if fleet_out.exists() else {}
+        if args.nodes == "real":
+            fleet_stats = {"sent": sum(node_frames.values())}
+            args.warmup = max(args.warmup, args.startup_s + 2)
         warm_s = args.warmup
         with lock:
             live = [(a, st, sq, n) for a, st, sq, n in arrivals if a / 1e9 >= 0]
@@ -576,6 +616,9 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
         duration_ticks = (max((a for a, *_ in live), default=0) - t_first) / 1e9
         return {
             "benchmark": "bench_load",
+            "cameras": "one panostereo node process per camera (detection files)"
+            if args.nodes == "real"
+            else "one fleet process playing every camera",
             "sensors": args.sensors,
             "fps": args.fps,
             "people": args.people,
@@ -634,6 +677,13 @@ def main(argv: list[str] | None = None) -> int:
         q.add_argument("--duration", type=float, default=60.0, help="seconds (fleet: 0 = until SIGTERM)")
         q.add_argument("--seed", type=int, default=1)
     p.add_argument("--rate-hz", type=float, default=10.0, help="manager fusion rate")
+    p.add_argument(
+        "--nodes",
+        choices=["fleet", "real"],
+        default="fleet",
+        help="fleet: one process plays every camera; real: one `panostereo node` process per camera",
+    )
+    p.add_argument("--startup-s", type=float, default=10.0, help="real nodes: time allowed for them to start")
     p.add_argument("--warmup", type=float, default=5.0, help="seconds left out of latency and memory figures")
     p.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     f.add_argument("--connect", required=True)
