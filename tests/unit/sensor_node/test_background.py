@@ -130,3 +130,33 @@ def test_object_regions_follow_the_global_light_drift() -> None:
     assert after is not None
     inside = after[:, 290:310].astype(float) / np.maximum(before[:, 290:310].astype(float), 1)
     assert float(np.median(inside)) == pytest.approx(1.1, abs=0.02)  # drifted with the room, not learnt
+
+
+def _still_run(model: BackgroundModel, frame: np.ndarray, rng: np.random.Generator, n: int) -> list[float]:
+    return [model.apply(grey(noisy(frame, rng))).changed_frac for _ in range(n)]
+
+
+def test_ghost_of_someone_who_stood_through_warmup_is_absorbed() -> None:
+    rng = np.random.default_rng(8)
+    base = backdrop(8)
+    s = PipelineSettings(warmup_frames=5, warmup_stride=1, ghost_frames=12, still_absorb_frames=250)
+    model = BackgroundModel(s)
+    with_person = base.copy()
+    draw_person(with_person, 400.0)
+    _still_run(model, with_person, rng, 5)  # learnt with the person standing there
+    assert model.ready
+    fracs = _still_run(model, base, rng, 30)  # they left: a ghost, found by its outline
+    assert fracs[0] > 0.005 and fracs[-1] < 0.001 and model.ghosts >= 1
+
+
+def test_someone_standing_still_stays_until_still_absorb_frames() -> None:
+    rng = np.random.default_rng(9)
+    base = backdrop(9)
+    s = PipelineSettings(warmup_frames=5, warmup_stride=1, ghost_frames=12, still_absorb_frames=60)
+    model = BackgroundModel(s)
+    _still_run(model, base, rng, 5)
+    standing = base.copy()
+    draw_person(standing, 700.0)
+    fracs = _still_run(model, standing, rng, 80)
+    assert min(fracs[:55]) > 0.005  # a person who stands still is kept (their outline is in the frame) ...
+    assert fracs[-1] < 0.001  # ... until still_absorb_frames, then they are background
