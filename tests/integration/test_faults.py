@@ -29,7 +29,7 @@ import pytest
 from benchmarks.bench_load import Cam, Walker, make_room, write_detection_cameras
 from common.codec import decode
 from common.keys import Keys
-from common.schema import ManagerStatus, Track, TrackSet
+from common.schema import ManagerStatus, NodeStatus, Track, TrackSet
 from common.session import SessionSettings, open_session
 from tests.support import (
     FakeNtpServer,
@@ -443,6 +443,16 @@ def test_node_clock_two_seconds_off_is_corrected_by_ntp(site: FaultSite) -> None
             t1 = time.monotonic()
             site.start_node(off, site.node_config(off, ntp_port=ntp.port))
             wait_for(lambda: obs.tracking_with(t1, set(site.ids), min_sets=5), 30.0, f"{off} in use once corrected")
+            # The node says what it did: NTP source, offset +2 s (measured on loopback: within 50 ms).
+            with open_session(SessionSettings(mode="client", connect=[site.endpoint])) as s:
+                got: list[NodeStatus] = []
+                sub = s.declare_subscriber(
+                    site.keys.sensor_status(off), lambda x: got.append(decode(x.payload.to_bytes(), NodeStatus))
+                )
+                wait_for(lambda: got, 10.0, f"a status from {off}")
+                sub.undeclare()
+            assert got[-1].clock_source == "ntp", got[-1]
+            assert abs(got[-1].clock_offset_ns - 2_000_000_000) < 50_000_000, got[-1]
         assert ntp.requests > 0
 
 
