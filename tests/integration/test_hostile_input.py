@@ -23,9 +23,11 @@ from typing import Any
 
 import msgpack
 import pytest
+import zenoh
 
 from common.codec import decode, encode
 from common.errors import SchemaError
+from common.keys import Keys
 from common.schema import (
     Blob,
     Features,
@@ -287,8 +289,6 @@ def flooded_site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Flo
 
 
 def _flood(session: Any, plan: list[tuple[str, list[bytes]]]) -> int:
-    import zenoh
-
     sent = 0
     pubs = {key: session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK) for key, _ in plan}
     for key, payloads in plan:
@@ -313,7 +313,6 @@ def _node_status(session: Any, key: str) -> list[NodeStatus]:
 
 def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: Flooded) -> None:
     site, obs, attacker, procs = flooded_site
-    from common.keys import Keys
 
     k = site.keys
     pk = Keys("hostileptz")
@@ -354,8 +353,6 @@ def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: 
     for data in hostile_payloads(SensorInfo, 100, 10):
         list(attacker.get(k.sensor_info(real[0]), payload=data, timeout=2.0))
     # Malformed history parameters on the track queryable: each answered with an error, none crashes it.
-    import zenoh
-
     bad_params = ["abc", "-5", "nan", "inf", "1e309", "", "0x10", "9" * 400, "1;history=2", "\u00e9"]
     errs = 0
     for value in bad_params * 10:
@@ -396,10 +393,7 @@ def test_oversize_payloads_and_fake_sensor_floods_stay_bounded(flooded_site: Flo
     Bounded memory means the second round costs (almost) nothing more than the first: whatever
     a receiver keeps per sensor or per payload must be capped, not grow with the flood.
     """
-    import zenoh
-
     site, obs, attacker, procs = flooded_site
-    from common.keys import Keys
 
     k = site.keys
     pk = Keys("hostileptz")
