@@ -30,7 +30,7 @@ from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
-from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrix
+from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrices, match_matrix
 from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.poses import PoseEstimate
 from resource_manager.track import Tracker, TrackRecord
@@ -139,14 +139,25 @@ class Associator:
         return out, shared
 
     # -- step 2 -----------------------------------------------------------------
-    def _pair_match(
-        self, a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord], cache: dict[tuple[str, str], _PairMatch]
-    ) -> _PairMatch:
-        key = (a.sensor_id, b.sensor_id)
-        got = cache.get(key)
-        if got is not None:
-            return got
-        # Temporal consistency c_t: the pair continues a track's previous correspondence (same node blob ids).
+    def _prefetch(
+        self,
+        keys: set[tuple[str, str]],
+        views: dict[str, ViewBlobs],
+        tracks: list[TrackRecord],
+        cache: dict[tuple[str, str], _PairMatch],
+    ) -> None:
+        """Eq. 7 for every pair some track will try first, in one vectorised pass."""
+        todo = sorted(k for k in keys if k not in cache)
+        if not todo:
+            return
+        pairs = [(views[a], views[b]) for a, b in todo]
+        temporals = [self._temporal(a, b, tracks) for a, b in pairs]
+        for key, mm in zip(todo, match_matrices(pairs, self.params, temporals, self.threshold), strict=True):
+            cache[key] = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
+
+    @staticmethod
+    def _temporal(a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord]) -> FloatArray:
+        """c_t: 1 where the pair continues a track's previous correspondence (same node blob ids)."""
         temporal = np.zeros((a.n, b.n))
         if a.n and b.n:
             rows = {int(lid): i for i, lid in enumerate(a.local_id)}
@@ -155,6 +166,16 @@ class Associator:
                 la, lb = tr.links.get(a.sensor_id), tr.links.get(b.sensor_id)
                 if la in rows and lb in cols:
                     temporal[rows[la], cols[lb]] = 1.0
+        return temporal
+
+    def _pair_match(
+        self, a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord], cache: dict[tuple[str, str], _PairMatch]
+    ) -> _PairMatch:
+        key = (a.sensor_id, b.sensor_id)
+        got = cache.get(key)
+        if got is not None:
+            return got
+        temporal = self._temporal(a, b, tracks)
         mm = match_matrix(a, b, self.params, temporal, self.threshold)
         pm = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
         cache[key] = pm
@@ -197,7 +218,21 @@ class Associator:
         pose_sigma = {sid: p.sigma_xy_m for sid, p in poses.items()}
         mc = self.config.match
         claimed: set[tuple[str, int]] = set()
-        for tr, sup, sh in zip(tracks, support, shared, strict=True):
+        ranked_by: list[list[PairCandidate]] = []
+        planned: set[tuple[str, str]] = set()
+        for tr, sup in zip(tracks, support, strict=True):
+            ranked = (
+                self._rank(
+                    tr, sup=sup, views=views, pose_sigma=pose_sigma, max_cams=mc.max_pair_cameras, chosen=planned
+                )
+                if len(sup) >= 2
+                else []
+            )
+            ranked_by.append(ranked)
+            if ranked:
+                planned.add((min(ranked[0].a, ranked[0].b), max(ranked[0].a, ranked[0].b)))
+        self._prefetch(planned, views, tracks, cache)
+        for tr, sup, sh, ranked in zip(tracks, support, shared, ranked_by, strict=True):
             for sid, i in itertools.chain(sup.items(), sh.items()):
                 used[sid].add(i)
             meas, entry, used_blobs = self._measure(
@@ -207,7 +242,7 @@ class Associator:
                 tracks=tracks,
                 cache=cache,
                 pose_sigma=pose_sigma,
-                max_cams=mc.max_pair_cameras,
+                ranked=ranked,
                 claimed=claimed,
             )
             if meas is None:
@@ -241,20 +276,17 @@ class Associator:
         out.births = self._births(views, used, cache, pose_sigma, t_ns)
         return out
 
-    def _measure(
+    def _rank(
         self,
         tr: TrackRecord,
         *,
         sup: dict[str, int],
         views: dict[str, ViewBlobs],
-        tracks: list[TrackRecord],
-        cache: dict[tuple[str, str], _PairMatch],
         pose_sigma: dict[str, float],
         max_cams: int,
-        claimed: set[tuple[str, int]],
-    ) -> tuple[Measurement | None, tuple[str, str, int] | None, dict[str, int]]:
-        if len(sup) < 2:
-            return None, None, {}
+        chosen: set[tuple[str, str]],
+    ) -> list[PairCandidate]:
+        """The track's camera pairs, best first by the error model (``chosen``: pairs already matched this tick)."""
         cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
         key = frozenset(sup)
         pc = tr.pair_cache
@@ -273,15 +305,31 @@ class Associator:
             self.config.match.pair_choice == "error_model"
             and tol > 1.0
             and ranked
-            and tuple(sorted((ranked[0].a, ranked[0].b))) not in cache
+            and tuple(sorted((ranked[0].a, ranked[0].b))) not in chosen
         ):
             # A pair already matched this tick and nearly as good saves a whole Eq. 7 matrix.
             reuse = next(
-                (c for c in ranked[1:] if c.error_m <= tol * ranked[0].error_m and tuple(sorted((c.a, c.b))) in cache),
+                (c for c in ranked[1:] if c.error_m <= tol * ranked[0].error_m and tuple(sorted((c.a, c.b))) in chosen),
                 None,
             )
             if reuse is not None:
                 ranked = [reuse, *[c for c in ranked if c is not reuse]]
+        return ranked
+
+    def _measure(
+        self,
+        tr: TrackRecord,
+        *,
+        sup: dict[str, int],
+        views: dict[str, ViewBlobs],
+        tracks: list[TrackRecord],
+        cache: dict[tuple[str, str], _PairMatch],
+        pose_sigma: dict[str, float],
+        ranked: list[PairCandidate],
+        claimed: set[tuple[str, int]],
+    ) -> tuple[Measurement | None, tuple[str, str, int] | None, dict[str, int]]:
+        if len(sup) < 2:
+            return None, None, {}
         for cand in ranked[:3]:
             a_id, b_id = sorted((cand.a, cand.b))
             a, b = views[a_id], views[b_id]

@@ -23,6 +23,7 @@ private "unmatched" dummy per row and column).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final, Protocol
 
@@ -43,6 +44,7 @@ __all__ = [
     "Matcher",
     "ViewBlobs",
     "get_matcher",
+    "match_matrices",
     "match_matrix",
 ]
 
@@ -146,19 +148,48 @@ def match_matrix(
         temporal: (na, nb) c_t in [0, 1] from the current tracks, or None.
         threshold: tau; the temporal term is added only where r itself exceeds it.
     """
-    na, nb = a.n, b.n
-    o1, o2 = a.origin_xy, b.origin_xy
+    return match_matrices([(a, b)], params, [temporal], threshold)[0]
+
+
+def _pad(rows: list[FloatArray], n: int, fill: float = np.nan) -> FloatArray:
+    out = np.full((len(rows), max(n, 1)), fill)
+    for k, r in enumerate(rows):
+        out[k, : r.shape[0]] = r
+    return out
+
+
+def match_matrices(
+    pairs: list[tuple[ViewBlobs, ViewBlobs]],
+    params: MatchParams,
+    temporals: Sequence[FloatArray | None] | None = None,
+    threshold: float = 0.1,
+) -> list[MatchMatrix]:
+    """Eq. 7 for several camera pairs at once (one vectorised pass; with many cameras this is most of a tick).
+
+    Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is sliced back
+    to its pair's (na, nb). See :func:`match_matrix` for the measures.
+    """
+    if not pairs:
+        return []
+    temporals = list(temporals) if temporals is not None else [None] * len(pairs)
+    nas = [a.n for a, _ in pairs]
+    nbs = [b.n for _, b in pairs]
+    na, nb = max(*nas, 1), max(*nbs, 1)
+    o1 = np.array([a.origin_xy for a, _ in pairs])
+    o2 = np.array([b.origin_xy for _, b in pairs])
     d = o2 - o1
-    base = float(math.hypot(d[0], d[1]))
-    psi12 = math.atan2(d[1], d[0])
-    sigma = max(math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0), 1e-6)
-    th1 = a.bearing_rad[:, None]
-    th2 = b.bearing_rad[None, :]
+    base = np.hypot(d[:, 0], d[:, 1])[:, None, None]
+    psi12 = np.arctan2(d[:, 1], d[:, 0])[:, None, None]
+    sigma = np.maximum(np.array([math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0) for a, b in pairs]), 1e-6)[
+        :, None, None
+    ]
+    th1 = _pad([a.bearing_rad for a, _ in pairs], na)[:, :, None]
+    th2 = _pad([b.bearing_rad for _, b in pairs], nb)[:, None, :]
     # Signed inner angles at O1 and O2 (notes/geometry.md §4).
-    a1 = _wrap(th1 - psi12)  # (na, 1)
-    a2 = _wrap(psi12 + math.pi - th2)  # (1, nb)
+    a1 = _wrap(th1 - psi12)  # (p, na, 1)
+    a2 = _wrap(psi12 + math.pi - th2)  # (p, 1, nb)
     abs1, abs2 = np.abs(a1), np.abs(a2)
-    same_side = np.sign(a1) == np.sign(a2)  # (na, nb) from here on
+    same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)
     phi0 = math.pi - abs1 - abs2
     margin = np.where(
@@ -172,69 +203,102 @@ def match_matrix(
     # Eq. 1 (triangulation) where the triangle is proper.
     with np.errstate(divide="ignore", invalid="ignore"):
         d1_t, d2_t = triangulate(base, abs1, abs2)
-    d1_t = np.broadcast_to(np.asarray(d1_t, dtype=np.float64), (na, nb))
-    d2_t = np.broadcast_to(np.asarray(d2_t, dtype=np.float64), (na, nb))
+    shape = (len(pairs), na, nb)
+    d1_t = np.broadcast_to(np.asarray(d1_t, dtype=np.float64), shape)
+    d2_t = np.broadcast_to(np.asarray(d2_t, dtype=np.float64), shape)
     # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
     # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
-    w1 = np.broadcast_to(a.width_rad[:, None], (na, nb))
-    w2 = np.broadcast_to(b.width_rad[None, :], (na, nb))
-    colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
-    use_sr = col_d < colinear_gap
-    d1_s = np.full((na, nb), np.nan)
-    d2_s = np.full((na, nb), np.nan)
-    for i, j in np.argwhere(use_sr):
-        c1 = 1.0 if abs1[i, 0] < math.pi / 2 else -1.0
-        c2 = 1.0 if abs2[0, j] < math.pi / 2 else -1.0
+    w1 = np.broadcast_to(_pad([a.width_rad for a, _ in pairs], na)[:, :, None], shape)
+    w2 = np.broadcast_to(_pad([b.width_rad for _, b in pairs], nb)[:, None, :], shape)
+    with np.errstate(invalid="ignore"):
+        colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
+        use_sr = col_d < colinear_gap
+    d1_s = np.full(shape, np.nan)
+    d2_s = np.full(shape, np.nan)
+    for k, i, j in np.argwhere(use_sr):
+        c1 = 1.0 if abs1[k, i, 0] < math.pi / 2 else -1.0
+        c2 = 1.0 if abs2[k, 0, j] < math.pi / 2 else -1.0
         try:  # Eq. 2 with sizes sin(w/2) (exact for a cylinder of the target's width)
-            d1_s[i, j], d2_s[i, j] = size_ratio(base, math.sin(w1[i, j] / 2), math.sin(w2[i, j] / 2), c1, c2)
+            d1_s[k, i, j], d2_s[k, i, j] = size_ratio(
+                float(base[k, 0, 0]), math.sin(w1[k, i, j] / 2), math.sin(w2[k, i, j] / 2), c1, c2
+            )
         except GeometryError:
-            use_sr[i, j] = False
+            use_sr[k, i, j] = False
     d1 = np.where(use_sr, d1_s, np.where(converge, d1_t, np.nan))
     d2 = np.where(use_sr, d2_s, np.where(converge, d2_t, np.nan))
-    valid = np.isfinite(d1) & np.isfinite(d2) & (d1 > 0) & (d2 > 0)
-    valid &= (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(d1) & np.isfinite(d2) & (d1 > 0) & (d2 > 0)
+        valid &= (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
     d1 = np.where(valid, d1, 0.0)
     d2 = np.where(valid, d2, 0.0)
     r_rc = np.where(valid, np.where(use_sr, np.maximum(r_conv, r_col), r_conv), 0.0)
     # Width consistency: metric widths from both views (1 where Eq. 2 made them equal by construction).
-    width1 = 2.0 * d1 * np.tan(w1 / 2.0)
-    width2 = 2.0 * d2 * np.tan(w2 / 2.0)
+    width1 = 2.0 * d1 * np.tan(np.nan_to_num(w1) / 2.0)
+    width2 = 2.0 * d2 * np.tan(np.nan_to_num(w2) / 2.0)
     # A blob much wider than its partner is usually two people merged (occlusion), not a wrong match:
     # the width term never drops below ``width_floor``.
     r_wc = np.where(use_sr, 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor))
     # Height consistency: head-top height from each view.
-    h1 = a.z_m + d1 * np.tan(a.top_elev_rad[:, None])
-    h2 = b.z_m + d2 * np.tan(b.top_elev_rad[None, :])
+    z1 = np.array([a.z_m for a, _ in pairs])[:, None, None]
+    z2 = np.array([b.z_m for _, b in pairs])[:, None, None]
+    top1 = np.nan_to_num(_pad([a.top_elev_rad for a, _ in pairs], na))[:, :, None]
+    top2 = np.nan_to_num(_pad([b.top_elev_rad for _, b in pairs], nb))[:, None, :]
+    h1 = z1 + d1 * np.tan(top1)
+    h2 = z2 + d2 * np.tan(top2)
     r_hc = _log_ratio_score(h1, h2, params.height_sigma)
     # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
     if params.floor_sigma_m > 0:
-        for v, dist, col in ((a, d1, True), (b, d2, False)):
-            if v.bottom_elev_rad is None:
-                continue
-            bottom = v.bottom_elev_rad[:, None] if col else v.bottom_elev_rad[None, :]
+        nan = np.full(0, np.nan)
+        bot1 = _pad([a.bottom_elev_rad if a.bottom_elev_rad is not None else nan for a, _ in pairs], na)
+        bot2 = _pad([b.bottom_elev_rad if b.bottom_elev_rad is not None else nan for _, b in pairs], nb)
+        s1 = np.array([a.sigma_rad for a, _ in pairs])[:, None, None]
+        s2 = np.array([b.sigma_rad for _, b in pairs])[:, None, None]
+        for z, dist, bottom, sv in ((z1, d1, bot1[:, :, None], s1), (z2, d2, bot2[:, None, :], s2)):
             with np.errstate(invalid="ignore"):
-                zf = v.z_m + dist * np.tan(bottom)
-            sig = params.floor_sigma_m + dist * v.sigma_rad * 4.0
+                zf = z + dist * np.tan(bottom)
+            sig = params.floor_sigma_m + dist * sv * 4.0
             r_hc = r_hc * np.where(np.isfinite(zf), np.exp(-(np.nan_to_num(zf) ** 2) / (2.0 * sig**2)), 1.0)
-    # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
-    if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
-        sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
-        sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
-        r_is = np.clip(sa @ sb.T, 0.0, 1.0)
-    else:
-        r_is = np.ones((na, nb))
-    r = r_is * r_rc * r_wc * r_hc
-    c_t = np.zeros((na, nb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
+    r_all = r_rc * r_wc * r_hc
     lam = params.temporal_weight
-    if temporal is not None and lam > 0:
-        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
-        r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
-    # Hypothesised positions along camera 1's ray.
-    xy = np.empty((na, nb, 2))
-    xy[..., 0] = o1[0] + d1 * np.cos(th1)  # (na, 1) broadcast
-    xy[..., 1] = o1[1] + d1 * np.sin(th1)
-    parts = {"r_is": r_is, "r_rc": r_rc, "r_wc": r_wc, "r_hc": r_hc, "c_t": c_t}
-    return MatchMatrix(r=r, d1_m=d1, d2_m=d2, xy=xy, size_ratio=use_sr & valid, parts=parts)
+    out: list[MatchMatrix] = []
+    cos1, sin1 = np.cos(th1), np.sin(th1)
+    for k, ((a, b), temporal) in enumerate(zip(pairs, temporals, strict=True)):
+        ka, kb = nas[k], nbs[k]
+        # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
+        if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
+            sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
+            sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
+            r_is = np.clip(sa @ sb.T, 0.0, 1.0)
+        else:
+            r_is = np.ones((ka, kb))
+        r = r_is * r_all[k, :ka, :kb]
+        c_t = np.zeros((ka, kb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
+        if temporal is not None and lam > 0:
+            # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
+            r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
+        dk = d1[k, :ka, :kb]
+        # Hypothesised positions along camera 1's ray.
+        xy = np.empty((ka, kb, 2))
+        xy[..., 0] = o1[k, 0] + dk * cos1[k, :ka]
+        xy[..., 1] = o1[k, 1] + dk * sin1[k, :ka]
+        parts = {
+            "r_is": r_is,
+            "r_rc": r_rc[k, :ka, :kb],
+            "r_wc": r_wc[k, :ka, :kb],
+            "r_hc": r_hc[k, :ka, :kb],
+            "c_t": c_t,
+        }
+        out.append(
+            MatchMatrix(
+                r=r,
+                d1_m=dk,
+                d2_m=d2[k, :ka, :kb],
+                xy=xy,
+                size_ratio=(use_sr & valid)[k, :ka, :kb],
+                parts=parts,
+            )
+        )
+    return out
 
 
 class Matcher(Protocol):

@@ -39,7 +39,7 @@ def view(
         bearing_rad=np.array(b),
         width_rad=np.array(w),
         top_elev_rad=np.array(top),
-        hist=np.array(hist),
+        hist=np.array(hist) if hist else None,
         local_id=np.arange(len(targets)),
     )
 
@@ -117,3 +117,19 @@ def test_colinear_target_uses_size_ratio() -> None:
     assert bool(mm.size_ratio[0, 0])
     assert mm.r[0, 0] > 0.5
     assert abs(mm.d1_m[0, 0] - 3.0) < 0.05
+
+
+def test_batched_matrices_equal_single_ones() -> None:
+    from resource_manager.match import match_matrices
+
+    rng = np.random.default_rng(3)
+    people = [(float(rng.uniform(0, 8)), float(rng.uniform(0, 6)), 1.7, k) for k in range(6)]
+    views = [view(f"c{k}", o, people[: 2 + k]) for k, o in enumerate([(0.0, 0.0), (8.0, 0.0), (8.0, 6.0), (0.0, 6.0)])]
+    pairs = [(views[0], views[1]), (views[2], views[3]), (views[1], views[3]), (views[0], view("e", (4.0, 3.0), []))]
+    temporals = [np.eye(a.n, b.n) for a, b in pairs]
+    batched = match_matrices(pairs, MatchParams(), temporals, 0.1)
+    for (a, b), t, mb in zip(pairs, temporals, batched, strict=True):
+        single = match_matrix(a, b, MatchParams(), t, 0.1)
+        assert mb.r.shape == (a.n, b.n)
+        assert np.allclose(mb.r, single.r) and np.allclose(mb.xy, single.xy)
+        assert np.array_equal(mb.size_ratio, single.size_ratio)
