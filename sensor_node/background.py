@@ -243,15 +243,20 @@ class BackgroundModel:
             outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
             cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
-            score = float(was[outline].sum()) / (float(cur[outline].sum()) + 1.0)
-            if score < GHOST_SCORE and int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
+            was_sum, n_out = float(was[outline].sum()), max(1, int(np.count_nonzero(outline)))
+            score = was_sum / (float(cur[outline].sum()) + 1.0)
+            # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
+            # whose ratio is noise: the still inside of a slowly walking person's shirt).
+            ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
+            if not ghost and int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
                 continue
             assert self._bg is not None
-            # The ghost's fringe too: its changed pixels up to 4 px around the still region.
+            # The ghost's fringe too: its changed, not moving pixels up to 4 px around the still region
+            # (not the edge of someone walking past it).
             y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
             region = np.zeros((y1 - y0, x1 - x0), np.uint8)
             region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
-            take = (cv2.dilate(region, _K9) > 0) & (fg[y0:y1, x0:x1] > 0)
+            take = (cv2.dilate(region, _K9) > 0) & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
             sub = self._bg[y0:y1, x0:x1]
             sub[take] = grey[y0:y1, x0:x1][take]
             self._static[y0:y1, x0:x1][take] = 0
@@ -267,6 +272,9 @@ STATIC_EVERY = 4
 
 MIN_LIGHT_STEP = 0.04
 """A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
+
+GHOST_EDGE = 10.0
+"""Least mean edge strength (grey levels, 3x3 morphological gradient) of a ghost's outline in the background."""
 
 GHOST_SCORE = 2.5
 """Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""
