@@ -40,7 +40,7 @@ __all__ = ["Associator", "Outcome"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
-RERANK_MOVE_M = 0.25
+RERANK_MOVE_M = 0.5
 """A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
 
