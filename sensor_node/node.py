@@ -58,6 +58,11 @@ class LatestSlot:
             self._frame = frame
             self._cond.notify()
 
+    def count_dropped(self, n: int) -> None:
+        """Frames the source itself skipped (it was late) count as dropped too."""
+        with self._cond:
+            self.dropped += n
+
     def close(self) -> None:
         with self._cond:
             self.closed = True
@@ -171,8 +176,7 @@ class SensorNode:
                     break
                 self.slot.put(frame)
                 if frame.skipped:
-                    with self.slot._cond:
-                        self.slot.dropped += frame.skipped
+                    self.slot.count_dropped(frame.skipped)
         except Exception as err:  # a bug or an unrecoverable source: report, and let the main loop exit
             logger.exception("capture failed")
             self.capture_error = f"capture failed: {err}"
@@ -186,8 +190,13 @@ class SensorNode:
                 cmd = r.msg
                 if cmd.sensor_id != self.cfg.node.id:
                     continue
-                logger.info("PTZ command from %s: pan %.3f tilt %.3f zoom %.2f", cmd.manager_id, cmd.pan_rad,
-                            cmd.tilt_rad, cmd.zoom)  # fmt: skip
+                logger.info(
+                    "PTZ command from %s: pan %.3f tilt %.3f zoom %.2f",
+                    cmd.manager_id,
+                    cmd.pan_rad,
+                    cmd.tilt_rad,
+                    cmd.zoom,
+                )
                 self.parts.ptz.command(cmd.pan_rad, cmd.tilt_rad, cmd.zoom)
         if self.plan_inbox is not None and self.parts.sim is not None:
             for rp in self.plan_inbox.drain():

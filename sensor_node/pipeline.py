@@ -14,7 +14,6 @@ frames. ``benchmarks/bench_pipeline.py`` measures it against an OpenCV floor.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -125,10 +124,3 @@ class ImagePipeline:
         )
         self.seq += 1
         return FrameResult(features, motion.state, n_body, pf)
-
-
-def timed_process(pipeline: ImagePipeline, frame: Image, stamp_ns: int, frame_index: int) -> tuple[FrameResult, float]:
-    """Run the pipeline and return the result with its wall time in ms."""
-    t0 = time.perf_counter()
-    out = pipeline.process(frame, stamp_ns, frame_index)
-    return out, (time.perf_counter() - t0) * 1e3
