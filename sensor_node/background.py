@@ -72,15 +72,20 @@ class BackgroundModel:
 
     Args:
         settings: the ``[pipeline]`` knobs (thresholds, learning rate, abnormal fraction, warm-up).
+        fast_start: warm up from consecutive frames (a camera that just moved), not every
+            ``warmup_stride``-th.
     """
 
-    def __init__(self, settings: PipelineSettings) -> None:
+    def __init__(self, settings: PipelineSettings, fast_start: bool = False) -> None:
         self.settings = settings
         self._bg: npt.NDArray[np.float32] | None = None
         self._bg_u8: Mask | None = None
         self._prev: Mask | None = None
         self._warm: list[Mask] = []
         self._warm_seen = 0
+        self._stride = 1 if fast_start else settings.warmup_stride
+        """Warm-up stride now: 1 when relearning after the camera moved (it must see again soon;
+        the ghost checks clean up after anyone who stood still), else ``warmup_stride``."""
         self._static: Mask | None = None
         self._frames = 0
         self._updates = 0
@@ -117,7 +122,7 @@ class BackgroundModel:
                 # The camera is moving (or the light flickers): learn only from a still view.
                 self._warm, self._warm_seen = [], 0
             else:
-                if self._warm_seen % s.warmup_stride == 0:
+                if self._warm_seen % self._stride == 0:
                     self._warm.append(grey.copy())
                 self._warm_seen += 1
             if len(self._warm) >= s.warmup_frames:
@@ -165,6 +170,7 @@ class BackgroundModel:
         self._bg = None
         self._bg_u8 = None
         self._warm, self._warm_seen = [], 0
+        self._stride = 1
         self._static = None
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)

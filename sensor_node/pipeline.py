@@ -82,7 +82,7 @@ class ImagePipeline:
 
     def reset(self) -> None:
         """Forget the background and tracks (the camera moved: a PTZ head slewed)."""
-        self.background = BackgroundModel(self.settings)
+        self.background = BackgroundModel(self.settings, fast_start=True)
         self._tracker = None
 
     def set_geometry(self, geometry: ImageGeometry) -> None:

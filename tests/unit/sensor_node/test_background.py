@@ -73,7 +73,9 @@ def test_scene_change_reinitialises() -> None:
     other = (255 - backdrop(4)).astype(np.uint8)  # a different scene (camera moved), not a gain
     m = model.apply(grey(noisy(other, rng)))
     assert m.state == "reinit" and not m.fg.any() and model.reinits == 1 and not model.ready
-    _warm(model, other, rng)  # learnt afresh from the new view
+    for _ in range(model.settings.warmup_frames):  # learnt afresh from consecutive frames of the new view
+        assert model.apply(grey(noisy(other, rng))).state == "warmup"
+    assert model.ready
     assert model.apply(grey(noisy(other, rng))).changed_frac < 0.002
 
 
