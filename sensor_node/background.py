@@ -43,7 +43,7 @@ logger = logging.getLogger(__name__)
 
 Mask = npt.NDArray[Any]
 """An 8-bit single-channel image (cv2 results are typed loosely)."""
-MotionState = Literal["warmup", "ok", "relit", "reinit"]
+MotionState = Literal["warmup", "ok", "relit", "reinit", "moving"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,7 +56,8 @@ class Motion:
     """255 where the frame differs from the previous frame."""
     state: MotionState
     """"warmup": still learning; "ok"; "relit": a global light change was compensated by a gain;
-    "reinit": the background was re-initialised from this frame (nothing reported)."""
+    "reinit": the background was re-initialised from this frame (nothing reported); "moving": the
+    camera itself moves (a robot driving): nothing reported, the background is learnt once it stops."""
     changed_frac: float
     """Fraction of pixels in ``fg`` (before any re-initialisation)."""
     gain: float = 1.0
@@ -95,6 +96,10 @@ class BackgroundModel:
         """Times a global light change was compensated by a gain."""
         self.ghosts = 0
         """Ghost blobs (objects that left the background) absorbed."""
+        self.kept = 0
+        """Still-region tests that found a paused object (its outline in the frame) and kept it."""
+        self.ego_frames = 0
+        """Frames in which the camera itself was seen to move."""
 
     @property
     def ready(self) -> bool:
@@ -117,10 +122,15 @@ class BackgroundModel:
         self._prev = grey
         moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
         empty = np.zeros_like(grey)
+        ego = prev is not None and self._camera_moves(grey, prev, moving)
+        if ego:
+            self.ego_frames += 1
         if self._bg is None:
-            if prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size:
+            if ego or (prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size):
                 # The camera is moving (or the light flickers): learn only from a still view.
                 self._warm, self._warm_seen = [], 0
+                if ego:
+                    return Motion(empty, moving, "moving", 0.0)
             else:
                 if self._warm_seen % self._stride == 0:
                     self._warm.append(grey.copy())
@@ -131,6 +141,11 @@ class BackgroundModel:
                 self._warm, self._warm_seen = [], 0
                 logger.debug("background initialised from %d frames", s.warmup_frames)
             return Motion(empty, moving, "warmup", 0.0)
+        if ego:
+            # Known ego-motion is not available: the background no longer fits the view. Forget it
+            # now (not after it has soaked up the moving scene) and learn it afresh once stopped.
+            self._restart(1.0, 1.0, "the camera moves")
+            return Motion(empty, moving, "moving", 1.0)
         bg_u8 = self._bg_u8
         assert bg_u8 is not None
         fg = _threshold(cv2.absdiff(grey, bg_u8), s.fg_threshold)
@@ -159,6 +174,26 @@ class BackgroundModel:
             # The frame of the jump is not reported: frame differencing is meaningless across it.
             return Motion(empty, empty, "relit", frac, gain)
         return self._restart(frac, gain, "not explained by a light change")
+
+    def _camera_moves(self, grey: Mask, prev: Mask, moving: Mask) -> bool:
+        """Frame differencing says the camera itself moves: motion in most directions at once.
+
+        People move in a few compact column ranges; when the robot carrying the
+        camera drives, every textured part of the room shifts, so most of the
+        ``EGO_SECTORS`` column sectors hold moving pixels. A sudden light change
+        does too, but it is a global gain between the two frames, not motion.
+        """
+        frac = self.settings.ego_motion_frac
+        if frac >= 1.0:
+            return False
+        cols = cv2.reduce(moving, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        n = cols.size - cols.size % EGO_SECTORS
+        if n < EGO_SECTORS:
+            return False
+        sectors = cols[:n].reshape(EGO_SECTORS, -1).sum(axis=1) // 255
+        if int(np.count_nonzero(sectors >= EGO_SECTOR_PX)) < frac * EGO_SECTORS:
+            return False
+        return abs(_global_gain(grey, prev) - 1.0) < MIN_LIGHT_STEP
 
     def _restart(self, frac: float, gain: float, why: str) -> Motion:
         """Re-initialise: forget the background and learn it again from the next still frames.
@@ -218,10 +253,11 @@ class BackgroundModel:
         but never moves. Regions that stayed changed and still for
         ``ghost_frames`` are checked: a ghost's outline is an edge of the
         background image but not of the current frame (where the wall is
-        smooth), a person's outline the reverse. Ghosts are copied into the
-        background; people who stand still are kept -- up to
-        ``still_absorb_frames``, after which anything still is background (on
-        a textured floor the edge test cannot tell, and a ghost must not stay).
+        smooth), a paused person's outline the reverse. Ghosts are copied into
+        the background; people who stand still are kept for as long as they
+        stand (their outline is an edge of the frame, not of the model); a still
+        region that neither test recognises (on a textured floor) becomes
+        background after ``still_absorb_frames``, so no ghost stays.
         """
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
@@ -254,8 +290,16 @@ class BackgroundModel:
             # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
             # whose ratio is noise: the still inside of a slowly walking person's shirt).
             ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
-            if not ghost and int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
-                continue
+            if not ghost:
+                # A paused person is the reverse: the silhouette is an edge of the current frame, not of
+                # the background. They stay an object region (never learnt) however long they stand;
+                # only what neither test recognises becomes background after still_absorb_frames.
+                cur_sum = float(cur[outline].sum())
+                if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE:
+                    self.kept += 1
+                    continue
+                if int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
+                    continue
             assert self._bg is not None
             # The ghost's fringe too: its changed, not moving pixels up to 4 px around the still region
             # (not the edge of someone walking past it).
@@ -273,6 +317,12 @@ class BackgroundModel:
             self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
 
+EGO_SECTORS = 36
+"""Column sectors (10 degrees each on a panorama) of the camera-motion test."""
+
+EGO_SECTOR_PX = 10
+"""Moving pixels that make a sector count as moving in the camera-motion test."""
+
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
 
@@ -284,6 +334,9 @@ GHOST_EDGE = 10.0
 
 GHOST_SCORE = 2.5
 """Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""
+
+PERSON_SCORE = 1.5
+"""Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)

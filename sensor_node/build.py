@@ -22,6 +22,7 @@ from typing import Any, Protocol
 
 from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
 from common.errors import ConfigError
+from common.scenario import site_with_seed_from_env
 from common.schema import Features, PanoramicModel, PinholeModel, Pose, SensorKind
 from common.site import load_site
 from sensor_node.config import (
@@ -111,6 +112,8 @@ class NodeParts:
     """The simulated source (it takes view-plan goals), if any."""
     ptz_base: Any = None
     """PtzCamera at the head's position (PTZ nodes): its state gives the current model."""
+    camera_height_m: float = 0.0
+    """Height of the optical centre above the floor from the camera model (panoramic; 0: unknown)."""
 
 
 def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
@@ -135,7 +138,8 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
     where = cfg.path or "node config"
     pose = _surveyed_pose(cfg)
     if isinstance(src, SimSource):
-        site = load_site(cfg.resolve(src.site))
+        # PANOSTEREO_SEED (``panostereo demo --seed N``) picks the world the ground truth is written for.
+        site = site_with_seed_from_env(load_site(cfg.resolve(src.site)))
         cam_id = src.camera or cfg.node.id
         spec = site.camera_by_id(cam_id)
         epoch = epoch_from(src.epoch_ns, clock())
@@ -146,7 +150,7 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
             if pose is not None and abs(pose.z_m - cyl.height_m) > 1e-6:
                 cyl = CylindricalCamera(cyl.width_px, cyl.height_px, cyl.f_v_px, cyl.v0_px, pose.z_m, cyl.direction)
             proc = ImageProcessor(_panoramic(cfg, annular, cyl))
-            return NodeParts(sim, proc, "panoramic", cyl.to_model(), pose, fps, sim=sim)
+            return NodeParts(sim, proc, "panoramic", cyl.to_model(), pose, fps, sim=sim, camera_height_m=cyl.height_m)
         if pose is None:
             raise ConfigError(f"{where}: a simulated PTZ camera needs a [pose] table (the head's surveyed position)")
         ptz = SimulatedPtz(math.radians(spec.pan_deg), math.radians(spec.tilt_deg), spec.zoom, clock)
@@ -197,4 +201,5 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
         iw, ih, cam.center_px[0], cam.center_px[1], a0, a1, a2, pw, ph, math.radians(cam.psi0_deg), cam.direction
     )
     cyl = CylindricalCamera(pw, ph, cam.f_v_px, cam.v0_px, pose.z_m if pose else cam.height_m, cam.direction)
-    return NodeParts(source, ImageProcessor(_panoramic(cfg, annular, cyl)), "panoramic", cyl.to_model(), pose, fps)
+    proc_p = ImageProcessor(_panoramic(cfg, annular, cyl))
+    return NodeParts(source, proc_p, "panoramic", cyl.to_model(), pose, fps, camera_height_m=cyl.height_m)

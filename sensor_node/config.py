@@ -196,6 +196,17 @@ class BodySpec(ConfigStruct, frozen=True):
     radius_m: Pos = 0.18
     height_m: Pos = 0.9
     """Height of the top of the body above the floor (blobs below it are the robot, not a person)."""
+    band_z_m: Annotated[list[NonNeg], msgspec.Meta(max_length=2)] = []
+    """Heights [bottom, top] of the marking band above the floor ([]: 0.55..0.72 of ``height_m``, the
+    demo robots' design). A sighting whose Eq. 3 range disagrees with the range the band's elevation
+    gives is not that body (a shirt of the band's colour, a band cut by the image edge)."""
+
+    @property
+    def band_range_m(self) -> tuple[float, float]:
+        """(bottom, top) of the band above the floor."""
+        if len(self.band_z_m) == 2:
+            return float(self.band_z_m[0]), float(self.band_z_m[1])
+        return 0.55 * self.height_m, 0.72 * self.height_m
 
 
 class PipelineSettings(ConfigStruct, frozen=True):
@@ -214,6 +225,10 @@ class PipelineSettings(ConfigStruct, frozen=True):
     abnormal_frac: Frac = 0.35
     """Fraction of changed pixels that means a sudden global change (light switch, camera moved) rather
     than people. Lower: re-initialises more eagerly; higher: big crowds are not mistaken for it."""
+    ego_motion_frac: Frac = 0.5
+    """Fraction of the image's column sectors (36) with frame-to-frame motion that means the camera itself
+    moves (a robot driving): nothing is reported and the background is learnt afresh once it stops.
+    Lower: detects slow driving sooner, a crowd close around the camera may pass for it; 1: off."""
     warmup_frames: PosInt = 12
     """Frames whose median initialises the background; nothing is reported meanwhile. Higher: cleaner
     start with people present, longer blind start."""
@@ -227,8 +242,9 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """Reduction of the mask that connected components and grouping run on (1: full resolution).
     Higher: cheaper; thin or tiny regions may be missed. Boxes and heads stay full resolution."""
     still_absorb_frames: PosInt = 90
-    """Frames after which any changed region that has not moved becomes background, ghost or not.
-    Higher: people who pause stay detected longer; lower: ghosts on textured floors vanish sooner."""
+    """Frames after which a changed region that has not moved becomes background unless its outline is
+    an edge of the current frame and not of the background (a paused person: kept however long). Higher:
+    ambiguous still regions stay longer; lower: ghosts on textured floors vanish sooner."""
     min_component_px: PosInt = 6
     """Connected regions smaller than this are noise and ignored before grouping."""
     merge_gap_px: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
@@ -326,6 +342,10 @@ def validate(cfg: NodeConfig) -> NodeConfig:
         if body.id in seen:
             raise ConfigError(f"{src}: body[{i}].id {body.id!r} appears twice")
         seen.add(body.id)
+        if body.band_z_m and not (len(body.band_z_m) == 2 and body.band_z_m[0] < body.band_z_m[1]):
+            raise ConfigError(
+                f"{src}: body[{i}].band_z_m: expected [bottom_m, top_m] with bottom < top, got {body.band_z_m}"
+            )
     bins = cfg.pipeline.hist_bins
     if bins[0] < 1 or bins[1] < 1 or bins[0] * bins[1] > 512:
         raise ConfigError(f"{src}: pipeline.hist_bins: expected two positive counts with product <= 512, got {bins}")

@@ -28,7 +28,7 @@ import msgspec
 
 from common.clock import NtpClock
 from common.codec import encode
-from common.schema import NodeStatus, PoseSource, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
+from common.schema import NodeStatus, Pose, PoseSource, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import Inbox, TypedPublisher
 from sensor_node.build import NodeParts, build_node
@@ -126,13 +126,19 @@ class SensorNode:
         pose_source: PoseSource = (
             "surveyed" if p.pose is not None else ("mutual" if self.cfg.node.mobile else "unknown")
         )
+        pose = p.pose
+        if pose is None and self.cfg.node.mobile and p.camera_height_m > 0.0:
+            # A robot's x, y and yaw come from mutual calibration (the manager ignores them unless
+            # pose_source is "surveyed"); its camera height is known from the camera model and is
+            # needed for head heights (z = z_cam + D tan(top_elev)) and Eq. 7's height consistency.
+            pose = Pose(x_m=0.0, y_m=0.0, z_m=p.camera_height_m, yaw_rad=0.0)
         return SensorInfo(
             sensor_id=self.cfg.node.id,
             seq=self._info_seq,
             stamp_ns=self.clock.now_ns(),
             kind=p.kind,
             model=p.model,
-            pose=p.pose,
+            pose=pose,
             pose_source=pose_source,
             mobile=self.cfg.node.mobile,
             body_radius_m=self.cfg.node.body_radius_m,
@@ -232,6 +238,7 @@ class SensorNode:
         state: SourceState = src.state
         message = self.capture_error or src.message
         decode_errors = sum(i.counters.decode_errors for i in self.inboxes)
+        dropped_msgs = sum(i.counters.dropped for i in self.inboxes)
         n = self._interval_frames
         self.pub_status.put(
             NodeStatus(
@@ -246,6 +253,7 @@ class SensorNode:
                 clock_uncertainty_ns=int(st.uncertainty_ns),
                 clock_source=st.source,
                 decode_errors=decode_errors,
+                dropped_msgs=dropped_msgs,
                 source_state=state,
                 message=message[:256],
             )

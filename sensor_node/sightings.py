@@ -176,6 +176,29 @@ class BandFinder:
             return None  # the band colour without the white body around it (e.g. a shirt)
         return r0 + r0s, r1 + r0s
 
+    def _band_agrees(self, body: BodySpec, rows: tuple[int, int], dist_m: float, height_px: int) -> bool:
+        """True if the band's elevation puts it at the Eq. 3 range (within ``BAND_RANGE_TOL``).
+
+        The body's design is known: its band spans heights z0..z1. Seen from the
+        camera at height z_c, the band's middle row at elevation e is at horizontal
+        range (z_c - (z0 + z1)/2) / tan(-e) from the optical centre, to the body's
+        surface -- plus R to its axis. A band-coloured shirt, or a band cut by the
+        image edge (too narrow a run: an absurd range), fails this. A band at the
+        camera's own height says nothing about the range and is accepted.
+        """
+        z0, z1 = body.band_range_m
+        drop_m = self.camera.height_m - 0.5 * (z0 + z1)
+        r0, r1 = rows
+        if r1 >= height_px - 1:
+            # The band runs out of the image: its middle row is not the band's middle.
+            top = math.tan(-float(self.camera.elevation_from_row(r0 - 0.5)))
+            return top <= 0.0 or dist_m <= (1.0 + BAND_RANGE_TOL) * ((self.camera.height_m - z1) / top + body.radius_m)
+        tan_dn = math.tan(-float(self.camera.elevation_from_row(0.5 * (r0 + r1))))
+        if abs(drop_m) < 0.05 or tan_dn * drop_m <= 0.0:
+            return abs(drop_m) < 0.05
+        band_m = drop_m / tan_dn + body.radius_m
+        return abs(dist_m - band_m) <= BAND_RANGE_TOL * band_m
+
     def _boundaries(
         self, frame: PanoFrame, body: BodySpec, run: tuple[int, int], rows: tuple[int, int]
     ) -> BodySighting | None:
@@ -201,6 +224,8 @@ class BandFinder:
             dist = baseline_exact(b_left, b_right, body.radius_m)  # Eq. (3)
         except GeometryError:
             return None
+        if not self._band_agrees(body, rows, dist, frame.grey.shape[0]):
+            return None
         sighting = Sighting(
             target_id=body.id,
             left_rad=_wrap_pi(b_left),
@@ -211,6 +236,10 @@ class BandFinder:
             body_radius_m=float(body.radius_m),
         )
         return BodySighting(sighting, left_col, right_col, (r0, r1))
+
+
+BAND_RANGE_TOL = 0.3
+"""Largest relative disagreement between the Eq. 3 range and the band-elevation range of one sighting."""
 
 
 def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:

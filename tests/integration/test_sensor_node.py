@@ -71,10 +71,10 @@ tilt_deg = -20.0
 """
 
 
-def _node_config(tmp_path: Path, router: RouterProcess, sid: str, source: str, extra: str = "") -> Path:
+def _node_config(tmp_path: Path, router: RouterProcess, sid: str, source: str, extra: str = "", node: str = "") -> Path:
     p = tmp_path / f"{sid}.toml"
     p.write_text(
-        f'[node]\nid = "{sid}"\nprefix = "it"\n\n[zenoh]\nconnect = ["{router.endpoint}"]\n\n'
+        f'[node]\nid = "{sid}"\nprefix = "it"\n{node}\n[zenoh]\nconnect = ["{router.endpoint}"]\n\n'
         f"[source]\n{source}\n{extra}"
     )
     return p
@@ -107,6 +107,7 @@ def test_sim_node_publishes_features_info_status(tmp_path: Path, router: RouterP
         "pano1",
         'kind = "sim"\nsite = "site.toml"\nfps = 10.0',
         '\n[[body]]\nid = "pano2"\nband_rgb = [40, 80, 220]\nradius_m = 0.18\n',
+        node="mobile = true\n",
     )
     keys = Keys("it")
     with client_session(router.endpoint) as s:
@@ -117,7 +118,9 @@ def test_sim_node_publishes_features_info_status(tmp_path: Path, router: RouterP
         )
         wait_for_liveliness(s, keys.sensor("pano1"), 20.0)
         info = _query_info(s, keys.sensor_info("pano1"))
-        assert info.sensor_id == "pano1" and info.kind == "panoramic" and info.pose is None
+        assert info.sensor_id == "pano1" and info.kind == "panoramic" and info.pose_source == "mutual"
+        # A robot's x, y and yaw come from mutual calibration; its camera height from its camera model.
+        assert info.pose is not None and info.pose.z_m == pytest.approx(1.1)
         assert info.model.width_px == 1080 and info.clock_source == "system"
         got: list[Features] = []
 
@@ -134,7 +137,7 @@ def test_sim_node_publishes_features_info_status(tmp_path: Path, router: RouterP
         assert sighting.target_id == "pano2" and abs(sighting.distance_m - 3.0) < 0.15
         assert any(f.blobs for f in got[-10:]), "two people walking in the room: someone is seen"
         st = wait_for(lambda: [r.msg for r in status.drain() if r.msg.frames > 0], 10.0, "a NodeStatus with frames")
-        assert st[-1].source_state == "ok" and st[-1].fps > 0
+        assert st[-1].source_state == "ok" and st[-1].fps > 0 and st[-1].dropped_msgs == 0
         _stop_cleanly(proc, s, keys.sensor("pano1"))
 
 

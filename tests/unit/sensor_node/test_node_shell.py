@@ -6,6 +6,8 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
+
 from common.site import load_site
 from sensor_node.build import build_node
 from sensor_node.config import load_node_config
@@ -54,3 +56,17 @@ def test_sim_example_builds_a_panoramic_node_and_obeys_goals(tmp_path: Path) -> 
     features, state = parts.processor.process_frame(frame, 0)
     assert features.sensor_id == "pano1" and state == "warmup"
     assert features.stamp_ns == frame.stamp_ns
+
+
+@pytest.mark.parametrize("seed", [None, 42])
+def test_sim_world_follows_panostereo_seed(seed: int | None, monkeypatch: pytest.MonkeyPatch) -> None:
+    if seed is None:
+        monkeypatch.delenv("PANOSTEREO_SEED", raising=False)
+    else:
+        monkeypatch.setenv("PANOSTEREO_SEED", str(seed))
+    cfg = load_node_config(REPO / "deploy/nodes/examples/sim.toml")
+    parts = build_node(cfg, time.time_ns)
+    site = load_site(REPO / "deploy/sites/demo.toml")
+    assert parts.sim is not None and parts.sim.world.seed == (site.site.seed if seed is None else seed)
+    # The camera height a robot node publishes in SensorInfo (its x, y, yaw come from mutual calibration).
+    assert parts.camera_height_m == pytest.approx(site.camera_by_id("pano1").height_m)

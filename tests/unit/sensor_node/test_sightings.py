@@ -63,6 +63,21 @@ def test_a_shirt_of_the_band_colour_is_not_a_robot() -> None:
     assert BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img)) == []
 
 
+@pytest.mark.parametrize(
+    ("left", "right", "rows", "seen"),
+    [
+        (500.3, 521.1, (130, 142), True),  # Eq. 3: 2.95 m; the band's elevation: ~3.3 m
+        (500.3, 510.4, (130, 142), False),  # too narrow for where its band is: Eq. 3 says 6 m
+        (500.3, 521.1, (100, 106), False),  # a band near the horizon is far away, not 2.95 m
+    ],
+)
+def test_the_band_elevation_must_agree_with_eq3(left: float, right: float, rows: tuple[int, int], seen: bool) -> None:
+    img = backdrop(4)
+    _draw_body(img, left, right, (220, 80, 40), rows)
+    found = BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img))
+    assert [b.sighting.target_id for b in found] == (["blue"] if seen else [])
+
+
 def test_hue_ranges_and_runs_wrap() -> None:
     assert _hue_ranges([220, 40, 40], 43.2) == [(0, 10), (170, 179)]  # red straddles hue 0
     ((lo, hi),) = _hue_ranges([40, 80, 220], 43.2)
