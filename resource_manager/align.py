@@ -41,6 +41,9 @@ class AlignedBlob:
     bottom_elev_rad: float
     hist: list[float]
     feet_visible: bool
+    bottom_px: float = -1.0
+    """Image row of the blob's bottom edge (bbox_v + bbox_h; -1: unknown): a box cut by the image's lower
+    border does not show the feet, whatever the node says."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +76,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
             bottom_elev_rad=interp_linear(t0, b0.bottom_elev_rad, t1, b1.bottom_elev_rad, t),
             hist=list(b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist),
             feet_visible=b0.feet_visible and b1.feet_visible,
+            bottom_px=max(b0.bbox_v_px + b0.bbox_h_px, b1.bbox_v_px + b1.bbox_h_px),
         )
     b = b1 if b1 is not None else b0
     assert b is not None
@@ -84,6 +88,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
         bottom_elev_rad=b.bottom_elev_rad,
         hist=list(b.hist),
         feet_visible=b.feet_visible,
+        bottom_px=b.bbox_v_px + b.bbox_h_px,
     )
 
 
@@ -108,14 +113,18 @@ def _pair(
     by0 = {b.local_id: b for b in f0.blobs}
     by1 = {b.local_id: b for b in f1.blobs}
     blobs: list[AlignedBlob] = []
+    # A blob in one frame only (the person appeared, left, or the node's 2D track changed id) is taken
+    # from its own frame only when that frame is the nearer one: otherwise, at low frame rates, the
+    # same person would be there twice (old id from one frame, new id from the other) -- a ghost.
+    near1 = abs(t1 - t) <= abs(t - t0)
     for lid, b1 in by1.items():
         b0 = by0.get(lid)
         if b0 is not None:
             blobs.append(_blob_at(b0, t0, b1, t1, t))
-        elif abs(t1 - t) <= max_one_sided_ns:
+        elif abs(t1 - t) <= max_one_sided_ns and near1:
             blobs.append(_blob_at(None, t0, b1, t1, t))
     for lid, b0 in by0.items():
-        if lid not in by1 and abs(t - t0) <= max_one_sided_ns and t1 > t:
+        if lid not in by1 and abs(t - t0) <= max_one_sided_ns and t1 > t and not near1:
             blobs.append(_blob_at(b0, t0, None, t1, t))
     if not want_s:
         return blobs, []

@@ -25,12 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from scipy.optimize import linear_sum_assignment
 
 from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrices, match_matrix
+from resource_manager.mono import mono_measurement, range_mismatch
 from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.poses import PoseEstimate
 from resource_manager.track import Tracker, TrackRecord
@@ -40,6 +42,9 @@ __all__ = ["Associator", "Outcome"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+_FORBID = 1e6
+LINK_BONUS = 0.5
+"""Cost bonus (in squared gate units) of the blob with the node-side id a track had last tick."""
 RERANK_MOVE_M = 0.5
 """A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
@@ -75,6 +80,7 @@ class Associator:
             height_sigma=mc.height_sigma,
             use_colour=mc.use_colour,
             temporal_weight=mc.temporal_weight,
+            temporal_gate_m=mc.temporal_gate_m,
         )
         self.threshold = mc.threshold
         self._birth_rr = 0
@@ -88,8 +94,8 @@ class Associator:
     ) -> tuple[list[dict[str, int]], list[dict[str, int]]]:
         """For each track, sensor id -> index of its own supporting blob, and of blobs it shares.
 
-        First the blob the node kept tracking for it (same ``local_id``, loose gate), then, in cameras where that
-        blob is gone (occlusion, new track), the nearest blob inside the gate that no other track holds by link.
+        Per camera, tracks and blobs inside the gate (bearing, and the feet's floor distance where known) are
+        assigned one to one; a track left without a blob whose nearest blob is another track's shares it.
         """
         out: list[dict[str, int]] = [{} for _ in tracks]
         shared: list[dict[str, int]] = [{} for _ in tracks]
@@ -107,35 +113,36 @@ class Associator:
             gate = k * np.sqrt(v.sigma_rad**2 + tvar / dist**2) + 0.25 / dist
             diff = np.abs(wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
             norm = diff / gate[None, :]
-            claimed: set[int] = set()
-            pending: list[int] = []
+            if v.mono_range_m is not None and v.mono_sigma_m is not None:
+                # Floor distance from the feet (mono.py): along the ray too, within the same number of sigmas.
+                s_r = np.sqrt(v.mono_sigma_m[:, None] ** 2 + tvar[None, :])
+                rn = np.abs(v.mono_range_m[:, None] - dist[None, :]) / (k * s_r)
+                norm = np.hypot(norm, np.nan_to_num(rn, nan=0.0))
+            # One blob per track and one track per blob, by least total normalised distance (Hungarian):
+            # in a crowd, "each track takes its nearest blob" lets one track steal its neighbour's blob.
+            # The blob the node kept tracking for it (same local id) gets a bonus, not a free pass: the
+            # node's 2D ids swap between people who cross.
+            far = dist > self.params.max_range_m
+            cost = np.where((norm < 1.0) & ~far[None, :], norm**2, _FORBID)
             for t, tr in enumerate(tracks):
                 lid = tr.links.get(sid)
                 if lid is not None:
-                    hit = np.nonzero(v.local_id == lid)[0]
-                    if hit.size and norm[hit[0], t] < 3.0:
-                        i = int(hit[0])
-                        if i in claimed:  # an older track holds it: a copy of that track, or hidden behind it
-                            shared[t][sid] = i
-                        else:
-                            out[t][sid] = i
-                            claimed.add(i)
-                        continue
-                pending.append(t)
-            for t in pending:
-                if dist[t] > self.params.max_range_m:
-                    continue
-                col = norm[:, t]
-                i = int(np.argmin(col))
-                if col[i] >= 1.0:
-                    continue
-                if i in claimed:
-                    # Another track's own blob: this person is probably hidden behind it. It explains the
-                    # blob (no birth from it) but its bearing is the other person's, so it does not localise.
-                    shared[t][sid] = i
-                else:
+                    hit = np.nonzero((v.local_id == lid) & (cost[:, t] < _FORBID))[0]
+                    cost[hit, t] -= LINK_BONUS
+            rows, cols = linear_sum_assignment(cost)
+            claimed: set[int] = set()
+            for i, t in zip(rows.tolist(), cols.tolist(), strict=True):
+                if cost[i, t] < _FORBID:
                     out[t][sid] = i
-                    claimed.add(i)  # each blob localises one track only
+                    claimed.add(i)
+            for t in range(len(tracks)):
+                if sid in out[t] or far[t]:
+                    continue
+                i = int(np.argmin(norm[:, t]))
+                if norm[i, t] < 1.0 and i in claimed:
+                    # Another track's blob: this person is probably hidden behind it. It explains the blob
+                    # (no birth from it) but its bearing is the other person's, so it does not localise.
+                    shared[t][sid] = i
         return out, shared
 
     # -- step 2 -----------------------------------------------------------------
@@ -152,7 +159,9 @@ class Associator:
             return
         pairs = [(views[a], views[b]) for a, b in todo]
         temporals = [self._temporal(a, b, tracks) for a, b in pairs]
-        for key, mm in zip(todo, match_matrices(pairs, self.params, temporals, self.threshold), strict=True):
+        txy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
+        mms = match_matrices(pairs, self.params, temporals, self.threshold, txy)
+        for key, mm in zip(todo, mms, strict=True):
             cache[key] = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
 
     @staticmethod
@@ -176,7 +185,8 @@ class Associator:
         if got is not None:
             return got
         temporal = self._temporal(a, b, tracks)
-        mm = match_matrix(a, b, self.params, temporal, self.threshold)
+        txy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
+        mm = match_matrices([(a, b)], self.params, [temporal], self.threshold, txy)[0]
         pm = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
         cache[key] = pm
         return pm
@@ -184,6 +194,7 @@ class Associator:
     def _consistent(self, meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs]) -> tuple[list[str], int]:
         """Supporting cameras whose blob points at the measurement, and how many point elsewhere."""
         k = self.config.match.bearing_gate_sigmas
+        mono_k = self.config.match.mono_gate_sigmas
         x, y = float(meas.xy[0]), float(meas.xy[1])
         agree: list[str] = []
         against = 0
@@ -192,7 +203,7 @@ class Associator:
             dx, dy = x - float(v.origin_xy[0]), y - float(v.origin_xy[1])
             dist = max(math.hypot(dx, dy), 0.3)
             off = math.remainder(float(v.bearing_rad[i]) - math.atan2(dy, dx), 2 * math.pi)
-            if abs(off) < k * v.sigma_rad + 0.25 / dist:
+            if abs(off) < k * v.sigma_rad + 0.25 / dist and range_mismatch(v, i, meas.xy) < mono_k:
                 agree.append(sid)
             else:
                 against += 1
@@ -207,8 +218,9 @@ class Associator:
         *,
         bodies: dict[str, float] | None = None,
         fovs: dict[str, tuple[float, float]] | None = None,
+        mono: dict[str, tuple[float, float, float, float]] | None = None,
     ) -> Outcome:
-        views = build_views(aligned, poses, sigma_of, bodies, fovs)
+        views = build_views(aligned, poses, sigma_of, bodies, fovs, mono=mono)
         self._all = AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
@@ -248,11 +260,17 @@ class Associator:
             if meas is None:
                 # No pair localises it this tick: the views that still follow it (same node-side blob) steer it
                 # by bearing alone, so the prediction stays on the person while the stereo pair is broken.
-                if mc.bearing_updates:
+                if mc.mono_updates and sup:
+                    # The views' own floor points (mono.py): one view is enough to stay on the person.
+                    mono_meas = mono_measurement([(views[s], i) for s, i in sup.items()])
+                    if mono_meas is not None and math.isfinite(self.tracker.gate_distance(tr, mono_meas)):
+                        meas, entry, used_blobs = mono_meas, None, dict(mono_meas.blobs)
+                if meas is None and mc.bearing_updates:
                     for sid, i in sup.items():
                         v = views[sid]
                         if tr.links.get(sid) == int(v.local_id[i]):
                             self.tracker.bearing_update(tr, v.origin_xy, float(v.bearing_rad[i]), v.sigma_rad)
+            if meas is None:
                 self.tracker.miss(tr)
                 continue
             claimed.update(used_blobs.items())
@@ -336,7 +354,9 @@ class Associator:
             pm = self._pair_match(a, b, tracks, cache)
             i, j = sup[a_id], sup[b_id]
             options = []
-            if pm.pairs.get(i) == j:
+            if pm.pairs.get(i) == j or pm.mm.r[i, j] > self.threshold:
+                # The track's own blobs, if Eq. 7 accepts them as a pair (the matcher may have given one of
+                # them to a crossing elsewhere: the track's prediction is the better judge here).
                 options.append((i, j))
             options += [(ii, jj) for ii, jj in pm.pairs.items() if (ii == i) != (jj == j)]
             for ii, jj in options:
@@ -408,6 +428,9 @@ class Associator:
                 )
                 if meas is None or self._near_track(meas):
                     continue
+                mono_k = self.config.match.mono_gate_sigmas
+                if range_mismatch(a, ii, meas.xy) >= mono_k or range_mismatch(b, jj, meas.xy) >= mono_k:
+                    continue  # a crossing of two other people's rays: the feet are elsewhere
                 support, against = self._third_views(meas, views, (a_id, b_id))
                 if against >= self.config.match.ghost_veto_views and not self._agreement_ok(meas):
                     continue

@@ -153,6 +153,17 @@ class MatchSection(ConfigStruct, frozen=True):
     max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
     """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
     ghost_veto_views: PosInt = 1
+    mono_elev_sigma_deg: NonNeg = 0.3
+    """Feet-elevation error of fixed perspective cameras (SensorInfo kind ``pinhole``, e.g. detection files):
+    their blobs' feet give floor distances (resource_manager/mono.py) that gate support, veto ghosts and
+    keep tracks when no pair localises them. 0 disables; raise it for noisy box bottoms."""
+    mono_base_sigma_m: NonNeg = 0.15
+    """Added to every floor-distance sigma (the feet are not exactly below the head)."""
+    mono_gate_sigmas: Pos = 3.0
+    """A fix or a birth whose distance from a camera disagrees with that blob's feet by more than this many
+    sigmas is a ghost (lower: stricter)."""
+    mono_updates: bool = True
+    """When no pair localises a track, its views' floor points (fused) update it."""
     min_view_agreement: Frac = 0.8
     """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
     (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not)."""
@@ -178,6 +189,8 @@ class TrackerSection(ConfigStruct, frozen=True):
     init_speed_sigma_mps: Pos = 1.0
     height_alpha: Frac = 0.2
     """Smoothing of the head height (EMA weight of a new measurement)."""
+    max_speed_mps: Pos = 3.0
+    """Velocity estimates are clamped to this: a walking person; a larger value is a jump between people."""
 
 
 class MutualSection(ConfigStruct, frozen=True):

@@ -141,6 +141,7 @@ class Fusion:
                 max_misses=t.max_misses,
                 init_speed_sigma_mps=t.init_speed_sigma_mps,
                 height_alpha=t.height_alpha,
+                max_speed_mps=t.max_speed_mps,
             ),
             new_id or _counter_ids(m.id),
         )
@@ -212,7 +213,9 @@ class Fusion:
         self.last_poses = poses
         self.tracker.predict(t_ns)
         bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
-        outcome = self.associator.run(aligned, poses, self.poses.bearing_sigma, t_ns, bodies=bodies, fovs=self._fovs())
+        outcome = self.associator.run(
+            aligned, poses, self.poses.bearing_sigma, t_ns, bodies=bodies, fovs=self._fovs(), mono=self._mono()
+        )
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
         plans = self._plans(t_ns, poses)
@@ -230,6 +233,18 @@ class Fusion:
                 if fov is not None:
                     out[sid] = fov
         return out
+
+    def _mono(self) -> dict[str, tuple[float, float, float, float]]:
+        """Fixed perspective cameras whose feet elevations give floor distances (resource_manager/mono.py)."""
+        mc = self.config.match
+        if mc.mono_elev_sigma_deg <= 0:
+            return {}
+        sigma = math.radians(mc.mono_elev_sigma_deg)
+        return {
+            sid: (sigma, mc.mono_base_sigma_m, mc.max_range_m, float(info.model.height_px))
+            for sid, info in self.poses.infos.items()
+            if info.kind == "pinhole" and isinstance(info.model, PinholeModel)
+        }
 
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackRecord]:

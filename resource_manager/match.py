@@ -79,6 +79,11 @@ class ViewBlobs:
     """(n,) elevations of the blob bottoms (feet), NaN where the feet are not visible; None: unknown."""
     fov: tuple[float, float] | None = None
     """(world azimuth of the optical axis, half width) of a perspective camera; None: 360 deg (panoramic)."""
+    mono_range_m: FloatArray | None = None
+    """(n,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.mono`), NaN where
+    not observable; None: the camera gives none."""
+    mono_sigma_m: FloatArray | None = None
+    """(n,) 1-sigma of ``mono_range_m``."""
 
     def sees(self, azimuth_rad: float) -> bool:
         """Whether a world azimuth is inside this camera's horizontal field of view."""
@@ -104,6 +109,8 @@ class MatchParams:
     """Spread of the feet height z_cam + D tan(bottom) around the floor (0: not used)."""
     width_floor: float = 0.0
     """Smallest r_wc (merged blobs of occluding people are wide; 0: strict)."""
+    temporal_gate_m: float = 0.6
+    """Distance of a hypothesis from a track's prediction at which the positional temporal term is exp(-1/2)."""
     colinear_sigmas: float = 2.0
     """A target within this many bearing sigmas (or its own half width) of the baseline is size-ratio."""
 
@@ -163,11 +170,14 @@ def match_matrices(
     params: MatchParams,
     temporals: Sequence[FloatArray | None] | None = None,
     threshold: float = 0.1,
+    track_xy: FloatArray | None = None,
 ) -> list[MatchMatrix]:
     """Eq. 7 for several camera pairs at once (one vectorised pass; with many cameras this is most of a tick).
 
     Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is sliced back
-    to its pair's (na, nb). See :func:`match_matrix` for the measures.
+    to its pair's (na, nb). See :func:`match_matrix` for the measures. ``track_xy`` (m, 2): the tracks'
+    predicted positions; a hypothesis near one gets the temporal term c_t = exp(-d²/2g²) even when the
+    nodes' 2D ids changed (the link-based c_t of ``temporals`` needs them unchanged).
     """
     if not pairs:
         return []
@@ -262,6 +272,13 @@ def match_matrices(
     lam = params.temporal_weight
     out: list[MatchMatrix] = []
     cos1, sin1 = np.cos(th1), np.sin(th1)
+    c_pos = None
+    if track_xy is not None and track_xy.size and lam > 0:
+        hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb)
+        hy = o1[:, 1, None, None] + d1 * sin1
+        tx, ty = track_xy[:, 0], track_xy[:, 1]
+        d2min = np.min((hx[..., None] - tx) ** 2 + (hy[..., None] - ty) ** 2, axis=-1)
+        c_pos = np.where(valid, np.exp(-d2min / (2.0 * params.temporal_gate_m**2)), 0.0)
     for k, ((a, b), temporal) in enumerate(zip(pairs, temporals, strict=True)):
         ka, kb = nas[k], nbs[k]
         # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
@@ -273,7 +290,9 @@ def match_matrices(
             r_is = np.ones((ka, kb))
         r = r_is * r_all[k, :ka, :kb]
         c_t = np.zeros((ka, kb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
-        if temporal is not None and lam > 0:
+        if c_pos is not None:
+            c_t = np.maximum(c_t, c_pos[k, :ka, :kb])
+        if (temporal is not None or c_pos is not None) and lam > 0:
             # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
             r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
         dk = d1[k, :ka, :kb]

@@ -45,6 +45,8 @@ class TrackParams:
     max_misses: int = 15
     init_speed_sigma_mps: float = 1.0
     height_alpha: float = 0.2
+    max_speed_mps: float = 3.0
+    """Velocity estimates are clamped to this (people walk; a jump between two people is not a speed)."""
 
 
 @dataclass(slots=True)
@@ -133,6 +135,7 @@ class Tracker:
         tr.x = tr.x + k @ nu
         tr.p = (np.eye(4) - k @ _H) @ tr.p
         tr.p = 0.5 * (tr.p + tr.p.T)
+        self._clamp_speed(tr)
         if m.height_m > 0:
             a = self.params.height_alpha if tr.height_m > 0 else 1.0
             tr.height_m += a * (m.height_m - tr.height_m)
@@ -150,6 +153,11 @@ class Tracker:
         else:
             tr.state = "confirmed"
 
+    def _clamp_speed(self, tr: TrackRecord) -> None:
+        speed = math.hypot(float(tr.x[2]), float(tr.x[3]))
+        if speed > self.params.max_speed_mps:
+            tr.x[2:] *= self.params.max_speed_mps / speed
+
     def bearing_update(self, tr: TrackRecord, origin_xy: FloatArray, bearing_rad: float, sigma_rad: float) -> bool:
         """Extended Kalman update with one camera's bearing (a single ray); False if outside the gate."""
         dx, dy = float(tr.x[0] - origin_xy[0]), float(tr.x[1] - origin_xy[1])
@@ -165,6 +173,7 @@ class Tracker:
         tr.x = tr.x + (k * nu).ravel()
         tr.p = (np.eye(4) - k @ h) @ tr.p
         tr.p = 0.5 * (tr.p + tr.p.T)
+        self._clamp_speed(tr)
         return True
 
     def miss(self, tr: TrackRecord) -> None:

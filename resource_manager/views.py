@@ -19,6 +19,7 @@ import numpy.typing as npt
 from common.schema import PinholeModel
 from resource_manager.align import AlignedView
 from resource_manager.match import ViewBlobs
+from resource_manager.mono import mono_ranges
 from resource_manager.poses import PoseEstimate
 
 __all__ = ["BODY_TOP_MARGIN_M", "AllBlobs", "build_views", "pinhole_fov", "subset_view", "wrap"]
@@ -35,6 +36,8 @@ def build_views(
     sigma_of: Callable[[str], float],
     bodies: dict[str, float] | None = None,
     fovs: dict[str, tuple[float, float]] | None = None,
+    *,
+    mono: dict[str, tuple[float, float, float, float]] | None = None,
 ) -> dict[str, ViewBlobs]:
     """World-frame blobs of every aligned sensor whose pose is known.
 
@@ -45,6 +48,8 @@ def build_views(
         bodies: sensor id -> body radius (m) of the robots/tripods; a blob that is one of those bodies seen by
             another camera (same bearing, about its angular size) is dropped: known bodies are not people.
         fovs: sensor id -> (axis azimuth, half width) of perspective cameras (see :func:`pinhole_fov`).
+        mono: sensor id -> (feet elevation sigma rad, base sigma m, max range m, image height px) of the
+            cameras whose blobs give floor distances (:func:`~resource_manager.mono.mono_ranges`).
     """
     out: dict[str, ViewBlobs] = {}
     body_list = [(sid, r) for sid, r in (bodies or {}).items() if r > 0 and sid in poses]
@@ -85,6 +90,13 @@ def build_views(
         hist = None
         if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
             hist = np.array([b.hist for b in blobs], dtype=np.float64)
+        bottom = np.array([b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64)
+        mono_range = mono_sigma = None
+        m = (mono or {}).get(sid)
+        if m is not None:
+            sigma_elev, base, max_range, image_h = m
+            cut = np.array([b.bottom_px >= image_h - 2.0 for b in blobs], dtype=bool)  # lower border: no feet
+            mono_range, mono_sigma = mono_ranges(np.where(cut, np.nan, bottom), pose.z_m, sigma_elev, base, max_range)
         out[sid] = ViewBlobs(
             sensor_id=sid,
             origin_xy=pose.origin,
@@ -96,10 +108,10 @@ def build_views(
             hist=hist,
             local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
             hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
-            bottom_elev_rad=np.array(
-                [b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64
-            ),
+            bottom_elev_rad=bottom,
             fov=(fovs or {}).get(sid),
+            mono_range_m=mono_range,
+            mono_sigma_m=mono_sigma,
         )
     return out
 
@@ -136,6 +148,8 @@ def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
         hist_sqrt=None if v.hist_sqrt is None else v.hist_sqrt[sel],
         bottom_elev_rad=None if v.bottom_elev_rad is None else v.bottom_elev_rad[sel],
         fov=v.fov,
+        mono_range_m=None if v.mono_range_m is None else v.mono_range_m[sel],
+        mono_sigma_m=None if v.mono_sigma_m is None else v.mono_sigma_m[sel],
     )
 
 
