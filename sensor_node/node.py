@@ -41,6 +41,13 @@ logger = logging.getLogger(__name__)
 
 STATUS_PERIOD_S = 1.0
 
+PIPELINE_MESSAGES = {
+    "warmup": "learning the background: no blobs yet",
+    "moving": "camera moving: no blobs until it stops and the background is relearnt",
+    "reinit": "abnormal change: relearning the background",
+}
+"""NodeStatus.message while the pipeline reports no blobs (when the source has nothing to say)."""
+
 
 class LatestSlot:
     """A one-frame mailbox: ``put`` replaces an unread frame (counted as dropped)."""
@@ -118,6 +125,8 @@ class SensorNode:
         self._ptz_seq = 0
         self._last_ptz: tuple[float, float, float, bool] | None = None
         self.capture_error = ""
+        self.pipeline_state = "starting"
+        """The background model's verdict on the latest frame ("ok", "warmup", "moving", ...)."""
 
     # -- SensorInfo ---------------------------------------------------------------------------------
     def _make_info(self) -> SensorInfo:
@@ -236,7 +245,7 @@ class SensorNode:
         st = self.clock.status()
         src = self.parts.source
         state: SourceState = src.state
-        message = self.capture_error or src.message
+        message = self.capture_error or src.message or PIPELINE_MESSAGES.get(self.pipeline_state, "")
         decode_errors = sum(i.counters.decode_errors for i in self.inboxes)
         dropped_msgs = sum(i.counters.dropped for i in self.inboxes)
         n = self._interval_frames
@@ -289,7 +298,7 @@ class SensorNode:
                         break
                     continue
                 t0 = time.perf_counter()
-                features, _state = self.parts.processor.process_frame(frame, self.seq)
+                features, self.pipeline_state = self.parts.processor.process_frame(frame, self.seq)
                 proc_ms = (time.perf_counter() - t0) * 1e3
                 latency_ms = max(0.0, (self.clock.now_ns() - frame.stamp_ns) / 1e6)
                 self.pub_features.put(msgspec.structs.replace(features, processing_ms=min(latency_ms, 1e9)))

@@ -170,7 +170,10 @@ class BandFinder:
         if rows.size == 0:
             return None
         r0, r1 = int(rows[0]), int(rows[-1])
-        if not 0.15 <= (r1 - r0 + 1) / n <= 1.5:
+        cut = r1 == mask.shape[0] - 1
+        # A band cut by the image's lower edge (a near body seen steeply) is a sliver: only its top
+        # rows are in view, so only its upper bound on the shape applies.
+        if not (cut or (r1 - r0 + 1) / n >= 0.15) or (r1 - r0 + 1) / n > 1.5:
             return None  # not band-shaped
         if not _white_beside(lower, u0, n, r0, r1):
             return None  # the band colour without the white body around it (e.g. a shirt)
@@ -208,6 +211,10 @@ class BandFinder:
         # Sub-pixel boundaries from the colour gradient across the band rows (inner rows only).
         pad = 3 + frame.scale
         inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= 4 else (r0, r1)
+        if inner1 - inner0 < SLIVER_ROWS:
+            # A sliver of band (cut by the image edge): the white body right above it has the same
+            # silhouette; measure over both.
+            inner0 = max(0, inner1 - SLIVER_ROWS)
         strip = frame.colour(u0 - pad, inner0, n + 2 * pad, inner1 - inner0 + 1).astype(np.float32)
         grad = np.abs(np.diff(strip, axis=1)).sum(axis=2).mean(axis=0).astype(np.float64)
         # grad[j] is the step between strip columns j and j+1: the boundary at column u0 - pad + j + 0.5.
@@ -237,6 +244,9 @@ class BandFinder:
         )
         return BodySighting(sighting, left_col, right_col, (r0, r1))
 
+
+SLIVER_ROWS = 6
+"""Fewest rows the boundaries are measured on; a shorter band is extended up into the white body."""
 
 BAND_RANGE_TOL = 0.3
 """Largest relative disagreement between the Eq. 3 range and the band-elevation range of one sighting."""

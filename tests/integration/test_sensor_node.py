@@ -136,8 +136,17 @@ def test_sim_node_publishes_features_info_status(tmp_path: Path, router: RouterP
         sighting = next(x for f in got for x in f.sightings)
         assert sighting.target_id == "pano2" and abs(sighting.distance_m - 3.0) < 0.15
         assert any(f.blobs for f in got[-10:]), "two people walking in the room: someone is seen"
-        st = wait_for(lambda: [r.msg for r in status.drain() if r.msg.frames > 0], 10.0, "a NodeStatus with frames")
+        statuses: list[NodeStatus] = []
+
+        def ok_status() -> bool:
+            statuses.extend(r.msg for r in status.drain())
+            return any(m.frames > 0 and not m.message for m in statuses)
+
+        wait_for(ok_status, 10.0, "a NodeStatus with frames")
+        st = [m for m in statuses if m.frames > 0]
         assert st[-1].source_state == "ok" and st[-1].fps > 0 and st[-1].dropped_msgs == 0
+        # While the background is learnt (no blobs yet) the status says so.
+        assert any(m.message.startswith("learning the background") for m in statuses)
         _stop_cleanly(proc, s, keys.sensor("pano1"))
 
 

@@ -78,6 +78,16 @@ def test_the_band_elevation_must_agree_with_eq3(left: float, right: float, rows:
     assert [b.sighting.target_id for b in found] == (["blue"] if seen else [])
 
 
+def test_a_band_cut_by_the_image_edge_is_measured_on_the_body_above_it() -> None:
+    img = backdrop(5)
+    left, right = 500.3, 532.4  # Eq. 3: 1.93 m, where a 1.1 m camera sees only the band's top rows
+    _draw_body(img, left, right, (220, 80, 40), (159, 161))
+    found = BandFinder(BODIES, CAM, PipelineSettings()).find(PanoFrame.from_image(img))
+    assert [b.sighting.target_id for b in found] == ["blue"]
+    assert found[0].left_col == pytest.approx(left, abs=0.3) and found[0].right_col == pytest.approx(right, abs=0.3)
+    assert found[0].sighting.distance_m == pytest.approx(0.18 / math.sin((right - left) / CAM.f_h_px / 2), rel=0.02)
+
+
 def test_hue_ranges_and_runs_wrap() -> None:
     assert _hue_ranges([220, 40, 40], 43.2) == [(0, 10), (170, 179)]  # red straddles hue 0
     ((lo, hi),) = _hue_ranges([40, 80, 220], 43.2)
