@@ -221,7 +221,7 @@ class Associator:
         mono: dict[str, tuple[float, float, float, float]] | None = None,
     ) -> Outcome:
         views = build_views(aligned, poses, sigma_of, bodies, fovs, mono=mono)
-        self._all = AllBlobs.of(views, self.config.match.bearing_gate_sigmas)
+        self._all = AllBlobs.of(views, self.config.match.bearing_gate_sigmas, self.config.match.mono_gate_sigmas)
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
         support, shared = self.support(views, tracks)
@@ -271,6 +271,8 @@ class Associator:
                         if tr.links.get(sid) == int(v.local_id[i]):
                             self.tracker.bearing_update(tr, v.origin_xy, float(v.bearing_rad[i]), v.sigma_rad)
             if meas is None:
+                if tr.confirmed and self._nobody_there(tr.x[:2]):
+                    tr.misses = self.tracker.params.max_misses  # this miss ends it: the person has left
                 self.tracker.miss(tr)
                 continue
             claimed.update(used_blobs.items())
@@ -463,6 +465,14 @@ class Associator:
         if not radius.size:
             return False
         return bool(np.any(np.hypot(xy[:, 0] - meas.xy[0], xy[:, 1] - meas.xy[1]) < radius))
+
+    def _nobody_there(self, xy: FloatArray) -> bool:
+        """No camera that could see ``xy`` has any blob toward it (and at least two could)."""
+        a = self._all
+        if a is None:
+            return False
+        agree, total = a.agreement(xy, self.params.max_range_m, occluders=False)
+        return total >= 2 and agree == 0
 
     def _agreement_ok(self, meas: Measurement) -> bool:
         """Enough of the cameras that could see the spot have a blob (own or an occluder's) toward it."""

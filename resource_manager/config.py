@@ -153,11 +153,11 @@ class MatchSection(ConfigStruct, frozen=True):
     max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
     """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
     ghost_veto_views: PosInt = 1
-    mono_elev_sigma_deg: NonNeg = 0.3
+    mono_elev_sigma_deg: NonNeg = 0.1
     """Feet-elevation error of fixed perspective cameras (SensorInfo kind ``pinhole``, e.g. detection files):
     their blobs' feet give floor distances (resource_manager/mono.py) that gate support, veto ghosts and
     keep tracks when no pair localises them. 0 disables; raise it for noisy box bottoms."""
-    mono_base_sigma_m: NonNeg = 0.15
+    mono_base_sigma_m: NonNeg = 0.1
     """Added to every floor-distance sigma (the feet are not exactly below the head)."""
     mono_gate_sigmas: Pos = 3.0
     """A fix or a birth whose distance from a camera disagrees with that blob's feet by more than this many

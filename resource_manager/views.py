@@ -168,11 +168,25 @@ class AllBlobs:
     """(v, 2) every view's position (views without blobs included)."""
     view_fov: FloatArray
     """(v, 2) axis azimuth and half field of view (half = pi: panoramic)."""
+    mono_range: FloatArray | None = None
+    """(n,) feet floor distance of each blob (NaN: unknown)."""
+    mono_tol: FloatArray | None = None
+    """(n,) ``mono_k`` sigmas of it: a blob whose feet stand beyond the position by more is someone behind it,
+    not the person there nor an occluder in front; nearer by more, someone in front."""
 
     @staticmethod
-    def of(views: dict[str, ViewBlobs], k_sigma: float) -> AllBlobs:
+    def of(views: dict[str, ViewBlobs], k_sigma: float, mono_k: float = 3.0) -> AllBlobs:
         vs = list(views.values())
         counts = [v.n for v in vs]
+        mono_range = mono_tol = None
+        if any(v.mono_range_m is not None for v in vs):
+            known = [v.mono_range_m is not None and v.mono_sigma_m is not None for v in vs]
+            mono_range = np.concatenate(
+                [v.mono_range_m if ok else np.full(v.n, np.nan) for v, ok in zip(vs, known, strict=True)]
+            )
+            mono_tol = mono_k * np.concatenate(
+                [v.mono_sigma_m if ok else np.full(v.n, np.nan) for v, ok in zip(vs, known, strict=True)]
+            )
         idx = np.repeat(np.arange(len(vs)), counts).astype(np.int64)
         vo = np.array([v.origin_xy for v in vs]).reshape(-1, 2)
         return AllBlobs(
@@ -183,10 +197,16 @@ class AllBlobs:
             view=idx,
             view_origin=vo,
             view_fov=np.array([v.fov if v.fov is not None else (0.0, math.pi) for v in vs]).reshape(-1, 2),
+            mono_range=mono_range,
+            mono_tol=mono_tol,
         )
 
-    def agreement(self, xy: FloatArray, max_range_m: float) -> tuple[int, int]:
-        """(views with a blob toward ``xy``, views within range of ``xy``)."""
+    def agreement(self, xy: FloatArray, max_range_m: float, *, occluders: bool = True) -> tuple[int, int]:
+        """(views with a blob toward ``xy``, views within range of ``xy``).
+
+        With ``occluders`` a blob in front of ``xy`` (feet nearer) counts: the person may be hidden behind it.
+        Without, a blob with known feet counts only when they stand at ``xy``: is the person *there*?
+        """
         d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
         in_range = (d_view > 0.3) & (d_view <= max_range_m)
         az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
@@ -198,6 +218,11 @@ class AllBlobs:
         dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
         pred = np.arctan2(rel[:, 1], rel[:, 0])
         ok = np.abs(wrap(self.bearing - pred)) - self.half_width < self.sigma_gate + 0.25 / dist
+        if self.mono_range is not None and self.mono_tol is not None:
+            with np.errstate(invalid="ignore"):  # NaN compares False: unknown feet agree
+                ok &= ~(self.mono_range - self.mono_tol > dist)
+                if not occluders:
+                    ok &= ~(self.mono_range + self.mono_tol < dist)
         seen = np.zeros(self.view_origin.shape[0], dtype=bool)
         seen[self.view[ok]] = True
         return int(np.count_nonzero(seen & in_range)), total
