@@ -75,10 +75,14 @@ class BackgroundModel:
         settings: the ``[pipeline]`` knobs (thresholds, learning rate, abnormal fraction, warm-up).
         fast_start: warm up from consecutive frames (a camera that just moved), not every
             ``warmup_stride``-th.
+        mobile: the camera is on a robot that may drive (enables the camera-motion test).
     """
 
-    def __init__(self, settings: PipelineSettings, fast_start: bool = False) -> None:
+    def __init__(self, settings: PipelineSettings, fast_start: bool = False, mobile: bool = False) -> None:
         self.settings = settings
+        self.mobile = mobile
+        """The camera rides a robot: watch for its own motion (``ego_motion_frac``). A static or PTZ
+        camera never does (a PTZ head's moves are known): a crowd filling a narrow view is not ego-motion."""
         self._bg: npt.NDArray[np.float32] | None = None
         self._bg_u8: Mask | None = None
         self._prev: Mask | None = None
@@ -184,7 +188,7 @@ class BackgroundModel:
         does too, but it is a global gain between the two frames, not motion.
         """
         frac = self.settings.ego_motion_frac
-        if frac >= 1.0:
+        if frac >= 1.0 or not self.mobile:
             return False
         cols = cv2.reduce(moving, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         n = cols.size - cols.size % EGO_SECTORS

@@ -124,7 +124,9 @@ def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
 
 
 def _panoramic(cfg: NodeConfig, annular: AnnularModel, cyl: CylindricalCamera) -> ImagePipeline:
-    return ImagePipeline(cfg.node.id, PanoramicGeometry(cyl), cfg.pipeline, Unwarper(annular), list(cfg.body))
+    return ImagePipeline(
+        cfg.node.id, PanoramicGeometry(cyl), cfg.pipeline, Unwarper(annular), list(cfg.body), mobile=cfg.node.mobile
+    )
 
 
 def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:

@@ -55,6 +55,7 @@ class ImagePipeline:
         settings: the ``[pipeline]`` knobs.
         unwarper: annular -> panorama (None: frames are already the processed image).
         bodies: the other robots to look for (panoramic cameras only).
+        mobile: the camera rides a robot (the background model watches for its motion).
     """
 
     def __init__(
@@ -64,12 +65,15 @@ class ImagePipeline:
         settings: PipelineSettings,
         unwarper: Unwarper | None = None,
         bodies: list[BodySpec] | None = None,
+        *,
+        mobile: bool = False,
     ) -> None:
         self.sensor_id = sensor_id
         self.geometry = geometry
         self.settings = settings
         self.unwarper = unwarper
-        self.background = BackgroundModel(settings)
+        self.mobile = mobile
+        self.background = BackgroundModel(settings, mobile=mobile)
         self.bands = (
             BandFinder(bodies, geometry.camera, settings)
             if bodies and isinstance(geometry, PanoramicGeometry)
@@ -82,7 +86,7 @@ class ImagePipeline:
 
     def reset(self) -> None:
         """Forget the background and tracks (the camera moved: a PTZ head slewed)."""
-        self.background = BackgroundModel(self.settings, fast_start=True)
+        self.background = BackgroundModel(self.settings, fast_start=True, mobile=self.mobile)
         self._tracker = None
 
     def set_geometry(self, geometry: ImageGeometry) -> None:

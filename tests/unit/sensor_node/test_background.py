@@ -81,7 +81,7 @@ def test_scene_change_reinitialises() -> None:
 
 def test_a_moving_camera_is_not_learnt_until_it_stops() -> None:
     rng = np.random.default_rng(6)
-    model = BackgroundModel(PipelineSettings(warmup_stride=1, warmup_frames=5))
+    model = BackgroundModel(PipelineSettings(warmup_stride=1, warmup_frames=5), mobile=True)
     base = backdrop(6, w=1900)
     for k in range(20):  # panning: every frame shifted by 40 columns
         m = model.apply(grey(noisy(base[:, 40 * k : 40 * k + 1080].copy(), rng)))
@@ -184,7 +184,7 @@ def test_a_still_change_without_an_outline_is_absorbed_after_still_absorb_frames
 def test_a_driving_robot_reports_nothing_and_relearns_once_stopped() -> None:
     rng = np.random.default_rng(11)
     s = PipelineSettings(warmup_frames=5, warmup_stride=3)
-    model = BackgroundModel(s)
+    model = BackgroundModel(s, mobile=True)
     base = backdrop(11, w=1300)
     view = base[:, :1080].copy()
     _warm(model, view, rng)
@@ -204,3 +204,18 @@ def test_a_driving_robot_reports_nothing_and_relearns_once_stopped() -> None:
     draw_person(stopped, 600.0)
     m = model.apply(grey(noisy(stopped, rng)))
     assert m.state == "ok" and (m.fg[90:130, 595:605] > 0).mean() > 0.8
+
+
+@pytest.mark.parametrize(("mobile", "state"), [(False, "ok"), (True, "moving")])
+def test_only_a_camera_on_a_robot_takes_a_crowd_everywhere_for_its_own_motion(mobile: bool, state: str) -> None:
+    rng = np.random.default_rng(12)
+    base = backdrop(12)
+    model = BackgroundModel(PipelineSettings(warmup_frames=5, warmup_stride=1), mobile=mobile)
+    _warm(model, base, rng)
+    states = []
+    for k in range(4):  # people walking in every direction at once (a PTZ's narrow view filled by a crowd)
+        f = base.copy()
+        for u in range(15, 1080, 60):
+            draw_person(f, u + 6.0 * k)
+        states.append(model.apply(grey(noisy(f, rng))).state)
+    assert states[-1] == state
