@@ -202,6 +202,46 @@ def _deliver_until(put: Any, pred: Any, what: str, timeout_s: float = 10.0) -> A
 
 
 # ---------------------------------------------------------------------------
+# The certificates
+# ---------------------------------------------------------------------------
+
+
+def _openssl(*args: str) -> str:
+    res = subprocess.run(["openssl", *args], capture_output=True, text=True, timeout=30, check=False)
+    assert res.returncode == 0, res.stderr
+    return res.stdout
+
+
+def test_make_certs_roles_names_and_modes(tmp_path: Path) -> None:
+    out = tmp_path / "certs"
+    make = ["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c1", "--agents", "a1 a2"]
+    _run([*make, "--host", "router.example", "--host", "10.1.2.3"])
+    names = ["router", "sensor-c1", "manager-m1", "agent-a1", "agent-a2"]
+    for name in names:
+        pem = str(out / f"{name}.pem")
+        assert _openssl("verify", "-CAfile", str(out / "ca.pem"), pem).strip().endswith("OK")
+        text = _openssl("x509", "-in", pem, "-noout", "-subject", "-ext", "subjectAltName,basicConstraints")
+        assert f"CN = {name}" in text or f"CN={name}" in text, text
+        assert "CA:FALSE" in text
+        for san in ("DNS:localhost", "IP Address:127.0.0.1", "DNS:router.example", "IP Address:10.1.2.3"):
+            assert san in text, text
+        assert (out / f"{name}.key").read_text().startswith("-----BEGIN PRIVATE KEY-----")  # PKCS#8 for rustls
+        assert (out / f"{name}.key").stat().st_mode & 0o077 == 0, f"{name}.key is readable by others"
+    assert "CA:TRUE" in _openssl("x509", "-in", str(out / "ca.pem"), "-noout", "-ext", "basicConstraints")
+    assert (out / "ca.key").stat().st_mode & 0o077 == 0
+    # Re-running adds identities under the same CA (an existing site grows); --force starts a new one.
+    ca_before = (out / "ca.pem").read_text()
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c9"])
+    assert (out / "ca.pem").read_text() == ca_before
+    assert _openssl("verify", "-CAfile", str(out / "ca.pem"), str(out / "sensor-c9.pem")).strip().endswith("OK")
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--force"])
+    assert (out / "ca.pem").read_text() != ca_before
+    bad = subprocess.run([*make, "--sensors", "Bad_Id"], capture_output=True, text=True, timeout=30, check=False)
+    assert bad.returncode != 0
+    assert "Bad_Id" in bad.stderr
+
+
+# ---------------------------------------------------------------------------
 # Who may connect
 # ---------------------------------------------------------------------------
 
