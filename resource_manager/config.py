@@ -114,8 +114,10 @@ class PoseOverride(ConfigStruct, frozen=True):
 class MatchSection(ConfigStruct, frozen=True):
     """``[match]``: Eq. (7) measures and thresholds."""
 
-    threshold: Frac = 0.1
-    """tau: a pair is accepted only if its confidence exceeds this (raise: fewer, surer matches)."""
+    threshold: Frac = 0.25
+    """tau: a pair is accepted only if its confidence exceeds this (raise: fewer, surer matches). With colour
+    the wrong pair of two people walking side by side scores ~0.1-0.2 (r_is): 0.25 keeps it out; without colour
+    (detection files, r_is = 1) 0.1 does as well."""
     temporal_weight: NonNeg = 1.0
     """lambda in r' = (r + lambda c_t)/(1 + lambda); 0 disables the temporal term."""
     temporal_gate_m: Pos = 0.6
