@@ -31,7 +31,7 @@ from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.config import ManagerConfig
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
-from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrices, match_matrix
+from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrices
 from resource_manager.mono import mono_measurement, range_mismatch
 from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.poses import PoseEstimate
@@ -104,6 +104,12 @@ class Associator:
         txy = np.array([tr.x[:2] for tr in tracks])
         tvar = np.array([max(tr.p[0, 0], tr.p[1, 1]) for tr in tracks])
         k = self.config.match.bearing_gate_sigmas
+        links: dict[str, npt.NDArray[np.int64]] = {}
+        for t, tr in enumerate(tracks):
+            for sid, lid in tr.links.items():
+                if sid not in links:
+                    links[sid] = np.full(len(tracks), -1, dtype=np.int64)
+                links[sid][t] = lid
         for sid, v in views.items():
             if v.n == 0:
                 continue
@@ -123,26 +129,30 @@ class Associator:
             # The blob the node kept tracking for it (same local id) gets a bonus, not a free pass: the
             # node's 2D ids swap between people who cross.
             far = dist > self.params.max_range_m
-            cost = np.where((norm < 1.0) & ~far[None, :], norm**2, _FORBID)
-            for t, tr in enumerate(tracks):
-                lid = tr.links.get(sid)
-                if lid is not None:
-                    hit = np.nonzero((v.local_id == lid) & (cost[:, t] < _FORBID))[0]
-                    cost[hit, t] -= LINK_BONUS
-            rows, cols = linear_sum_assignment(cost)
-            claimed: set[int] = set()
-            for i, t in zip(rows.tolist(), cols.tolist(), strict=True):
-                if cost[i, t] < _FORBID:
-                    out[t][sid] = i
-                    claimed.add(i)
-            for t in range(len(tracks)):
-                if sid in out[t] or far[t]:
-                    continue
-                i = int(np.argmin(norm[:, t]))
-                if norm[i, t] < 1.0 and i in claimed:
-                    # Another track's blob: this person is probably hidden behind it. It explains the blob
-                    # (no birth from it) but its bearing is the other person's, so it does not localise.
-                    shared[t][sid] = i
+            ok = (norm < 1.0) & ~far[None, :]
+            if not ok.any():
+                continue
+            cost = np.where(ok, norm**2, _FORBID)
+            lids = links.get(sid)
+            if lids is not None:
+                cost -= LINK_BONUS * ((v.local_id[:, None] == lids[None, :]) & ok)
+            rows_any = np.nonzero(ok.any(axis=1))[0]
+            cols_any = np.nonzero(ok.any(axis=0))[0]
+            sub = cost[np.ix_(rows_any, cols_any)]
+            ri, ci = linear_sum_assignment(sub)
+            good = sub[ri, ci] < _FORBID / 2
+            blob_of = np.full(len(tracks), -1)
+            blob_of[cols_any[ci[good]]] = rows_any[ri[good]]
+            claimed = np.zeros(v.n, dtype=bool)
+            claimed[blob_of[blob_of >= 0]] = True
+            nearest = np.argmin(norm, axis=0)
+            near_ok = ok[nearest, np.arange(len(tracks))] & claimed[nearest] & (blob_of < 0)
+            for t in np.nonzero(blob_of >= 0)[0].tolist():
+                out[t][sid] = int(blob_of[t])
+            # A track left without a blob whose nearest is another track's: this person is probably hidden
+            # behind it. It explains the blob (no birth from it) but its bearing is the other person's.
+            for t in np.nonzero(near_ok)[0].tolist():
+                shared[t][sid] = int(nearest[t])
         return out, shared
 
     # -- step 2 -----------------------------------------------------------------
@@ -415,9 +425,10 @@ class Associator:
             pairs = (pairs[start:] + pairs[:start])[:budget]
             self._birth_rr += budget
         hyps: list[tuple[int, float, Measurement, dict[str, int]]] = []
-        for a_id, b_id in pairs:
-            a, b = subset_view(views[a_id], left[a_id]), subset_view(views[b_id], left[b_id])
-            mm = match_matrix(a, b, self.params, None)
+        subsets = {sid: subset_view(views[sid], left[sid]) for sid in {s for p in pairs for s in p}}
+        matrices = match_matrices([(subsets[a], subsets[b]) for a, b in pairs], self.params, None, self.threshold)
+        for (a_id, b_id), mm in zip(pairs, matrices, strict=True):  # all pairs' Eq. 7 in one vectorised pass
+            a, b = subsets[a_id], subsets[b_id]
             for ii, jj in self.matcher.match(mm.r, self.threshold):
                 meas = localize_best_pair(
                     a,
