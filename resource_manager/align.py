@@ -15,11 +15,14 @@ sighted robot's id.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-from common.clock import interp_angle, interp_linear
+from common.clock import interp_angle
 from common.schema import Blob, Features, Sighting
 from resource_manager.ingest import SensorBuffer
+
+_TWO_PI = 2.0 * math.pi
 
 __all__ = ["AlignParams", "AlignedBlob", "AlignedSighting", "AlignedView", "align_sensor"]
 
@@ -68,12 +71,16 @@ class AlignedView:
 
 def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> AlignedBlob:
     if b0 is not None and b1 is not None:
+        # interp_linear / interp_angle (common.clock) written out with the fraction computed once: this runs
+        # for every blob of every sensor on every tick.
+        f = (t - t0) / (t1 - t0) if t1 != t0 else 1.0
+        step = math.remainder(b1.bearing_rad - b0.bearing_rad, _TWO_PI)
         return AlignedBlob(
             local_id=b1.local_id,
-            bearing_rad=interp_angle(t0, b0.bearing_rad, t1, b1.bearing_rad, t),
-            width_rad=max(0.0, interp_linear(t0, b0.width_rad, t1, b1.width_rad, t)),
-            top_elev_rad=interp_linear(t0, b0.top_elev_rad, t1, b1.top_elev_rad, t),
-            bottom_elev_rad=interp_linear(t0, b0.bottom_elev_rad, t1, b1.bottom_elev_rad, t),
+            bearing_rad=math.remainder(b0.bearing_rad + step * f, _TWO_PI),
+            width_rad=max(0.0, b0.width_rad + (b1.width_rad - b0.width_rad) * f),
+            top_elev_rad=b0.top_elev_rad + (b1.top_elev_rad - b0.top_elev_rad) * f,
+            bottom_elev_rad=b0.bottom_elev_rad + (b1.bottom_elev_rad - b0.bottom_elev_rad) * f,
             hist=list(b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist),
             feet_visible=b0.feet_visible and b1.feet_visible,
             bottom_px=max(b0.bbox_v_px + b0.bbox_h_px, b1.bbox_v_px + b1.bbox_h_px),

@@ -60,9 +60,10 @@ def pair_sigmas(a: ViewBlobs, b: ViewBlobs, sigma_xy_a: float, sigma_xy_b: float
 
 
 def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
+    x, y = float(xy[0]), float(xy[1])
     num = den = 0.0
-    for v, i in views:
-        d = float(np.hypot(*(xy - v.origin_xy)))
+    for v, i in views:  # plain floats: two views, numpy per element would cost more
+        d = math.hypot(x - float(v.origin_xy[0]), y - float(v.origin_xy[1]))
         if d <= 1e-6:
             continue
         z = v.z_m + d * math.tan(float(v.top_elev_rad[i]))
@@ -96,23 +97,35 @@ def localize_best_pair(
     if not np.all(np.isfinite(xy)):
         return None
     o1, o2 = a.origin_xy, b.origin_xy
-    base_vec = o2 - o1
-    base = float(np.hypot(*base_vec))
+    x, y = float(xy[0]), float(xy[1])
+    x1, y1, x2, y2 = float(o1[0]), float(o1[1]), float(o2[0]), float(o2[1])
+    base = math.hypot(x2 - x1, y2 - y1)
     d1, d2 = float(fix.d1_m), float(fix.d2_m)
+    # Covariance as (xx, xy, yy) in plain floats (one small matrix per call: numpy per element costs more).
     if fix.method == "size_ratio":
-        u = base_vec / max(base, 1e-9)
-        n = np.array([-u[1], u[0]])
-        along = 2.0 * width_rel_sigma * d1 * d2 / max(base, 1e-9)
-        cov = along**2 * np.outer(u, u) + (d1 * sigma) ** 2 * np.outer(n, n)
+        ux, uy = (x2 - x1) / max(base, 1e-9), (y2 - y1) / max(base, 1e-9)
+        along2 = (2.0 * width_rel_sigma * d1 * d2 / max(base, 1e-9)) ** 2
+        across2 = (d1 * sigma) ** 2
+        cxx, cxy, cyy = (
+            along2 * ux * ux + across2 * uy * uy,
+            (along2 - across2) * ux * uy,
+            along2 * uy * uy + across2 * ux * ux,
+        )
     else:
         s0 = max(abs(math.sin(float(fix.phi0_rad))), 1e-3)
-        e1 = (xy - o1) / max(float(np.hypot(*(xy - o1))), 1e-9)
-        e2 = (xy - o2) / max(float(np.hypot(*(xy - o2))), 1e-9)
-        cov = (sigma / s0) ** 2 * (d1 * d1 * np.outer(e2, e2) + d2 * d2 * np.outer(e1, e1))
+        n1 = max(math.hypot(x - x1, y - y1), 1e-9)
+        n2 = max(math.hypot(x - x2, y - y2), 1e-9)
+        e1x, e1y, e2x, e2y = (x - x1) / n1, (y - y1) / n1, (x - x2) / n2, (y - y2) / n2
+        k = (sigma / s0) ** 2
+        cxx = k * (d1 * d1 * e2x * e2x + d2 * d2 * e1x * e1x)
+        cxy = k * (d1 * d1 * e2x * e2y + d2 * d2 * e1x * e1y)
+        cyy = k * (d1 * d1 * e2y * e2y + d2 * d2 * e1y * e1y)
     if sigma_base > 0 and base > 0:
-        rel = xy - o1
-        cov = cov + (sigma_base / base) ** 2 * np.outer(rel, rel)
-    cov = cov + min_sigma_m**2 * np.eye(2)
+        kb = (sigma_base / base) ** 2
+        rx, ry = x - x1, y - y1
+        cxx, cxy, cyy = cxx + kb * rx * rx, cxy + kb * rx * ry, cyy + kb * ry * ry
+    m2 = min_sigma_m**2
+    cov = np.array([[cxx + m2, cxy], [cxy, cyy + m2]])
     predicted = float(pair_position_error(o1, o2, xy, sigma, sigma_base))
     if fix.method == "size_ratio" or not math.isfinite(predicted):
         predicted = math.sqrt(float(np.trace(cov)))
