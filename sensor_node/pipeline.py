@@ -1,7 +1,7 @@
 """The image pipeline of one camera: frame in, Features out (pure: no zenoh, no clock).
 
 Panoramic cameras: annular frame -> unwarp -> grey -> background model ->
-blobs -> (robot bodies removed) -> head + annotation -> 2D tracks -> Features,
+blobs -> split at head valleys -> (robot bodies removed) -> head + annotation -> 2D tracks -> Features,
 with the sightings of other robots (Eq. 3) every ``sighting_every`` frames.
 Perspective (PTZ) cameras skip the unwarp and the sightings and report world
 azimuths; the background model restarts whenever the head moves.
@@ -25,6 +25,7 @@ from sensor_node.blobs import find_blobs
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import ImageGeometry, PanoramicGeometry, annotate, to_wire
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
+from sensor_node.split import split_at_heads
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import PanoFrame, Unwarper
 
@@ -105,6 +106,7 @@ class ImagePipeline:
         self._frames += 1
         sightings = self._last_sightings
         raws = find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps) if motion.reportable else []
+        raws = [part for raw in raws for part in split_at_heads(raw, motion.moving, s, width)]
         people = []
         n_body = 0
         for raw in raws:

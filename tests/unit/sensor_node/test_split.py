@@ -1,0 +1,72 @@
+"""Splitting a blob that holds several people at the valleys between their heads."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from sensor_node.blobs import find_blobs
+from sensor_node.config import PipelineSettings
+from sensor_node.features import annotate
+from sensor_node.split import split_at_heads, top_profile
+from tests.unit.sensor_node.sn_synth import H, W, draw_person
+
+WHITE = (255, 255, 255)
+
+
+def _mask(people: list[tuple[float, int]]) -> np.ndarray:
+    """Foreground of people drawn at (head column, top row)."""
+    img = np.zeros((H, W, 3), np.uint8)
+    for u, top in people:
+        draw_person(img, u, top=top, shirt=WHITE, head=WHITE)
+    return cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+
+
+def _split(fg: np.ndarray, settings: PipelineSettings) -> list:
+    (blob,) = find_blobs(fg, fg, settings)  # grouping merges them into one blob
+    return split_at_heads(blob, fg, settings, W)
+
+
+@pytest.mark.parametrize(
+    ("people"), [[(300.0, 40), (318.0, 40)], [(500.0, 30), (521.5, 55)], [(1074.0, 40), (12.0, 44)]]
+)
+def test_people_side_by_side_are_split_at_the_valley_between_their_heads(people: list[tuple[float, int]]) -> None:
+    s = PipelineSettings(split_dip_px=8)
+    parts = _split(_mask(people), s)
+    assert len(parts) == 2
+    heads = sorted((b.u0 + annotate(b, None, _Cols(), s.head_ratio).head_u_px - b.u0) % W for b in parts)
+    assert heads == pytest.approx(sorted(u % W for u, _ in people), abs=1.0)
+
+
+def test_one_person_is_not_split_by_an_arm_or_a_flat_shoulder() -> None:
+    fg = _mask([(400.0, 40)])
+    fg[75:120, 384:388] = 255  # an arm held out beside the body, its top a narrow spike below the head
+    fg[70:162, 420:440] = 255  # a flat-topped thing (a bag, a ghost) beside them
+    s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
+    blobs = find_blobs(fg, fg, s)
+    assert len(blobs) == 1
+    assert split_at_heads(blobs[0], fg, s, W) == blobs
+
+
+def test_splitting_off_when_dip_is_zero_and_profile_of_a_blob() -> None:
+    fg = _mask([(300.0, 40), (318.0, 40)])
+    assert len(_split(fg, PipelineSettings(split_dip_px=0))) == 1
+    m = np.zeros((4, 3), bool)
+    m[2, 0] = m[1, 2] = True
+    assert top_profile(m).tolist() == [2, 4, 1]
+
+
+class _Cols:
+    """Column = bearing geometry (annotate needs one)."""
+
+    wraps = True
+
+    def bearing(self, u: float, v: float) -> float:
+        return u
+
+    def elevation(self, u: float, v: float) -> float:
+        return v
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        return u_right - u_left
