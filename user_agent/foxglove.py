@@ -17,6 +17,7 @@ from typing import Any, Final
 
 from common.schema import SensorInfo, TrackSet
 from user_agent.colors import id_color
+from user_agent.messages import placed_pose
 
 __all__ = [
     "FRAME_TRANSFORM_SCHEMA",
@@ -282,9 +283,9 @@ def cameras_scene(infos: list[SensorInfo], stamp_ns: int) -> dict:
     """A SceneUpdate drawing every camera whose pose is known (robot body, lens, label)."""
     entities = []
     for info in infos:
-        if info.pose is None:
+        p = placed_pose(info)
+        if p is None:
             continue
-        p = info.pose
         col = _color(info.sensor_id)
         cyl = []
         if info.body_radius_m > 0:
@@ -321,9 +322,9 @@ def cameras_scene(infos: list[SensorInfo], stamp_ns: int) -> dict:
 
 def frame_transform(info: SensorInfo, stamp_ns: int) -> dict | None:
     """FrameTransform world -> the sensor's frame (None when its pose is unknown)."""
-    if info.pose is None:
+    p = placed_pose(info)
+    if p is None:
         return None
-    p = info.pose
     return {
         "timestamp": _time(stamp_ns),
         "parent_frame_id": WORLD_FRAME,

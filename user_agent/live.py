@@ -28,6 +28,7 @@ from user_agent.foxglove import (
     frame_transform,
     tracks_scene,
 )
+from user_agent.messages import placed_pose
 
 __all__ = ["FoxgloveBridge"]
 
@@ -104,7 +105,7 @@ class FoxgloveBridge:
         first = self._in_tracks.get(timeout_s)
         for rt in ([first] if first is not None else []) + self._in_tracks.drain():
             ts = rt.msg
-            xyz = {s: (i.pose.x_m, i.pose.y_m, i.pose.z_m) for s, i in self._infos.items() if i.pose is not None}
+            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, i in self._infos.items() if (q := placed_pose(i)) is not None}
             self._tracks.log(tracks_scene(ts, xyz), log_time=ts.stamp_ns)
             self._raw.log(msgspec.to_builtins(ts), log_time=ts.stamp_ns)
             self.messages += 2

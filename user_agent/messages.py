@@ -8,8 +8,9 @@ from common import schema
 from common.codec import decode
 from common.errors import ConfigError, SchemaError
 from common.keys import KeyKind, Keys
+from common.schema import Pose, SensorInfo
 
-__all__ = ["TYPE_BY_KIND", "decode_on_key", "type_for_key"]
+__all__ = ["TYPE_BY_KIND", "decode_on_key", "placed_pose", "type_for_key"]
 
 TYPE_BY_KIND: Final[dict[KeyKind, type[Any] | None]] = {
     "sensor": None,
@@ -47,3 +48,12 @@ def decode_on_key(keys: Keys, key: str, data: bytes) -> Any | None:
         return decode(data, t)
     except SchemaError:
         return None
+
+
+def placed_pose(info: SensorInfo) -> Pose | None:
+    """The sensor's position in the world if its SensorInfo really places it (a surveyed pose).
+
+    A mobile camera's SensorInfo may carry a pose for its height only (``pose_source = "mutual"``,
+    x = y = 0): its position is the manager's mutual calibration, not in SensorInfo.
+    """
+    return info.pose if info.pose is not None and info.pose_source == "surveyed" else None

@@ -19,6 +19,7 @@ from common.errors import ConfigError
 from common.schema import PairChoice, SensorInfo, TrackSet
 from user_agent.colors import id_color_bgr
 from user_agent.groundtruth import GroundTruth
+from user_agent.messages import placed_pose
 
 __all__ = ["PlotInput", "render_top_view", "save_top_view"]
 
@@ -76,9 +77,10 @@ def _extent(inp: PlotInput) -> tuple[float, float, float, float]:
     xs: list[float] = []
     ys: list[float] = []
     for info in inp.sensor_infos:
-        if info.pose is not None:
-            xs.append(info.pose.x_m)
-            ys.append(info.pose.y_m)
+        pose = placed_pose(info)
+        if pose is not None:
+            xs.append(pose.x_m)
+            ys.append(pose.y_m)
     for ts in inp.tracksets:
         for tr in ts.tracks:
             xs.append(tr.x_m)
@@ -111,7 +113,7 @@ def _panel(view: _View, inp: PlotInput, heading: str) -> Image:
 
 
 def _cameras(img: Image, view: _View, inp: PlotInput) -> None:
-    poses = {i.sensor_id: i for i in inp.sensor_infos if i.pose is not None}
+    poses = {i.sensor_id: i for i in inp.sensor_infos if placed_pose(i) is not None}
     used: Counter[tuple[str, str]] = Counter()
     for pc in inp.pairs:
         for e in pc.choices:

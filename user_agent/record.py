@@ -39,7 +39,7 @@ from user_agent.foxglove import (
     frame_transform,
     tracks_scene,
 )
-from user_agent.messages import decode_on_key, type_for_key
+from user_agent.messages import decode_on_key, placed_pose, type_for_key
 
 __all__ = ["META_NAME", "RAW_ENCODING", "McapSink", "Recorder"]
 
@@ -158,7 +158,7 @@ class McapSink:
     def _write_scene(self, msg: Any, log_ns: int, pub_ns: int) -> None:
         scene_sid = self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
         if isinstance(msg, TrackSet):
-            xyz = {s: (i.pose.x_m, i.pose.y_m, i.pose.z_m) for s, i in self._infos.items() if i.pose is not None}
+            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, i in self._infos.items() if (q := placed_pose(i)) is not None}
             cid = self._channel("/scene/tracks", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
             self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, xyz)).encode())
         elif isinstance(msg, SensorInfo):
