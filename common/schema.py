@@ -47,6 +47,7 @@ __all__ = [
     "PanoramicModel",
     "PinholeModel",
     "Pose",
+    "PoseEstimate",
     "PtzCommand",
     "PtzReply",
     "PtzRequest",
@@ -388,6 +389,17 @@ class ViewPlan(_Msg, frozen=True, tag="pano.ViewPlan"):
     """Predicted distance error from where the camera is now."""
 
 
+class PoseEstimate(_Msg, frozen=True, tag="pano.PoseEstimate"):
+    """Where the manager believes one sensor is, and how it knows."""
+
+    sensor_id: Id
+    pose: Pose
+    source: PoseSource
+    """``surveyed`` (configuration) or ``mutual`` (mutual calibration, Eq. 3)."""
+    sigma_m: PosMetres = 0.0
+    """1-sigma position uncertainty (0 for surveyed poses)."""
+
+
 class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """The resource manager's health, published at 1 Hz."""
 
@@ -407,6 +419,10 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     duplicate_msgs: Count = 0
     out_of_order_msgs: Count = 0
     dropped_msgs: Count = 0
+    sensors_absent: IdList = []
+    """Known sensors whose liveliness token is gone."""
+    poses: Annotated[list[PoseEstimate], msgspec.Meta(max_length=MAX_SENSORS)] = []
+    """The pose of every sensor the manager currently knows where it is."""
 
 
 # ---------------------------------------------------------------------------
