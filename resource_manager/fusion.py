@@ -28,6 +28,7 @@ import numpy as np
 
 from common.geometry import wrap_angle
 from common.schema import (
+    MAX_SENSORS,
     Features,
     PairChoice,
     PairEntry,
@@ -179,14 +180,22 @@ class Fusion:
             self.poses.update_info(info)
             self.ptz.update_info(info)
         for sid, alive in batch.presence.items():
-            self.present[sid] = alive
-            if not alive:
+            if alive:
+                self.present[sid] = True
+            elif sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos:
+                self.present[sid] = False
                 self.ingest.forget(sid)
                 self.poses.forget(sid)
                 self.ptz.forget(sid)
         for f in batch.features:  # in arrival order: the buffers sort, and count what came out of order
-            if self.present.get(f.sensor_id, True):
-                self.ingest.add(f)
+            sid = f.sensor_id
+            if not self.present.get(sid, True):
+                continue
+            if sid not in self.ingest.buffers and len(self.ingest.buffers) >= MAX_SENSORS:
+                # Bounded memory: ids nobody announced cannot grow the buffers without limit.
+                self.ingest.counters.dropped += 1
+                continue
+            self.ingest.add(f)
 
     # -- the tick -------------------------------------------------------------
     def step(self, batch: Batch, t_ns: int) -> TickResult:
@@ -218,6 +227,11 @@ class Fusion:
         )
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
+        old_ns = t_ns - 2 * self.align_params.stale_ns
+        for sid, buf in list(self.ingest.buffers.items()):
+            newest = buf.newest_stamp()
+            if sid not in self.poses.infos and not self.present.get(sid) and (newest is None or newest < old_ns):
+                self.ingest.forget(sid)  # a stale sensor that never said what it is: free its slot
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
         return self._result(
