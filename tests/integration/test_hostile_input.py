@@ -385,26 +385,26 @@ def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: 
     assert max(rss.growth().values()) < RSS_BOUND_MIB, rss.growth()
 
 
-def test_oversize_payloads_and_fake_sensor_floods_stay_bounded(flooded_site: Flooded) -> None:
-    """Two equal rounds of 4 MiB payloads and of valid features from 10^4 made-up sensors each.
+FLOODS = ["oversize payloads", "made-up sensors"]
 
-    Bounded memory means the second round costs (almost) nothing more than the first: whatever
-    a receiver keeps per sensor or per payload must be capped, not grow with the flood.
-    """
-    site, obs, attacker, procs = flooded_site
 
+def _flood_round(flood: str, rnd: int, site: FaultSite, attacker: Any, rss: RssWatch) -> None:
+    """One round of a flood, sampling RSS as it goes."""
     k = site.keys
     pk = Keys("hostileptz")
-    watched = {n: p for n, p in procs.items() if n in ("manager", "ptz1")}
-    rss = RssWatch(watched)
-    big = random.Random(3).randbytes(OVERSIZE_BYTES)
-    keys = [
-        k.sensor_features(site.ids[0]),
-        k.sensor_features("evil"),
-        k.sensor_info("evil"),
-        pk.sensor_ptz("ptz1"),
-        pk.plan("pano1"),
-    ]
+    if flood == "oversize payloads":
+        big = random.Random(rnd).randbytes(OVERSIZE_BYTES)
+        keys = [
+            k.sensor_features(site.ids[0]),
+            k.sensor_features("evil"),
+            k.sensor_info("evil"),
+            pk.sensor_ptz("ptz1"),
+            pk.plan("pano1"),
+        ]
+        for i in range(N_OVERSIZE // 2):
+            attacker.put(keys[i % len(keys)], big, congestion_control=zenoh.CongestionControl.BLOCK)
+            rss.sample()
+        return
     blob = Blob(
         local_id=1,
         bearing_rad=0.1,
@@ -416,30 +416,42 @@ def test_oversize_payloads_and_fake_sensor_floods_stay_bounded(flooded_site: Flo
         bbox_w_px=5.0,
         bbox_h_px=9.0,
     )
+    now = time.time_ns()
+    for i in range(N_FAKE_SENSORS // 2):  # valid features, each from a sensor nobody announced
+        sid = f"fake{rnd}{i:05d}"
+        f = Features(sensor_id=sid, seq=1, stamp_ns=now, frame_index=1, blobs=[blob] * 8)
+        attacker.put(k.sensor_features(sid), encode(f), congestion_control=zenoh.CongestionControl.BLOCK)
+        if i % 500 == 0:
+            rss.sample()
+
+
+@pytest.mark.parametrize("flood", FLOODS)
+def test_floods_stay_bounded_in_memory(flooded_site: Flooded, flood: str) -> None:
+    """Two equal rounds of a flood: 4 MiB payloads on every subscribed key, or valid features
+    from 10^4 made-up sensors.
+
+    Bounded memory means the second round costs (almost) nothing more than the first: whatever
+    a receiver keeps per sensor or per payload must be capped, not grow with the flood.
+    """
+    site, obs, attacker, procs = flooded_site
+    watched = {n: p for n, p in procs.items() if n in ("manager", "ptz1")}
+    rss = RssWatch(watched)
     after_round: list[dict[str, float]] = []
     for rnd in range(2):
-        for i in range(N_OVERSIZE // 2):
-            attacker.put(keys[i % len(keys)], big, congestion_control=zenoh.CongestionControl.BLOCK)
-            rss.sample()
-        now = time.time_ns()
-        for i in range(N_FAKE_SENSORS // 2):
-            sid = f"fake{rnd}{i:05d}"
-            f = Features(sensor_id=sid, seq=1, stamp_ns=now, frame_index=1, blobs=[blob] * 8)
-            attacker.put(k.sensor_features(sid), encode(f), congestion_control=zenoh.CongestionControl.BLOCK)
-            if i % 500 == 0:
-                rss.sample()
+        _flood_round(flood, rnd, site, attacker, rss)
         t_end = time.monotonic() + 3.0
         while time.monotonic() < t_end:  # a measurement window: the receivers work through the round
             rss.sample()
             time.sleep(0.05)
         after_round.append({n: _rss_mib(p.pid) for n, p in watched.items() if p.alive})
     for name, p in procs.items():
-        assert p.alive, f"{name} died under oversize payloads and floods:\n{p.log()}"
+        assert p.alive, f"{name} died under {flood}:\n{p.log()}"
     assert max(rss.growth().values()) < RSS_BOUND_MIB, rss.growth()
     for name in watched:
         second = after_round[1][name] - after_round[0][name]
         assert second < ROUND_GROWTH_MIB, (
-            f"{name} grew {second:.1f} MiB more in the second round: unbounded (RSS after each round: {after_round})"
+            f"{name} grew {second:.1f} MiB more in the second round of {flood}: unbounded "
+            f"(RSS after each round: {after_round})"
         )
     t_after = time.monotonic()
     wait_for(lambda: obs.tracking_with(t_after, set(site.ids), min_sets=10), 20.0, "tracking after the flood")
