@@ -92,6 +92,8 @@ class BackgroundModel:
         """Warm-up stride now: 1 when relearning after the camera moved (it must see again soon;
         the ghost checks clean up after anyone who stood still), else ``warmup_stride``."""
         self._static: Mask | None = None
+        self._last_fg: Mask | None = None
+        """Objects of the last normal frame: kept out of the light-change estimate."""
         self._frames = 0
         self._updates = 0
         self.reinits = 0
@@ -157,6 +159,7 @@ class BackgroundModel:
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
             self._update_static(grey, fg, moving)
+            self._last_fg = fg
             return Motion(fg, moving, "ok", frac)
         # Abnormal change: many pixels changed. A light change scales the scene by a gain -- not
         # quite uniformly (lamps, windows, saturated highlights), so the gain is a smooth map.
@@ -164,11 +167,13 @@ class BackgroundModel:
         assert self._bg is not None
         if abs(gain - 1.0) < MIN_LIGHT_STEP:
             return self._restart(frac, gain, "the view changed, not the light")
-        new_bg = self._bg * _gain_map(grey, bg_u8, gain)
+        new_bg = self._bg * _gain_map(grey, bg_u8, gain, self._last_fg)
         # Where the scaled background nears saturation, colour channels clip one by one and the grey
-        # level is no longer a product: take what the camera sees there.
-        near = new_bg > 230.0
+        # level is no longer a product: take what the camera sees there -- where the camera sees a
+        # bright surface too, not a person standing in front of it (who would become background).
+        near = (new_bg > 230.0) & (grey > 230)
         new_bg[near] = grey[near]
+        np.minimum(new_bg, 255.0, out=new_bg)
         fg2 = _threshold(cv2.absdiff(grey, cv2.convertScaleAbs(new_bg)), s.fg_threshold)
         frac2 = cv2.countNonZero(fg2) / n
         if frac2 <= s.abnormal_frac:
@@ -371,17 +376,24 @@ def _threshold(diff: Mask, level: int) -> Mask:
     return cv2.threshold(diff, level, 255, cv2.THRESH_BINARY)[1]
 
 
-def _gain_map(grey: Mask, bg: Mask, gain: float, block: int = 16) -> npt.NDArray[np.float32]:
+def _gain_map(
+    grey: Mask, bg: Mask, gain: float, objects: Mask | None = None, block: int = 16
+) -> npt.NDArray[np.float32]:
     """Per-pixel brightness ratio frame/background, smooth: block medians of the ratio.
 
     A median over 7 x 7 blocks of ``block`` px (about 110 px, several people wide)
-    ignores the people, a minority of any such neighbourhood; pixels without a
-    usable ratio take the global ``gain``. The ratio is quantised to 1 %.
+    ignores the people, a minority of any such neighbourhood; the ``objects`` of
+    the frame before the jump (grown) are left out altogether, so a person close
+    to the camera, filling a neighbourhood, does not set its light. Pixels
+    without a usable ratio take the global ``gain``. The ratio is quantised to 1 %.
     """
     h, w = grey.shape
     g = grey.astype(np.float32)
     b = bg.astype(np.float32)
-    ratio = np.where((b > 16) & (g < 250), g / np.maximum(b, 1.0), np.float32(gain)).astype(np.float32)
+    usable = (b > 16) & (g < 250)
+    if objects is not None and objects.shape == grey.shape:
+        usable &= cv2.dilate(objects, _K9) == 0
+    ratio = np.where(usable, g / np.maximum(b, 1.0), np.float32(gain)).astype(np.float32)
     small = cv2.resize(ratio, (max(1, w // block), max(1, h // block)), interpolation=cv2.INTER_AREA)
     q = np.clip(small * 100.0 + 0.5, 1, 255).astype(np.uint8)  # medianBlur > 5 needs 8 bits
     smooth = cv2.medianBlur(q, 7).astype(np.float32) / np.float32(100.0)

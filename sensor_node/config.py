@@ -273,8 +273,9 @@ class PipelineSettings(ConfigStruct, frozen=True):
     track_gate_px: Pos = 40.0
     """Largest head move (px) between frames for a 2D track to continue. Higher: fewer id switches on
     fast motion, more swaps between neighbours."""
-    track_max_missed: Annotated[int, msgspec.Meta(ge=0)] = 5
-    """Frames a 2D track survives without a blob before its local id is retired."""
+    track_max_missed: Annotated[int, msgspec.Meta(ge=0)] = 15
+    """Frames a 2D track survives without a blob before its local id is retired (15: a person hidden for
+    up to a second keeps their id). Higher: fewer new ids after occlusions, more wrong re-use."""
     sighting_every: PosInt = 2
     """Look for other robots' bodies every N frames (their last sightings are repeated in between)."""
     band_min_px: PosInt = 12

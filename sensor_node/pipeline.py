@@ -110,7 +110,7 @@ class ImagePipeline:
         people = []
         n_body = 0
         for raw in raws:
-            if sightings and is_body_blob(raw.u0, raw.w, width, sightings):
+            if sightings and is_body_blob(raw.u0, raw.w, width, sightings, v0=raw.v0):
                 n_body += 1
                 continue
             people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins))
@@ -119,7 +119,10 @@ class ImagePipeline:
         ids = self._tracker.update(
             [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people]
         )
-        self.background.update(grey, motion.fg, [(r.u0, r.v0, r.w, r.h) for r in raws])
+        if motion.state == "ok":
+            # Not on a light jump's frame: its objects are unknown (nothing was detected), and blending
+            # it in would paint the people standing there into the background.
+            self.background.update(grey, motion.fg, [(r.u0, r.v0, r.w, r.h) for r in raws])
         features = Features(
             sensor_id=self.sensor_id,
             seq=self.seq,

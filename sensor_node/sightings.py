@@ -58,6 +58,9 @@ class BodySighting:
     right_col: float
     band_rows: tuple[int, int]
     """First and last row of the band."""
+    top_row: float = -math.inf
+    """Row above which nothing of this robot can be (body, mast and camera head): a blob reaching
+    higher is a person, not the robot."""
 
 
 def _hue_ranges(rgb: list[int], tol_deg: float) -> list[tuple[int, int]]:
@@ -242,8 +245,16 @@ class BandFinder:
             distance_m=float(min(dist, 1e5)),
             body_radius_m=float(body.radius_m),
         )
-        return BodySighting(sighting, left_col, right_col, (r0, r1))
+        # The robot's highest point: its body top, or its camera head (taken at this camera's height,
+        # robots carry theirs alike) plus a margin; seen from the body's near side at the Eq. 3 range.
+        z_top = max(body.height_m, self.camera.height_m) + ROBOT_TOP_MARGIN_M
+        near_m = max(dist - body.radius_m, 0.05)
+        top_row = float(self.camera.row_from_elevation(math.atan((z_top - self.camera.height_m) / near_m)))
+        return BodySighting(sighting, left_col, right_col, (r0, r1), top_row)
 
+
+ROBOT_TOP_MARGIN_M = 0.15
+"""How far above its camera (or body top) a robot may reach in the image (mast cap, head housing)."""
 
 SLIVER_ROWS = 6
 """Fewest rows the boundaries are measured on; a shorter band is extended up into the white body."""
@@ -278,14 +289,20 @@ def _wrap_pi(a: float) -> float:
     return min(math.pi, max(-math.pi, w))
 
 
-def is_body_blob(u0: int, w: int, width_px: int, sightings: list[BodySighting], margin_px: float = 3.0) -> bool:
-    """True if a blob spanning columns [u0, u0 + w) is mostly a sighted robot (the robot moved).
+def is_body_blob(
+    u0: int, w: int, width_px: int, sightings: list[BodySighting], *, margin_px: float = 3.0, v0: int | None = None
+) -> bool:
+    """True if a blob spanning columns [u0, u0 + w) (top row ``v0``) is mostly a sighted robot (the robot moved).
 
     A blob is the robot when at least 60 % of its columns lie within the body's
-    boundaries (plus a margin) and it is not much wider than the body (a person
-    in front of a robot is wider than the robot's share of the blob).
+    boundaries (plus a margin), it is not much wider than the body (a person
+    in front of a robot is wider than the robot's share of the blob), and it
+    does not reach above the robot's top (a person walking behind or in front
+    of a robot is as wide as it at a few metres, but taller).
     """
     for s in sightings:
+        if v0 is not None and v0 < s.top_row - margin_px:
+            continue
         lo, hi = s.left_col - margin_px, s.right_col + margin_px
         body_w = s.right_col - s.left_col
         if w > 1.6 * body_w + 2 * margin_px:

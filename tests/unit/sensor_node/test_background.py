@@ -219,3 +219,17 @@ def test_only_a_camera_on_a_robot_takes_a_crowd_everywhere_for_its_own_motion(mo
             draw_person(f, u + 6.0 * k)
         states.append(model.apply(grey(noisy(f, rng))).state)
     assert states[-1] == state
+
+
+def test_a_person_in_front_of_a_bright_wall_through_a_light_jump_leaves_no_ghost() -> None:
+    rng = np.random.default_rng(13)
+    base = np.clip(backdrop(13).astype(np.int16) + 70, 0, 255).astype(np.uint8)  # a pale wall: x1.35 saturates
+    model = BackgroundModel(PipelineSettings(warmup_frames=5, warmup_stride=1))
+    _warm(model, base, rng)
+    near = base.copy()
+    draw_person(near, 500.0, top=10, head_w=40, body_w=90, shirt=(90, 90, 110), head=(120, 140, 170))
+    assert model.apply(grey(noisy(near, rng))).state == "ok"
+    m = model.apply(grey(noisy(near, rng, gain=1.35)))  # the light jumps while they stand close
+    assert m.state == "relit"
+    m = model.apply(grey(noisy(base, rng, gain=1.35)))  # they step away: the wall, brighter
+    assert m.state == "ok" and m.changed_frac < 0.002  # nothing of them was taken into the background

@@ -105,3 +105,8 @@ def test_is_body_blob() -> None:
     assert is_body_blob(499, 24, 1080, [s])  # the moving robot itself (mast and head included)
     assert not is_body_blob(480, 70, 1080, [s])  # a person in front, much wider than the body
     assert not is_body_blob(600, 20, 1080, [s])
+    # 2.95 m away, a 0.9 m robot with its camera at 1.1 m reaches ~0.15 m above the horizon row at most;
+    # a blob of the same width whose top is a head well above that is a person passing the robot.
+    horizon = CAM.v0_px
+    assert s.top_row < horizon and is_body_blob(499, 24, 1080, [s], v0=round(s.top_row) + 2)
+    assert not is_body_blob(499, 24, 1080, [s], v0=round(horizon) - 25)
