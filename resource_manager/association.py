@@ -1,21 +1,20 @@
 """One tick of data association: views -> pairs -> Eq. (7) matches -> measurements -> tracks.
 
-1. *Support*: for every predicted track and every camera with a known pose, the
-   blob whose world bearing is nearest the track's predicted bearing, inside a
-   gate of ``bearing_gate_sigmas`` (bearing error plus the track's position
-   uncertainty seen from that camera); the blob the node tracked for it last
-   tick (same ``local_id``) is preferred.
-2. *Pair choice*: the cameras that support a track are paired and ranked by the
-   error model (:func:`~resource_manager.pairs.rank_pairs`); the best pair whose
-   Eq. (7) match (all blobs of both cameras, temporal term from the tracks)
-   yields a gated measurement localises the person (Eq. 1 or Eq. 2), or every
-   supporting view by least squares with ``fuse_all``.
-3. *Births*: blobs supporting no track are matched pairwise (a bounded number of
-   camera pairs per tick); a hypothesis becomes a tentative track unless other
-   cameras that should see that spot see nothing there (ghost veto), best
-   predicted error first.
+1. *Support*: per camera with a known pose, predicted tracks and blobs are assigned one to one (Hungarian)
+   on the bearing gate (``bearing_gate_sigmas``: bearing error plus the track's position uncertainty seen
+   from that camera) and, for perspective cameras that see the feet, the floor distance (:mod:`.mono`); the
+   blob the node tracked for the track last tick (same ``local_id``) gets a bonus, not a free pass (2D ids
+   swap in crowds). A track left without a blob whose nearest blob is another track's *shares* it (hidden).
+2. *Pair choice*: the cameras that support a track are paired and ranked by the error model
+   (:func:`~resource_manager.pairs.rank_pairs`); the best pair whose Eq. (7) match (all blobs of both
+   cameras, temporal term from the tracks: same node ids or near a track's prediction) yields a gated
+   measurement that the other views and the feet agree with localises the person (Eq. 1 or Eq. 2), or every
+   supporting view by least squares with ``fuse_all``. No pair: the views' feet floor points (``mono_updates``);
+   nobody's feet there at all: the person has left, the track ends.
+3. *Births*: blobs supporting no track are matched pairwise (a bounded number of camera pairs per tick); a
+   hypothesis becomes a tentative track unless its feet disagree or other cameras that should see that spot
+   see nothing there (ghost veto), best predicted error first.
 """
-
 from __future__ import annotations
 
 import itertools
