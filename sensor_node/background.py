@@ -263,9 +263,11 @@ class BackgroundModel:
         ``ghost_frames`` are checked: a ghost's outline is an edge of the
         background image but not of the current frame (where the wall is
         smooth), a paused person's outline the reverse. Ghosts are copied into
-        the background; people who stand still are kept for as long as they
-        stand (their outline is an edge of the frame, not of the model); a still
-        region that neither test recognises (on a textured floor) becomes
+        the background; people who stand still are kept while they stand (their
+        outline is an edge of the frame, not of the model) up to
+        ``still_keep_frames`` -- a ghost revealing a contrasted background (a
+        white post where someone stood) passes that test too and must not stay
+        for ever; a still region that neither test recognises (on a textured floor) becomes
         background after ``still_absorb_frames``, so no ghost stays.
         """
         s = self.settings
@@ -285,6 +287,7 @@ class BackgroundModel:
         old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
         long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
+        keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
         absorbed = False
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
@@ -304,10 +307,11 @@ class BackgroundModel:
                 # the background. They stay an object region (never learnt) however long they stand;
                 # only what neither test recognises becomes background after still_absorb_frames.
                 cur_sum = float(cur[outline].sum())
-                if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE:
+                age = int(self._static[y : y + h, x : x + w][mask].max())
+                if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE and age < keep_still:
                     self.kept += 1
                     continue
-                if int(self._static[y : y + h, x : x + w][mask].max()) < long_still:
+                if age < long_still:
                     continue
             assert self._bg is not None
             # The ghost's fringe too: its changed, not moving pixels up to 4 px around the still region
