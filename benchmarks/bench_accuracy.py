@@ -120,17 +120,29 @@ def _abs_site(site: Path, out: Path, manager_cfg: Path | None) -> Path:
 
 
 def _manager_variant(site: Path, out: Path, extra: str, name: str) -> Path:
+    """A copy of the site's manager config with ``extra`` TOML: ``[table]`` keys replace the table's own."""
     m = re.search(r'command = "manager"\s*\nconfig = "([^"]+)"', site.read_text())
     if m is None:
         raise SystemExit(f"{site}: no manager process")
     src = (site.resolve().parent / m.group(1)).resolve()
     text = src.read_text()
-    for table, line in re.findall(r"^\[(\w+)\]\n(.*)$", extra, flags=re.M):
-        if f"[{table}]" in text:
-            text = text.replace(f"[{table}]", f"[{table}]\n{line}", 1)
-            extra = extra.replace(f"[{table}]\n{line}\n", "")
+    rest: list[str] = []
+    for block in re.split(r"(?m)^(?=\[)", extra):
+        head = re.match(r"^\[(\w+)\]\n", block)
+        if head is None or f"[{head.group(1)}]" not in text:
+            rest.append(block)
+            continue
+        start = text.index(f"[{head.group(1)}]") + len(head.group(0))
+        end = text.find("\n[", start)
+        end = len(text) if end < 0 else end + 1
+        section = text[start:end]
+        for line in block[len(head.group(0)) :].splitlines():
+            key = line.split("=", 1)[0].strip()
+            section = re.sub(rf"(?m)^{re.escape(key)}\s*=.*\n?", "", section)
+            section = line + "\n" + section
+        text = text[:start] + section + text[end:]
     dest = out / f"{name}-manager.toml"
-    dest.write_text(text + "\n" + extra)
+    dest.write_text(text + "\n" + "".join(rest))
     return dest
 
 
@@ -184,16 +196,27 @@ def demo(site: Path, out: Path, duration_s: float, name: str) -> dict[str, Any]:
 
 
 def network(out: Path, duration_s: float) -> dict[str, Any]:
+    """The paper's sites through the real network.
+
+    ``paper1_mutual``, ``paper1_surveyed`` and ``paper2`` keep the robot where the site puts it (``[planner]
+    enabled = false``: the paper's Fig. 7 runs had stationary cameras, and a surveyed pose is wrong once the
+    robot drives); ``paper1_mutual_planner`` is the closed loop (the robot driven to the error model's best
+    viewpoint, its pose by mutual calibration all along).
+    """
     sites = REPO / "deploy" / "sites"
     res: dict[str, Any] = {}
-    p1 = sites / "paper1.toml"
-    res["paper1_mutual"] = demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual")
+    p1, p2 = sites / "paper1.toml", sites / "paper2.toml"
+    parked = "[planner]\nenabled = false\n"
+    p1m = _manager_variant(p1, out, parked, "p1m")
+    res["paper1_mutual"] = demo(_abs_site(p1, out, p1m), out, duration_s, "paper1_mutual")
     # The robot's true pose (deploy/sites/paper1.toml) given to the manager: both poses surveyed.
     survey = _manager_variant(
-        p1, out, '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n', "p1s"
+        p1, out, parked + '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n', "p1s"
     )
     res["paper1_surveyed"] = demo(_abs_site(p1, out, survey), out, duration_s, "paper1_surveyed")
-    res["paper2_two_people"] = demo(_abs_site(sites / "paper2.toml", out, None), out, duration_s, "paper2")
+    res["paper1_mutual_planner"] = demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner")
+    p2m = _manager_variant(p2, out, parked, "p2m")
+    res["paper2_two_people"] = demo(_abs_site(p2, out, p2m), out, duration_s, "paper2")
     res["six_people_four_cameras"] = demo(_abs_site(sites / "six.toml", out, None), out, duration_s, "six")
     return res
 
