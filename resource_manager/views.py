@@ -59,9 +59,15 @@ def build_views(
             continue
         sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
         blobs = av.blobs
-        bearing = np.array([b.bearing_rad for b in blobs], dtype=np.float64)
-        width = np.array([b.width_rad for b in blobs], dtype=np.float64)
-        top = np.array([b.top_elev_rad for b in blobs], dtype=np.float64)
+        nan = math.nan
+        tab = np.array(  # one pass over the blobs (this runs for every sensor on every tick)
+            [
+                (b.bearing_rad, b.width_rad, b.top_elev_rad, b.bottom_elev_rad if b.feet_visible else nan, b.bottom_px)
+                for b in blobs
+            ],
+            dtype=np.float64,
+        ).reshape(-1, 5)
+        bearing, width, top = tab[:, 0], tab[:, 1], tab[:, 2]
         keep = np.ones(len(blobs), dtype=bool)
         others = [(poses[o], r) for o, r in body_list if o != sid]
         if blobs and others:
@@ -84,18 +90,19 @@ def build_views(
             keep = ~np.any(is_body, axis=1)
         if not keep.all():
             blobs = [b for b, k in zip(blobs, keep, strict=True) if k]
-            bearing, width, top = bearing[keep], width[keep], top[keep]
+            tab = tab[keep]
+            bearing, width, top = tab[:, 0], tab[:, 1], tab[:, 2]
         n = len(blobs)
         hist_len = {len(b.hist) for b in blobs}
         hist = None
         if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
             hist = np.array([b.hist for b in blobs], dtype=np.float64)
-        bottom = np.array([b.bottom_elev_rad if b.feet_visible else np.nan for b in blobs], dtype=np.float64)
+        bottom = tab[:, 3]
         mono_range = mono_sigma = None
         m = (mono or {}).get(sid)
         if m is not None:
             sigma_elev, base, max_range, image_h = m
-            cut = np.array([b.bottom_px >= image_h - 2.0 for b in blobs], dtype=bool)  # lower border: no feet
+            cut = tab[:, 4] >= image_h - 2.0  # a box cut by the lower border does not show the feet
             mono_range, mono_sigma = mono_ranges(np.where(cut, np.nan, bottom), pose.z_m, sigma_elev, base, max_range)
         out[sid] = ViewBlobs(
             sensor_id=sid,
