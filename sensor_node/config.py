@@ -245,10 +245,11 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """Frames after which a changed region that has not moved becomes background unless its outline is
     an edge of the current frame and not of the background (a paused person: kept however long). Higher:
     ambiguous still regions stay longer; lower: ghosts on textured floors vanish sooner."""
-    still_keep_frames: PosInt = 300
+    still_keep_frames: PosInt = 150
     """Frames a still region whose outline is in the frame (a paused person) is kept out of the
-    background at most (counted up to ~1000). Higher: people who stand for long stay detected; lower:
-    a ghost revealing a contrasted background (it passes the person test) vanishes sooner."""
+    background at most (counted up to ~1000; 150 = 10 s at 15 fps, twice the demo's longest pause).
+    Higher: people who stand for long stay detected; lower: a ghost revealing a contrasted background
+    (it passes the person test) and a robot that parked in view (no band visible) vanish sooner."""
     min_component_px: PosInt = 6
     """Connected regions smaller than this are noise and ignored before grouping."""
     merge_gap_px: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(
