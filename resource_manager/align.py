@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from common.clock import interp_angle
 from common.schema import Blob, Features, Sighting
@@ -34,8 +35,10 @@ class AlignParams:
     max_gap_ns: int = 500_000_000
 
 
-@dataclass(frozen=True, slots=True)
-class AlignedBlob:
+class AlignedBlob(NamedTuple):
+    """One blob at the fusion instant (immutable; a NamedTuple: one is built per blob, sensor and tick, and a
+    frozen dataclass's __init__ costs several times more)."""
+
     local_id: int
     bearing_rad: float
     """Sensor-frame azimuth at the fusion instant."""
@@ -81,7 +84,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
             width_rad=max(0.0, b0.width_rad + (b1.width_rad - b0.width_rad) * f),
             top_elev_rad=b0.top_elev_rad + (b1.top_elev_rad - b0.top_elev_rad) * f,
             bottom_elev_rad=b0.bottom_elev_rad + (b1.bottom_elev_rad - b0.bottom_elev_rad) * f,
-            hist=list(b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist),
+            hist=b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist,  # the frozen message's list: not copied
             feet_visible=b0.feet_visible and b1.feet_visible,
             bottom_px=max(b0.bbox_v_px + b0.bbox_h_px, b1.bbox_v_px + b1.bbox_h_px),
         )
@@ -93,7 +96,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
         width_rad=b.width_rad,
         top_elev_rad=b.top_elev_rad,
         bottom_elev_rad=b.bottom_elev_rad,
-        hist=list(b.hist),
+        hist=b.hist,
         feet_visible=b.feet_visible,
         bottom_px=b.bbox_v_px + b.bbox_h_px,
     )
