@@ -121,8 +121,10 @@ class MatchSection(ConfigStruct, frozen=True):
     0.1, 0.99 at 0.2, 0.95 at 0.25). Without colour (detection files, r_is = 1) 0.1."""
     temporal_weight: NonNeg = 1.0
     """lambda in r' = (r + lambda c_t)/(1 + lambda); 0 disables the temporal term."""
-    temporal_gate_m: Pos = 0.6
-    """Distance from a track's prediction at which the temporal term has fallen to exp(-1/2)."""
+    temporal_gate_m: NonNeg = 0.6
+    """Distance from a track's prediction at which the positional temporal term has fallen to exp(-1/2): a
+    hypothesis near a track continues it even when the nodes' 2D ids changed. 0: ids only (measured: 16 cameras
+    x 20 people MOTA 0.99 vs 0.95 without; Wildtrack 0.645 vs 0.62; one demo recording 0.86 vs 0.90)."""
     max_range_m: Pos = 30.0
     """r_rc = 0 when a hypothesised target lies further than this from either camera."""
     width_sigma: Pos = 0.35

@@ -273,7 +273,7 @@ def match_matrices(
     out: list[MatchMatrix] = []
     cos1, sin1 = np.cos(th1), np.sin(th1)
     c_pos = None
-    if track_xy is not None and track_xy.size and lam > 0:
+    if track_xy is not None and track_xy.size and lam > 0 and params.temporal_gate_m > 0:
         hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb)
         hy = o1[:, 1, None, None] + d1 * sin1
         tx, ty = track_xy[:, 0], track_xy[:, 1]
