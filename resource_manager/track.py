@@ -116,10 +116,20 @@ class Tracker:
         return nu, s
 
     def gate_distance(self, tr: TrackRecord, m: Measurement) -> float:
-        """Mahalanobis distance² of a measurement to a track, or inf outside the gate."""
-        nu, s = self.innovation(tr, m)
-        d2 = float(nu @ np.linalg.solve(s, nu))
-        if d2 <= self.params.gate_chi2 or float(np.hypot(*nu)) <= self.params.gate_min_m:
+        """Mahalanobis distance² of a measurement to a track, or inf outside the gate.
+
+        The 2x2 innovation covariance S = P_xy + R is inverted in closed form (plain floats: this is asked for
+        every candidate fix of every track on every tick).
+        """
+        r = self.params.min_meas_sigma_m**2
+        p, c = tr.p, m.cov
+        sxx = float(p[0, 0] + c[0, 0]) + r
+        sxy = float(p[0, 1] + c[0, 1])
+        syy = float(p[1, 1] + c[1, 1]) + r
+        nx, ny = float(m.xy[0] - tr.x[0]), float(m.xy[1] - tr.x[1])
+        det = sxx * syy - sxy * sxy
+        d2 = (syy * nx * nx - 2.0 * sxy * nx * ny + sxx * ny * ny) / det if det > 0 else math.inf
+        if d2 <= self.params.gate_chi2 or math.hypot(nx, ny) <= self.params.gate_min_m:
             return d2
         return math.inf
 
