@@ -50,6 +50,8 @@ class AlignedBlob(NamedTuple):
     bottom_px: float = -1.0
     """Image row of the blob's bottom edge (bbox_v + bbox_h; -1: unknown): a box cut by the image's lower
     border does not show the feet, whatever the node says."""
+    top_px: float = -1.0
+    """Image row of the blob's top edge (-1: unknown): 0 means the head is cut by the upper border."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,6 +89,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
             hist=b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist,  # the frozen message's list: not copied
             feet_visible=b0.feet_visible and b1.feet_visible,
             bottom_px=max(b0.bbox_v_px + b0.bbox_h_px, b1.bbox_v_px + b1.bbox_h_px),
+            top_px=min(b0.bbox_v_px, b1.bbox_v_px),
         )
     b = b1 if b1 is not None else b0
     assert b is not None
@@ -99,6 +102,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
         hist=b.hist,
         feet_visible=b.feet_visible,
         bottom_px=b.bbox_v_px + b.bbox_h_px,
+        top_px=b.bbox_v_px,
     )
 
 

@@ -86,6 +86,8 @@ class Associator:
         self.threshold = mc.threshold
         self.births = Births(config, tracker, self.params, self.matcher)
         self._all: AllBlobs | None = None
+        self._blank: frozenset[str] = frozenset()
+        """Views without any blob at the previous tick."""
         self._rng = np.random.default_rng(0)
 
     # -- step 1 -----------------------------------------------------------------
@@ -231,7 +233,14 @@ class Associator:
         mono: dict[str, tuple[float, float, float, float]] | None = None,
     ) -> Outcome:
         views = build_views(aligned, poses, sigma_of, bodies, fovs, mono=mono)
-        self._all = AllBlobs.of(views, self.config.match.bearing_gate_sigmas, self.config.match.mono_gate_sigmas)
+        blank = frozenset(sid for sid, v in views.items() if v.n == 0)
+        self._all = AllBlobs.of(
+            views,
+            self.config.match.bearing_gate_sigmas,
+            self.config.match.mono_gate_sigmas,
+            excused=blank - self._blank,
+        )
+        self._blank = blank
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
         support, shared = self.support(views, tracks)

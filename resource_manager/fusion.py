@@ -239,10 +239,15 @@ class Fusion:
         )
 
     def _fovs(self) -> dict[str, tuple[float, float]]:
-        """Horizontal fields of view of the fixed perspective cameras (PTZ heads move: not limited here)."""
+        """Horizontal fields of view of the perspective cameras.
+
+        A PTZ head's SensorInfo is re-published with its current orientation whenever it moves: without its
+        field of view, every person outside it would count as "not seen" by the PTZ camera in the view
+        agreement and the ghost veto (with 4 cameras, min_view_agreement 0.8 then refuses 3 of 4).
+        """
         out: dict[str, tuple[float, float]] = {}
         for sid, info in self.poses.infos.items():
-            if info.kind == "pinhole" and isinstance(info.model, PinholeModel):
+            if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel):
                 fov = pinhole_fov(info.model)
                 if fov is not None:
                     out[sid] = fov
@@ -257,7 +262,7 @@ class Fusion:
         return {
             sid: (sigma, mc.mono_base_sigma_m, mc.max_range_m, float(info.model.height_px))
             for sid, info in self.poses.infos.items()
-            if info.kind == "pinhole" and isinstance(info.model, PinholeModel)
+            if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel)
         }
 
     # -- outputs --------------------------------------------------------------

@@ -62,6 +62,9 @@ def pair_sigmas(a: ViewBlobs, b: ViewBlobs, sigma_xy_a: float, sigma_xy_b: float
 def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
     x, y = float(xy[0]), float(xy[1])
     num = den = 0.0
+    whole = [(v, i) for v, i in views if v.top_cut is None or not v.top_cut[i]]
+    if whole:
+        views = whole  # a head cut by the image border gives only a lower bound: the other views' heights
     for v, i in views:  # plain floats: two views, numpy per element would cost more
         d = math.hypot(x - float(v.origin_xy[0]), y - float(v.origin_xy[1]))
         if d <= 1e-6:

@@ -84,6 +84,9 @@ class ViewBlobs:
     not observable; None: the camera gives none."""
     mono_sigma_m: FloatArray | None = None
     """(n,) 1-sigma of ``mono_range_m``."""
+    top_cut: npt.NDArray[np.bool_] | None = None
+    """(n,) blobs whose top touches the image's upper border (a person close to the camera): their head-top
+    height is only a lower bound. None: none are."""
 
     def sees(self, azimuth_rad: float) -> bool:
         """Whether a world azimuth is inside this camera's horizontal field of view."""
@@ -162,6 +165,15 @@ def _pad(rows: list[FloatArray], n: int, fill: float = np.nan) -> FloatArray:
     out = np.full((len(rows), max(n, 1)), fill)
     for k, r in enumerate(rows):
         out[k, : r.shape[0]] = r
+    return out
+
+
+def _pad_bool(arrays: Sequence[npt.NDArray[np.bool_] | None], counts: Sequence[int], n: int) -> npt.NDArray[np.bool_]:
+    """(k, n) flags, False where an array is None or beyond its length."""
+    out = np.zeros((len(arrays), max(n, 1)), dtype=bool)
+    for k, (arr, c) in enumerate(zip(arrays, counts, strict=True)):
+        if arr is not None and c:
+            out[k, :c] = arr[:c]
     return out
 
 
@@ -255,6 +267,12 @@ def match_matrices(
     top2 = np.nan_to_num(_pad([b.top_elev_rad for _, b in pairs], nb))[:, None, :]
     h1 = z1 + d1 * np.tan(top1)
     h2 = z2 + d2 * np.tan(top2)
+    cut1 = _pad_bool([a.top_cut for a, _ in pairs], [a.n for a, _ in pairs], na)[:, :, None]
+    cut2 = _pad_bool([b.top_cut for _, b in pairs], [b.n for _, b in pairs], nb)[:, None, :]
+    if cut1.any() or cut2.any():
+        # A head cut by the image's upper border is at least as high as it looks: consistent with any
+        # taller height from the other view (both cut: no height evidence).
+        h1, h2 = np.where(cut1, np.maximum(h1, h2), h1), np.where(cut2, np.maximum(h1, h2), h2)
     r_hc = _log_ratio_score(h1, h2, params.height_sigma)
     # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
     if params.floor_sigma_m > 0:

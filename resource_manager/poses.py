@@ -53,6 +53,12 @@ class MutualParams:
     smoothing_s: float = 1.0
     timeout_s: float = 2.0
     jump_m: float = 1.0
+    hold: bool = True
+    outlier_sigmas: float = 3.0
+    """A raw pose further than this many sigmas (plus 5 cm, 0.5 deg) from the smoothed one is refused; 0: off."""
+    outlier_run: int = 5
+    """...unless this many in a row were (then it is followed: the robot moved)."""
+    """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     boundary_sigma_rad: float = 0.0
     """0: use the observer's bearing sigma."""
     default_bearing_sigma_rad: float = math.radians(0.2)
@@ -101,6 +107,8 @@ class _Filter:
     n: int = 1
     sigma_xy: float = 0.0
     sigma_yaw: float = 0.0
+    outliers: int = 0
+    """Consecutive raw poses refused as outliers."""
 
 
 @dataclass(slots=True)
@@ -302,12 +310,20 @@ class PoseSolver:
                 logger.info("pose of %s lost: no sighting for %.1f s", sid, (t_ns - f.t_ns) / 1e9)
                 del self.filters[sid]
                 continue
-            if sid not in raw:
-                continue  # known only at an instant where it was actually solved
             z = self._height(sid)
             if z is None:
                 continue
-            out[sid] = PoseEstimate(sid, f.x, f.y, z, float(wrap_angle(f.yaw)), "mutual", f.sigma_xy, f.sigma_yaw)
+            if sid in raw:
+                out[sid] = PoseEstimate(sid, f.x, f.y, z, float(wrap_angle(f.yaw)), "mutual", f.sigma_xy, f.sigma_yaw)
+            elif self.params.hold:
+                # Not solved at this instant (a person walks between the robots): the smoothed pose, predicted
+                # forward, until the timeout. Dropping the camera for those ticks loses every person it supports.
+                dt = (t_ns - f.t_ns) / 1e9
+                x, y, yaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
+                grow = 1.0 + dt / self.params.smoothing_s
+                out[sid] = PoseEstimate(
+                    sid, x, y, z, float(wrap_angle(yaw)), "mutual", f.sigma_xy * grow, f.sigma_yaw * grow
+                )
         return out
 
     def _smooth(self, sid: str, rp: RawPose, t_ns: int) -> None:
@@ -328,6 +344,20 @@ class PoseSolver:
         bgain = a * a / (2.0 - a)
         px, py, pyaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
         rx, ry, ryaw = rp.x_m - px, rp.y_m - py, float(wrap_angle(rp.yaw_rad - pyaw))
+        k = self.params.outlier_sigmas
+        if k > 0 and f.n >= 3:
+            # A raw pose far off the smoothed one (a person in front of the other robot's body shifts its
+            # boundaries) is refused; when such poses persist, the robot really moved: start again there.
+            tol_xy = k * math.hypot(rp.sigma_xy_m, f.sigma_xy) + 0.05
+            tol_yaw = k * math.hypot(rp.sigma_yaw_rad, f.sigma_yaw) + math.radians(0.5)
+            if math.hypot(rx, ry) > tol_xy or abs(ryaw) > tol_yaw:
+                f.outliers += 1
+                if f.outliers > self.params.outlier_run:
+                    self.filters[sid] = _Filter(
+                        rp.x_m, rp.y_m, rp.yaw_rad, t_ns=t_ns, sigma_xy=rp.sigma_xy_m, sigma_yaw=rp.sigma_yaw_rad
+                    )
+                return
+        f.outliers = 0
         f.x, f.y, f.yaw = px + a * rx, py + a * ry, float(wrap_angle(pyaw + a * ryaw))
         f.vx += bgain * rx / dt
         f.vy += bgain * ry / dt

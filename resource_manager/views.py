@@ -22,6 +22,9 @@ from resource_manager.match import ViewBlobs
 from resource_manager.mono import mono_ranges
 from resource_manager.poses import PoseEstimate
 
+TOP_CUT_PX = 0.5
+"""A blob whose box starts this close to the image's upper border has its head cut off (too close)."""
+
 __all__ = ["BODY_TOP_MARGIN_M", "AllBlobs", "build_views", "pinhole_fov", "subset_view", "wrap"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -62,11 +65,18 @@ def build_views(
         nan = math.nan
         tab = np.array(  # one pass over the blobs (this runs for every sensor on every tick)
             [
-                (b.bearing_rad, b.width_rad, b.top_elev_rad, b.bottom_elev_rad if b.feet_visible else nan, b.bottom_px)
+                (
+                    b.bearing_rad,
+                    b.width_rad,
+                    b.top_elev_rad,
+                    b.bottom_elev_rad if b.feet_visible else nan,
+                    b.bottom_px,
+                    b.top_px,
+                )
                 for b in blobs
             ],
             dtype=np.float64,
-        ).reshape(-1, 5)
+        ).reshape(-1, 6)
         bearing, width, top = tab[:, 0], tab[:, 1], tab[:, 2]
         keep = np.ones(len(blobs), dtype=bool)
         others = [(poses[o], r) for o, r in body_list if o != sid]
@@ -119,6 +129,7 @@ def build_views(
             fov=(fovs or {}).get(sid),
             mono_range_m=mono_range,
             mono_sigma_m=mono_sigma,
+            top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
         )
     return out
 
@@ -157,6 +168,7 @@ def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
         fov=v.fov,
         mono_range_m=None if v.mono_range_m is None else v.mono_range_m[sel],
         mono_sigma_m=None if v.mono_sigma_m is None else v.mono_sigma_m[sel],
+        top_cut=None if v.top_cut is None else v.top_cut[sel],
     )
 
 
@@ -175,6 +187,9 @@ class AllBlobs:
     """(v, 2) every view's position (views without blobs included)."""
     view_fov: FloatArray
     """(v, 2) axis azimuth and half field of view (half = pi: panoramic)."""
+    view_blank: npt.NDArray[np.bool_] | None = None
+    """(v,) views that just went blank (no blob this tick, some the tick before): a sudden light change or a
+    node restarting blanks every camera for a frame; people leaving leave it blank for longer."""
     mono_range: FloatArray | None = None
     """(n,) feet floor distance of each blob (NaN: unknown)."""
     mono_tol: FloatArray | None = None
@@ -182,7 +197,10 @@ class AllBlobs:
     not the person there nor an occluder in front; nearer by more, someone in front."""
 
     @staticmethod
-    def of(views: dict[str, ViewBlobs], k_sigma: float, mono_k: float = 3.0) -> AllBlobs:
+    def of(
+        views: dict[str, ViewBlobs], k_sigma: float, mono_k: float = 3.0, excused: frozenset[str] = frozenset()
+    ) -> AllBlobs:
+        """``excused``: views whose (empty) frame says nothing this tick (see ``view_blank``)."""
         vs = list(views.values())
         counts = [v.n for v in vs]
         mono_range = mono_tol = None
@@ -204,6 +222,7 @@ class AllBlobs:
             view=idx,
             view_origin=vo,
             view_fov=np.array([v.fov if v.fov is not None else (0.0, math.pi) for v in vs]).reshape(-1, 2),
+            view_blank=np.array([v.n == 0 and v.sensor_id in excused for v in vs], dtype=bool),
             mono_range=mono_range,
             mono_tol=mono_tol,
         )
@@ -218,6 +237,10 @@ class AllBlobs:
         in_range = (d_view > 0.3) & (d_view <= max_range_m)
         az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
         in_range &= np.abs(wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
+        if self.view_blank is not None:
+            # A view that just went blank is no evidence about xy yet: a blank frame (light change, node
+            # restart) must not end or veto every track at once; blank on the next tick too, it counts.
+            in_range &= ~self.view_blank
         total = int(np.count_nonzero(in_range))
         if total == 0 or self.bearing.size == 0:
             return 0, total

@@ -113,9 +113,9 @@ def features_for(
                 top_elev_rad=math.atan2(p.height - cam.z, d) + rng.normal(0.0, sb),
                 bottom_elev_rad=math.atan2(-cam.z, d),
                 bbox_u_px=0.0,
-                bbox_v_px=0.0,
+                bbox_v_px=10.0,  # not at the upper border: heads are never cut here
                 bbox_w_px=10.0,
-                bbox_h_px=40.0,
+                bbox_h_px=30.0,
                 hist=[float(v) for v in h],
             )
         )

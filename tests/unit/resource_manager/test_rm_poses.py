@@ -110,9 +110,35 @@ def test_smoothing_shrinks_noise_and_reports_sigma() -> None:
 
 def test_pose_expires_without_sightings() -> None:
     cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
-    s = solver(cams, timeout_s=1.0)
+    s = solver(cams, timeout_s=1.0, hold=False)
     assert "r1" in s.solve(sightings(cams, np.random.default_rng(0), 0.0), 1)
     assert "r1" not in s.solve({}, 1 + 500_000_000)  # not re-solved at this instant: not claimed as known
     assert "r1" not in s.filters or s.solve({}, 1 + 2_000_000_000) is not None
     s.solve({}, 1 + 2_000_000_000)
     assert "r1" not in s.filters
+
+
+def test_pose_is_held_between_sightings_until_the_timeout() -> None:
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s = solver(cams, timeout_s=1.0)
+    seen = s.solve(sightings(cams, np.random.default_rng(0), 0.0), 1)["r1"]
+    held = s.solve({}, 1 + 500_000_000).get("r1")  # a person walks between the robots: the pose is kept
+    assert held is not None
+    assert math.hypot(held.x_m - 3, held.y_m) < 0.05
+    assert held.sigma_xy_m > seen.sigma_xy_m  # ...less sure of it
+    assert "r1" not in s.solve({}, 1 + 2_000_000_000)  # past the timeout: unknown again
+    assert "r1" not in s.filters
+
+
+def test_a_lone_outlier_pose_is_refused_a_persistent_one_followed() -> None:
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s = solver(cams, outlier_run=3)
+    rng = np.random.default_rng(1)
+    for k in range(10):
+        p = s.solve(sightings(cams, rng, PX), 1 + k * 100_000_000)["r1"]
+    moved = [Cam("p1", 0, 0), Cam("r1", 3.6, 0, mobile=True, surveyed=False)]
+    p = s.solve(sightings(moved, rng, PX), 1 + 10 * 100_000_000)["r1"]
+    assert math.hypot(p.x_m - 3, p.y_m) < 0.05  # one raw pose 0.6 m off: refused
+    for k in range(11, 16):
+        p = s.solve(sightings(moved, rng, PX), 1 + k * 100_000_000)["r1"]
+    assert math.hypot(p.x_m - 3.6, p.y_m) < 0.3  # it persists: the robot really moved (raw sigma ~0.13 m here)
