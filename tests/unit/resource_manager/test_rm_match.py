@@ -133,3 +133,22 @@ def test_batched_matrices_equal_single_ones() -> None:
         assert mb.r.shape == (a.n, b.n)
         assert np.allclose(mb.r, single.r) and np.allclose(mb.xy, single.xy)
         assert np.array_equal(mb.size_ratio, single.size_ratio)
+
+
+def test_head_cut_by_the_image_top_is_only_a_lower_bound() -> None:
+    import dataclasses
+
+    # A person 0.9 m from camera a: the panorama (max elevation 20 deg) cuts the head at 20 deg, so the
+    # apparent head top is 1.1 + 0.9 tan(20 deg) = 1.43 m for a 1.8 m person.
+    person = (1.9, 0.0, 1.8, 0)
+    a = view("a", (1.0, 0.0), [person])
+    a = dataclasses.replace(a, top_elev_rad=np.array([math.radians(20.0)]))
+    b = view("b", (1.9, 3.0), [person])
+    p = MatchParams()
+    refused = match_matrix(a, b, p).r[0, 0]
+    cut = dataclasses.replace(a, top_cut=np.array([True]))
+    accepted = match_matrix(cut, b, p).r[0, 0]
+    assert refused < 0.2 < 0.5 < accepted  # 0.2: the default tau
+    # ... but a lower bound still: a cut top above the other view's head is inconsistent.
+    short = view("b", (1.9, 3.0), [(1.9, 0.0, 0.9, 0)])
+    assert match_matrix(cut, short, p).r[0, 0] < 0.2

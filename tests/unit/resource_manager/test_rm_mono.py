@@ -190,3 +190,40 @@ def test_tracks_of_people_who_left_end_at_once_and_unknown_ids_are_bounded() -> 
     assert len(fusion.ingest.buffers) <= 64
     fusion.step(Batch(), t0 + 12_000_000_000)
     assert set(fusion.ingest.buffers) <= set(cams)  # stale, never announced: forgotten
+
+
+@pytest.mark.parametrize("kind", ["pinhole", "ptz"])
+def test_one_blank_frame_of_every_camera_does_not_end_the_tracks(kind: str) -> None:
+    """A sudden light change blanks every camera for a frame: the person is still there (PTZ heads too)."""
+    fusion = Fusion(ManagerConfig(manager=ManagerSection(id="m1")))
+    t0 = 1_800_000_000_000_000_000
+    k = [1000.0, 0.0, 960.0, 0.0, 1000.0, 540.0, 0.0, 0.0, 1.0]
+    cams = {"a": (0.0, 0.0, math.pi / 4), "b": (10.0, 0.0, 3 * math.pi / 4), "c": (5.0, 10.0, -math.pi / 2)}
+    infos = []
+    for sid, (x, y, yaw) in cams.items():
+        fwd = (math.cos(yaw), math.sin(yaw), 0.0)
+        right = (math.sin(yaw), -math.cos(yaw), 0.0)
+        r = [*right, 0.0, 0.0, -1.0, *fwd]
+        t = [-sum(r[3 * i + j] * c for j, c in enumerate((x, y, Z_M))) for i in range(3)]
+        model = PinholeModel(width_px=1920, height_px=1080, k=k, r=r, t_m=t)
+        pose = Pose(x_m=x, y_m=y, z_m=Z_M, yaw_rad=0.0)
+        infos.append(SensorInfo(sensor_id=sid, seq=1, stamp_ns=t0, kind=kind, model=model, pose=pose,
+                                pose_source="surveyed", bearing_sigma_rad=0.0035))  # fmt: skip
+    assert set(fusion._fovs()) == set() and fusion.step(Batch(infos=infos), t0).skipped is False
+    assert set(fusion._fovs()) == set(cams) and set(fusion._mono()) == set(cams)  # PTZ heads: their FoV and feet
+    person = (5.0, 4.0)
+
+    def feats(sid: str, seq: int, t_ns: int, blank: bool) -> Features:
+        x, y, _ = cams[sid]
+        d = math.hypot(person[0] - x, person[1] - y)
+        blob = Blob(local_id=1, bearing_rad=math.atan2(person[1] - y, person[0] - x), width_rad=0.45 / d,
+                    top_elev_rad=math.atan2(1.75 - Z_M, d), bottom_elev_rad=math.atan2(-Z_M, d),
+                    bbox_u_px=900, bbox_v_px=300, bbox_w_px=50, bbox_h_px=300)  # fmt: skip
+        return Features(sensor_id=sid, seq=seq, stamp_ns=t_ns, frame_index=seq, blobs=[] if blank else [blob])
+
+    ids = []
+    for n in range(1, 20):
+        t_ns = t0 + n * 250_000_000
+        res = fusion.step(Batch(features=[feats(s, n, t_ns, n == 10) for s in cams]), t_ns + 1)
+        ids.append([tr.track_id for tr in res.trackset.tracks if tr.state != "tentative"])
+    assert ids[8] == ids[9] == ids[10] == ids[-1] == ["m1-1"]
