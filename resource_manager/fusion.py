@@ -75,6 +75,10 @@ class TickCounters:
     dropped: int
     clock_steps: int
     skipped_ticks: int
+    sensors_absent: list[str] = field(default_factory=list)
+    """Sensors seen before whose liveliness token is gone."""
+    poses: tuple[PoseEstimate, ...] = ()
+    """Every pose known at the fusion instant."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -181,6 +185,12 @@ class Fusion:
             self.ptz.update_info(info)
         for sid, alive in batch.presence.items():
             if alive:
+                if sid not in self.present and len(self.present) >= 4 * MAX_SENSORS:
+                    # Bounded memory under liveliness churn: forget sensors already gone first.
+                    for gone in [k for k, v in self.present.items() if not v]:
+                        del self.present[gone]
+                    if len(self.present) >= 4 * MAX_SENSORS:
+                        continue
                 self.present[sid] = True
             elif sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos:
                 self.present[sid] = False
@@ -383,6 +393,8 @@ class Fusion:
             dropped=c.dropped,
             clock_steps=c.clock_steps,
             skipped_ticks=self.skipped_ticks,
+            sensors_absent=sorted(sid for sid, alive in self.present.items() if not alive),
+            poses=tuple(self.last_poses[sid] for sid in sorted(self.last_poses)),
         )
         result = TickResult(
             trackset=TrackSet(

@@ -27,8 +27,10 @@ import numpy as np
 from common.clock import NtpClock
 from common.codec import decode, encode
 from common.errors import ConfigError, SchemaError
+from common.geometry import wrap_angle
 from common.keys import Keys
-from common.schema import Features, ManagerStatus, PtzReply, PtzRequest, PtzState, SensorInfo, Track
+from common.schema import Features, ManagerStatus, Pose, PtzReply, PtzRequest, PtzState, SensorInfo, Track
+from common.schema import PoseEstimate as WirePoseEstimate
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import Inbox, TypedPublisher
 from resource_manager.config import ManagerConfig
@@ -255,6 +257,16 @@ class ManagerNode:
             duplicate_msgs=c.duplicate if c else 0,
             out_of_order_msgs=c.out_of_order if c else 0,
             dropped_msgs=sum(i.counters.dropped for i in inboxes) + (c.dropped if c else 0),
+            sensors_absent=(c.sensors_absent if c else [])[:64],
+            poses=[
+                WirePoseEstimate(
+                    sensor_id=p.sensor_id,
+                    pose=Pose(x_m=p.x_m, y_m=p.y_m, z_m=p.z_m, yaw_rad=wrap_angle(p.yaw_rad)),
+                    source=p.source,
+                    sigma_m=p.sigma_xy_m,
+                )
+                for p in (c.poses if c else ())[:64]
+            ],
         )
         self.pub_status.put(msg)
         self.tick_ms.clear()

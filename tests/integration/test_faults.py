@@ -279,9 +279,11 @@ def test_kill9_sensor_node_tracking_continues_and_it_rejoins(site: FaultSite) ->
         # Presence goes at once (the OS closes the socket), and the manager stops using the camera.
         wait_for(lambda: obs.alive_change(site.keys.sensor(victim), False, t_kill), 5.0, f"{victim}'s token to go")
         wait_for(
-            lambda: any(victim not in s.sensors_in_use for s in obs.status_since(t_kill + 0.5)),
+            lambda: any(
+                victim not in s.sensors_in_use and victim in s.sensors_absent for s in obs.status_since(t_kill + 0.5)
+            ),
             10.0,
-            f"the manager's status to leave {victim} out",
+            f"the manager's status to mark {victim} absent",
         )
         t_gone = time.monotonic()
         # Tracking continues on the remaining cameras, and nothing claims the dead camera.
@@ -294,6 +296,12 @@ def test_kill9_sensor_node_tracking_continues_and_it_rejoins(site: FaultSite) ->
             lambda: obs.alive_change(site.keys.sensor(victim), True, t_restart), 10.0, f"{victim}'s token again"
         )
         wait_for(lambda: obs.tracking_with(t_restart, {victim}, min_sets=3), 15.0, f"{victim} in use again")
+        t_back = time.monotonic()
+        wait_for(
+            lambda: any(victim not in s.sensors_absent for s in obs.status_since(t_back)),
+            5.0,
+            f"the manager's status to stop marking {victim} absent",
+        )
         rejoin_s = t_token - t_restart
         assert rejoin_s <= 3.0, f"{victim} announced itself {rejoin_s:.2f} s after its restart (goal: within 3 s)"
     for p in site.procs:
