@@ -46,6 +46,8 @@ class PlotInput:
     states: tuple[str, ...] = ("confirmed", "coasting")
     gt_cameras: dict[str, list[tuple[float, float]]] | None = None
     """True paths of the camera platforms (simulation), drawn in the ground-truth panel."""
+    mutual_paths: dict[str, list[tuple[float, float]]] | None = None
+    """Mobile cameras as the manager placed them by mutual calibration, drawn in the tracks panel."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,6 +186,8 @@ def render_top_view(inp: PlotInput, max_px: int = 900) -> Image:
     view = _View(x0, y0, x1, y1, scale)
     left = _panel(view, inp, "tracks" + (f"  {inp.title}" if inp.title else ""))
     _cameras(left, view, inp)
+    if inp.mutual_paths:
+        _platforms(left, view, inp.mutual_paths)
     paths: dict[str, list[tuple[float, float]]] = {}
     for ts in inp.tracksets:
         for tr in ts.tracks:

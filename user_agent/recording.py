@@ -75,6 +75,8 @@ class Recording:
     plans: list[ViewPlan] = field(default_factory=list)
     node_status: dict[str, NodeStatus] = field(default_factory=dict)
     manager_status: dict[str, ManagerStatus] = field(default_factory=dict)
+    mutual_paths: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    """Where the managers placed each mobile camera by mutual calibration, in status order."""
     samples: int = 0
     invalid: int = 0
     first_log_ns: int = 0
@@ -120,5 +122,8 @@ def load_recording(path: str | Path) -> Recording:
             rec.node_status[msg.sensor_id] = msg
         elif isinstance(msg, ManagerStatus):
             rec.manager_status[msg.manager_id] = msg
+            for est in msg.poses:
+                if est.source == "mutual":
+                    rec.mutual_paths.setdefault(est.sensor_id, []).append((est.pose.x_m, est.pose.y_m))
     rec.tracksets.sort(key=lambda t: t.stamp_ns)
     return rec

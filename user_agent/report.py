@@ -96,5 +96,6 @@ def plot_recording(
         room_m=room_of(r),
         title=title,
         gt_cameras=gt_cameras,
+        mutual_paths=r.mutual_paths,
     )
     return save_top_view(inp, out)

@@ -116,3 +116,26 @@ def test_plot_draws_tracks_and_ground_truth_side_by_side(recorded: tuple[Path, P
     sat = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)[:, :, 1]
     half = img.shape[1] // 2
     assert (sat[:, :half] > 120).sum() > 200 and (sat[:, half:] > 120).sum() > 200
+
+
+def test_mobile_cameras_placed_by_mutual_calibration_are_collected_and_drawn(tmp_path: Path) -> None:
+    from common.schema import ManagerStatus
+    from common.schema import PoseEstimate as WirePose
+
+    sink = McapSink(tmp_path / "m.mcap", {"epoch_ns": str(EPOCH), "fps": str(FPS), "room_x_m": "8", "room_y_m": "6"})
+    for i in range(5):
+        poses = [
+            WirePose(sensor_id="pano1", pose=Pose(x_m=1.0, y_m=1.0, z_m=1.1, yaw_rad=0.0), source="surveyed"),
+            WirePose(sensor_id="pano2", pose=Pose(x_m=2.0 + i, y_m=3.0, z_m=1.1, yaw_rad=0.0), source="mutual"),
+        ]
+        ms = ManagerStatus(manager_id="mgr1", seq=i, stamp_ns=EPOCH + i, tick_ms=1.0, tick_p99_ms=2.0,
+                           tick_rate_hz=10.0, poses=poses)  # fmt: skip
+        sink.write(K.manager_status("mgr1"), encode(ms), EPOCH + i)
+    sink.close()
+    rec = load_recording(tmp_path / "m.mcap")
+    assert rec.mutual_paths == {"pano2": [(2.0 + i, 3.0) for i in range(5)]}  # surveyed poses are not paths
+    with_path = cv2.imread(str(plot_recording(load_recording(tmp_path / "m.mcap"), tmp_path / "a.png")))
+    rec.mutual_paths.clear()
+    without = cv2.imread(str(plot_recording(rec, tmp_path / "b.png")))
+    assert with_path is not None and without is not None
+    assert (with_path != without).any()  # the mobile camera's path and body are drawn
