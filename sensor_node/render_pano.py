@@ -83,10 +83,21 @@ def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
         labels[r0:r1, sl] = np.where(alpha >= 0.5, label, sub)
 
 
-def _rows(cam: CylindricalCamera, v_top: F64, v_bot: F64) -> tuple[int, int] | None:
+def _coverage(
+    cam: CylindricalCamera, v_top: F64, v_bot: F64, cover: F64
+) -> tuple[int, F64, npt.NDArray[np.float32]] | None:
+    """The rows a shape spans per column, and each pixel's coverage (vertical overlap × column cover).
+
+    Returns ``(r0, v, alpha)``: the first row, the row centres as a column vector, and alpha of shape
+    (rows, columns); None when the shape falls outside the panorama.
+    """
     r0 = max(0, math.floor(float(np.min(v_top)) + 0.5))
     r1 = min(cam.height_px - 1, math.ceil(float(np.max(v_bot)) - 0.5))
-    return None if r1 < r0 else (r0, r1)
+    if r1 < r0:
+        return None
+    v = np.arange(r0, r1 + 1, dtype=np.float64)[:, None]
+    cov_v = np.clip(np.minimum(v + 0.5, v_bot[None, :]) - np.maximum(v - 0.5, v_top[None, :]), 0.0, 1.0)
+    return r0, v, (cov_v * cover[None, :]).astype(np.float32)
 
 
 def _band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt.NDArray[np.float32]:
@@ -139,13 +150,10 @@ def _paint_cylinder(
     fv, v0, oz = cam.f_v_px, cam.v0_px, view.z_m
     v_top = v0 - fv * (c.z1_m - oz) / (t_far if c.z1_m < oz else t_near)
     v_bot = v0 - fv * (c.z0_m - oz) / (t_far if c.z0_m > oz else t_near)
-    rows = _rows(cam, v_top, v_bot)
-    if rows is None:
+    spanned = _coverage(cam, v_top, v_bot, cover)
+    if spanned is None:
         return
-    r0, r1 = rows
-    v = np.arange(r0, r1 + 1, dtype=np.float64)[:, None]
-    cov_v = np.clip(np.minimum(v + 0.5, v_bot[None, :]) - np.maximum(v - 0.5, v_top[None, :]), 0.0, 1.0)
-    alpha = (cov_v * cover[None, :]).astype(np.float32)
+    r0, v, alpha = spanned
     # Shading: Lambert toward the viewer on the side, caps a little darker, lit from above.
     hx, hy = qx + t_near * dlx, qy + t_near * dly  # unit-circle coordinates of the hit
     nx, ny = hx / c.b_m, hy / c.a_m
@@ -183,13 +191,10 @@ def _paint_head(
     fv, v0, oz = cam.f_v_px, cam.v0_px, view.z_m
     v_top = v0 - fv * (h.zc_m + h.rv_m * f - oz) / dist
     v_bot = v0 - fv * (h.zc_m - h.rv_m * f - oz) / dist
-    rows = _rows(cam, v_top, v_bot)
-    if rows is None:
+    spanned = _coverage(cam, v_top, v_bot, cover)
+    if spanned is None:
         return
-    r0, r1 = rows
-    v = np.arange(r0, r1 + 1, dtype=np.float64)[:, None]
-    cov_v = np.clip(np.minimum(v + 0.5, v_bot[None, :]) - np.maximum(v - 0.5, v_top[None, :]), 0.0, 1.0)
-    alpha = (cov_v * cover[None, :]).astype(np.float32)
+    r0, v, alpha = spanned
     # Surface normal (horizontal part) at the visible point, to choose face or hair.
     t_hit = dist - h.rh_m * f
     hx = (t_hit * np.cos(theta) - sx) / h.rh_m
