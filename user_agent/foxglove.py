@@ -13,9 +13,10 @@ Pure: builds dicts; the recorder serialises them.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, Final
 
-from common.schema import SensorInfo, TrackSet
+from common.schema import Pose, SensorInfo, TrackSet
 from user_agent.colors import id_color
 from user_agent.messages import placed_pose
 
@@ -279,11 +280,18 @@ def tracks_scene(ts: TrackSet, camera_xyz: dict[str, tuple[float, float, float]]
     return {"deletions": [], "entities": entities}
 
 
-def cameras_scene(infos: list[SensorInfo], stamp_ns: int) -> dict:
-    """A SceneUpdate drawing every camera whose pose is known (robot body, lens, label)."""
+def cameras_scene(infos: list[SensorInfo], stamp_ns: int, poses: Mapping[str, Pose] | None = None) -> dict:
+    """A SceneUpdate drawing every camera whose pose is known (robot body, lens, label).
+
+    Args:
+        infos: the sensors' SensorInfo.
+        stamp_ns: the scene's time.
+        poses: where each camera is (:func:`user_agent.messages.camera_poses`: surveyed, or mobile cameras where
+            the manager's mutual calibration places them); default: the surveyed poses of ``infos`` only.
+    """
     entities = []
     for info in infos:
-        p = placed_pose(info)
+        p = poses.get(info.sensor_id) if poses is not None else placed_pose(info)
         if p is None:
             continue
         col = _color(info.sensor_id)
@@ -320,15 +328,15 @@ def cameras_scene(infos: list[SensorInfo], stamp_ns: int) -> dict:
     return {"deletions": [], "entities": entities}
 
 
-def frame_transform(info: SensorInfo, stamp_ns: int) -> dict | None:
+def frame_transform(sensor_id: str, pose: Pose | None, stamp_ns: int) -> dict | None:
     """FrameTransform world -> the sensor's frame (None when its pose is unknown)."""
-    p = placed_pose(info)
+    p = pose
     if p is None:
         return None
     return {
         "timestamp": _time(stamp_ns),
         "parent_frame_id": WORLD_FRAME,
-        "child_frame_id": info.sensor_id,
+        "child_frame_id": sensor_id,
         "translation": {"x": p.x_m, "y": p.y_m, "z": p.z_m},
         "rotation": _yaw_quat(p.yaw_rad),
     }

@@ -8,7 +8,9 @@ Per zenoh key the file holds (notes/zenoh.md §7.1):
 * a **JSON** channel (topic ``/json/<key>``) with the message type's JSON
   schema (``pano.TrackSet``, …) so any MCAP tool shows the fields;
 * and, for the 3D view in Foxglove, ``/scene/tracks`` and ``/scene/cameras``
-  (``foxglove.SceneUpdate``) and ``/tf`` (``foxglove.FrameTransform``).
+  (``foxglove.SceneUpdate``) and ``/tf`` (``foxglove.FrameTransform``); mobile
+  cameras are drawn, and their transforms written, where the manager's mutual
+  calibration places them (``ManagerStatus.poses``), each time it does.
 
 Log time is the local arrival time; publish time is the message's own
 ``stamp_ns``. Zenoh's callback only enqueues bytes; a writer thread decodes
@@ -31,7 +33,7 @@ from mcap.writer import CompressionType, Writer
 
 from common.errors import ConfigError
 from common.keys import VERSION, Keys
-from common.schema import SensorInfo, TrackSet, ViewPlan
+from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet, ViewPlan
 from user_agent.foxglove import (
     FRAME_TRANSFORM_SCHEMA,
     SCENE_UPDATE_SCHEMA,
@@ -39,7 +41,7 @@ from user_agent.foxglove import (
     frame_transform,
     tracks_scene,
 )
-from user_agent.messages import decode_on_key, placed_pose, type_for_key
+from user_agent.messages import camera_poses, decode_on_key, type_for_key
 
 __all__ = ["META_NAME", "RAW_ENCODING", "McapSink", "Recorder"]
 
@@ -85,6 +87,8 @@ class McapSink:
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
         self._infos: dict[str, SensorInfo] = {}
+        self._estimates: dict[str, list[PoseEstimate]] = {}
+        """Latest pose estimates per manager (mobile cameras placed by mutual calibration)."""
         self.plans: list[ViewPlan] = []
         """Every view plan written (the simulator's ground truth depends on them)."""
         self._lock = threading.Lock()
@@ -158,18 +162,34 @@ class McapSink:
     def _write_scene(self, msg: Any, log_ns: int, pub_ns: int) -> None:
         scene_sid = self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
         if isinstance(msg, TrackSet):
-            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, i in self._infos.items() if (q := placed_pose(i)) is not None}
+            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, q in self._poses().items()}
             cid = self._channel("/scene/tracks", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
             self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, xyz)).encode())
-        elif isinstance(msg, SensorInfo):
+            return
+        if isinstance(msg, SensorInfo):
             self._infos[msg.sensor_id] = msg
-            cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
-            self._add(cid, log_ns, pub_ns, json.dumps(cameras_scene(list(self._infos.values()), pub_ns)).encode())
-            tf = frame_transform(msg, pub_ns)
+            moved = [msg.sensor_id]
+        elif isinstance(msg, ManagerStatus) and msg.poses:
+            self._estimates[msg.manager_id] = list(msg.poses)
+            moved = [e.sensor_id for e in msg.poses if e.source == "mutual"]
+            if not moved:
+                return
+        else:
+            return
+        poses = self._poses()
+        cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
+        scene = cameras_scene(list(self._infos.values()), pub_ns, poses)
+        self._add(cid, log_ns, pub_ns, json.dumps(scene).encode())
+        tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
+        for sid in moved:
+            tf = frame_transform(sid, poses.get(sid), pub_ns)
             if tf is not None:
-                tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
                 tcid = self._channel("/tf", MessageEncoding.JSON, tf_sid, {"kind": "foxglove"})
                 self._add(tcid, log_ns, pub_ns, json.dumps(tf).encode())
+
+    def _poses(self) -> dict[str, Pose]:
+        """Every camera's known pose: surveyed, or where a manager's mutual calibration places it."""
+        return camera_poses(self._infos, (e for ests in self._estimates.values() for e in ests))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         with self._lock:

@@ -121,6 +121,24 @@ def _managers_table(managers: Sequence[ManagerView]) -> str:
     return format_table(heads, rows)
 
 
+def _poses_table(managers: Sequence[ManagerView]) -> str:
+    rows = [
+        (
+            e.sensor_id,
+            e.source,
+            f"{e.pose.x_m:7.2f}",
+            f"{e.pose.y_m:7.2f}",
+            f"{math.degrees(e.pose.yaw_rad):7.1f}",
+            f"{e.sigma_m:5.3f}",
+            m.manager_id,
+        )
+        for m in managers
+        if m.status is not None
+        for e in m.status.poses
+    ]
+    return format_table(("sensor", "pose", "x_m", "y_m", "yaw_deg", "sigma_m", "manager"), rows)
+
+
 def watch_screen(
     tracks: Sequence[Track], sensors: Sequence[SensorView], managers: Sequence[ManagerView], header: str = ""
 ) -> str:
@@ -136,4 +154,8 @@ def watch_screen(
     parts.append("")
     parts.append("MANAGERS")
     parts.append(_managers_table(managers) if managers else "(none)")
+    if any(m.status is not None and m.status.poses for m in managers):
+        parts.append("")
+        parts.append("CAMERA POSES (where the manager places each camera: surveyed, or mutual calibration)")
+        parts.append(_poses_table(managers))
     return "\n".join(parts) + "\n"

@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import pytest
 from mcap.reader import make_reader
+from msgspec.structs import replace as msgspec_replace
 
 from common.codec import encode
 from common.keys import Keys
@@ -139,3 +140,29 @@ def test_mobile_cameras_placed_by_mutual_calibration_are_collected_and_drawn(tmp
     without = cv2.imread(str(plot_recording(rec, tmp_path / "b.png")))
     assert with_path is not None and without is not None
     assert (with_path != without).any()  # the mobile camera's path and body are drawn
+
+
+def test_mobile_camera_is_drawn_where_the_manager_places_it(tmp_path: Path) -> None:
+    from common.schema import ManagerStatus, PoseEstimate
+
+    sink = McapSink(tmp_path / "m.mcap", {"epoch_ns": str(EPOCH)})
+    sink.write(K.sensor_info("pano1"), encode(_info("pano1", 0.5, 0.5)), EPOCH)
+    mobile = msgspec_replace(_info("robot", 0.0, 0.0), pose_source="mutual")
+    sink.write(K.sensor_info("robot"), encode(mobile), EPOCH)
+    est = PoseEstimate(sensor_id="robot", pose=Pose(x_m=3.0, y_m=2.0, z_m=0.0, yaw_rad=0.5), source="mutual",
+                       sigma_m=0.04)  # fmt: skip
+    status = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=EPOCH + 10**9, tick_ms=1.0, tick_p99_ms=1.0,
+                           tick_rate_hz=10.0, poses=[est])  # fmt: skip
+    sink.write(K.manager_status("mgr1"), encode(status), EPOCH + 10**9)
+    sink.close()
+    with (tmp_path / "m.mcap").open("rb") as fh:
+        msgs = [
+            (c.topic, json.loads(m.data)) for _, c, m in make_reader(fh).iter_messages(topics=["/scene/cameras", "/tf"])
+        ]
+    cams = [body for topic, body in msgs if topic == "/scene/cameras"]
+    # Before the manager placed it the robot is not drawn (never guessed); after, at the estimate, at its own height.
+    assert [e["id"] for e in cams[1]["entities"]] == ["camera/pano1"]
+    robot = next(e for e in cams[-1]["entities"] if e["id"] == "camera/robot")
+    assert robot["cubes"][0]["pose"]["position"] == {"x": 3.0, "y": 2.0, "z": 1.1}
+    tfs = [body for topic, body in msgs if topic == "/tf" and body["child_frame_id"] == "robot"]
+    assert tfs and tfs[-1]["translation"] == {"x": 3.0, "y": 2.0, "z": 1.1}

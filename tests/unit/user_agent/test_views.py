@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from common.schema import ManagerStatus, NodeStatus, Track
 from user_agent.client import ManagerView, SensorView
 from user_agent.views import format_table, history_table, tracks_table, watch_screen
@@ -44,3 +46,16 @@ def test_watch_screen_has_sensor_fps_drops_clock_and_manager_tick() -> None:
     mgr_row = next(ln for ln in text.splitlines() if ln.startswith("mgr1 "))
     assert mgr_row.split()[:5] == ["mgr1", "up", "2.50", "4.00", "10.0"]
     assert text.startswith("hdr\nTRACKS (1)")
+
+
+def test_watch_screen_lists_the_camera_poses_the_manager_knows() -> None:
+    from common.schema import Pose, PoseEstimate
+
+    est = PoseEstimate(sensor_id="robot1", pose=Pose(x_m=3.25, y_m=2.5, z_m=1.1, yaw_rad=math.pi / 2),
+                       source="mutual", sigma_m=0.042)  # fmt: skip
+    ms = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0,
+                       poses=[est])  # fmt: skip
+    text = watch_screen([], [], [ManagerView("mgr1", True, ms)])
+    row = next(ln for ln in text.splitlines() if ln.startswith("robot1"))
+    assert row.split() == ["robot1", "mutual", "3.25", "2.50", "90.0", "0.042", "mgr1"]
+    assert "CAMERA POSES" not in watch_screen([], [], [ManagerView("mgr1", True, None)])
