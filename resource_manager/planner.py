@@ -2,33 +2,64 @@
 
 For each mobile camera with a known pose, pick the person it should help
 localise, take the other camera of that person's pair as the main camera O1,
-and place the mobile camera O2 where the error map of Fig. 4 is minimal
-relative to the current target: B ≈ 2√(D1 R), cos φ1 = 3BD1/(2D1²+B²)
-(:func:`common.error_model.optimal_positions_world`, model M1). Of the two
-symmetric optima the one nearer the robot wins; the goal is clipped to the
-room. As the person moves, the goal moves: the sensor nodes drive the robots
-there (closed loop).
+and place the mobile camera O2 where the error map of Fig. 4 (model M1,
+:func:`common.error_model.normalised_error_xy`) is minimal relative to the
+current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
+(Eq. 4) -- among the places where the system keeps working:
+
+* **Mutual visibility** (Eq. 3 needs the other body in view): seen from a camera
+  at height z_c whose panorama reaches down to ε_min (-15° for the PAL lens),
+  the marking band of a body at horizontal range D is at elevation
+  atan((z_band - z_c)/(D - R)); it stays in view (with ``elev_margin_rad``) for
+  D >= R + (z_c - z_band)/tan(-ε_min - margin): a minimum baseline to every
+  other panoramic body, both ways. A maximum baseline keeps the body at least
+  ``min_band_px`` wide in the ranging camera: 2·asin(R/B) >= min_band_px·2π/W.
+  The drive there keeps the minimum baseline to the main camera too.
+* **The person in view**: the top of the head (track height) under the upper
+  elevation limit ε_max: D2 >= (h - z_c)/tan(ε_max - margin); and D2 >= D1/2
+  as in :func:`common.error_model.optimal_configuration` (M1 alone rewards
+  parking on the target).
+* **Room and clearance**: inside the room with ``margin_m``; the straight drive
+  keeps ``keep_m`` from every person and clear of every other body; the person
+  does not stand in the line of sight between the goal and the main camera.
+* **Hysteresis**: a new goal only when its predicted error is below
+  (1 - ``gain_frac``) times that of the goal held (or of where the robot stands,
+  before any goal), and not within ``settle_ns`` of the last new goal (or of the
+  first plan for that camera) unless the held one -- or where the robot stands --
+  became infeasible, so the robot can settle, relearn its background and be
+  re-calibrated. The held goal is re-published every period (a repeat:
+  the simulated world and :func:`common.scenario.goals_from_plans` ignore it).
+
+The candidates are a grid (``grid_step_m``) over the room (or around the
+target); the map is smooth and flat near its minimum (notes/geometry.md §2.3).
 
 Assignment: each mobile camera takes the confirmed track with the largest
-predicted error among those it is not already the best for, nearest first when
-equal; two mobile cameras never take the same person.
+predicted error among those not yet taken, nearest first when equal; two mobile
+cameras never take the same person.
 """
 
 from __future__ import annotations
 
+import logging
 import math
-from dataclasses import dataclass, field
-from functools import lru_cache
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import OptimalConfig, m1_error, optimal_configuration
-from common.errors import GeometryError
+from common.error_model import normalised_error_xy
+from common.schema import PanoramicModel, SensorInfo
 
-__all__ = ["PlanGoal", "PlannerParams", "ViewPlanner"]
+__all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
+
+logger = logging.getLogger(__name__)
 
 FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+PAL_ELEV_MIN_RAD = math.radians(-15.0)
+PAL_ELEV_MAX_RAD = math.radians(20.0)
+"""The PAL lens' elevation range (paper, Fig. 1; ``common.cameras.design_pal``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,6 +69,27 @@ class PlannerParams:
     room: tuple[float, float, float, float] | None = None
     margin_m: float = 0.4
     min_move_m: float = 0.15
+    """A new goal closer than this to the held one is not a new goal."""
+    gain_frac: float = 0.25
+    """Hysteresis: re-plan only when the predicted error falls below (1 - gain_frac) of the held goal's."""
+    settle_ns: int = 4_000_000_000
+    """After a new goal, keep it this long unless it becomes infeasible."""
+    band_z_m: float = 0.57
+    """Height of the middle of the bodies' marking band (0.55..0.72 of a 0.9 m body)."""
+    elev_margin_rad: float = math.radians(1.0)
+    """Margin inside the elevation limits for bands and heads."""
+    min_band_px: float = 12.0
+    """The ranged body must be at least this wide in the panorama (maximum baseline)."""
+    keep_m: float = 0.8
+    """Clearance from people on the drive and at the goal."""
+    body_clearance_m: float = 0.15
+    """Extra clearance between two bodies (beyond the sum of their radii)."""
+    sight_clearance_m: float = 0.35
+    """The person must be this far from the line of sight goal - main camera."""
+    grid_step_m: float = 0.1
+    travel_frac_per_m: float = 0.01
+    """Among near-equal goals (the map is flat; Fig. 4 has two symmetric optima) the nearer wins: the
+    error is weighed (1 + this x the drive's length) when choosing."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,6 +112,8 @@ class PlanTarget:
     xy: FloatArray
     predicted_error_m: float
     sensors: tuple[str, ...]
+    height_m: float = 1.8
+    """Top of the head above the floor."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,23 +121,62 @@ class PlanCamera:
     sensor_id: str
     xy: FloatArray
     radius_m: float
-    """Body radius R used by Eq. 3 (the error model's baseline term)."""
+    """Body radius R used by Eq. 3 (the error model's baseline term); 0: no body."""
     sigma_rad: float
     mobile: bool
+    z_m: float = 1.1
+    """Optical centre height."""
+    elev_min_rad: float = PAL_ELEV_MIN_RAD
+    elev_max_rad: float = PAL_ELEV_MAX_RAD
+    width_px: int = 1080
+    """Panorama width (0: not a panoramic camera, it does not range bodies)."""
+
+
+def plan_camera(sensor_id: str, xy: FloatArray, z_m: float, info: SensorInfo | None, sigma_rad: float) -> PlanCamera:
+    """A :class:`PlanCamera` from a known pose and the sensor's SensorInfo (body, lens elevation range)."""
+    if info is None:
+        return PlanCamera(sensor_id, xy, 0.0, sigma_rad, False, z_m, width_px=0)
+    model = info.model
+    if isinstance(model, PanoramicModel):
+        # tan(e) = (v0 - v) / f_v (common.cameras.CylindricalCamera), rows 0 .. height - 1.
+        e_max = math.atan((model.v0_px + 0.5) / model.f_v_px)
+        e_min = math.atan((model.v0_px - model.height_px + 0.5) / model.f_v_px)
+        return PlanCamera(sensor_id, xy, info.body_radius_m, sigma_rad, info.mobile, z_m, e_min, e_max, model.width_px)
+    return PlanCamera(sensor_id, xy, info.body_radius_m, sigma_rad, info.mobile, z_m, width_px=0)
+
+
+@dataclass(frozen=True, slots=True)
+class _Scene:
+    """One mobile camera's planning problem: itself, the main camera O1, its target, everything else."""
+
+    cam: PlanCamera
+    main: PlanCamera
+    tgt: PlanTarget
+    others: list[PlanCamera]
+    people: list[PlanTarget]
+
+
+@dataclass(slots=True)
+class _Held:
+    xy: tuple[float, float]
+    track_id: str
+    issued_ns: int
 
 
 @dataclass(slots=True)
 class ViewPlanner:
     params: PlannerParams = field(default_factory=PlannerParams)
     last_ns: int = 0
-    last_goal: dict[str, tuple[float, float]] = field(default_factory=dict)
+    held: dict[str, _Held] = field(default_factory=dict)
+    """The goal each mobile camera was last sent (re-published until a better one)."""
+    goals_issued: int = 0
+    """New goals (not repeats) so far."""
+    first_ns: dict[str, int] = field(default_factory=dict)
+    """When each mobile camera was first planned for (its first goal waits ``settle_ns`` from then)."""
 
-    def _clip(self, xy: FloatArray) -> FloatArray:
-        room = self.params.room
-        if room is None:
-            return xy
-        m = self.params.margin_m
-        return np.array([min(max(xy[0], room[0] + m), room[2] - m), min(max(xy[1], room[1] + m), room[3] - m)])
+    @property
+    def last_goal(self) -> dict[str, tuple[float, float]]:
+        return {sid: h.xy for sid, h in self.held.items()}
 
     def plan(
         self, t_ns: int, cameras: list[PlanCamera], targets: list[PlanTarget], force: bool = False
@@ -100,9 +193,14 @@ class ViewPlanner:
         for cam in sorted((c for c in cameras if c.mobile), key=lambda c: c.sensor_id):
             if cam.radius_m <= 0:
                 continue
+            held = self.held.get(cam.sensor_id)
             order = sorted(
                 (t for t in targets if t.track_id not in taken),
-                key=lambda t: (-t.predicted_error_m, float(np.hypot(*(t.xy - cam.xy)))),
+                key=lambda t: (
+                    held is None or t.track_id != held.track_id,
+                    -t.predicted_error_m,
+                    float(np.hypot(*(t.xy - cam.xy))),
+                ),
             )
             for tgt in order:
                 partners = [by_id[s] for s in tgt.sensors if s in by_id and s != cam.sensor_id]
@@ -111,62 +209,186 @@ class ViewPlanner:
                 if not partners:
                     continue
                 main = min(partners, key=lambda c: float(np.hypot(*(c.xy - tgt.xy))))
-                goal = self._goal(cam, main, tgt)
+                others = [c for c in cameras if c.sensor_id != cam.sensor_id]
+                # Where the other robots are going counts as well as where they are.
+                others += [
+                    replace(c, xy=np.asarray(self.held[c.sensor_id].xy))
+                    for c in others
+                    if c.mobile and c.sensor_id in self.held
+                ]
+                goal = self._goal(t_ns, _Scene(cam, main, tgt, others, targets))
                 if goal is None:
                     continue
                 taken.add(tgt.track_id)
-                prev = self.last_goal.get(cam.sensor_id)
-                if (
-                    prev is not None
-                    and math.hypot(goal.goal_xy[0] - prev[0], goal.goal_xy[1] - prev[1]) < self.params.min_move_m
-                ):
-                    goal = PlanGoal(
-                        goal.sensor_id, goal.partner_id, goal.track_id, prev, goal.baseline_m, goal.phi1_rad,
-                        goal.predicted_error_m, goal.current_error_m,
-                    )  # fmt: skip
-                self.last_goal[cam.sensor_id] = goal.goal_xy
                 out.append(goal)
                 break
         return out
 
-    def _goal(self, cam: PlanCamera, main: PlanCamera, tgt: PlanTarget) -> PlanGoal | None:
+    # -- one camera ---------------------------------------------------------------------------------
+    def _goal(self, t_ns: int, sc: _Scene) -> PlanGoal | None:
+        p = self.params
+        cam, main, tgt = sc.cam, sc.main, sc.tgt
         d1 = float(np.hypot(*(tgt.xy - main.xy)))
-        if d1 <= 1e-6:
+        if d1 <= 2 * cam.radius_m:
             return None
-        try:
-            cfg = _optimal(round(d1, 2), round(cam.radius_m, 3))
-        except GeometryError:
-            return None
-        # Fig. 4's frame (O1 at the origin, T on +x) -> world.
-        c, s = (tgt.xy - main.xy) / d1
-        rot = np.array([[c, -s], [s, c]])
-        p_a = main.xy + rot @ np.asarray(cfg.o2_xy_pair[0])
-        p_b = main.xy + rot @ np.asarray(cfg.o2_xy_pair[1])
-        goal = min((p_a, p_b), key=lambda p: float(np.hypot(*(p - cam.xy))))
-        goal = self._clip(np.asarray(goal, dtype=np.float64))
-        sigma = cam.sigma_rad
-        try:
-            at_goal = float(m1_error(main.xy, goal, tgt.xy, cam.radius_m, sigma, baseline_known=False))
-            now = float(m1_error(main.xy, cam.xy, tgt.xy, cam.radius_m, sigma, baseline_known=False))
-        except GeometryError:
-            return None
-        if not math.isfinite(at_goal):
-            at_goal = cfg.normalised_error * d1 * sigma
-        if not math.isfinite(now):
-            now = 1e5
+        xy = self._grid(tgt.xy, d1)
+        err = self._error(xy, sc)
+        ok = self._feasible(xy, sc)
+        travel = 1.0 + p.travel_frac_per_m * np.hypot(*(xy - cam.xy).T)
+        i = int(np.argmin(np.where(ok, err * travel, np.inf)))
+        best_xy, best_err = xy[i], float(err[i]) if ok[i] else math.inf
+        here = cam.xy[None, :]
+        now_err = float(self._error(here, sc)[0])
+        held = self.held.get(cam.sensor_id)
+        if held is not None:
+            h = np.asarray(held.xy)[None, :]
+            held_ok = bool(self._feasible(h, sc, drive=False)[0])
+            ref_xy, ref_err = h[0], float(self._error(h, sc)[0]) if held_ok else math.inf
+        else:
+            here_ok = bool(self._feasible(here, sc, drive=False)[0])
+            ref_xy, ref_err = cam.xy, now_err if here_ok else math.inf
+        since = t_ns - (held.issued_ns if held is not None else self.first_ns.setdefault(cam.sensor_id, t_ns))
+        settling = since < p.settle_ns and math.isfinite(ref_err)
+        better = math.isfinite(best_err) and (not math.isfinite(ref_err) or best_err < (1.0 - p.gain_frac) * ref_err)
+        far = float(np.hypot(*(best_xy - ref_xy))) >= p.min_move_m
+        if better and far and not settling:
+            self.held[cam.sensor_id] = _Held((float(best_xy[0]), float(best_xy[1])), tgt.track_id, t_ns)
+            self.goals_issued += 1
+            logger.info(
+                "plan %s: goal (%.2f, %.2f) for %s with %s, predicted error %.3f m (was %.3f m here, %.3f m held)",
+                cam.sensor_id, best_xy[0], best_xy[1], tgt.track_id, main.sensor_id, best_err, now_err, ref_err,
+            )  # fmt: skip
+            goal_xy, goal_err = best_xy, best_err
+        elif held is not None:
+            if held.track_id != tgt.track_id:
+                self.held[cam.sensor_id] = _Held(held.xy, tgt.track_id, held.issued_ns)
+            goal_xy, goal_err = np.asarray(held.xy), ref_err
+        else:
+            return None  # where it stands is good enough: no goal yet
+        if float(np.hypot(*(goal_xy - cam.xy))) < p.min_move_m:
+            now_err = goal_err  # arrived (the pose estimate's noise is below min_move_m)
+        v1, v2 = tgt.xy - main.xy, goal_xy - main.xy
+        phi1 = abs(math.atan2(v1[0] * v2[1] - v1[1] * v2[0], float(v1 @ v2)))
         return PlanGoal(
             sensor_id=cam.sensor_id,
             partner_id=main.sensor_id,
             track_id=tgt.track_id,
-            goal_xy=(float(goal[0]), float(goal[1])),
-            baseline_m=float(np.hypot(*(goal - main.xy))),
-            phi1_rad=float(cfg.phi1_rad),
-            predicted_error_m=min(at_goal, 1e5),
-            current_error_m=min(now, 1e5),
+            goal_xy=(float(goal_xy[0]), float(goal_xy[1])),
+            baseline_m=float(np.hypot(*v2)),
+            phi1_rad=float(phi1),
+            predicted_error_m=min(goal_err, 1e5),
+            current_error_m=min(now_err, 1e5),
         )
 
+    def _grid(self, centre: FloatArray, d1: float) -> FloatArray:
+        step = self.params.grid_step_m
+        room = self.params.room
+        if room is not None:
+            m = self.params.margin_m
+            x0, y0, x1, y1 = room[0] + m, room[1] + m, room[2] - m, room[3] - m
+        else:
+            half = d1 + 3.0
+            x0, y0, x1, y1 = centre[0] - half, centre[1] - half, centre[0] + half, centre[1] + half
+        xs = np.clip(np.round(np.arange(x0, x1 + 1e-9, step), 6), x0, x1)
+        ys = np.clip(np.round(np.arange(y0, y1 + 1e-9, step), 6), y0, y1)
+        gx, gy = np.meshgrid(xs, ys)
+        return np.stack([gx.ravel(), gy.ravel()], axis=1)
 
-@lru_cache(maxsize=4096)
-def _optimal(d1_m: float, radius_m: float) -> OptimalConfig:
-    """Fig. 4's optimum for (D1, R), cached (D1 rounded to 1 cm: the map is flat near its minimum)."""
-    return optimal_configuration(d1_m, radius_m)
+    @staticmethod
+    def _error(xy: FloatArray, sc: _Scene) -> FloatArray:
+        """Predicted ∂D1 (m) for the mobile camera at each of ``xy``: Fig. 4's map in the world (model M1)."""
+        main, tgt, cam = sc.main, sc.tgt, sc.cam
+        v = tgt.xy - main.xy
+        d1 = float(np.hypot(*v))
+        c, s = v / d1
+        rel = xy - main.xy
+        lx = rel[:, 0] * c + rel[:, 1] * s
+        ly = -rel[:, 0] * s + rel[:, 1] * c
+        e = np.asarray(normalised_error_xy(lx, ly, d1, cam.radius_m), dtype=np.float64)
+        return e * d1 * cam.sigma_rad
+
+    def _feasible(self, xy: FloatArray, sc: _Scene, drive: bool = True) -> BoolArray:
+        """Which of ``xy`` the mobile camera may be sent to (``drive``: also check the way there)."""
+        p = self.params
+        cam, main, tgt = sc.cam, sc.main, sc.tgt
+        ok = np.ones(len(xy), dtype=bool)
+        if p.room is not None:
+            x0, y0, x1, y1 = p.room
+            m = p.margin_m - 1e-6
+            ok &= (xy[:, 0] >= x0 + m) & (xy[:, 0] <= x1 - m) & (xy[:, 1] >= y0 + m) & (xy[:, 1] <= y1 - m)
+        # The person: head top in view, and D2 >= D1 / 2 (the interior optimum of Fig. 4).
+        d1 = float(np.hypot(*(tgt.xy - main.xy)))
+        d2 = np.hypot(*(xy - tgt.xy).T)
+        ok &= d2 >= max(_head_min_range(cam, tgt.height_m, p.elev_margin_rad), 0.5 * d1, p.keep_m)
+        for person in sc.people:
+            ok &= np.hypot(*(xy - person.xy).T) >= p.keep_m
+            if drive:
+                now = float(np.hypot(*(cam.xy - person.xy))) - 1e-6
+                ok &= _segment_dist(cam.xy, xy, person.xy) >= min(p.keep_m, now)
+        # The line of sight to the main camera's body (mutual calibration) not blocked by the person.
+        if main.radius_m > 0:
+            ok &= _segment_dist(main.xy, xy, tgt.xy) >= p.sight_clearance_m
+        ranged = np.zeros(len(xy), dtype=bool)
+        for other in sc.others:
+            d = np.hypot(*(xy - other.xy).T)
+            clear = cam.radius_m + max(other.radius_m, 0.1) + p.body_clearance_m
+            lo = max(clear, _min_baseline(cam, other, p))
+            ok &= d >= lo
+            if drive:
+                # The way there: clear of every body, and no nearer to the main camera's than the goal's
+                # minimum baseline (its sightings range the robot all along), unless it starts nearer.
+                now = float(np.hypot(*(cam.xy - other.xy))) - 1e-6
+                ok &= _segment_dist(cam.xy, xy, other.xy) >= min(lo if other is main else clear, now)
+            if other.radius_m > 0 and cam.width_px > 0:
+                ranged |= d <= _max_baseline(cam, other, p)
+            if other is main and main.radius_m > 0:
+                ok &= d <= _max_baseline(cam, other, p)
+        if any(o.radius_m > 0 for o in sc.others):
+            ok &= ranged
+        return ok
+
+
+def _head_min_range(cam: PlanCamera, head_m: float, margin_rad: float) -> float:
+    """Nearest horizontal range at which the top of a head ``head_m`` high is under the upper elevation limit."""
+    up = cam.elev_max_rad - margin_rad
+    if head_m <= cam.z_m or up <= 0:
+        return 0.0
+    return (head_m - cam.z_m) / math.tan(up)
+
+
+def _band_range(seer: PlanCamera, body: PlanCamera, p: PlannerParams) -> float:
+    """Nearest range (axis to axis) at which ``seer`` sees ``body``'s band above its lower elevation limit."""
+    if seer.width_px <= 0 or body.radius_m <= 0:
+        return 0.0
+    drop = seer.z_m - p.band_z_m
+    down = -(seer.elev_min_rad + p.elev_margin_rad)
+    if drop <= 0 or down <= 0:
+        return 0.0
+    return body.radius_m + drop / math.tan(down)
+
+
+def _min_baseline(cam: PlanCamera, other: PlanCamera, p: PlannerParams) -> float:
+    """Mutual visibility: each body's band within the other's elevation range (both ways)."""
+    return max(_band_range(cam, other, p), _band_range(other, cam, p))
+
+
+def _max_baseline(cam: PlanCamera, other: PlanCamera, p: PlannerParams) -> float:
+    """Farthest range at which each body is ``min_band_px`` wide in the other's panorama (Eq. 3's α)."""
+    out = math.inf
+    for seer, body in ((cam, other), (other, cam)):
+        if seer.width_px <= 0 or body.radius_m <= 0:
+            continue
+        half = math.pi * p.min_band_px / seer.width_px
+        if half < math.pi / 2:
+            out = min(out, body.radius_m / math.sin(half))
+    return out
+
+
+def _segment_dist(a: FloatArray, b: FloatArray, q: FloatArray) -> FloatArray:
+    """Distance from point ``q`` to each segment a -> b[i] (``a`` and ``q`` points, ``b`` (N, 2))."""
+    ab = b - a
+    n2 = np.einsum("ij,ij->i", ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(n2 > 0, (ab @ (q - a)) / n2, 0.0)
+    near = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+    return np.asarray(np.hypot(*(near - q).T), dtype=np.float64)
