@@ -40,7 +40,9 @@ __all__ = [
     "normalised_error_xy",
     "optimal_configuration",
     "optimal_positions_world",
+    "pair_error_f",
     "pair_position_error",
+    "pair_position_errors",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -240,17 +242,62 @@ def pair_position_error(
     (first order, Eq. 1); a baseline error sigma_B scales the triangle about O1
     and adds D1 sigma_B / B in quadrature. Degenerate geometry (target on the
     baseline line or at a camera) gives a large value, capped at MAX_ERROR_M.
+    :func:`pair_position_errors` is the same for many pairs at once.
     """
     o1 = np.asarray(o1_xy, dtype=np.float64).reshape(2)
     o2 = np.asarray(o2_xy, dtype=np.float64).reshape(2)
     t = np.asarray(target_xy, dtype=np.float64).reshape(2)
-    v1, v2 = t - o1, t - o2
-    d1, d2 = float(np.hypot(*v1)), float(np.hypot(*v2))
-    b = float(np.hypot(*(o2 - o1)))
+    return pair_error_f(
+        float(o1[0]),
+        float(o1[1]),
+        float(o2[0]),
+        float(o2[1]),
+        float(t[0]),
+        float(t[1]),
+        float(sigma_bearing_rad),
+        float(sigma_baseline_m),
+    )
+
+
+def pair_error_f(  # noqa: PLR0917 - eight plain floats, the hot path of pair ranking and localisation
+    x1: float, y1: float, x2: float, y2: float, tx: float, ty: float, sigma_bearing_rad: float, sigma_baseline_m: float
+) -> float:
+    """:func:`pair_position_error` on plain floats (no array conversion: the per-candidate hot path)."""
+    v1x, v1y, v2x, v2y = tx - x1, ty - y1, tx - x2, ty - y2
+    d1, d2 = math.hypot(v1x, v1y), math.hypot(v2x, v2y)
+    b = math.hypot(x2 - x1, y2 - y1)
     if d1 <= 0 or d2 <= 0 or b <= 0:
         return MAX_ERROR_M
-    sin0 = abs(float(v1[0] * v2[1] - v1[1] * v2[0])) / (d1 * d2)
+    sin0 = abs(v1x * v2y - v1y * v2x) / (d1 * d2)
     if sin0 * MAX_ERROR_M <= sigma_bearing_rad * math.hypot(d1, d2):
         return MAX_ERROR_M
     var = (sigma_bearing_rad * math.hypot(d1, d2) / sin0) ** 2 + (d1 * sigma_baseline_m / b) ** 2
     return min(math.sqrt(var), MAX_ERROR_M)
+
+
+def pair_position_errors(
+    o1_xy: npt.ArrayLike,
+    o2_xy: npt.ArrayLike,
+    target_xy: npt.ArrayLike,
+    sigma_bearing_rad: npt.ArrayLike,
+    sigma_baseline_m: npt.ArrayLike = 0.0,
+) -> FloatArray:
+    """:func:`pair_position_error` for N pairs in one pass: (N, 2) origins, a (2,) or (N, 2) target, (N,) or
+    scalar sigmas; returns (N,) errors, equal to the scalar function's up to rounding."""
+    o1 = np.asarray(o1_xy, dtype=np.float64).reshape(-1, 2)
+    o2 = np.asarray(o2_xy, dtype=np.float64).reshape(-1, 2)
+    t = np.asarray(target_xy, dtype=np.float64)
+    t = t.reshape(-1, 2) if t.size != 2 else t.reshape(1, 2)
+    sigma = np.asarray(sigma_bearing_rad, dtype=np.float64)
+    sigma_b = np.asarray(sigma_baseline_m, dtype=np.float64)
+    v1, v2 = t - o1, t - o2
+    d1 = np.hypot(v1[:, 0], v1[:, 1])
+    d2 = np.hypot(v2[:, 0], v2[:, 1])
+    b = np.hypot(o2[:, 0] - o1[:, 0], o2[:, 1] - o1[:, 1])
+    dd = np.hypot(d1, d2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin0 = np.abs(v1[:, 0] * v2[:, 1] - v1[:, 1] * v2[:, 0]) / (d1 * d2)
+        var = (sigma * dd / sin0) ** 2 + (d1 * sigma_b / b) ** 2
+        out = np.minimum(np.sqrt(var), MAX_ERROR_M)
+    degenerate = (d1 <= 0) | (d2 <= 0) | (b <= 0) | (sin0 * MAX_ERROR_M <= sigma * dd)
+    return np.asarray(np.where(degenerate, MAX_ERROR_M, out), dtype=np.float64)

@@ -53,12 +53,21 @@ MAX_SIZE_RATIO_OFFSET_RAD = math.radians(10.0)
 
 def wrap_angle(a: Any) -> Any:
     """Wrap angle(s) to [-pi, pi). Returns a float for a scalar, an array for an array."""
+    if type(a) is float or type(a) is int:  # plain Python numbers: float % is np.mod's rule, ~10x cheaper
+        return (a + math.pi) % TWO_PI - math.pi
     w = np.mod(np.asarray(a, dtype=np.float64) + math.pi, TWO_PI) - math.pi
     return float(w) if np.ndim(w) == 0 else w
 
 
-def _scalar_or(x: FloatArray, like: Any) -> Any:
-    return float(x) if np.ndim(like) == 0 and np.ndim(x) == 0 else x
+def _triangulate_f(b: float, p1: float, p2: float) -> tuple[float, float]:
+    """Eq. (1) on plain floats (the scalar branch of :func:`triangulate`; numpy on 0-d arrays costs ~10x)."""
+    s0 = math.sin(p1 + p2)
+    if not (p1 >= 0 and p2 >= 0 and p1 + p2 < math.pi and s0 > 1e-12 and b > 0):
+        raise GeometryError(
+            f"triangulation needs converging rays: phi1={p1:.6g}, phi2={p2:.6g} rad "
+            f"(expected >= 0 with phi1 + phi2 < pi), B={b:.6g} m (expected > 0)"
+        )
+    return b * math.sin(p2) / s0, b * math.sin(p1) / s0
 
 
 def triangulate(b_m: Any, phi1_rad: Any, phi2_rad: Any) -> tuple[Any, Any]:
@@ -68,22 +77,16 @@ def triangulate(b_m: Any, phi1_rad: Any, phi2_rad: Any) -> tuple[Any, Any]:
     converge (phi1, phi2 >= 0 and phi1 + phi2 < pi required, with a non-zero
     angle at T); arrays return NaN there instead.
     """
+    if np.ndim(b_m) == 0 and np.ndim(phi1_rad) == 0 and np.ndim(phi2_rad) == 0:
+        return _triangulate_f(float(b_m), float(phi1_rad), float(phi2_rad))
     b = np.asarray(b_m, dtype=np.float64)
     p1 = np.asarray(phi1_rad, dtype=np.float64)
     p2 = np.asarray(phi2_rad, dtype=np.float64)
     s0 = np.sin(p1 + p2)  # = sin(phi0), phi0 = pi - phi1 - phi2
     ok = (p1 >= 0) & (p2 >= 0) & (p1 + p2 < math.pi) & (s0 > 1e-12) & (b > 0)
-    scalar = np.ndim(b_m) == 0 and np.ndim(phi1_rad) == 0 and np.ndim(phi2_rad) == 0
-    if scalar and not bool(ok):
-        raise GeometryError(
-            f"triangulation needs converging rays: phi1={float(p1):.6g}, phi2={float(p2):.6g} rad "
-            f"(expected >= 0 with phi1 + phi2 < pi), B={float(b):.6g} m (expected > 0)"
-        )
     with np.errstate(divide="ignore", invalid="ignore"):
         d1 = np.where(ok, b * np.sin(p2) / s0, np.nan)
         d2 = np.where(ok, b * np.sin(p1) / s0, np.nan)
-    if scalar:
-        return float(d1), float(d2)
     return d1, d2
 
 
@@ -246,23 +249,26 @@ def localize_pair(  # noqa: PLR0917 - positional signature fixed by the team con
     :data:`MAX_SIZE_RATIO_OFFSET_RAD` of it. Widths enter Eq. (2) as sin(w/2),
     exact for a cylindrical body (sin(w/2) = r/D).
     """
+    # Plain floats throughout: this runs for every candidate pair of every person on every tick.
     p1 = np.asarray(o1_xy, dtype=np.float64).reshape(2)
     p2 = np.asarray(o2_xy, dtype=np.float64).reshape(2)
-    base = p2 - p1
-    b = float(np.hypot(*base))
+    x1, y1, x2, y2 = float(p1[0]), float(p1[1]), float(p2[0]), float(p2[1])
+    bearing1_world, bearing2_world = float(bearing1_world), float(bearing2_world)
+    bx, by = x2 - x1, y2 - y1
+    b = math.hypot(bx, by)
     if b <= 0:
         raise GeometryError("the two cameras are at the same position: baseline B = 0")
-    psi12 = math.atan2(base[1], base[0])
-    a1 = wrap_angle(bearing1_world - psi12)
-    a2 = wrap_angle(psi12 + math.pi - bearing2_world)
-    phi0 = min(max(math.pi - abs(a1) - abs(a2), 0.0), math.pi)
-    nan2 = np.full(2, np.nan)
+    psi12 = math.atan2(by, bx)
+    a1 = (bearing1_world - psi12 + math.pi) % TWO_PI - math.pi  # wrap_angle
+    a2 = (psi12 + math.pi - bearing2_world + math.pi) % TWO_PI - math.pi
+    abs1, abs2 = abs(a1), abs(a2)
+    phi0 = min(max(math.pi - abs1 - abs2, 0.0), math.pi)
 
     # Eq. (2) candidate: angular offsets from the baseline line and signs from the cosines.
-    delta1 = min(abs(a1), math.pi - abs(a1))
-    delta2 = min(abs(a2), math.pi - abs(a2))
-    c1 = 1.0 if abs(a1) < math.pi / 2 else -1.0
-    c2 = 1.0 if abs(a2) < math.pi / 2 else -1.0
+    delta1 = min(abs1, math.pi - abs1)
+    delta2 = min(abs2, math.pi - abs2)
+    c1 = 1.0 if abs1 < math.pi / 2 else -1.0
+    c2 = 1.0 if abs2 < math.pi / 2 else -1.0
     use_size = False
     if max(delta1, delta2) < MAX_SIZE_RATIO_OFFSET_RAD and (c1 > 0 or c2 > 0) and width1_rad > 0 and width2_rad > 0:
         h_over_w = 0.5 * (
@@ -276,12 +282,13 @@ def localize_pair(  # noqa: PLR0917 - positional signature fixed by the team con
         except GeometryError:
             use_size = False
         else:
-            xy = p1 + d1 * np.array([math.cos(bearing1_world), math.sin(bearing1_world)])
+            xy = np.array([x1 + d1 * math.cos(bearing1_world), y1 + d1 * math.sin(bearing1_world)])
             return PairFix(xy=xy, d1_m=d1, d2_m=d2, method="size_ratio", phi0_rad=phi0, converges=True)
 
-    converges = (a1 > 0) == (a2 > 0) and a1 != 0 and a2 != 0 and abs(a1) + abs(a2) < math.pi
+    converges = (a1 > 0) == (a2 > 0) and a1 != 0 and a2 != 0 and abs1 + abs2 < math.pi
     if not converges:
+        nan2 = np.full(2, np.nan)
         return PairFix(xy=nan2, d1_m=math.nan, d2_m=math.nan, method="triangulation", phi0_rad=phi0, converges=False)
-    d1, d2 = triangulate(b, abs(a1), abs(a2))
-    xy = p1 + d1 * np.array([math.cos(bearing1_world), math.sin(bearing1_world)])
+    d1, d2 = _triangulate_f(b, abs1, abs2)
+    xy = np.array([x1 + d1 * math.cos(bearing1_world), y1 + d1 * math.sin(bearing1_world)])
     return PairFix(xy=xy, d1_m=d1, d2_m=d2, method="triangulation", phi0_rad=phi0, converges=True)

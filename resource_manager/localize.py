@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import pair_position_error
+from common.error_model import pair_error_f
 from common.geometry import intersect_rays, localize_pair
 from common.schema import Method
 from resource_manager.match import ViewBlobs
@@ -96,11 +96,11 @@ def localize_best_pair(
     )
     if not fix.converges:
         return None
-    xy = np.asarray(fix.xy, dtype=np.float64)
-    if not np.all(np.isfinite(xy)):
+    xy = fix.xy
+    x, y = float(xy[0]), float(xy[1])
+    if not (math.isfinite(x) and math.isfinite(y)):
         return None
     o1, o2 = a.origin_xy, b.origin_xy
-    x, y = float(xy[0]), float(xy[1])
     x1, y1, x2, y2 = float(o1[0]), float(o1[1]), float(o2[0]), float(o2[1])
     base = math.hypot(x2 - x1, y2 - y1)
     d1, d2 = float(fix.d1_m), float(fix.d2_m)
@@ -129,9 +129,9 @@ def localize_best_pair(
         cxx, cxy, cyy = cxx + kb * rx * rx, cxy + kb * rx * ry, cyy + kb * ry * ry
     m2 = min_sigma_m**2
     cov = np.array([[cxx + m2, cxy], [cxy, cyy + m2]])
-    predicted = float(pair_position_error(o1, o2, xy, sigma, sigma_base))
+    predicted = pair_error_f(x1, y1, x2, y2, x, y, sigma, sigma_base)
     if fix.method == "size_ratio" or not math.isfinite(predicted):
-        predicted = math.sqrt(float(np.trace(cov)))
+        predicted = math.sqrt((cxx + m2) + (cyy + m2))
     return Measurement(
         xy=xy,
         cov=cov,

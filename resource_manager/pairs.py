@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import pair_position_error
+from common.error_model import pair_error_f
 
 __all__ = ["CameraGeom", "PairCandidate", "rank_pairs"]
 
@@ -50,13 +50,16 @@ def rank_pairs(target_xy: FloatArray, cameras: list[CameraGeom], max_cameras: in
     """Every pair among the cameras that see the target, best (smallest predicted error) first."""
     if len(cameras) < 2:
         return []
-    if len(cameras) > max_cameras:
-        cameras = sorted(cameras, key=lambda c: float(np.hypot(*(c.origin_xy - target_xy))))[:max_cameras]
+    tx, ty = float(target_xy[0]), float(target_xy[1])
+    # Plain floats: at most max_cameras (5) cameras, 10 pairs; numpy per pair (or per 10-element array) costs more.
+    geo = [(c, float(c.origin_xy[0]), float(c.origin_xy[1])) for c in cameras]
+    if len(geo) > max_cameras:
+        geo = sorted(geo, key=lambda g: math.hypot(g[1] - tx, g[2] - ty))[:max_cameras]
     out: list[PairCandidate] = []
-    for ca, cb in itertools.combinations(cameras, 2):
+    for (ca, xa, ya), (cb, xb, yb) in itertools.combinations(geo, 2):
         sigma = math.hypot(ca.sigma_rad, cb.sigma_rad) / math.sqrt(2.0)
         sigma_b = math.hypot(ca.sigma_xy_m, cb.sigma_xy_m)
-        err = float(pair_position_error(ca.origin_xy, cb.origin_xy, target_xy, sigma, sigma_b))
+        err = pair_error_f(xa, ya, xb, yb, tx, ty, sigma, sigma_b)
         if not math.isfinite(err):
             err = math.inf
         out.append(PairCandidate(ca.sensor_id, cb.sensor_id, err))

@@ -16,7 +16,9 @@ from common.error_model import (
     normalised_error_xy,
     optimal_configuration,
     optimal_positions_world,
+    pair_error_f,
     pair_position_error,
+    pair_position_errors,
 )
 from common.geometry import baseline_exact, triangulate, wrap_angle
 
@@ -239,3 +241,40 @@ def test_optimal_configuration_rejects_bad_input(d1: float, r: float) -> None:
 
     with pytest.raises(GeometryError):
         optimal_configuration(d1, r)
+
+
+def _pair_error_numpy(o1: np.ndarray, o2: np.ndarray, t: np.ndarray, sig: float, sig_b: float) -> float:
+    """The error model written with numpy vectors (the formula of pair_position_error, independently)."""
+    v1, v2 = t - o1, t - o2
+    d1, d2, b = np.linalg.norm(v1), np.linalg.norm(v2), np.linalg.norm(o2 - o1)
+    if min(d1, d2, b) <= 0:
+        return MAX_ERROR_M
+    sin0 = abs(float(v1[0] * v2[1] - v1[1] * v2[0])) / (d1 * d2)
+    if sin0 * MAX_ERROR_M <= sig * math.hypot(d1, d2):
+        return MAX_ERROR_M
+    return min(math.sqrt((sig * math.hypot(d1, d2) / sin0) ** 2 + (d1 * sig_b / b) ** 2), MAX_ERROR_M)
+
+
+def test_batched_and_float_pair_errors_equal_the_scalar_one() -> None:
+    """pair_position_errors (N pairs at once) and pair_error_f (plain floats) agree with pair_position_error,
+    degenerate geometry included (target on the baseline line, at a camera, cameras at one place)."""
+    rng = np.random.default_rng(5)
+    n = 400
+    o1 = rng.uniform(-5, 5, (n, 2))
+    o2 = rng.uniform(-5, 5, (n, 2))
+    t = rng.uniform(-5, 5, (n, 2))
+    t[:20] = o1[:20] + rng.uniform(-2, 3, (20, 1)) * (o2[:20] - o1[:20])  # colinear
+    t[20:30] = o2[20:30]  # at camera 2
+    o2[30:40] = o1[30:40]  # zero baseline
+    sig = rng.uniform(1e-4, 0.02, n)
+    sig_b = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(0, 0.2, n))
+    scalar = np.array([pair_position_error(o1[k], o2[k], t[k], sig[k], sig_b[k]) for k in range(n)])
+    reference = np.array([_pair_error_numpy(o1[k], o2[k], t[k], sig[k], sig_b[k]) for k in range(n)])
+    np.testing.assert_allclose(scalar, reference, rtol=1e-12)
+    assert np.count_nonzero(scalar == MAX_ERROR_M) >= 30
+    np.testing.assert_allclose(pair_position_errors(o1, o2, t, sig, sig_b), scalar, rtol=1e-12)
+    floats = [pair_error_f(*o1[k], *o2[k], *t[k], float(sig[k]), float(sig_b[k])) for k in range(n)]
+    assert floats == scalar.tolist()
+    # One target for many pairs, scalar sigmas.
+    one = pair_position_errors(o1, o2, t[50], 0.01)
+    np.testing.assert_allclose(one, [pair_position_error(o1[k], o2[k], t[50], 0.01) for k in range(n)], rtol=1e-12)

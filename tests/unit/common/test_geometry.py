@@ -246,3 +246,21 @@ def test_room_accuracy_with_automatic_choice() -> None:
     auto = run(line, sig_w)
     tri_only = run(line, 1e9)
     assert np.sqrt(np.mean(auto**2)) < 0.5 * np.sqrt(np.mean(np.where(np.isfinite(tri_only), tri_only, 1e3) ** 2))
+
+
+def test_scalar_paths_equal_the_array_paths() -> None:
+    """wrap_angle and triangulate on plain floats (the per-candidate hot path) give the array results."""
+    rng = np.random.default_rng(11)
+    a = rng.uniform(-20, 20, 300)
+    assert [wrap_angle(float(x)) for x in a] == pytest.approx(wrap_angle(a).tolist(), abs=1e-12)
+    assert all(-math.pi <= wrap_angle(float(x)) < math.pi for x in a)
+    assert wrap_angle(3) == 3.0 and isinstance(wrap_angle(3), float) and wrap_angle(4) == pytest.approx(4 - 2 * math.pi)
+    b = rng.uniform(0.5, 8, 300)
+    p1, p2 = rng.uniform(0, 2, 300), rng.uniform(0, 2, 300)
+    d1, d2 = triangulate(b, p1, p2)
+    for k in range(300):
+        if np.isfinite(d1[k]):
+            assert triangulate(float(b[k]), float(p1[k]), float(p2[k])) == pytest.approx((d1[k], d2[k]), rel=1e-12)
+        else:
+            with pytest.raises(GeometryError):
+                triangulate(float(b[k]), float(p1[k]), float(p2[k]))
