@@ -33,7 +33,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.special import ndtr
 
 from common.errors import GeometryError
-from common.geometry import size_ratio, triangulate
+from common.geometry import size_ratio
 
 __all__ = [
     "MATCHERS",
@@ -131,7 +131,8 @@ class MatchMatrix:
     size_ratio: npt.NDArray[np.bool_]
     """(na, nb) True where Eq. 2 (size-ratio) was used instead of Eq. 1."""
     parts: dict[str, FloatArray]
-    """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics)."""
+    """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
+    is evaluated only where Eq. 7 alone exceeds the threshold, the only place it counts."""
 
 
 def _wrap(a: FloatArray) -> FloatArray:
@@ -161,20 +162,76 @@ def match_matrix(
     return match_matrices([(a, b)], params, [temporal], threshold)[0]
 
 
-def _pad(rows: list[FloatArray], n: int, fill: float = np.nan) -> FloatArray:
-    out = np.full((len(rows), max(n, 1)), fill)
-    for k, r in enumerate(rows):
-        out[k, : r.shape[0]] = r
-    return out
+class _Tables:
+    """Per-blob quantities of every view used by a batch of pairs, padded to a common blob count.
+
+    Several pairs share a view (16 cameras, 20 people: ~12 pairs over ~14 views), so each view is padded and
+    its per-blob trigonometry (tan of half widths, tops, bottoms) computed once; pairs gather rows by index.
+    """
+
+    def __init__(self, views: list[ViewBlobs], n: int) -> None:
+        counts = np.array([v.n for v in views], dtype=np.int64)
+        total = int(counts.sum())
+        # Flat positions of every blob in the (v, n) padded tables.
+        starts = np.repeat(np.arange(len(views), dtype=np.int64) * n - np.cumsum(counts) + counts, counts)
+        self.flat = np.arange(total, dtype=np.int64) + starts
+        self.shape = (len(views), n)
+        self.views = views
+        self.total = total
+
+    def table(self, columns: list[list[FloatArray]]) -> FloatArray:
+        """(v, n, c) per-blob values of c columns (one list of per-view arrays each), NaN where padded."""
+        out = np.full((self.shape[0] * self.shape[1], len(columns)), np.nan)
+        if self.total:
+            out[self.flat] = np.column_stack([np.concatenate(col) for col in columns])
+        return out.reshape(self.shape[0], self.shape[1], len(columns))
+
+    def flags(self, arrays: list[npt.NDArray[np.bool_] | None]) -> npt.NDArray[np.bool_]:
+        """(v, n) flags, False where an array is None or padded."""
+        out = np.zeros(self.shape[0] * self.shape[1], dtype=bool)
+        if self.total and any(a is not None for a in arrays):
+            out[self.flat] = np.concatenate(
+                [
+                    a[: v.n] if a is not None else np.zeros(v.n, dtype=bool)
+                    for a, v in zip(arrays, self.views, strict=True)
+                ]
+            )
+        return out.reshape(self.shape)
 
 
-def _pad_bool(arrays: Sequence[npt.NDArray[np.bool_] | None], counts: Sequence[int], n: int) -> npt.NDArray[np.bool_]:
-    """(k, n) flags, False where an array is None or beyond its length."""
-    out = np.zeros((len(arrays), max(n, 1)), dtype=bool)
-    for k, (arr, c) in enumerate(zip(arrays, counts, strict=True)):
-        if arr is not None and c:
-            out[k, :c] = arr[:c]
-    return out
+def _colour(
+    pairs: list[tuple[ViewBlobs, ViewBlobs]],
+    params: MatchParams,
+    shape: tuple[int, int, int],
+    *,
+    tabs: _Tables,
+    ia: npt.NDArray[np.int64],
+    ib: npt.NDArray[np.int64],
+) -> FloatArray:
+    """r_is (p, na, nb): the Bhattacharyya coefficients of the histograms (1 where a view has none)."""
+    if not params.use_colour:
+        return np.ones(shape)
+    roots = [
+        None if v.hist is None else (v.hist_sqrt if v.hist_sqrt is not None else np.sqrt(np.clip(v.hist, 0.0, None)))
+        for v in tabs.views
+    ]
+    bins = {r.shape[1] for r in roots if r is not None}
+    _, na, nb = shape
+    if len(bins) == 1 and all(r is not None for r in roots):
+        # Every view sends histograms of the same size: one stacked product for all pairs.
+        k = next(iter(bins))
+        flat = np.zeros((tabs.shape[0] * tabs.shape[1], k))
+        if tabs.total:
+            flat[tabs.flat] = np.concatenate([r for r in roots if r is not None])
+        table = flat.reshape(tabs.shape[0], tabs.shape[1], k)
+        return np.clip(np.matmul(table[ia, :na], table[ib, :nb].transpose(0, 2, 1)), 0.0, 1.0)
+    out = np.ones(shape)
+    for k, (a, b) in enumerate(pairs):
+        if a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
+            sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
+            sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
+            out[k, : a.n, : b.n] = sa @ sb.T
+    return np.clip(out, 0.0, 1.0)
 
 
 def match_matrices(
@@ -186,152 +243,201 @@ def match_matrices(
 ) -> list[MatchMatrix]:
     """Eq. 7 for several camera pairs at once (one vectorised pass; with many cameras this is most of a tick).
 
-    Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is sliced back
-    to its pair's (na, nb). See :func:`match_matrix` for the measures. ``track_xy`` (m, 2): the tracks'
+    Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is a view of
+    its pair's (na, nb) corner. See :func:`match_matrix` for the measures. ``track_xy`` (m, 2): the tracks'
     predicted positions; a hypothesis near one gets the temporal term c_t = exp(-d²/2g²) even when the
     nodes' 2D ids changed (the link-based c_t of ``temporals`` needs them unchanged).
+
+    Cost: the ray geometry (Eqs. 1-2) runs on every blob pair; the distance-dependent measures (ray
+    convergence, widths, heights, feet, the positional temporal term) only on the pairs whose rays meet in
+    range (about half), their values elsewhere being constants of the views (0 distance).
     """
     if not pairs:
         return []
-    temporals = list(temporals) if temporals is not None else [None] * len(pairs)
+    npairs = len(pairs)
     nas = [a.n for a, _ in pairs]
     nbs = [b.n for _, b in pairs]
     na, nb = max(*nas, 1), max(*nbs, 1)
-    o1 = np.array([a.origin_xy for a, _ in pairs])
-    o2 = np.array([b.origin_xy for _, b in pairs])
+    shape = (npairs, na, nb)
+    # -- per-view tables, gathered per pair ----------------------------------------------------------------
+    index: dict[int, int] = {}
+    uniq: list[ViewBlobs] = []
+    for a, b in pairs:
+        for v in (a, b):
+            if id(v) not in index:
+                index[id(v)] = len(uniq)
+                uniq.append(v)
+    tabs = _Tables(uniq, max(na, nb))
+    ia = np.array([index[id(a)] for a, _ in pairs], dtype=np.int64)
+    ib = np.array([index[id(b)] for _, b in pairs], dtype=np.int64)
+    floor = params.floor_sigma_m > 0
+    columns = [[v.bearing_rad for v in uniq], [v.width_rad for v in uniq], [v.top_elev_rad for v in uniq]]
+    if floor:
+        columns.append([v.bottom_elev_rad if v.bottom_elev_rad is not None else np.full(v.n, np.nan) for v in uniq])
+    per_blob = tabs.table(columns)
+    bearing, width = per_blob[:, :, 0], per_blob[:, :, 1]
+    tan_w = np.tan(np.nan_to_num(width) / 2.0)
+    tan_top = np.tan(np.nan_to_num(per_blob[:, :, 2]))
+    cut = tabs.flags([v.top_cut for v in uniq])
+    origin = np.array([v.origin_xy for v in uniq], dtype=np.float64).reshape(-1, 2)
+    z_view = np.array([v.z_m for v in uniq], dtype=np.float64)
+    o1, o2 = origin[ia], origin[ib]
     d = o2 - o1
     base = np.hypot(d[:, 0], d[:, 1])[:, None, None]
     psi12 = np.arctan2(d[:, 1], d[:, 0])[:, None, None]
     sigma = np.maximum(np.array([math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0) for a, b in pairs]), 1e-6)[
         :, None, None
     ]
-    th1 = _pad([a.bearing_rad for a, _ in pairs], na)[:, :, None]
-    th2 = _pad([b.bearing_rad for _, b in pairs], nb)[:, None, :]
-    # Signed inner angles at O1 and O2 (notes/geometry.md §4).
-    a1 = _wrap(th1 - psi12)  # (p, na, 1)
-    a2 = _wrap(psi12 + math.pi - th2)  # (p, 1, nb)
+    th1 = bearing[ia, :na][:, :, None]  # (p, na, 1)
+    th2 = bearing[ib, :nb][:, None, :]  # (p, 1, nb)
+    # -- ray geometry on every blob pair: signed inner angles at O1 and O2 (notes/geometry.md §4) ----------
+    a1 = _wrap(th1 - psi12)
+    a2 = _wrap(psi12 + math.pi - th2)
     abs1, abs2 = np.abs(a1), np.abs(a2)
     same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)
-    phi0 = math.pi - abs1 - abs2
-    margin = np.where(
-        converge, np.minimum(np.minimum(abs1, abs2), phi0), np.where(same_side, phi0, -np.minimum(abs1, abs2))
-    )
-    r_conv = ndtr(margin / (math.sqrt(2.0) * sigma))
-    col_d = np.minimum(
-        np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, math.pi - abs2), np.maximum(math.pi - abs1, abs2))
-    )
-    r_col = np.exp(-(col_d**2) / (4.0 * sigma**2))
-    # Eq. 1 (triangulation) where the triangle is proper.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d1_t, d2_t = triangulate(base, abs1, abs2)
-    shape = (len(pairs), na, nb)
-    d1_t = np.broadcast_to(np.asarray(d1_t, dtype=np.float64), shape)
-    d2_t = np.broadcast_to(np.asarray(d2_t, dtype=np.float64), shape)
     # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
     # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
-    w1 = np.broadcast_to(_pad([a.width_rad for a, _ in pairs], na)[:, :, None], shape)
-    w2 = np.broadcast_to(_pad([b.width_rad for _, b in pairs], nb)[:, None, :], shape)
+    pi1, pi2 = math.pi - abs1, math.pi - abs2
+    col_d = np.minimum(np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, pi2), np.maximum(pi1, abs2)))
+    w1, w2 = width[ia, :na][:, :, None], width[ib, :nb][:, None, :]
     with np.errstate(invalid="ignore"):
         colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
         use_sr = col_d < colinear_gap
-    d1_s = np.full(shape, np.nan)
-    d2_s = np.full(shape, np.nan)
+    d1 = np.full(shape, np.nan)
+    d2 = np.full(shape, np.nan)
     for k, i, j in np.argwhere(use_sr):
         c1 = 1.0 if abs1[k, i, 0] < math.pi / 2 else -1.0
         c2 = 1.0 if abs2[k, 0, j] < math.pi / 2 else -1.0
         try:  # Eq. 2 with sizes sin(w/2) (exact for a cylinder of the target's width)
-            d1_s[k, i, j], d2_s[k, i, j] = size_ratio(
-                float(base[k, 0, 0]), math.sin(w1[k, i, j] / 2), math.sin(w2[k, i, j] / 2), c1, c2
+            d1[k, i, j], d2[k, i, j] = size_ratio(
+                float(base[k, 0, 0]), math.sin(w1[k, i, 0] / 2), math.sin(w2[k, 0, j] / 2), c1, c2
             )
         except GeometryError:
             use_sr[k, i, j] = False
-    d1 = np.where(use_sr, d1_s, np.where(converge, d1_t, np.nan))
-    d2 = np.where(use_sr, d2_s, np.where(converge, d2_t, np.nan))
+    # Eq. 1 (triangulation) where the triangle is proper (common.geometry.triangulate on the converging pairs).
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s0 = np.sin(abs1 + abs2)
+        tri = converge & ~use_sr & (s0 > 1e-12) & (base > 0)
+        s0_t = s0[tri]
+        kk, ii, jj = np.nonzero(tri)
+        bb = base[kk, 0, 0]
+        d1[tri] = bb * np.sin(abs2[kk, 0, jj]) / s0_t
+        d2[tri] = bb * np.sin(abs1[kk, ii, 0]) / s0_t
     with np.errstate(invalid="ignore"):
-        valid = np.isfinite(d1) & np.isfinite(d2) & (d1 > 0) & (d2 > 0)
-        valid &= (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
-    d1 = np.where(valid, d1, 0.0)
-    d2 = np.where(valid, d2, 0.0)
-    r_rc = np.where(valid, np.where(use_sr, np.maximum(r_conv, r_col), r_conv), 0.0)
+        valid = (d1 > 0) & (d2 > 0) & (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
+    d1[~valid] = 0.0
+    d2[~valid] = 0.0
+    # -- the measures that depend on the distances: only where the rays meet in range ---------------------
+    kk, ii, jj = np.nonzero(valid)
+    i1, i2 = ia[kk], ib[kk]
+    d1v, d2v = d1[kk, ii, jj], d2[kk, ii, jj]
+    sig_v = sigma[kk, 0, 0]
+    sr_v = use_sr[kk, ii, jj]
+    phi0 = pi1[kk, ii, 0] - abs2[kk, 0, jj]
+    v1, v2 = abs1[kk, ii, 0], abs2[kk, 0, jj]
+    margin = np.where(
+        converge[kk, ii, jj],
+        np.minimum(np.minimum(v1, v2), phi0),
+        np.where(same_side[kk, ii, jj], phi0, -np.minimum(v1, v2)),
+    )
+    r_rc_v = ndtr(margin / (math.sqrt(2.0) * sig_v))
+    if sr_v.any():
+        c = col_d[kk, ii, jj][sr_v]
+        r_rc_v[sr_v] = np.maximum(r_rc_v[sr_v], np.exp(-(c**2) / (4.0 * sig_v[sr_v] ** 2)))
     # Width consistency: metric widths from both views (1 where Eq. 2 made them equal by construction).
-    width1 = 2.0 * d1 * np.tan(np.nan_to_num(w1) / 2.0)
-    width2 = 2.0 * d2 * np.tan(np.nan_to_num(w2) / 2.0)
     # A blob much wider than its partner is usually two people merged (occlusion), not a wrong match:
     # the width term never drops below ``width_floor``.
-    r_wc = np.where(use_sr, 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor))
+    width1 = 2.0 * d1v * tan_w[i1, ii]
+    width2 = 2.0 * d2v * tan_w[i2, jj]
+    r_wc_v = np.where(sr_v, 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor))
     # Height consistency: head-top height from each view.
-    z1 = np.array([a.z_m for a, _ in pairs])[:, None, None]
-    z2 = np.array([b.z_m for _, b in pairs])[:, None, None]
-    top1 = np.nan_to_num(_pad([a.top_elev_rad for a, _ in pairs], na))[:, :, None]
-    top2 = np.nan_to_num(_pad([b.top_elev_rad for _, b in pairs], nb))[:, None, :]
-    h1 = z1 + d1 * np.tan(top1)
-    h2 = z2 + d2 * np.tan(top2)
-    cut1 = _pad_bool([a.top_cut for a, _ in pairs], [a.n for a, _ in pairs], na)[:, :, None]
-    cut2 = _pad_bool([b.top_cut for _, b in pairs], [b.n for _, b in pairs], nb)[:, None, :]
+    z1, z2 = z_view[i1], z_view[i2]
+    h1 = z1 + d1v * tan_top[i1, ii]
+    h2 = z2 + d2v * tan_top[i2, jj]
+    # Elsewhere (no distance) the height is the camera's own: constants of the pair and the cut flags.
+    zc1, zc2 = z_view[ia][:, None, None], z_view[ib][:, None, None]
+    hc1, hc2 = np.broadcast_to(zc1, (npairs, na, 1)), np.broadcast_to(zc2, (npairs, 1, nb))
+    cut1, cut2 = cut[ia, :na][:, :, None], cut[ib, :nb][:, None, :]
     if cut1.any() or cut2.any():
         # A head cut by the image's upper border is at least as high as it looks: consistent with any
         # taller height from the other view (both cut: no height evidence).
-        h1, h2 = np.where(cut1, np.maximum(h1, h2), h1), np.where(cut2, np.maximum(h1, h2), h2)
-    r_hc = _log_ratio_score(h1, h2, params.height_sigma)
+        c1v, c2v = cut1[kk, ii, 0], cut2[kk, 0, jj]
+        h1, h2 = np.where(c1v, np.maximum(h1, h2), h1), np.where(c2v, np.maximum(h1, h2), h2)
+        top = np.maximum(zc1, zc2)
+        hc1, hc2 = np.where(cut1, top, zc1), np.where(cut2, top, zc2)
+    r_hc_v = _log_ratio_score(h1, h2, params.height_sigma)
+    r_hc = np.broadcast_to(_log_ratio_score(hc1, hc2, params.height_sigma), shape)
     # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
-    if params.floor_sigma_m > 0:
-        nan = np.full(0, np.nan)
-        bot1 = _pad([a.bottom_elev_rad if a.bottom_elev_rad is not None else nan for a, _ in pairs], na)
-        bot2 = _pad([b.bottom_elev_rad if b.bottom_elev_rad is not None else nan for _, b in pairs], nb)
-        s1 = np.array([a.sigma_rad for a, _ in pairs])[:, None, None]
-        s2 = np.array([b.sigma_rad for _, b in pairs])[:, None, None]
-        for z, dist, bottom, sv in ((z1, d1, bot1[:, :, None], s1), (z2, d2, bot2[:, None, :], s2)):
+    if floor:
+        with np.errstate(invalid="ignore"):
+            tan_bot = np.tan(per_blob[:, :, 3])
+        s_view = np.array([v.sigma_rad for v in uniq], dtype=np.float64)
+        g0 = 2.0 * params.floor_sigma_m**2
+        for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
             with np.errstate(invalid="ignore"):
-                zf = z + dist * np.tan(bottom)
+                zf = zs + dist * tb
             sig = params.floor_sigma_m + dist * sv * 4.0
-            r_hc = r_hc * np.where(np.isfinite(zf), np.exp(-(np.nan_to_num(zf) ** 2) / (2.0 * sig**2)), 1.0)
-    r_all = r_rc * r_wc * r_hc
-    lam = params.temporal_weight
-    out: list[MatchMatrix] = []
+            r_hc_v = r_hc_v * np.where(np.isfinite(zf), np.exp(-(np.nan_to_num(zf) ** 2) / (2.0 * sig**2)), 1.0)
+        # No distance: the feet are at the camera's height (where visible at all).
+        feet1 = np.isfinite(tan_bot[ia, :na])[:, :, None]
+        feet2 = np.isfinite(tan_bot[ib, :nb])[:, None, :]
+        r_hc = r_hc * np.where(feet1, np.exp(-(zc1**2) / g0), 1.0)
+        r_hc = r_hc * np.where(feet2, np.exp(-(zc2**2) / g0), 1.0)
+    r_rc = np.zeros(shape)
+    r_rc[valid] = r_rc_v
+    r_wc = np.where(use_sr, 1.0, max(0.0, params.width_floor))
+    r_wc[valid] = r_wc_v
+    r_hc = np.array(r_hc, dtype=np.float64)  # writable
+    r_hc[valid] = r_hc_v
+    r_all = np.zeros(shape)
+    r_all[valid] = r_rc_v * r_wc_v * r_hc_v
+    # -- colour and the temporal term ------------------------------------------------------------------------
+    r_is = _colour(pairs, params, shape, tabs=tabs, ia=ia, ib=ib)
+    r = r_is * r_all
     cos1, sin1 = np.cos(th1), np.sin(th1)
-    c_pos = None
+    hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb) hypothesised positions along camera 1's ray
+    hy = o1[:, 1, None, None] + d1 * sin1
+    lam = params.temporal_weight
+    temporals = list(temporals) if temporals is not None else [None] * npairs
+    c_t = np.zeros(shape)
+    for k, temporal in enumerate(temporals):
+        if temporal is not None:
+            c_t[k, : nas[k], : nbs[k]] = temporal
+    apply = np.array([t is not None for t in temporals], dtype=bool)
     if track_xy is not None and track_xy.size and lam > 0 and params.temporal_gate_m > 0:
-        hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb)
-        hy = o1[:, 1, None, None] + d1 * sin1
+        # Only where it can count (r above the threshold; below, r' = r / (1 + lam) whatever c_t is): the
+        # nearest-track distance of every hypothesis to every track is the costliest array of the tick.
         tx, ty = track_xy[:, 0], track_xy[:, 1]
-        d2min = np.min((hx[..., None] - tx) ** 2 + (hy[..., None] - ty) ** 2, axis=-1)
-        c_pos = np.where(valid, np.exp(-d2min / (2.0 * params.temporal_gate_m**2)), 0.0)
-    for k, ((a, b), temporal) in enumerate(zip(pairs, temporals, strict=True)):
+        near = r > threshold
+        d2min = np.min((hx[near][:, None] - tx) ** 2 + (hy[near][:, None] - ty) ** 2, axis=-1)
+        c_pos = np.zeros(shape)
+        c_pos[near] = np.exp(-d2min / (2.0 * params.temporal_gate_m**2))
+        c_t = np.maximum(c_t, c_pos)
+        apply[:] = True
+    if lam > 0 and apply.any():
+        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
+        lifted = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
+        r = np.where(apply[:, None, None], lifted, r)
+    xy = np.stack([hx, hy], axis=-1)
+    sr_valid = use_sr & valid
+    out: list[MatchMatrix] = []
+    for k in range(npairs):
         ka, kb = nas[k], nbs[k]
-        # Intensity similarity: Bhattacharyya coefficient of the colour histograms.
-        if params.use_colour and a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
-            sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
-            sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
-            r_is = np.clip(sa @ sb.T, 0.0, 1.0)
-        else:
-            r_is = np.ones((ka, kb))
-        r = r_is * r_all[k, :ka, :kb]
-        c_t = np.zeros((ka, kb)) if temporal is None else np.asarray(temporal, dtype=np.float64)
-        if c_pos is not None:
-            c_t = np.maximum(c_t, c_pos[k, :ka, :kb])
-        if (temporal is not None or c_pos is not None) and lam > 0:
-            # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
-            r = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
-        dk = d1[k, :ka, :kb]
-        # Hypothesised positions along camera 1's ray.
-        xy = np.empty((ka, kb, 2))
-        xy[..., 0] = o1[k, 0] + dk * cos1[k, :ka]
-        xy[..., 1] = o1[k, 1] + dk * sin1[k, :ka]
         parts = {
-            "r_is": r_is,
+            "r_is": r_is[k, :ka, :kb],
             "r_rc": r_rc[k, :ka, :kb],
             "r_wc": r_wc[k, :ka, :kb],
             "r_hc": r_hc[k, :ka, :kb],
-            "c_t": c_t,
+            "c_t": c_t[k, :ka, :kb],
         }
         out.append(
             MatchMatrix(
-                r=r,
-                d1_m=dk,
+                r=r[k, :ka, :kb],
+                d1_m=d1[k, :ka, :kb],
                 d2_m=d2[k, :ka, :kb],
-                xy=xy,
-                size_ratio=(use_sr & valid)[k, :ka, :kb],
+                xy=xy[k, :ka, :kb],
+                size_ratio=sr_valid[k, :ka, :kb],
                 parts=parts,
             )
         )
