@@ -205,6 +205,10 @@ connect = ["tcp/127.0.0.1:7447"]
 [match]
 use_colour = false              # detection files carry no colour
 max_range_m = 50.0
+threshold = 0.1                 # without colour (r_is = 1) Eq. 7's product is larger-spread: accept lower
+
+[tracker]
+max_misses = 3                  # ticks: a person unseen for ~0.75 s at 2 fps has left (longer makes ghosts coast)
 
 [mutual]
 enabled = false                 # static, calibrated cameras
