@@ -1,4 +1,4 @@
-"""Pair ranking, localisation, tracker, PTZ allocation, planner, history and config of the manager."""
+"""Pair ranking, localisation, tracker, PTZ allocation, history and config of the manager (planner: test_rm_planner.py)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,6 @@ from resource_manager.config import load_manager_config
 from resource_manager.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.pairs import CameraGeom, rank_pairs
-from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
 from resource_manager.ptz import PtzAllocator, PtzTarget
 from resource_manager.track import Tracker, TrackParams
 from tests.support import REPO
@@ -137,32 +136,6 @@ def test_ptz_none_can_see() -> None:
     alloc.update_info(_ptz("z2", 50.0, 0.0))
     sid, why = alloc.acquire("a1", PtzTarget("m-1", 3.0, 4.0, 1.8), "m-1", 0, 1)
     assert sid == "" and "can see" in why
-
-
-# -- planner --------------------------------------------------------------------------------------
-def test_planner_fig4_optimum_relative_to_target() -> None:
-    planner = ViewPlanner(PlannerParams(period_ns=0))
-    main = PlanCamera("p1", np.array([0.0, 0.0]), 0.18, SIG, False)
-    robot = PlanCamera("r1", np.array([1.0, 3.0]), 0.18, SIG, True)
-    target = PlanTarget("m-1", np.array([0.0, 6.0]), 0.3, ("p1", "r1"))
-    (goal,) = planner.plan(1, [main, robot], [target])
-    assert goal.partner_id == "p1" and goal.track_id == "m-1"
-    assert goal.baseline_m == pytest.approx(2.1655, abs=0.02)  # notes/geometry.md: B* for D1 = 6 m, R = 0.18
-    assert math.degrees(goal.phi1_rad) == pytest.approx(59.45, abs=0.3)
-    assert goal.goal_xy[0] > 0  # the optimum on the robot's side of the O1-T line
-    assert goal.predicted_error_m < goal.current_error_m
-
-
-def test_planner_clips_to_room_and_respects_period() -> None:
-    planner = ViewPlanner(PlannerParams(period_ns=10, room=(0.0, 0.0, 1.0, 8.0), margin_m=0.2))
-    cams = [
-        PlanCamera("p1", np.array([0.5, 0.0]), 0.18, SIG, False),
-        PlanCamera("r1", np.array([0.5, 1.0]), 0.18, SIG, True),
-    ]
-    tgt = [PlanTarget("m-1", np.array([0.5, 6.0]), 0.3, ("p1",))]
-    (goal,) = planner.plan(100, cams, tgt)
-    assert 0.2 <= goal.goal_xy[0] <= 0.8
-    assert planner.plan(105, cams, tgt) == []
 
 
 # -- history --------------------------------------------------------------------------------------
