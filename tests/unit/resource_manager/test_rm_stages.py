@@ -1,4 +1,4 @@
-"""Pair ranking, localisation, tracker, PTZ allocation, history and config of the manager (planner: test_rm_planner.py)."""
+"""Pair ranking, localisation, tracker, PTZ allocation, history and config of the manager (planner: own file)."""
 
 from __future__ import annotations
 
