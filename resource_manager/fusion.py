@@ -44,7 +44,7 @@ from resource_manager.align import AlignedView, AlignParams, align_sensor
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest import Ingest
-from resource_manager.planner import PlanCamera, PlannerParams, PlanTarget, ViewPlanner
+from resource_manager.planner import PlannerParams, PlanTarget, ViewPlanner, plan_camera
 from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.ptz import PtzAllocator, PtzParams, PtzTarget
 from resource_manager.track import Tracker, TrackParams, TrackRecord
@@ -92,6 +92,12 @@ class TickResult:
     """Ids of the tracks that ended this tick."""
     skipped: bool = False
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
+
+
+def _clip(v: float, lo: float, hi: float) -> float:
+    """np.clip for one number (NaN stays NaN), without numpy's per-call cost."""
+    v = float(v)
+    return v if math.isnan(v) else min(max(v, lo), hi)
 
 
 def _counter_ids(prefix: str) -> Callable[[], str]:
@@ -282,24 +288,25 @@ class Fusion:
 
     def track_message(self, tr: TrackRecord) -> Track:
         tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"
-        p = tr.p
+        x, y, vx, vy = tr.x.tolist()[:4]  # plain floats: np.clip on scalars costs ~10x
+        (pxx, pxy), (_, pyy) = tr.p[:2, :2].tolist()
         return Track(
             manager_id=self.manager_id,
             seq=self.seq,
             stamp_ns=self.last_t_ns,
             track_id=tid,
-            x_m=float(np.clip(tr.x[0], -1e5, 1e5)),
-            y_m=float(np.clip(tr.x[1], -1e5, 1e5)),
-            height_m=float(min(max(tr.height_m, 0.0), 1e5)),
-            vx_mps=float(np.clip(tr.x[2], -1e3, 1e3)),
-            vy_mps=float(np.clip(tr.x[3], -1e3, 1e3)),
-            cov_xx_m2=float(min(max(p[0, 0], 0.0), 1e10)),
-            cov_xy_m2=float(np.clip(p[0, 1], -1e10, 1e10)),
-            cov_yy_m2=float(min(max(p[1, 1], 0.0), 1e10)),
+            x_m=_clip(x, -1e5, 1e5),
+            y_m=_clip(y, -1e5, 1e5),
+            height_m=_clip(tr.height_m, 0.0, 1e5),
+            vx_mps=_clip(vx, -1e3, 1e3),
+            vy_mps=_clip(vy, -1e3, 1e3),
+            cov_xx_m2=_clip(pxx, 0.0, 1e10),
+            cov_xy_m2=_clip(pxy, -1e10, 1e10),
+            cov_yy_m2=_clip(pyy, 0.0, 1e10),
             state=tr.state,
             method=tr.method,
             sensors=list(tr.sensors)[:64],
-            predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
+            predicted_error_m=_clip(tr.predicted_error_m, 0.0, 1e5),
             age_s=max(0.0, (tr.t_ns - tr.born_ns) / 1e9),
             hits=tr.hits,
             misses=tr.misses,
@@ -313,16 +320,16 @@ class Fusion:
         }
 
     def _plans(self, t_ns: int, poses: dict[str, PoseEstimate]) -> list[ViewPlan]:
-        cams = []
-        for sid, pose in poses.items():
-            info = self.poses.infos.get(sid)
-            mobile = bool(info is not None and info.mobile)
-            radius = info.body_radius_m if info is not None else 0.0
-            cams.append(PlanCamera(sid, pose.origin, radius, self.poses.bearing_sigma(sid), mobile))
+        cams = [
+            plan_camera(sid, pose.origin, pose.z_m, self.poses.infos.get(sid), self.poses.bearing_sigma(sid))
+            for sid, pose in poses.items()
+        ]
         if not any(c.mobile for c in cams):
             return []
         targets = [
-            PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors)
+            PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors, tr.height_m)
+            if tr.height_m > 0
+            else PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors)
             for tr in self.tracker.tracks
             if tr.track_id and tr.state == "confirmed"
         ]
