@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Callable
@@ -76,6 +77,12 @@ class Associator:
         mc = config.match
         self.config = config
         self.tracker = tracker
+        tc = config.tracker
+        if (tracker.params.max_gate_m, tracker.params.coast_damping_s) != (tc.max_gate_m, tc.coast_damping_s):
+            # The gating and coasting settings association relies on (fusion.py builds the rest).
+            tracker.params = dataclasses.replace(
+                tracker.params, max_gate_m=tc.max_gate_m, coast_damping_s=tc.coast_damping_s
+            )
         self.matcher = get_matcher(config.manager.matcher)
         self.params = MatchParams(
             max_range_m=mc.max_range_m,
@@ -404,6 +411,8 @@ class Associator:
                     linked = tr.links.get(a_id) == int(a.local_id[ii]) and tr.links.get(b_id) == int(b.local_id[jj])
                     if not linked or float(np.hypot(*(meas.xy - tr.x[:2]))) > self.config.match.link_gate_m:
                         continue
+                if self._owned_elsewhere(tr, meas, tracks):
+                    continue  # another, better-followed track explains this fix better: not this one's
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
                 agree, against = self._consistent(meas, used, views)
@@ -416,6 +425,27 @@ class Associator:
                         meas = lsq
                 return meas, (a_id, b_id, len(ranked)), used
         return None, None, {}
+
+    def _owned_elsewhere(self, tr: TrackRecord, meas: Measurement, tracks: list[TrackRecord]) -> bool:
+        """Whether another track measured more recently than ``tr`` is nearer (Mahalanobis) to the fix.
+
+        A coasting track's gate keeps growing; without this it takes the fix of the person next to it (the
+        neighbour's own, active track loses it, and ids swap when the two walk apart).
+        """
+        if tr.misses == 0:
+            return False  # nobody was measured more recently
+        d_tr = self.tracker.gate_distance(tr, meas)
+        x, y = float(meas.xy[0]), float(meas.xy[1])
+        for u in tracks:
+            if u is tr or not u.confirmed:
+                continue
+            if u.misses >= tr.misses:
+                continue
+            if abs(float(u.x[0]) - x) > 1.5 or abs(float(u.x[1]) - y) > 1.5:
+                continue
+            if self.tracker.gate_distance(u, meas) < d_tr:
+                return True
+        return False
 
     # -- step 3 -----------------------------------------------------------------
     def _nobody_there(self, xy: FloatArray) -> bool:

@@ -196,6 +196,11 @@ class TrackerSection(ConfigStruct, frozen=True):
     """Smoothing of the head height (EMA weight of a new measurement)."""
     max_speed_mps: Pos = 3.0
     """Velocity estimates are clamped to this: a walking person; a larger value is a jump between people."""
+    max_gate_m: Pos = 1e9
+    """Cap of the gate radius: a coasting track's covariance grows each tick it misses, and past about the
+    spacing of two people its gate reaches the neighbour's fixes."""
+    coast_damping_s: Pos = 1e9
+    """Time constant (s) of the velocity decay of a coasting track (1e9: constant velocity)."""
 
 
 class MutualSection(ConfigStruct, frozen=True):
@@ -224,6 +229,18 @@ class PlannerSection(ConfigStruct, frozen=True):
     margin_m: NonNeg = 0.4
     min_move_m: NonNeg = 0.15
     """A new goal closer than this to the previous one is not re-issued."""
+    gain_frac: Annotated[float, msgspec.Meta(ge=0.0, lt=1.0)] = 0.25
+    """Hysteresis: a new goal only when its predicted error is below (1 - gain_frac) of the held goal's."""
+    settle_s: NonNeg = 4.0
+    """A new goal (and the first one) waits this long after the previous one, unless that became infeasible."""
+    band_z_m: NonNeg = 0.57
+    """Height of the middle of the robots' marking band (minimum baseline: bands above the lower elevation limit)."""
+    elev_margin_deg: NonNeg = 1.0
+    """Margin inside the lens' elevation limits for bands and heads."""
+    min_band_px: Pos = 12.0
+    """Maximum baseline: the ranged body at least this many pixels wide."""
+    keep_m: NonNeg = 0.8
+    """Clearance from people on the drive and at the goal."""
 
 
 class PtzSection(ConfigStruct, frozen=True):

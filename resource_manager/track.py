@@ -47,6 +47,11 @@ class TrackParams:
     height_alpha: float = 0.2
     max_speed_mps: float = 3.0
     """Velocity estimates are clamped to this (people walk; a jump between two people is not a speed)."""
+    max_gate_m: float = math.inf
+    """However uncertain a coasting track is, a fix further than this from its prediction is not its own."""
+    coast_damping_s: float = math.inf
+    """Time constant of the velocity decay while a track coasts (people stop and turn; a constant-velocity
+    prediction of a lost person walks off through the walls)."""
 
 
 @dataclass(slots=True)
@@ -108,6 +113,8 @@ class Tracker:
             tr.x = f @ tr.x
             tr.p = f @ tr.p @ f.T + q * (g @ g.T)
             tr.t_ns = t_ns
+            if tr.misses > 0 and math.isfinite(self.params.coast_damping_s):
+                tr.x[2:] *= math.exp(-dt / self.params.coast_damping_s)
 
     def innovation(self, tr: TrackRecord, m: Measurement) -> tuple[FloatArray, FloatArray]:
         r = m.cov + self.params.min_meas_sigma_m**2 * np.eye(2)
@@ -129,14 +136,16 @@ class Tracker:
         nx, ny = float(m.xy[0] - tr.x[0]), float(m.xy[1] - tr.x[1])
         det = sxx * syy - sxy * sxy
         d2 = (syy * nx * nx - 2.0 * sxy * nx * ny + sxx * ny * ny) / det if det > 0 else math.inf
-        if d2 <= self.params.gate_chi2 or math.hypot(nx, ny) <= self.params.gate_min_m:
+        dist = math.hypot(nx, ny)
+        if dist <= self.params.gate_min_m or (d2 <= self.params.gate_chi2 and dist <= self.params.max_gate_m):
             return d2
         return math.inf
 
     def position_gate_m(self, tr: TrackRecord) -> float:
         """A radius that contains the gate (for cheap spatial pre-filtering)."""
         ev = float(np.max(np.linalg.eigvalsh(tr.p[:2, :2])))
-        return max(self.params.gate_min_m, math.sqrt(self.params.gate_chi2 * (ev + 0.01)))
+        radius = min(math.sqrt(self.params.gate_chi2 * (ev + 0.01)), self.params.max_gate_m)
+        return max(self.params.gate_min_m, radius)
 
     def update(self, tr: TrackRecord, m: Measurement, links: dict[str, int]) -> None:
         """Kalman update with a measurement; counts a hit and may confirm the track."""
