@@ -217,7 +217,7 @@ def _colour(
     ]
     bins = {r.shape[1] for r in roots if r is not None}
     _, na, nb = shape
-    if len(bins) == 1 and all(r is not None for r in roots):
+    if len(bins) == 1 and all(r is not None or v.n == 0 for r, v in zip(roots, tabs.views, strict=True)):
         # Every view sends histograms of the same size: one stacked product for all pairs.
         k = next(iter(bins))
         flat = np.zeros((tabs.shape[0] * tabs.shape[1], k))

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.schema import PinholeModel
-from resource_manager.align import AlignedView
+from resource_manager.align import AlignedBlob, AlignedView
 from resource_manager.match import ViewBlobs
 from resource_manager.mono import mono_ranges
 from resource_manager.poses import PoseEstimate
@@ -55,83 +55,125 @@ def build_views(
             cameras whose blobs give floor distances (:func:`~resource_manager.mono.mono_ranges`).
     """
     out: dict[str, ViewBlobs] = {}
-    body_list = [(sid, r) for sid, r in (bodies or {}).items() if r > 0 and sid in poses]
-    for sid, av in aligned.items():
-        pose = poses.get(sid)
-        if pose is None:
-            continue
-        sigma = math.hypot(sigma_of(sid), pose.sigma_yaw_rad)
-        blobs = av.blobs
-        nan = math.nan
-        tab = np.array(  # one pass over the blobs (this runs for every sensor on every tick)
-            [
-                (
-                    b.bearing_rad,
-                    b.width_rad,
-                    b.top_elev_rad,
-                    b.bottom_elev_rad if b.feet_visible else nan,
-                    b.bottom_px,
-                    b.top_px,
-                )
-                for b in blobs
-            ],
-            dtype=np.float64,
-        ).reshape(-1, 6)
-        bearing, width, top = tab[:, 0], tab[:, 1], tab[:, 2]
-        keep = np.ones(len(blobs), dtype=bool)
-        others = [(poses[o], r) for o, r in body_list if o != sid]
-        if blobs and others:
-            ox = np.array([p.x_m for p, _ in others]) - pose.x_m
-            oy = np.array([p.y_m for p, _ in others]) - pose.y_m
-            oz = np.array([p.z_m for p, _ in others]) - pose.z_m
-            radius = np.array([r for _, r in others])
-            dist = np.hypot(ox, oy)
-            ok = dist > radius
-            half = np.arcsin(np.where(ok, radius / np.maximum(dist, 1e-9), 0.0))
-            az = np.arctan2(oy, ox) - pose.yaw_rad
-            # The body ends at the other camera (on its axis); a person behind it shows a taller top.
-            body_top = np.arctan2(oz + BODY_TOP_MARGIN_M, np.maximum(dist, 1e-9))
-            is_body = (
-                ok[None, :]
-                & (np.abs(wrap(bearing[:, None] - az[None, :])) < half[None, :] + 3 * sigma)
-                & (width[:, None] < 3.0 * half[None, :] + 6 * sigma)
-                & (top[:, None] < body_top[None, :])
+    entries = [(sid, av.blobs, poses[sid]) for sid, av in aligned.items() if sid in poses]
+    if not entries:
+        return out
+    # Every blob of every view in one table (this runs for every sensor on every tick): one pass in Python,
+    # then whole-array operations, each view a slice of the result.
+    nan = math.nan
+    blobs_all = [b for _, blobs, _ in entries for b in blobs]
+    counts = [len(blobs) for _, blobs, _ in entries]
+    tab = np.array(
+        [
+            (
+                b.bearing_rad,
+                b.width_rad,
+                b.top_elev_rad,
+                b.bottom_elev_rad if b.feet_visible else nan,
+                b.bottom_px,
+                b.top_px,
             )
-            keep = ~np.any(is_body, axis=1)
-        if not keep.all():
-            blobs = [b for b, k in zip(blobs, keep, strict=True) if k]
-            tab = tab[keep]
-            bearing, width, top = tab[:, 0], tab[:, 1], tab[:, 2]
-        n = len(blobs)
-        hist_len = {len(b.hist) for b in blobs}
-        hist = None
-        if n and len(hist_len) == 1 and next(iter(hist_len)) > 0:
-            hist = np.array([b.hist for b in blobs], dtype=np.float64)
-        bottom = tab[:, 3]
+            for b in blobs_all
+        ],
+        dtype=np.float64,
+    ).reshape(-1, 6)
+    view_of = np.repeat(np.arange(len(entries)), counts)
+    sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, _, pose in entries]
+    keep = _not_bodies(entries, tab, view_of=view_of, sigmas=sigmas, bodies=bodies, poses=poses)
+    if not keep.all():
+        blobs_all = [b for b, k in zip(blobs_all, keep.tolist(), strict=True) if k]
+        tab, view_of = tab[keep], view_of[keep]
+        counts = np.bincount(view_of, minlength=len(entries)).tolist()
+    yaw = np.array([pose.yaw_rad for _, _, pose in entries], dtype=np.float64)
+    bearing_world = tab[:, 0] + yaw[view_of]
+    local_id = np.array([b.local_id for b in blobs_all], dtype=np.int64)
+    top_cut = (tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX)
+    hist_lens = {len(b.hist) for b in blobs_all}
+    hist_all = hist_sqrt_all = None
+    if len(hist_lens) == 1 and next(iter(hist_lens)) > 0:
+        hist_all = np.array([b.hist for b in blobs_all], dtype=np.float64)
+        hist_sqrt_all = np.sqrt(np.clip(hist_all, 0.0, None))
+    ends = np.cumsum(counts).tolist()
+    for (sid, _, pose), sigma, stop, n in zip(entries, sigmas, ends, counts, strict=True):
+        sl = slice(stop - n, stop)
+        bottom = tab[sl, 3]
+        hist = hist_sqrt = None
+        if n and hist_all is not None and hist_sqrt_all is not None:
+            hist, hist_sqrt = hist_all[sl], hist_sqrt_all[sl]
+        elif n and hist_all is None:
+            lens = {len(b.hist) for b in blobs_all[sl]}
+            if len(lens) == 1 and next(iter(lens)) > 0:
+                hist = np.array([b.hist for b in blobs_all[sl]], dtype=np.float64)
+                hist_sqrt = np.sqrt(np.clip(hist, 0.0, None))
         mono_range = mono_sigma = None
         m = (mono or {}).get(sid)
         if m is not None:
             sigma_elev, base, max_range, image_h = m
-            cut = tab[:, 4] >= image_h - 2.0  # a box cut by the lower border does not show the feet
+            cut = tab[sl, 4] >= image_h - 2.0  # a box cut by the lower border does not show the feet
             mono_range, mono_sigma = mono_ranges(np.where(cut, np.nan, bottom), pose.z_m, sigma_elev, base, max_range)
         out[sid] = ViewBlobs(
             sensor_id=sid,
             origin_xy=pose.origin,
             z_m=pose.z_m,
             sigma_rad=sigma,
-            bearing_rad=bearing + pose.yaw_rad,
-            width_rad=width,
-            top_elev_rad=top,
+            bearing_rad=bearing_world[sl],
+            width_rad=tab[sl, 1],
+            top_elev_rad=tab[sl, 2],
             hist=hist,
-            local_id=np.array([b.local_id for b in blobs], dtype=np.int64),
-            hist_sqrt=None if hist is None else np.sqrt(np.clip(hist, 0.0, None)),
+            local_id=local_id[sl],
+            hist_sqrt=hist_sqrt,
             bottom_elev_rad=bottom,
             fov=(fovs or {}).get(sid),
             mono_range_m=mono_range,
             mono_sigma_m=mono_sigma,
-            top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
+            top_cut=top_cut[sl],
         )
     return out
+
+
+def _not_bodies(
+    entries: list[tuple[str, list[AlignedBlob], PoseEstimate]],
+    tab: FloatArray,
+    *,
+    view_of: npt.NDArray[np.int64],
+    sigmas: list[float],
+    bodies: dict[str, float] | None,
+    poses: dict[str, PoseEstimate],
+) -> npt.NDArray[np.bool_]:
+    """(n,) False for the blobs that are a known robot/tripod body seen by another camera.
+
+    A blob on a body's bearing, about its angular width, whose top is below the body's camera (plus
+    :data:`BODY_TOP_MARGIN_M`) is that body; a person behind it shows a taller top.
+    """
+    body_list = [(sid, r) for sid, r in (bodies or {}).items() if r > 0 and sid in poses]
+    keep = np.ones(tab.shape[0], dtype=bool)
+    if not body_list or not tab.shape[0]:
+        return keep
+    bx = np.array([poses[o].x_m for o, _ in body_list])
+    by = np.array([poses[o].y_m for o, _ in body_list])
+    bz = np.array([poses[o].z_m for o, _ in body_list])
+    radius = np.array([r for _, r in body_list])
+    vx = np.array([pose.x_m for _, _, pose in entries])[:, None]
+    vy = np.array([pose.y_m for _, _, pose in entries])[:, None]
+    vz = np.array([pose.z_m for _, _, pose in entries])[:, None]
+    yaw = np.array([pose.yaw_rad for _, _, pose in entries])[:, None]
+    sig = np.array(sigmas)[:, None]
+    ox, oy, oz = bx - vx, by - vy, bz - vz  # (views, bodies)
+    dist = np.hypot(ox, oy)
+    ok = (dist > radius) & (np.array([sid for sid, _, _ in entries])[:, None] != np.array([o for o, _ in body_list]))
+    half = np.arcsin(np.where(ok, radius / np.maximum(dist, 1e-9), 0.0))
+    az = np.arctan2(oy, ox) - yaw
+    # The body ends at the other camera (on its axis); a person behind it shows a taller top.
+    body_top = np.arctan2(oz + BODY_TOP_MARGIN_M, np.maximum(dist, 1e-9))
+    v, s = view_of, sig[view_of]
+    is_body = (
+        ok[v]
+        & (np.abs(wrap(tab[:, 0, None] - az[v])) < half[v] + 3 * s)
+        & (tab[:, 1, None] < 3.0 * half[v] + 6 * s)
+        & (tab[:, 2, None] < body_top[v])
+    )
+    keep &= ~np.any(is_body, axis=1)
+    return keep
 
 
 def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, float] | None:
