@@ -304,3 +304,31 @@ def test_batched_eq7_equals_dense_reference(seed: int) -> None:
                 np.testing.assert_allclose(mm.parts["c_t"][counts], ref["c_t"][counts], rtol=1e-12, atol=1e-15)
             assert any(mm.size_ratio.any() for mm in got)  # the colinear branch was exercised
             assert any((mm.r > 0.2).any() for mm in got)
+
+
+def test_greedy_matcher_equals_repeated_argmax() -> None:
+    """The sorted walk gives exactly the pairs of the paper's rescan (ties in row-major order, NaN, inf)."""
+
+    def rescan(r: np.ndarray, threshold: float) -> list[tuple[int, int]]:
+        m = np.array(r, dtype=np.float64, copy=True)
+        out: list[tuple[int, int]] = []
+        for _ in range(min(m.shape)):
+            i, j = divmod(int(np.argmax(m)), m.shape[1])
+            if not m[i, j] > threshold:
+                break
+            out.append((i, j))
+            m[i, :] = -np.inf
+            m[:, j] = -np.inf
+        return out
+
+    rng = np.random.default_rng(0)
+    greedy = GreedyMatcher()
+    for k in range(2000):
+        r = rng.random(tuple(rng.integers(0, 9, 2)))
+        if k % 3 == 0:
+            r = np.round(r, 1)  # many ties
+        if r.size and k % 50 == 0:
+            r.flat[rng.integers(r.size)] = np.nan
+        if r.size and k % 7 == 0:
+            r.flat[rng.integers(r.size)] = np.inf
+        assert greedy.match(r, 0.3) == rescan(r, 0.3)
