@@ -237,6 +237,12 @@ class AllBlobs:
     mono_tol: FloatArray | None = None
     """(n,) ``mono_k`` sigmas of it: a blob whose feet stand beyond the position by more is someone behind it,
     not the person there nor an occluder in front; nearer by more, someone in front."""
+    mono_near: FloatArray | None = None
+    """(n,) ``mono_range - mono_tol``, -inf where unknown (precomputed: :meth:`agreement` runs per candidate)."""
+    mono_far: FloatArray | None = None
+    """(n,) ``mono_range + mono_tol``, +inf where unknown."""
+    panoramic: bool = False
+    """Every view sees all azimuths (no field-of-view test needed)."""
 
     @staticmethod
     def of(
@@ -254,6 +260,12 @@ class AllBlobs:
             mono_tol = mono_k * np.concatenate(
                 [v.mono_sigma_m if ok else np.full(v.n, np.nan) for v, ok in zip(vs, known, strict=True)]
             )
+        mono_near = mono_far = None
+        if mono_range is not None and mono_tol is not None:
+            with np.errstate(invalid="ignore"):
+                near, far = mono_range - mono_tol, mono_range + mono_tol
+            mono_near = np.where(np.isnan(near), -np.inf, near)
+            mono_far = np.where(np.isnan(far), np.inf, far)
         idx = np.repeat(np.arange(len(vs)), counts).astype(np.int64)
         vo = np.array([v.origin_xy for v in vs]).reshape(-1, 2)
         return AllBlobs(
@@ -267,6 +279,9 @@ class AllBlobs:
             view_blank=np.array([v.n == 0 and v.sensor_id in excused for v in vs], dtype=bool),
             mono_range=mono_range,
             mono_tol=mono_tol,
+            mono_near=mono_near,
+            mono_far=mono_far,
+            panoramic=all(v.fov is None or v.fov[1] >= math.pi for v in vs),
         )
 
     def agreement(self, xy: FloatArray, max_range_m: float, *, occluders: bool = True) -> tuple[int, int]:
@@ -275,10 +290,14 @@ class AllBlobs:
         With ``occluders`` a blob in front of ``xy`` (feet nearer) counts: the person may be hidden behind it.
         Without, a blob with known feet counts only when they stand at ``xy``: is the person *there*?
         """
-        d_view = np.hypot(self.view_origin[:, 0] - xy[0], self.view_origin[:, 1] - xy[1])
+        # Per view (a handful) first; a blob's distance and predicted bearing are its view's.
+        dx = xy[0] - self.view_origin[:, 0]
+        dy = xy[1] - self.view_origin[:, 1]
+        d_view = np.hypot(dx, dy)
         in_range = (d_view > 0.3) & (d_view <= max_range_m)
-        az = np.arctan2(xy[1] - self.view_origin[:, 1], xy[0] - self.view_origin[:, 0])
-        in_range &= np.abs(wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
+        az = np.arctan2(dy, dx)
+        if not self.panoramic:  # |wrap(.)| <= pi always holds for a panoramic view
+            in_range &= np.abs(wrap(az - self.view_fov[:, 0])) <= self.view_fov[:, 1]  # in its field of view
         if self.view_blank is not None:
             # A view that just went blank is no evidence about xy yet: a blank frame (light change, node
             # restart) must not end or veto every track at once; blank on the next tick too, it counts.
@@ -286,11 +305,14 @@ class AllBlobs:
         total = int(np.count_nonzero(in_range))
         if total == 0 or self.bearing.size == 0:
             return 0, total
-        rel = xy[None, :] - self.origin
-        dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
-        pred = np.arctan2(rel[:, 1], rel[:, 0])
+        dist = np.maximum(d_view, 0.3)[self.view]
+        pred = az[self.view]
         ok = np.abs(wrap(self.bearing - pred)) - self.half_width < self.sigma_gate + 0.25 / dist
-        if self.mono_range is not None and self.mono_tol is not None:
+        if self.mono_near is not None and self.mono_far is not None:
+            ok &= ~(self.mono_near > dist)  # unknown feet (-inf, +inf) agree
+            if not occluders:
+                ok &= ~(self.mono_far < dist)
+        elif self.mono_range is not None and self.mono_tol is not None:
             with np.errstate(invalid="ignore"):  # NaN compares False: unknown feet agree
                 ok &= ~(self.mono_range - self.mono_tol > dist)
                 if not occluders:
