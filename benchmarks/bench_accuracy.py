@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m benchmarks.bench_accuracy [--parts synthetic,network,wildtrack] [--duration 60]
+    python -m benchmarks.bench_accuracy [--parts synthetic,network,planner,wildtrack] [--duration 60]
         [--wildtrack /path/to/wildtrack] [--wildtrack-frames 200] [--out DIR]
 
 Three parts, each reported separately in one JSON object:
@@ -214,10 +214,72 @@ def network(out: Path, duration_s: float) -> dict[str, Any]:
         p1, out, parked + '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n', "p1s"
     )
     res["paper1_surveyed"] = demo(_abs_site(p1, out, survey), out, duration_s, "paper1_surveyed")
-    res["paper1_mutual_planner"] = demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner")
+    res["paper1_mutual_planner"] = _plan_stats(
+        demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner"), p1
+    )
     p2m = _manager_variant(p2, out, parked, "p2m")
     res["paper2_two_people"] = demo(_abs_site(p2, out, p2m), out, duration_s, "paper2")
     res["six_people_four_cameras"] = demo(_abs_site(sites / "six.toml", out, None), out, duration_s, "six")
+    return res
+
+
+def _plan_stats(row: dict[str, Any], site: Path, robot: str = "robot", fixed: str = "tripod") -> dict[str, Any]:
+    """A run's view-plan figures from its recording and ground truth (scoring only)."""
+    if "summary" not in row:
+        return row
+    from common.scenario import World, goals_from_plans
+    from common.schema import ManagerStatus
+    from common.site import load_site
+    from user_agent.messages import decode_on_key
+    from user_agent.record import keys_for
+    from user_agent.recording import iter_raw, load_recording
+
+    run_dir = Path(row["summary"]).parent
+    rec = load_recording(run_dir / "recording.mcap")
+    epoch_ns = rec.meta_int("epoch_ns", 0)
+    spec = load_site(site)
+    plans = [p for p in rec.plans if p.sensor_id == robot]
+    world = World.from_site(spec, goals_from_plans(plans, epoch_ns))
+    end_s = (rec.last_log_ns - epoch_ns) / 1e9
+    tripod = spec.camera_by_id(fixed)
+    ts = [0.5 * k for k in range(max(1, int(end_s * 2)))]
+    dist = [
+        math.dist((p.x_m, p.y_m), (tripod.x_m, tripod.y_m))
+        for t in ts
+        for p in world.platforms_at(t)
+        if p.sensor_id == robot
+    ]
+    statuses = []
+    for raw in iter_raw(run_dir / "recording.mcap"):
+        keys = keys_for(raw.key)
+        msg = decode_on_key(keys, raw.key, raw.data) if keys is not None else None
+        if isinstance(msg, ManagerStatus):
+            statuses.append(msg)
+    with_pose = [any(e.sensor_id == robot for e in s.poses) for s in statuses]
+    first = with_pose.index(True) if True in with_pose else len(with_pose)
+    return row | {
+        "goals": [(round(g.x_m, 2), round(g.y_m, 2), round(g.issued_s, 1)) for g in world.goals],
+        "robot_tripod_m_end": round(dist[-1], 2) if dist else None,
+        "robot_tripod_m_min": round(min(dist), 2) if dist else None,
+        "robot_pose_first_status_s": round((statuses[first].stamp_ns - epoch_ns) / 1e9, 1)
+        if first < len(statuses)
+        else None,
+        "robot_pose_in_statuses_after_first": f"{sum(with_pose[first:])}/{len(with_pose) - first}",
+    }
+
+
+def planner(out: Path, duration_s: float) -> dict[str, Any]:
+    """The view planner's closed loop (issue 6, item 8) through the real network."""
+    sites = REPO / "deploy" / "sites"
+    p1, pl = sites / "paper1.toml", sites / "planning.toml"
+    res: dict[str, Any] = {}
+    row = demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner")
+    res["paper1_mutual_planner"] = _plan_stats(row, p1)
+    row = demo(_abs_site(pl, out, None), out, duration_s, "planning_planner")
+    res["planning_planner"] = _plan_stats(row, pl)
+    parked = _manager_variant(pl, out, "[planner]\nenabled = false\n", "plparked")
+    row = demo(_abs_site(pl, out, parked), out, duration_s, "planning_parked")
+    res["planning_parked"] = _plan_stats(row, pl)
     return res
 
 
@@ -426,7 +488,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="bench_accuracy", description=__doc__.splitlines()[0])
-    p.add_argument("--parts", default="synthetic,network", help="comma list of synthetic,network,wildtrack")
+    p.add_argument("--parts", default="synthetic,network", help="comma list of synthetic,network,planner,wildtrack")
     p.add_argument("--duration", type=float, default=60.0, help="seconds per network run")
     p.add_argument("--synthetic-duration", type=float, default=30.0)
     p.add_argument("--wildtrack", default="", help="Wildtrack dataset folder (annotations_positions/, calibrations/)")
@@ -442,6 +504,8 @@ def main(argv: list[str] | None = None) -> int:
         result["synthetic"] = synthetic(args.synthetic_duration)
     if "network" in parts:
         result["network"] = network(out, args.duration)
+    if "planner" in parts:
+        result["planner"] = planner(out, args.duration)
     if "wildtrack" in parts:
         if not args.wildtrack:
             result["wildtrack"] = {"error": "--wildtrack DATASET_DIR is required for this part"}

@@ -23,8 +23,10 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   keeps ``keep_m`` from every person and clear of every other body; the person
   does not stand in the line of sight between the goal and the main camera.
 * **Hysteresis**: a new goal only when its predicted error is below
-  (1 - ``gain_frac``) times that of the goal held (or of where the robot stands,
-  before any goal), and not within ``settle_ns`` of the last new goal (or of the
+  (1 - ``gain_frac``) times, and ``min_gain_m`` below, that of the goal held (or
+  of where the robot stands, before any goal; judged without the constraints that
+  depend on where people are now: someone walking by is no reason to leave), and
+  not within ``settle_ns`` of the last new goal (or of the
   first plan for that camera) unless the held one -- or where the robot stands --
   became infeasible, so the robot can settle, relearn its background and be
   re-calibrated. The held goal is re-published every period (a repeat:
@@ -71,11 +73,14 @@ class PlannerParams:
     min_move_m: float = 0.15
     """A new goal closer than this to the held one is not a new goal."""
     gain_frac: float = 0.25
-    """Hysteresis: re-plan only when the predicted error falls below (1 - gain_frac) of the held goal's."""
+    """Hysteresis: re-plan only when the predicted error falls below (1 - gain_frac) of the held goal's..."""
+    min_gain_m: float = 0.05
+    """...and by at least this much (a move costs the robot's detections while it drives)."""
     settle_ns: int = 4_000_000_000
     """After a new goal, keep it this long unless it becomes infeasible."""
-    band_z_m: float = 0.57
-    """Height of the middle of the bodies' marking band (0.55..0.72 of a 0.9 m body)."""
+    band_z_m: float = 0.62
+    """Height on the bodies' marking band that must stay in view (the band spans 0.50..0.65 m on the paper's
+    0.9 m robots: its upper part, enough rows for the occluding boundaries of Eq. 3)."""
     elev_margin_rad: float = math.radians(1.0)
     """Margin inside the elevation limits for bands and heads."""
     min_band_px: float = 12.0
@@ -242,14 +247,17 @@ class ViewPlanner:
         held = self.held.get(cam.sensor_id)
         if held is not None:
             h = np.asarray(held.xy)[None, :]
-            held_ok = bool(self._feasible(h, sc, drive=False)[0])
+            held_ok = bool(self._feasible(h, sc, drive=False, transient=False)[0])
             ref_xy, ref_err = h[0], float(self._error(h, sc)[0]) if held_ok else math.inf
         else:
-            here_ok = bool(self._feasible(here, sc, drive=False)[0])
+            here_ok = bool(self._feasible(here, sc, drive=False, transient=False)[0])
             ref_xy, ref_err = cam.xy, now_err if here_ok else math.inf
         since = t_ns - (held.issued_ns if held is not None else self.first_ns.setdefault(cam.sensor_id, t_ns))
         settling = since < p.settle_ns and math.isfinite(ref_err)
-        better = math.isfinite(best_err) and (not math.isfinite(ref_err) or best_err < (1.0 - p.gain_frac) * ref_err)
+        better = math.isfinite(best_err) and (
+            not math.isfinite(ref_err)
+            or (best_err < (1.0 - p.gain_frac) * ref_err and best_err < ref_err - p.min_gain_m)
+        )
         far = float(np.hypot(*(best_xy - ref_xy))) >= p.min_move_m
         if better and far and not settling:
             self.held[cam.sensor_id] = _Held((float(best_xy[0]), float(best_xy[1])), tgt.track_id, t_ns)
@@ -307,8 +315,12 @@ class ViewPlanner:
         e = np.asarray(normalised_error_xy(lx, ly, d1, cam.radius_m), dtype=np.float64)
         return e * d1 * cam.sigma_rad
 
-    def _feasible(self, xy: FloatArray, sc: _Scene, drive: bool = True) -> BoolArray:
-        """Which of ``xy`` the mobile camera may be sent to (``drive``: also check the way there)."""
+    def _feasible(self, xy: FloatArray, sc: _Scene, drive: bool = True, transient: bool = True) -> BoolArray:
+        """Which of ``xy`` the mobile camera may be sent to.
+
+        ``drive``: also check the way there. ``transient``: also the constraints that depend on where the
+        people are now (a goal already held, or where the robot stands, is not left because someone walks by).
+        """
         p = self.params
         cam, main, tgt = sc.cam, sc.main, sc.tgt
         ok = np.ones(len(xy), dtype=bool)
@@ -316,18 +328,19 @@ class ViewPlanner:
             x0, y0, x1, y1 = p.room
             m = p.margin_m - 1e-6
             ok &= (xy[:, 0] >= x0 + m) & (xy[:, 0] <= x1 - m) & (xy[:, 1] >= y0 + m) & (xy[:, 1] <= y1 - m)
-        # The person: head top in view, and D2 >= D1 / 2 (the interior optimum of Fig. 4).
-        d1 = float(np.hypot(*(tgt.xy - main.xy)))
-        d2 = np.hypot(*(xy - tgt.xy).T)
-        ok &= d2 >= max(_head_min_range(cam, tgt.height_m, p.elev_margin_rad), 0.5 * d1, p.keep_m)
-        for person in sc.people:
-            ok &= np.hypot(*(xy - person.xy).T) >= p.keep_m
-            if drive:
-                now = float(np.hypot(*(cam.xy - person.xy))) - 1e-6
-                ok &= _segment_dist(cam.xy, xy, person.xy) >= min(p.keep_m, now)
-        # The line of sight to the main camera's body (mutual calibration) not blocked by the person.
-        if main.radius_m > 0:
-            ok &= _segment_dist(main.xy, xy, tgt.xy) >= p.sight_clearance_m
+        if transient:
+            # The person: head top in view, and D2 >= D1 / 2 (the interior optimum of Fig. 4).
+            d1 = float(np.hypot(*(tgt.xy - main.xy)))
+            d2 = np.hypot(*(xy - tgt.xy).T)
+            ok &= d2 >= max(_head_min_range(cam, tgt.height_m, p.elev_margin_rad), 0.5 * d1, p.keep_m)
+            for person in sc.people:
+                ok &= np.hypot(*(xy - person.xy).T) >= p.keep_m
+                if drive:
+                    now = float(np.hypot(*(cam.xy - person.xy))) - 1e-6
+                    ok &= _segment_dist(cam.xy, xy, person.xy) >= min(p.keep_m, now)
+            # The line of sight to the main camera's body (mutual calibration) not blocked by the person.
+            if main.radius_m > 0:
+                ok &= _segment_dist(main.xy, xy, tgt.xy) >= p.sight_clearance_m
         ranged = np.zeros(len(xy), dtype=bool)
         for other in sc.others:
             d = np.hypot(*(xy - other.xy).T)
