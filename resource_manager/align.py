@@ -76,33 +76,36 @@ class AlignedView:
 
 def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> AlignedBlob:
     if b0 is not None and b1 is not None:
-        # interp_linear / interp_angle (common.clock) written out with the fraction computed once: this runs
-        # for every blob of every sensor on every tick.
+        # interp_linear / interp_angle (common.clock) written out with the fraction computed once, and the
+        # tuple built positionally: this runs for every blob of every sensor on every tick.
         f = (t - t0) / (t1 - t0) if t1 != t0 else 1.0
-        step = math.remainder(b1.bearing_rad - b0.bearing_rad, _TWO_PI)
+        bearing0 = b0.bearing_rad
+        step = math.remainder(b1.bearing_rad - bearing0, _TWO_PI)
+        width0, top0, bottom0 = b0.width_rad, b0.top_elev_rad, b0.bottom_elev_rad
+        v0, v1 = b0.bbox_v_px, b1.bbox_v_px
         return AlignedBlob(
-            local_id=b1.local_id,
-            bearing_rad=math.remainder(b0.bearing_rad + step * f, _TWO_PI),
-            width_rad=max(0.0, b0.width_rad + (b1.width_rad - b0.width_rad) * f),
-            top_elev_rad=b0.top_elev_rad + (b1.top_elev_rad - b0.top_elev_rad) * f,
-            bottom_elev_rad=b0.bottom_elev_rad + (b1.bottom_elev_rad - b0.bottom_elev_rad) * f,
-            hist=b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist,  # the frozen message's list: not copied
-            feet_visible=b0.feet_visible and b1.feet_visible,
-            bottom_px=max(b0.bbox_v_px + b0.bbox_h_px, b1.bbox_v_px + b1.bbox_h_px),
-            top_px=min(b0.bbox_v_px, b1.bbox_v_px),
+            b1.local_id,
+            math.remainder(bearing0 + step * f, _TWO_PI),
+            max(0.0, width0 + (b1.width_rad - width0) * f),
+            top0 + (b1.top_elev_rad - top0) * f,
+            bottom0 + (b1.bottom_elev_rad - bottom0) * f,
+            b1.hist if abs(t1 - t) <= abs(t - t0) else b0.hist,  # the frozen message's list: not copied
+            b0.feet_visible and b1.feet_visible,
+            max(v0 + b0.bbox_h_px, v1 + b1.bbox_h_px),
+            min(v0, v1),
         )
     b = b1 if b1 is not None else b0
     assert b is not None
     return AlignedBlob(
-        local_id=b.local_id,
-        bearing_rad=b.bearing_rad,
-        width_rad=b.width_rad,
-        top_elev_rad=b.top_elev_rad,
-        bottom_elev_rad=b.bottom_elev_rad,
-        hist=b.hist,
-        feet_visible=b.feet_visible,
-        bottom_px=b.bbox_v_px + b.bbox_h_px,
-        top_px=b.bbox_v_px,
+        b.local_id,
+        b.bearing_rad,
+        b.width_rad,
+        b.top_elev_rad,
+        b.bottom_elev_rad,
+        b.hist,
+        b.feet_visible,
+        b.bbox_v_px + b.bbox_h_px,
+        b.bbox_v_px,
     )
 
 
