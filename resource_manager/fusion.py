@@ -153,6 +153,8 @@ class Fusion:
                 init_speed_sigma_mps=t.init_speed_sigma_mps,
                 height_alpha=t.height_alpha,
                 max_speed_mps=t.max_speed_mps,
+                max_gate_m=t.max_gate_m,
+                coast_damping_s=t.coast_damping_s,
             ),
             new_id or _counter_ids(m.id),
         )
