@@ -175,3 +175,28 @@ def test_closed_loop_error_falls_and_goals_settle() -> None:
                 xy = xy + step / d * min(d, 0.25)
     assert now_errors and now_errors[-1] < 0.5 * now_errors[0]
     assert planner.goals_issued <= 3  # hysteresis: no re-planning for every step of the person
+
+
+def test_someone_walking_by_the_goal_is_no_reason_to_leave_it() -> None:
+    planner = ViewPlanner(PlannerParams(period_ns=0, settle_ns=0, room=(0.0, 0.0, 8.0, 8.0)))
+    main, robot = _cam("p1", 4.0, 0.5), _cam("r1", 4.0, 3.2, mobile=True)
+    target = _tgt(4.2, 6.0, ("p1", "r1"))
+    (g1,) = planner.plan(0, [main, robot], [target])
+    at_goal = _cam("r1", *g1.goal_xy, mobile=True)
+    passer = _tgt(g1.goal_xy[0] + 0.4, g1.goal_xy[1], ("p1",), "m-2")  # 0.4 m from the robot: inside keep_m
+    for k in range(1, 6):
+        (g,) = planner.plan(k * S, [main, at_goal], [target, passer])
+        assert g.goal_xy == g1.goal_xy
+    assert planner.goals_issued == 1
+
+
+def test_small_absolute_gains_do_not_move_the_robot() -> None:
+    # A 30 % better place that is only 3 cm better (a near target): below min_gain_m, no goal.
+    p = PlannerParams(period_ns=0, settle_ns=0, room=(0.0, 0.0, 8.0, 8.0), min_gain_m=0.05, gain_frac=0.25)
+    main, robot = _cam("p1", 4.0, 0.5), _cam("r1", 5.5, 3.5, mobile=True)
+    target = _tgt(4.0, 3.0, ("p1", "r1"), h=1.2)
+    probe = ViewPlanner(PlannerParams(period_ns=0, settle_ns=0, room=(0.0, 0.0, 8.0, 8.0), min_gain_m=0.0))
+    (g,) = probe.plan(0, [main, robot], [target])
+    gain = g.current_error_m - g.predicted_error_m
+    assert g.predicted_error_m < 0.75 * g.current_error_m and gain < 0.05  # the geometry is what the test needs
+    assert ViewPlanner(p).plan(0, [main, robot], [target]) == []
