@@ -287,6 +287,27 @@ class Associator:
                 ranked=ranked,
                 claimed=claimed,
             )
+            if meas is None and mc.shared_pairs and sup and sh and len(sup) + len(sh) >= 2:
+                # Hidden in some views behind a neighbour (one blob there for both, "views disagree"): pair its
+                # own blobs with those shared ones. The shared bearing is the neighbour's, so the fix is off by
+                # at most their spacing; the motion gate and the other views still judge it.
+                both = {**sh, **sup}
+                ranked_sh = self._rank(
+                    tr, sup=both, views=views, pose_sigma=pose_sigma, max_cams=mc.max_pair_cameras, chosen=planned
+                )
+                ranked_sh = [c for c in ranked_sh if c.a in sup or c.b in sup]
+                meas, entry, used_blobs = self._measure(
+                    tr,
+                    sup=both,
+                    views=views,
+                    tracks=tracks,
+                    cache=cache,
+                    pose_sigma=pose_sigma,
+                    ranked=ranked_sh,
+                    claimed=set(),
+                )
+                if meas is not None:
+                    used_blobs = {s: i for s, i in used_blobs.items() if s in sup}  # links: own blobs only
             if meas is None:
                 # No pair localises it this tick: the views that still follow it (same node-side blob) steer it
                 # by bearing alone, so the prediction stays on the person while the stereo pair is broken.

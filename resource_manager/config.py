@@ -169,6 +169,9 @@ class MatchSection(ConfigStruct, frozen=True):
     sigmas is a ghost (lower: stricter)."""
     mono_updates: bool = True
     """When no pair localises a track, its views' floor points (fused) update it."""
+    shared_pairs: bool = False
+    """A track whose person is hidden behind a neighbour in some views (one blob there explains both) is
+    localised by pairing its own blobs with those shared blobs when no pair of its own does."""
     min_view_agreement: Frac = 0.8
     """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
     (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not)."""

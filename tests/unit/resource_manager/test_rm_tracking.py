@@ -1,0 +1,112 @@
+"""Track identity: coasting tracks keep a bounded gate, slow down, and do not take another person's fix."""
+
+from __future__ import annotations
+
+import math
+
+import msgspec
+import numpy as np
+
+from resource_manager.association import Associator
+from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, TrackerSection
+from resource_manager.localize import Measurement
+from resource_manager.track import Tracker, TrackParams, TrackRecord
+from tests.unit.resource_manager.scenario import T0_NS, run_scenario
+from tests.unit.resource_manager.synth import Cam, Person, colour_hist
+
+
+def _meas(x: float, y: float, sigma: float = 0.05) -> Measurement:
+    return Measurement(np.array([x, y]), sigma**2 * np.eye(2), 1.75, "triangulation", ("a", "b"), sigma, ())
+
+
+def _coasting(params: TrackParams, misses: int) -> tuple[Tracker, TrackRecord]:
+    tracker = Tracker(params, lambda: "m-1")
+    tr = tracker.spawn(_meas(0.0, 0.0), 0, {})
+    for k in range(1, 6):  # walking +x at 1 m/s
+        tracker.predict(k * 100_000_000)
+        tracker.update(tr, _meas(0.1 * k, 0.0), {})
+    for k in range(6, 6 + misses):
+        tracker.predict(k * 100_000_000)
+        tracker.miss(tr)
+    return tracker, tr
+
+
+def test_a_coasting_tracks_gate_stops_growing_at_max_gate() -> None:
+    loose, tr_loose = _coasting(TrackParams(max_misses=50), misses=12)
+    capped, tr_capped = _coasting(TrackParams(max_misses=50, max_gate_m=1.0), misses=12)
+    far = _meas(float(tr_loose.x[0]) + 1.3, float(tr_loose.x[1]))
+    near = _meas(float(tr_capped.x[0]) + 0.6, float(tr_capped.x[1]))
+    assert math.isfinite(loose.gate_distance(tr_loose, far))
+    assert math.isinf(capped.gate_distance(tr_capped, far))
+    assert math.isfinite(capped.gate_distance(tr_capped, near))
+    assert loose.position_gate_m(tr_loose) > 1.3
+    assert capped.position_gate_m(tr_capped) <= 1.0
+
+
+def test_a_coasting_track_slows_down_and_a_measured_one_does_not() -> None:
+    _, kept = _coasting(TrackParams(max_misses=50), misses=10)
+    _, damped = _coasting(TrackParams(max_misses=50, coast_damping_s=0.5), misses=10)
+    _, active = _coasting(TrackParams(max_misses=50, coast_damping_s=0.5), misses=0)
+    assert math.hypot(*kept.x[2:]) > 0.9
+    assert math.hypot(*damped.x[2:]) < 0.2  # exp(-1 s / 0.5 s) of 1 m/s
+    assert math.hypot(*active.x[2:]) > 0.9
+
+
+def _config(*, shared_pairs: bool = False, **tracker: object) -> ManagerConfig:
+    return ManagerConfig(
+        manager=msgspec.convert({"id": "m1"}, ManagerSection),
+        match=msgspec.convert({"shared_pairs": shared_pairs}, MatchSection),
+        tracker=msgspec.convert(tracker, TrackerSection),
+    )
+
+
+def test_a_fix_a_more_recently_measured_track_explains_better_is_not_a_coasting_tracks() -> None:
+    cfg = _config(max_gate_m=1.0)
+    tracker, active = _coasting(TrackParams(max_misses=50, max_gate_m=1.0), misses=0)
+    _, lost = _coasting(TrackParams(max_misses=50, max_gate_m=1.0), misses=6)
+    tracker.tracks.append(lost)
+    lost.x[:2] = active.x[:2] + np.array([0.6, 0.0])
+    assoc = Associator(cfg, tracker)
+    tracks = tracker.tracks
+    at_active = _meas(float(active.x[0]) + 0.05, float(active.x[1]))
+    assert math.isfinite(tracker.gate_distance(lost, at_active))  # inside its gate...
+    assert assoc._owned_elsewhere(lost, at_active, tracks)  # ...but the active one's
+    assert not assoc._owned_elsewhere(active, at_active, tracks)
+    at_lost = _meas(float(lost.x[0]) + 0.1, float(lost.x[1]))
+    assert not assoc._owned_elsewhere(lost, at_lost, tracks)
+
+
+CAMS = [Cam("c1", 0.0, 3.0), Cam("c2", 6.0, 0.0, yaw=math.pi / 2), Cam("c3", 6.0, 6.0, yaw=math.pi)]
+
+
+def _crossing(t: float) -> list[Person]:
+    """A and B walk diagonally across each other's path (crossing at (3.4, 3) at t = 3 s, 0.8 m/s)."""
+    s = min(max(t - 1.0, 0.0), 5.0) * 0.8 / math.sqrt(1.0 + 0.25**2)
+    return [
+        Person(1.8 + s, 2.6 + 0.25 * s, 1.70, hist=colour_hist(0)),
+        Person(1.8 + s, 3.4 - 0.25 * s, 1.85, hist=colour_hist(3)),
+    ]
+
+
+def _crossing_ids(shared_pairs: bool) -> tuple[list[set[str]], dict[str, float]]:
+    cfg = _config(shared_pairs=shared_pairs, max_gate_m=1.0, coast_damping_s=0.5, max_misses=8)
+    res = run_scenario(CAMS, _crossing, duration_s=8.0, config=cfg, keep_results=True, warmup_s=0.0)
+    ids: list[set[str]] = [set(), set()]
+    for r in res.results:
+        t = (r.trackset.stamp_ns - T0_NS) / 1e9  # the world time of the fusion instant
+        people = _crossing(t)
+        if t < 1.0 or math.hypot(people[0].x - people[1].x, people[0].y - people[1].y) < 0.6:
+            continue  # while they overlap, either track is near both
+        for k, p in enumerate(people):
+            ids[k].update(tr.track_id for tr in r.trackset.tracks if math.hypot(tr.x_m - p.x, tr.y_m - p.y) < 0.3)
+    return ids, res.mota
+
+
+def test_two_people_crossing_keep_their_ids_with_shared_blobs() -> None:
+    """After the crossing c2 and c3 each see one blob for both (the nearer hides the other), c1 sees two: the
+    hidden person is localised by pairing c1's own blob with the shared one, and both keep their ids."""
+    ids, m = _crossing_ids(shared_pairs=True)
+    assert len(ids[0]) == 1 and len(ids[1]) == 1 and ids[0] != ids[1], ids
+    assert m["idsw"] == 0 and m["mota"] > 0.9, m
+    lost, m_own = _crossing_ids(shared_pairs=False)  # own blobs only: one view left, that person is lost
+    assert m_own["fn"] > 5 * m["fn"] + 20, (m_own, lost)
