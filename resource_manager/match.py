@@ -316,14 +316,13 @@ def match_matrices(
         except GeometryError:
             use_sr[k, i, j] = False
     # Eq. 1 (triangulation) where the triangle is proper (common.geometry.triangulate on the converging pairs).
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s0 = np.sin(abs1 + abs2)
-        tri = converge & ~use_sr & (s0 > 1e-12) & (base > 0)
-        s0_t = s0[tri]
-        kk, ii, jj = np.nonzero(tri)
-        bb = base[kk, 0, 0]
-        d1[tri] = bb * np.sin(abs2[kk, 0, jj]) / s0_t
-        d2[tri] = bb * np.sin(abs1[kk, ii, 0]) / s0_t
+    kk, ii, jj = np.nonzero(converge & ~use_sr & (base > 0))
+    s0 = np.sin(abs1[kk, ii, 0] + abs2[kk, 0, jj])
+    proper = s0 > 1e-12
+    kk, ii, jj, s0 = kk[proper], ii[proper], jj[proper], s0[proper]
+    bb = base[kk, 0, 0]
+    d1[kk, ii, jj] = bb * np.sin(abs2)[kk, 0, jj] / s0
+    d2[kk, ii, jj] = bb * np.sin(abs1)[kk, ii, 0] / s0
     with np.errstate(invalid="ignore"):
         valid = (d1 > 0) & (d2 > 0) & (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
     d1[~valid] = 0.0
@@ -357,7 +356,7 @@ def match_matrices(
     h2 = z2 + d2v * tan_top[i2, jj]
     # Elsewhere (no distance) the height is the camera's own: constants of the pair and the cut flags.
     zc1, zc2 = z_view[ia][:, None, None], z_view[ib][:, None, None]
-    hc1, hc2 = np.broadcast_to(zc1, (npairs, na, 1)), np.broadcast_to(zc2, (npairs, 1, nb))
+    hc1, hc2 = zc1, zc2
     cut1, cut2 = cut[ia, :na][:, :, None], cut[ib, :nb][:, None, :]
     if cut1.any() or cut2.any():
         # A head cut by the image's upper border is at least as high as it looks: consistent with any
@@ -367,7 +366,7 @@ def match_matrices(
         top = np.maximum(zc1, zc2)
         hc1, hc2 = np.where(cut1, top, zc1), np.where(cut2, top, zc2)
     r_hc_v = _log_ratio_score(h1, h2, params.height_sigma)
-    r_hc = np.broadcast_to(_log_ratio_score(hc1, hc2, params.height_sigma), shape)
+    r_hc = _log_ratio_score(hc1, hc2, params.height_sigma)  # broadcast to (p, na, nb) below
     # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
     if floor:
         with np.errstate(invalid="ignore"):
@@ -388,7 +387,7 @@ def match_matrices(
     r_rc[valid] = r_rc_v
     r_wc = np.where(use_sr, 1.0, max(0.0, params.width_floor))
     r_wc[valid] = r_wc_v
-    r_hc = np.array(r_hc, dtype=np.float64)  # writable
+    r_hc = np.array(np.broadcast_to(r_hc, shape), dtype=np.float64)  # writable
     r_hc[valid] = r_hc_v
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
