@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import math
 from collections.abc import Callable
@@ -77,12 +76,6 @@ class Associator:
         mc = config.match
         self.config = config
         self.tracker = tracker
-        tc = config.tracker
-        if (tracker.params.max_gate_m, tracker.params.coast_damping_s) != (tc.max_gate_m, tc.coast_damping_s):
-            # The gating and coasting settings association relies on (fusion.py builds the rest).
-            tracker.params = dataclasses.replace(
-                tracker.params, max_gate_m=tc.max_gate_m, coast_damping_s=tc.coast_damping_s
-            )
         self.matcher = get_matcher(config.manager.matcher)
         self.params = MatchParams(
             max_range_m=mc.max_range_m,

@@ -236,8 +236,10 @@ class PlannerSection(ConfigStruct, frozen=True):
     """Hysteresis: a new goal only when its predicted error is below (1 - gain_frac) of the held goal's."""
     settle_s: NonNeg = 4.0
     """A new goal (and the first one) waits this long after the previous one, unless that became infeasible."""
-    band_z_m: NonNeg = 0.57
-    """Height of the middle of the robots' marking band (minimum baseline: bands above the lower elevation limit)."""
+    min_gain_m: NonNeg = 0.05
+    """...and the predicted error must fall by at least this much (a move costs the robot's detections)."""
+    band_z_m: NonNeg = 0.62
+    """Height of the robots' marking band (upper part; minimum baseline: bands above the lower elevation limit)."""
     elev_margin_deg: NonNeg = 1.0
     """Margin inside the lens' elevation limits for bands and heads."""
     min_band_px: Pos = 12.0
