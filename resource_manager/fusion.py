@@ -322,8 +322,11 @@ class Fusion:
         }
 
     def _plans(self, t_ns: int, poses: dict[str, PoseEstimate]) -> list[ViewPlan]:
+        infos = self.poses.infos
+        if not any(sid in infos and infos[sid].mobile for sid in poses):
+            return []  # no mobile camera: nothing to plan (checked before building the cameras)
         cams = [
-            plan_camera(sid, pose.origin, pose.z_m, self.poses.infos.get(sid), self.poses.bearing_sigma(sid))
+            plan_camera(sid, pose.origin, pose.z_m, infos.get(sid), self.poses.bearing_sigma(sid))
             for sid, pose in poses.items()
         ]
         if not any(c.mobile for c in cams):
