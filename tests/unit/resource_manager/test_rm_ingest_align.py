@@ -143,3 +143,66 @@ def test_trim_keeps_a_lower_bracket() -> None:
     stamps = ing.buffers["p1"].stamps
     before = [t for t in stamps if t <= (BASE_MS + 550) * MS]
     assert before == [(BASE_MS + 400) * MS, (BASE_MS + 500) * MS]  # the bracket and one more for extrapolation
+
+
+# -- world views of the aligned blobs (resource_manager/views.py) --------------------------------------------
+
+
+def test_world_views_drop_known_bodies_keep_people() -> None:
+    """A blob that is another camera's body is dropped; a person behind that body (taller top), a person
+    elsewhere and a blob toward a camera without a body are kept; bearings rotate into the world; every
+    view keeps its own histograms (none for a sensor that sends none)."""
+    import numpy as np
+
+    from resource_manager.align import AlignedBlob, AlignedView
+    from resource_manager.poses import PoseEstimate
+    from resource_manager.views import build_views
+
+    poses = {
+        "a": PoseEstimate("a", 0.0, 0.0, 1.1, 0.3, "surveyed"),
+        "b": PoseEstimate("b", 4.0, 0.0, 1.1, 0.0, "surveyed"),
+        "c": PoseEstimate("c", 0.0, 4.0, 1.1, -1.0, "surveyed"),
+    }
+    radius = 0.2
+
+    def seen(sid: str, lid: int, x: float, y: float, top_m: float, width_m: float, hist: list[float]) -> AlignedBlob:
+        p = poses[sid]
+        d = math.hypot(x - p.x_m, y - p.y_m)
+        bearing = math.remainder(math.atan2(y - p.y_m, x - p.x_m) - p.yaw_rad, 2 * math.pi)
+        top = math.atan2(top_m - p.z_m, d)
+        return AlignedBlob(lid, bearing, 2 * math.asin(width_m / 2 / d), top, -0.2, hist, True, 100.0, 10.0)
+
+    h1, h2, h3 = [0.5, 0.5, 0.0], [0.2, 0.3, 0.5], [1.0, 0.0, 0.0]
+    blobs = {
+        # a sees b's body (top at b's camera), a person behind b, a person elsewhere
+        "a": [
+            seen("a", 1, 4.0, 0.0, 1.0, 0.4, h1),
+            seen("a", 2, 6.0, 0.0, 1.8, 0.45, h2),
+            seen("a", 3, 2.0, 3.0, 1.7, 0.45, h3),
+        ],
+        # b sees c's body and camera a (no body: kept)
+        "b": [seen("b", 7, 0.0, 4.0, 1.0, 0.4, h1), seen("b", 8, 0.0, 0.0, 1.0, 0.3, h2)],
+        # c sends no histograms
+        "c": [seen("c", 4, 2.0, 3.0, 1.7, 0.45, []), seen("c", 5, 4.0, 0.0, 1.0, 0.4, [])],
+    }  # fmt: skip
+    aligned = {sid: AlignedView(sid, 0, bl, [], "interpolated") for sid, bl in blobs.items()}
+    views = build_views(aligned, poses, lambda sid: 0.002, bodies={"b": radius, "c": radius})
+    assert list(views) == ["a", "b", "c"]
+    assert views["a"].local_id.tolist() == [2, 3]  # b's body dropped, the person behind it kept
+    assert views["b"].local_id.tolist() == [8]  # c's body dropped, camera a has no body
+    assert views["c"].local_id.tolist() == [4]  # b's body dropped
+    for sid, v in views.items():
+        kept = [b for b in blobs[sid] if b.local_id in v.local_id.tolist()]
+        world = [math.remainder(b.bearing_rad + poses[sid].yaw_rad, 2 * math.pi) for b in kept]
+        assert np.allclose(np.remainder(v.bearing_rad - world + math.pi, 2 * math.pi) - math.pi, 0.0, atol=1e-12)
+        assert v.width_rad.tolist() == [b.width_rad for b in kept]
+        assert v.sigma_rad == pytest.approx(0.002)
+        if sid == "c":
+            assert v.hist is None and v.hist_sqrt is None
+        else:
+            assert v.hist is not None and v.hist_sqrt is not None
+            assert v.hist.tolist() == [b.hist for b in kept]
+            assert np.allclose(v.hist_sqrt**2, v.hist)
+    # Without bodies nothing is dropped.
+    views = build_views(aligned, poses, lambda sid: 0.002)
+    assert [v.n for v in views.values()] == [3, 2, 2]
