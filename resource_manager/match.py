@@ -142,6 +142,9 @@ def _wrap(a: FloatArray) -> FloatArray:
 def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
     """exp(-ln²(v1/v2) / 2σ²); 0 where either value is not positive."""
     ok = (v1 > 0) & (v2 > 0)
+    if ok.all():  # the usual case: the same arithmetic without the masks
+        lr = np.log(v1 / v2)
+        return np.asarray(np.exp(-(lr**2) / (2.0 * sigma**2)), dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         lr = np.where(ok, np.log(np.where(ok, v1, 1.0) / np.where(ok, v2, 1.0)), 0.0)
     return np.where(ok, np.exp(-(lr**2) / (2.0 * sigma**2)), 0.0)
@@ -217,21 +220,26 @@ def _colour(
     ]
     bins = {r.shape[1] for r in roots if r is not None}
     _, na, nb = shape
-    if len(bins) == 1 and all(r is not None or v.n == 0 for r, v in zip(roots, tabs.views, strict=True)):
-        # Every view sends histograms of the same size: one stacked product for all pairs.
+    if (
+        len(pairs) > 2
+        and len(bins) == 1
+        and all(r is not None or v.n == 0 for r, v in zip(roots, tabs.views, strict=True))
+    ):
+        # Every view sends histograms of the same size: one stacked product for all pairs (a few pairs: the
+        # loop below is cheaper than building the table).
         k = next(iter(bins))
         flat = np.zeros((tabs.shape[0] * tabs.shape[1], k))
         if tabs.total:
             flat[tabs.flat] = np.concatenate([r for r in roots if r is not None])
         table = flat.reshape(tabs.shape[0], tabs.shape[1], k)
-        return np.clip(np.matmul(table[ia, :na], table[ib, :nb].transpose(0, 2, 1)), 0.0, 1.0)
+        return np.minimum(np.maximum(np.matmul(table[ia, :na], table[ib, :nb].transpose(0, 2, 1)), 0.0), 1.0)
     out = np.ones(shape)
     for k, (a, b) in enumerate(pairs):
         if a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
             sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
             sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
             out[k, : a.n, : b.n] = sa @ sb.T
-    return np.clip(out, 0.0, 1.0)
+    return np.minimum(np.maximum(out, 0.0), 1.0)  # np.clip, without its per-call overhead
 
 
 def match_matrices(
@@ -371,13 +379,13 @@ def match_matrices(
     if floor:
         with np.errstate(invalid="ignore"):
             tan_bot = np.tan(per_blob[:, :, 3])
-        s_view = np.array([v.sigma_rad for v in uniq], dtype=np.float64)
-        g0 = 2.0 * params.floor_sigma_m**2
-        for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
-            with np.errstate(invalid="ignore"):
-                zf = zs + dist * tb
-            sig = params.floor_sigma_m + dist * sv * 4.0
-            r_hc_v = r_hc_v * np.where(np.isfinite(zf), np.exp(-(np.nan_to_num(zf) ** 2) / (2.0 * sig**2)), 1.0)
+            s_view = np.array([v.sigma_rad for v in uniq], dtype=np.float64)
+            g0 = 2.0 * params.floor_sigma_m**2
+            for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
+                zf = zs + dist * tb  # NaN where the feet are not visible: factor 1
+                sig = params.floor_sigma_m + dist * sv * 4.0
+                fin = np.isfinite(zf)
+                r_hc_v = r_hc_v * np.where(fin, np.exp(-(np.where(fin, zf, 0.0) ** 2) / (2.0 * sig**2)), 1.0)
         # No distance: the feet are at the camera's height (where visible at all).
         feet1 = np.isfinite(tan_bot[ia, :na])[:, :, None]
         feet2 = np.isfinite(tan_bot[ib, :nb])[:, None, :]
