@@ -162,7 +162,20 @@ class Fusion:
         pl = config.planner
         room = tuple(pl.room) if len(pl.room) == 4 else None
         self.planner = ViewPlanner(
-            PlannerParams(pl.enabled, int(pl.period_s * 1e9), room, pl.margin_m, pl.min_move_m)  # type: ignore[arg-type]
+            PlannerParams(
+                enabled=pl.enabled,
+                period_ns=int(pl.period_s * 1e9),
+                room=room,  # type: ignore[arg-type]
+                margin_m=pl.margin_m,
+                min_move_m=pl.min_move_m,
+                gain_frac=pl.gain_frac,
+                min_gain_m=pl.min_gain_m,
+                settle_ns=int(pl.settle_s * 1e9),
+                band_z_m=pl.band_z_m,
+                elev_margin_rad=math.radians(pl.elev_margin_deg),
+                min_band_px=pl.min_band_px,
+                keep_m=pl.keep_m,
+            )
         )
         pz = config.ptz
         self.ptz = PtzAllocator(
