@@ -319,7 +319,15 @@ class BackgroundModel:
             y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
             region = np.zeros((y1 - y0, x1 - x0), np.uint8)
             region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
-            take = (cv2.dilate(region, _K9) > 0) & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
+            grown = cv2.dilate(region, _K9) > 0
+            ring = grown & (region == 0)
+            around = np.count_nonzero(ring & (fg[y0:y1, x0:x1] > 0))
+            if around > GHOST_RING_CHANGED * np.count_nonzero(ring):
+                # A ghost is the whole changed region (beyond it the frame matches the model); this one
+                # continues into changed pixels all around: the still inside of someone walking (a
+                # uniform shirt does not change from frame to frame). Learning it would paint them in.
+                continue
+            take = grown & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
             sub = self._bg[y0:y1, x0:x1]
             sub[take] = grey[y0:y1, x0:x1][take]
             self._static[y0:y1, x0:x1][take] = 0
@@ -347,6 +355,9 @@ GHOST_EDGE = 10.0
 
 GHOST_SCORE = 2.5
 """Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""
+
+GHOST_RING_CHANGED = 0.35
+"""Fraction of the 4-px ring around a still region that may be changed for it to be absorbed as a ghost."""
 
 PERSON_SCORE = 1.5
 """Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""

@@ -264,11 +264,19 @@ class PipelineSettings(ConfigStruct, frozen=True):
     min_blob_height_px: PosInt = 10
     min_blob_width_px: PosInt = 5
     """Narrower blobs are dropped (a person 10 m away is ~7 px wide in a 1080 px panorama)."""
-    split_dip_px: Annotated[int, msgspec.Meta(ge=0)] = 0
+    split_dip_px: Annotated[int, msgspec.Meta(ge=0)] = 8
     """A blob whose top profile has two peaks (heads) with a valley this many rows below the lower one
-    is split there into two objects (0: never split, the default: on the demo's rendered sequences 8
-    found 1-6 % more people but 40-80 % more false blobs). Lower: people side by side separate sooner,
-    a shoulder may pass for a head; higher: the opposite."""
+    is split there into two objects, each side having to rise to a head (0: never). On the rendered
+    sites (``benchmarks/bench_node_quality.py``) 8 with ``split_gap_cols`` 1 raised the people found
+    from 60 % to 85 % (six) and 89 % to 96 % (demo); ghosts that were merged into people become
+    blobs of their own. Lower: people side by side separate sooner, a shoulder may pass for a head."""
+    split_gap_cols: Annotated[int, msgspec.Meta(ge=0)] = 1
+    """A blob whose vertical projection profile has a gap (columns with at most one changed pixel) at
+    least this many columns wide is parted there, if both sides pass the blob checks (grouping joins
+    regions up to ``merge_gap_px`` apart: people walking side by side). 0: never."""
+    head_edges: bool = True
+    """Place each head row's ends to sub-pixel precision from the partly covered edge pixels (their
+    difference to the background) instead of the thresholded mask's whole pixels. Off: the mask only."""
     head_ratio: Pos = 1.5
     """Head box height:width (paper: 3:2). Only the head's bearing is used, so it is not critical."""
     hist_bins: Annotated[list[int], msgspec.Meta(min_length=2, max_length=2)] = msgspec.field(

@@ -27,8 +27,8 @@ import numpy.typing as npt
 
 from common.cameras import CylindricalCamera, PinholeCamera
 from common.schema import Blob
-from sensor_node.blobs import RawBlob
-from sensor_node.head import extract_head
+from sensor_node.blobs import RawBlob, roi
+from sensor_node.head import DiffRows, extract_head
 from sensor_node.unwarp import PanoFrame
 
 __all__ = [
@@ -175,6 +175,8 @@ def annotate(
     geometry: ImageGeometry,
     head_ratio: float = 1.5,
     hist_bins: tuple[int, int] | list[int] = (16, 4),
+    *,
+    background: Image | None = None,
 ) -> BlobFeature:
     """Turn a validated blob into its annotation (I, theta, w, h, bottom, box).
 
@@ -184,8 +186,20 @@ def annotate(
         geometry: pixel -> angle mapping of that image.
         head_ratio: head box height:width (paper 3:2).
         hist_bins: hue x saturation bins of I.
+        background: the background model's grey image the blob was found against (None: the head
+            column from the mask alone; given: sub-pixel head edges, :func:`sensor_node.head.extract_head`).
     """
-    head = extract_head(raw.mask, head_ratio)
+    diff: DiffRows | None = None
+    if background is not None and frame is not None and background.shape == frame.grey.shape:
+        w_img = frame.grey.shape[1]
+        if geometry.wraps or (raw.u0 > 0 and raw.u0 + raw.w < w_img):
+            grey, bg, u_left = frame.grey, background, (raw.u0 - 1) % w_img
+
+            def diff(r0: int, r1: int) -> npt.NDArray[np.float32]:
+                box = (u_left, raw.v0 + r0, raw.w + 2, r1 - r0)
+                return np.asarray(roi(grey, *box), np.float32) - np.asarray(roi(bg, *box), np.float32)
+
+    head = extract_head(raw.mask, head_ratio, diff)
     height_px, width_img = (frame.grey.shape[0], frame.grey.shape[1]) if frame is not None else (0, 0)
     head_u = raw.u0 + head.u_px
     head_v = raw.v0 + head.v_px

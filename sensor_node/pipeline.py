@@ -109,11 +109,12 @@ class ImagePipeline:
         raws = [part for raw in raws for part in split_at_heads(raw, motion.moving, s, width)]
         people = []
         n_body = 0
+        bg = self.background.background if s.head_edges else None
         for raw in raws:
             if sightings and is_body_blob(raw.u0, raw.w, width, sightings, v0=raw.v0):
                 n_body += 1
                 continue
-            people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins))
+            people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins, background=bg))
         if self._tracker is None:
             self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
         ids = self._tracker.update(

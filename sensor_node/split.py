@@ -20,6 +20,7 @@ has no heads to split at there.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,9 @@ HEAD_MAX_FRAC = 0.85
 
 SPLIT_MIN_WIDTH_FRAC = 0.3
 """Least width of a split part relative to the widest part (an arm or shoulder is narrower)."""
+
+GAP_MAX_PX = 1
+"""Changed pixels a column may hold and still be a gap of the vertical projection profile (a noise speck)."""
 
 
 def top_profile(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
@@ -77,6 +81,12 @@ def _cuts(top: npt.NDArray[np.int64], dip_px: int, radius: int, cut_above: int) 
     Peaks at rows < ``cut_above`` run out of the image (a near person's head above the view): their
     profile is shoulders and arms, not heads, so they split nothing.
     """
+    # Quick exit (most blobs hold one person): no column dips dip_px below the highest point on
+    # each side of it -- a necessary condition for any valley between two peaks.
+    left = np.minimum.accumulate(top)
+    right = np.minimum.accumulate(top[::-1])[::-1]
+    if int((top - np.maximum(left, right)).max()) < dip_px:
+        return []
     peaks = [p for p in _peaks(top, radius) if top[p] >= cut_above]
     cuts: list[int] = []
     keep = peaks[:1]
@@ -107,48 +117,128 @@ def _has_head(top: npt.NDArray[np.int64], dip_px: int) -> bool:
     return HEAD_MIN_COLS <= cols <= HEAD_MAX_FRAC * top.size
 
 
+def _gaps(mask: npt.NDArray[np.bool_], gap_cols: int) -> list[int]:
+    """Cut columns at the gaps of a blob's vertical projection profile.
+
+    A gap is a run of at least ``gap_cols`` columns with at most ``GAP_MAX_PX`` changed pixels
+    (grouping joined regions up to ``merge_gap_px`` apart, and a noise speck may sit in between);
+    the cut is the gap's middle column.
+    """
+    if gap_cols <= 0:
+        return []
+    low = np.count_nonzero(mask, axis=0) <= GAP_MAX_PX
+    if not low[1:-1].any():
+        return []
+    cuts: list[int] = []
+    c, w = 0, low.size
+    while c < w:
+        if not low[c]:
+            c += 1
+            continue
+        e = c
+        while e + 1 < w and low[e + 1]:
+            e += 1
+        if c > 0 and e < w - 1 and e - c + 1 >= gap_cols:
+            cuts.append((c + e + 1) // 2)
+        c = e + 1
+    return cuts
+
+
+def _ok_part(blob: RawBlob, a: int, b: int, settings: PipelineSettings) -> bool:
+    """Columns [a, b) of a blob hold enough of an object to stand alone (the blob checks)."""
+    sub = blob.mask[:, a:b]
+    rows = np.flatnonzero(sub.any(axis=1))
+    if rows.size == 0:
+        return False
+    cols = np.flatnonzero(sub.any(axis=0))
+    area = int(np.count_nonzero(sub))
+    return (
+        area >= settings.min_blob_px
+        and int(rows[-1] - rows[0]) + 1 >= settings.min_blob_height_px
+        and int(cols[-1] - cols[0]) + 1 >= settings.min_blob_width_px
+    )
+
+
+def _merge_weak(edges: list[int], ok: Callable[[int, int], bool]) -> list[int]:
+    """Drop cuts until every part [edges[i], edges[i+1]) is ``ok``: a weak part joins its narrower neighbour."""
+    edges = list(edges)
+    while len(edges) > 2:
+        weak = [i for i in range(len(edges) - 1) if not ok(edges[i], edges[i + 1])]
+        if not weak:
+            break
+        i = weak[0]
+        if i == 0:
+            del edges[1]
+        elif i == len(edges) - 2:
+            del edges[-2]
+        else:  # join the neighbour it is closer to in width (the smaller of the two joins)
+            left, right = edges[i] - edges[i - 1], edges[i + 2] - edges[i + 1]
+            del edges[i if left <= right else i + 1]
+    return edges
+
+
 def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, width_px: int) -> list[RawBlob]:
-    """The blob's people, one blob each (``[blob]`` when it holds one).
+    """The blob's objects, one blob each (``[blob]`` when it holds one).
+
+    First at the gaps of the vertical projection profile (``split_gap_cols``): grouping joined
+    regions that do not touch; each side that passes the blob checks stands alone, a fragment that
+    does not joins its neighbour. Then each part at the valleys between heads (``split_dip_px``):
+    a cut is kept only if the parts on both sides are wide enough, rise to a head and pass the blob
+    checks; otherwise the weak part joins its neighbour (one bump does not undo the other cuts).
 
     Args:
         blob: a validated blob.
         moving: (H, W) frame-difference mask of the frame (for the parts' motion fractions).
-        settings: ``split_dip_px`` and the blob checks.
+        settings: ``split_gap_cols``, ``split_dip_px`` and the blob checks.
         width_px: image width (blob columns wrap on a panorama).
     """
     dip = settings.split_dip_px
-    if dip <= 0 or blob.w < 2 * settings.min_blob_width_px:
+    if blob.w < 2 * settings.min_blob_width_px:
         return [blob]
-    top = top_profile(blob.mask)
-    cuts = _cuts(top, dip, max(2, settings.min_blob_width_px // 2), 1 - blob.v0)
-    if not cuts:
+    edges = _merge_weak(
+        [0, *_gaps(blob.mask, settings.split_gap_cols), blob.w], lambda a, b: _ok_part(blob, a, b, settings)
+    )
+    if dip > 0:
+        top = top_profile(blob.mask)
+        radius = max(2, settings.min_blob_width_px // 2)
+        fine: list[int] = [0]
+        for a, b in itertools.pairwise(edges):
+            if b - a < 2 * settings.min_blob_width_px:
+                fine.append(b)
+                continue
+            cuts = [a + c for c in _cuts(top[a:b], dip, radius, 1 - blob.v0)]
+            sub = [a, *cuts, b]
+            widest = max(y - x for x, y in itertools.pairwise(sub))
+
+            def ok(x: int, y: int, widest: int = widest) -> bool:
+                return (
+                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest
+                    and _has_head(top[x:y], dip)
+                    and _ok_part(blob, x, y, settings)
+                )
+
+            fine.extend(_merge_weak(sub, ok)[1:])
+        edges = fine
+    if len(edges) == 2:
         return [blob]
-    edges = [0, *cuts, blob.w]
-    widest = max(b - a for a, b in itertools.pairwise(edges))
-    parts: list[RawBlob] = []
-    for a, b in itertools.pairwise(edges):
-        if b - a < SPLIT_MIN_WIDTH_FRAC * widest or not _has_head(top[a:b], dip):
-            return [blob]  # a bump, not a person: keep the blob whole
-        part = _part(blob, a, b, moving, width_px)
-        if part is None:
-            continue
-        if part.area_px < settings.min_blob_px or part.h < settings.min_blob_height_px:
-            continue
-        if part.w < settings.min_blob_width_px:
-            continue
-        parts.append(part)
+    parts = [p for a, b in itertools.pairwise(edges) if (p := _part(blob, a, b, moving, width_px)) is not None]
     return parts or [blob]
 
 
 def _part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> RawBlob | None:
-    """Columns [a, b) of a blob as a blob of its own, trimmed to its pixels."""
+    """Columns [a, b) of a blob as a blob of its own, trimmed to its pixels (end columns of a speck dropped)."""
     sub = blob.mask[:, a:b]
-    rows = np.flatnonzero(sub.any(axis=1))
-    cols = np.flatnonzero(sub.any(axis=0))
-    if rows.size == 0:
+    counts = np.count_nonzero(sub, axis=0)
+    cols = np.flatnonzero(counts > GAP_MAX_PX)  # trimmed of specks left in a gap at its ends
+    if cols.size == 0:
+        cols = np.flatnonzero(counts)
+    if cols.size == 0:
         return None
-    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]), int(cols[0]), int(cols[-1])
-    mask = sub[r0 : r1 + 1, c0 : c1 + 1]
+    c0, c1 = int(cols[0]), int(cols[-1])
+    sub = sub[:, c0 : c1 + 1]
+    rows = np.flatnonzero(sub.any(axis=1))
+    r0, r1 = int(rows[0]), int(rows[-1])
+    mask = sub[r0 : r1 + 1]
     u0, v0, w, h = (blob.u0 + a + c0) % width_px, blob.v0 + r0, c1 - c0 + 1, r1 - r0 + 1
     area = int(np.count_nonzero(mask))
     moving_px = int(np.count_nonzero(np.asarray(roi(moving, u0, v0, w, h))[mask]))

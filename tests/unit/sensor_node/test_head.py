@@ -25,3 +25,24 @@ def test_head_centroid_not_body_centroid(arm: bool, body_row: int) -> None:
 def test_empty_mask_is_an_error() -> None:
     with pytest.raises(ValueError):
         extract_head(np.zeros((10, 10), bool))
+
+
+@pytest.mark.parametrize("centre", [24.0, 24.3, 24.75])
+def test_sub_pixel_head_edges_from_partly_covered_pixels(centre: float) -> None:
+    # A head 9.4 px wide whose left side contrasts strongly with the wall (hair: -120 grey levels)
+    # and its right side weakly (face: +24). Edge pixels carry the covered fraction of that contrast;
+    # the threshold (16) keeps a partly covered hair pixel but drops a partly covered face pixel.
+    half = 4.7
+    cols = np.arange(-1, 41)  # the diff has one extra column each side of the 40-column box
+    cover = np.clip(np.minimum(cols + 0.5, centre + half) - np.maximum(cols - 0.5, centre - half), 0.0, 1.0)
+    contrast = np.where(cols < centre, -120.0, 24.0)
+    diff_row = cover * contrast
+    diff = np.tile(diff_row, (40, 1))
+    diff[15:] = 0.0
+    m = np.abs(diff[:, 1:-1]) > 16
+    m[15:40, 14:36] = True  # the body below
+    plain = extract_head(m, head_ratio=1.5)
+    sub = extract_head(m, head_ratio=1.5, diff=lambda r0, r1: diff[r0:r1].astype(np.float32))
+    assert sub.u_px == pytest.approx(centre, abs=0.05)
+    # The mask alone rounds to whole pixels and loses the faint side: up to ~0.5 px off.
+    assert abs(plain.u_px - centre) >= 0.2

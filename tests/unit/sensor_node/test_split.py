@@ -42,16 +42,39 @@ def test_people_side_by_side_are_split_at_the_valley_between_their_heads(people:
 def test_one_person_is_not_split_by_an_arm_or_a_flat_shoulder() -> None:
     fg = _mask([(400.0, 40)])
     fg[75:120, 384:388] = 255  # an arm held out beside the body, its top a narrow spike below the head
-    fg[70:162, 420:440] = 255  # a flat-topped thing (a bag, a ghost) beside them
+    fg[70:162, 411:424] = 255  # a flat-topped thing (a bag, a ghost) touching them
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
     blobs = find_blobs(fg, fg, s)
     assert len(blobs) == 1
     assert split_at_heads(blobs[0], fg, s, W) == blobs
 
 
+def test_a_gap_in_the_projection_profile_parts_what_grouping_joined() -> None:
+    fg = _mask([(400.0, 40)])
+    fg[75:120, 384:388] = 255  # an arm touching the body stays with it
+    fg[70:162, 420:440] = 255  # a thing 8 columns away: grouping joins it, the gap parts it again
+    fg[100:101, 414] = 255  # a noise speck in the gap does not bridge it
+    s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
+    (blob,) = find_blobs(fg, fg, s)
+    parts = split_at_heads(blob, fg, s, W)
+    assert [(p.u0, p.w) for p in parts] == [(384, 28), (420, 20)]
+    head = annotate(parts[0], None, _Cols(), s.head_ratio)
+    assert head.head_u_px == pytest.approx(400.0, abs=0.5)
+    # A fragment too small to be a blob stays with its neighbour; off (0) keeps the blob whole.
+    fg[70:162, 420:440] = 0
+    fg[150:155, 420:424] = 255
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_at_heads(blob, fg, s, W) == [blob]
+    fg[70:162, 420:440] = 255
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_at_heads(blob, fg, PipelineSettings(merge_gap_px=[12, 8], split_gap_cols=0, split_dip_px=0), W) == [
+        blob
+    ]
+
+
 def test_splitting_off_when_dip_is_zero_and_profile_of_a_blob() -> None:
     fg = _mask([(300.0, 40), (318.0, 40)])
-    assert len(_split(fg, PipelineSettings(split_dip_px=0))) == 1
+    assert len(_split(fg, PipelineSettings(split_dip_px=0))) == 1  # touching: no gap to part them at
     m = np.zeros((4, 3), bool)
     m[2, 0] = m[1, 2] = True
     assert top_profile(m).tolist() == [2, 4, 1]
