@@ -92,6 +92,8 @@ class PlannerParams:
     sight_clearance_m: float = 0.35
     """The person must be this far from the line of sight goal - main camera."""
     grid_step_m: float = 0.1
+    relearn_ns: int = 4_000_000_000
+    """After a robot reaches its goal, its node relearns the background this long (no blobs: see ``driving``)."""
     travel_frac_per_m: float = 0.01
     """Among near-equal goals (the map is flat; Fig. 4 has two symmetric optima) the nearer wins: the
     error is weighed (1 + this x the drive's length) when choosing."""
@@ -158,7 +160,12 @@ class _Scene:
     main: PlanCamera
     tgt: PlanTarget
     others: list[PlanCamera]
+    """Every other camera where it is, and each other robot also where it is going."""
     people: list[PlanTarget]
+    fixed: list[PlanCamera]
+    """Every other camera where it will stay: the other robots at their goals (a goal held is judged by these)."""
+    others_busy: bool = False
+    """Another robot is driving or relearning: one robot moves at a time (unless this one must)."""
 
 
 @dataclass(slots=True)
@@ -166,6 +173,8 @@ class _Held:
     xy: tuple[float, float]
     track_id: str
     issued_ns: int
+    arrived_ns: int | None = None
+    """When the robot's pose first came within ``min_move_m`` of the goal."""
 
 
 @dataclass(slots=True)
@@ -183,6 +192,28 @@ class ViewPlanner:
     def last_goal(self) -> dict[str, tuple[float, float]]:
         return {sid: h.xy for sid, h in self.held.items()}
 
+    def driving(self, positions: dict[str, FloatArray], t_ns: int) -> frozenset[str]:
+        """The mobile cameras this planner set moving that cannot detect anyone yet.
+
+        From a new goal until ``relearn_ns`` after the robot's pose (``positions``) reached it, its node sees
+        the world move and relearns its background: its empty blob lists say nothing about where people
+        are, and must not count as "seen nothing there" against the other cameras' detections.
+        """
+        out = []
+        for sid, h in self.held.items():
+            xy = positions.get(sid)
+            if xy is None:
+                continue
+            if h.arrived_ns is None and math.dist((float(xy[0]), float(xy[1])), h.xy) <= self.params.min_move_m:
+                h.arrived_ns = t_ns
+            if h.arrived_ns is None or t_ns - h.arrived_ns < self.params.relearn_ns:
+                out.append(sid)
+        return frozenset(out)
+
+    def _fixed(self, c: PlanCamera) -> PlanCamera:
+        held = self.held.get(c.sensor_id) if c.mobile else None
+        return c if held is None else replace(c, xy=np.asarray(held.xy))
+
     def plan(
         self, t_ns: int, cameras: list[PlanCamera], targets: list[PlanTarget], force: bool = False
     ) -> list[PlanGoal]:
@@ -195,6 +226,7 @@ class ViewPlanner:
         by_id = {c.sensor_id: c for c in cameras}
         taken: set[str] = set()
         out: list[PlanGoal] = []
+        positions = {c.sensor_id: c.xy for c in cameras}
         for cam in sorted((c for c in cameras if c.mobile), key=lambda c: c.sensor_id):
             if cam.radius_m <= 0:
                 continue
@@ -221,7 +253,10 @@ class ViewPlanner:
                     for c in others
                     if c.mobile and c.sensor_id in self.held
                 ]
-                goal = self._goal(t_ns, _Scene(cam, main, tgt, others, targets))
+                fixed = [self._fixed(c) for c in cameras if c.sensor_id != cam.sensor_id]
+                busy = self.driving(positions, t_ns) - {cam.sensor_id}  # including goals sent this instant
+                scene = _Scene(cam, main, tgt, others, targets, fixed, bool(busy))
+                goal = self._goal(t_ns, scene)
                 if goal is None:
                     continue
                 taken.add(tgt.track_id)
@@ -253,7 +288,7 @@ class ViewPlanner:
             here_ok = bool(self._feasible(here, sc, drive=False, transient=False)[0])
             ref_xy, ref_err = cam.xy, now_err if here_ok else math.inf
         since = t_ns - (held.issued_ns if held is not None else self.first_ns.setdefault(cam.sensor_id, t_ns))
-        settling = since < p.settle_ns and math.isfinite(ref_err)
+        settling = (since < p.settle_ns or sc.others_busy) and math.isfinite(ref_err)
         better = math.isfinite(best_err) and (
             not math.isfinite(ref_err)
             or (best_err < (1.0 - p.gain_frac) * ref_err and best_err < ref_err - p.min_gain_m)
@@ -269,7 +304,7 @@ class ViewPlanner:
             goal_xy, goal_err = best_xy, best_err
         elif held is not None:
             if held.track_id != tgt.track_id:
-                self.held[cam.sensor_id] = _Held(held.xy, tgt.track_id, held.issued_ns)
+                self.held[cam.sensor_id] = _Held(held.xy, tgt.track_id, held.issued_ns, held.arrived_ns)
             goal_xy, goal_err = np.asarray(held.xy), ref_err
         else:
             return None  # where it stands is good enough: no goal yet
@@ -342,7 +377,7 @@ class ViewPlanner:
             if main.radius_m > 0:
                 ok &= _segment_dist(main.xy, xy, tgt.xy) >= p.sight_clearance_m
         ranged = np.zeros(len(xy), dtype=bool)
-        for other in sc.others:
+        for other in sc.others if transient else sc.fixed:
             d = np.hypot(*(xy - other.xy).T)
             clear = cam.radius_m + max(other.radius_m, 0.1) + p.body_clearance_m
             lo = max(clear, _min_baseline(cam, other, p))
@@ -356,7 +391,7 @@ class ViewPlanner:
                 ranged |= d <= _max_baseline(cam, other, p)
             if other is main and main.radius_m > 0:
                 ok &= d <= _max_baseline(cam, other, p)
-        if any(o.radius_m > 0 for o in sc.others):
+        if any(o.radius_m > 0 for o in sc.fixed):
             ok &= ranged
         return ok
 

@@ -200,3 +200,23 @@ def test_small_absolute_gains_do_not_move_the_robot() -> None:
     gain = g.current_error_m - g.predicted_error_m
     assert g.predicted_error_m < 0.75 * g.current_error_m and gain < 0.05  # the geometry is what the test needs
     assert ViewPlanner(p).plan(0, [main, robot], [target]) == []
+
+
+def test_driving_until_relearnt_and_one_robot_moves_at_a_time() -> None:
+    p = PlannerParams(period_ns=0, settle_ns=0, relearn_ns=3 * S, room=(0.0, 0.0, 10.0, 8.0))
+    planner = ViewPlanner(p)
+    main = _cam("p1", 5.0, 0.5)
+    r1, r2 = _cam("r1", 5.0, 3.0, mobile=True), _cam("r2", 7.4, 4.3, mobile=True)  # both on their O1-T lines
+    people = [_tgt(5.2, 6.5, ("p1",), "m-1"), _tgt(9.0, 6.8, ("p1",), "m-2")]
+    goals = planner.plan(0, [main, r1, r2], people)
+    assert [g.sensor_id for g in goals] == ["r1"]  # r2 waits while r1 drives (r1 is planned first)
+    g1 = goals[0]
+    assert planner.driving({"r1": r1.xy, "r2": r2.xy}, 1 * S) == {"r1"}
+    at = np.array(g1.goal_xy) + 0.05
+    assert planner.driving({"r1": at}, 2 * S) == {"r1"}  # arrived: relearning its background
+    assert planner.driving({"r1": at}, 4 * S) == {"r1"}
+    assert planner.driving({"r1": at}, 5 * S + 1) == frozenset()
+    r1_there = _cam("r1", *at, mobile=True)
+    goals = planner.plan(6 * S, [main, r1_there, r2], people)
+    assert {g.sensor_id for g in goals} == {"r1", "r2"}  # now r2 gets its goal; r1's is re-published
+    assert next(g for g in goals if g.sensor_id == "r1").goal_xy == g1.goal_xy
