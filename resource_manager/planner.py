@@ -32,8 +32,13 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   re-calibrated. The held goal is re-published every period (a repeat:
   the simulated world and :func:`common.scenario.goals_from_plans` ignore it).
 
+* **One robot at a time**: while another robot drives or relearns its
+  background (:meth:`ViewPlanner.driving`, which the fusion also uses to excuse
+  that robot's empty frames), a robot standing in a usable place waits.
+
 The candidates are a grid (``grid_step_m``) over the room (or around the
 target); the map is smooth and flat near its minimum (notes/geometry.md §2.3).
+Among near-equal candidates the shorter drive wins (``travel_frac_per_m``).
 
 Assignment: each mobile camera takes the confirmed track with the largest
 predicted error among those not yet taken, nearest first when equal; two mobile
@@ -187,10 +192,6 @@ class ViewPlanner:
     """New goals (not repeats) so far."""
     first_ns: dict[str, int] = field(default_factory=dict)
     """When each mobile camera was first planned for (its first goal waits ``settle_ns`` from then)."""
-
-    @property
-    def last_goal(self) -> dict[str, tuple[float, float]]:
-        return {sid: h.xy for sid, h in self.held.items()}
 
     def driving(self, positions: dict[str, FloatArray], t_ns: int) -> frozenset[str]:
         """The mobile cameras this planner set moving that cannot detect anyone yet.
