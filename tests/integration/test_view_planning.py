@@ -111,7 +111,7 @@ def test_planner_moves_robot_and_measured_error_falls(router: Any, spawn: Any, t
     with client_session(router.endpoint) as session:
         got = Collector(session, keys)
         try:
-            spawn([sys.executable, "-m", "resource_manager", "--config", mgr_cfg], env=env, name="manager")
+            mgr = spawn([sys.executable, "-m", "resource_manager", "--config", mgr_cfg], env=env, name="manager")
             for cfg in node_cfgs:
                 spawn([sys.executable, "-m", "sensor_node", "--config", cfg], env=env, name=cfg.stem)
             wait_for_liveliness(session, keys.manager(MID), timeout_s=20)
@@ -160,7 +160,6 @@ def test_planner_moves_robot_and_measured_error_falls(router: Any, spawn: Any, t
         f"after n={len(after)} mean={statistics.fmean(after) if after else -1:.3f} per second (n, mean): "
         + " ".join(f"{k}:{len(v)},{statistics.fmean(v):.2f}" for k, v in sorted(per_s.items()))
     )
-    print(summary)
     assert len(before) >= 3 and len(after) >= 20, summary
     # The measured error after the move is well below the error before it.
     assert statistics.fmean(after) < 0.5 * statistics.fmean(before), summary
@@ -180,8 +179,10 @@ def test_planner_moves_robot_and_measured_error_falls(router: Any, spawn: Any, t
     assert 1 <= len(goals) <= 3, summary
 
     # The manager knew the robot's pose from its first status with it to the end (mutual calibration held).
-    since = next(i for i, s in enumerate(statuses) if any(p.sensor_id == "robot" for p in s.poses))
+    since = next((i for i, s in enumerate(statuses) if any(p.sensor_id == "robot" for p in s.poses)), None)
+    assert since is not None, f"the manager never knew the robot's pose: {summary}"
     for s in statuses[since:]:
         assert any(p.sensor_id == "robot" for p in s.poses), (s, summary)
         assert "robot" not in s.sensors_without_pose, (s, summary)
     assert (statuses[-1].stamp_ns - statuses[since].stamp_ns) / 1e9 > stop_s - first_plan_s, summary
+    assert "pose of robot lost" not in mgr.log(), summary  # not even between two statuses
