@@ -204,6 +204,11 @@ class TrackerSection(ConfigStruct, frozen=True):
     spacing of two people its gate reaches the neighbour's fixes."""
     coast_damping_s: Pos = 1e9
     """Time constant (s) of the velocity decay of a coasting track (1e9: constant velocity)."""
+    relink_s: Annotated[float, msgspec.Meta(ge=0.0, le=60.0)] = 0.0
+    """A track lost after ``max_misses`` is held (unpublished) this long; a new track confirmed near where it
+    was lost takes its id instead of a new one. 0: off (a lost track ends at once)."""
+    relink_m: Pos = 1.0
+    """...near: within this distance (plus 0.5 m per second since it was lost) and 0.15 m of head height."""
 
 
 class MutualSection(ConfigStruct, frozen=True):

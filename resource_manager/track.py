@@ -52,6 +52,11 @@ class TrackParams:
     coast_damping_s: float = math.inf
     """Time constant of the velocity decay while a track coasts (people stop and turn; a constant-velocity
     prediction of a lost person walks off through the walls)."""
+    relink_s: float = 0.0
+    """A confirmed track lost for ``max_misses`` ticks is held (unpublished) this long: a new track confirmed
+    near where it was lost takes its id instead of a new one (0: off, a lost track ends at once)."""
+    relink_m: float = 1.0
+    """...when it is confirmed within this distance (plus 0.5 m per second lost) of the lost track's place."""
 
 
 @dataclass(slots=True)
@@ -98,11 +103,15 @@ class Tracker:
         self.params = params
         self.new_id = new_id
         self.tracks: list[TrackRecord] = []
+        self.lost: list[TrackRecord] = []
+        """Confirmed tracks lost for ``max_misses`` ticks, held ``relink_s`` for their id (oldest first)."""
         self._serial = 0
+        self._now_ns = 0
 
     def predict(self, t_ns: int) -> None:
         """Move every track to the fusion instant ``t_ns`` (never backwards)."""
         q = self.params.accel_sigma_mps2**2
+        self._now_ns = max(self._now_ns, t_ns)
         for tr in self.tracks:
             dt = (t_ns - tr.t_ns) / 1e9
             if dt <= 0:
@@ -168,7 +177,7 @@ class Tracker:
         if tr.state == "tentative":
             if sum(tr.window) >= self.params.birth_hits:
                 tr.state = "confirmed"
-                tr.track_id = self.new_id()
+                tr.track_id = self._relink(tr) or self.new_id()
         else:
             tr.state = "confirmed"
 
@@ -233,6 +242,26 @@ class Tracker:
         self.tracks.append(tr)
         return tr
 
+    def _relink(self, tr: TrackRecord) -> str:
+        """The id of the lost track nearest a newly confirmed one, if it is near enough to be that person."""
+        p = self.params
+        best: TrackRecord | None = None
+        best_d = math.inf
+        for old in self.lost:
+            dt_s = max(0.0, (tr.t_ns - old.t_ns) / 1e9)
+            d = math.hypot(float(tr.x[0] - old.x[0]), float(tr.x[1] - old.x[1]))
+            if dt_s > p.relink_s or d > p.relink_m + 0.5 * dt_s:
+                continue
+            if tr.height_m > 0 and old.height_m > 0 and abs(tr.height_m - old.height_m) > 0.15:
+                continue  # a head this much taller or shorter is someone else
+            if d < best_d:
+                best, best_d = old, d
+        if best is None:
+            return ""
+        self.lost.remove(best)
+        tr.born_ns = best.born_ns
+        return best.track_id
+
     def prune(self) -> list[TrackRecord]:
         """Remove dead tracks; return the confirmed ones that ended (their ids are retired)."""
         keep: list[TrackRecord] = []
@@ -244,6 +273,8 @@ class Tracker:
                 if needed > p.birth_window - len(tr.window) or tr.misses >= 2:
                     continue
                 keep.append(tr)
+            elif tr.misses > p.max_misses and p.relink_s > 0:
+                self.lost.append(tr)  # lost: held for its id a while (see _relink)
             elif tr.misses > p.max_misses or (
                 tr.misses >= 3 and any(o is not tr and o.confirmed and _shared_links(o, tr) >= 2 for o in self.tracks)
             ):
@@ -263,6 +294,10 @@ class Tracker:
                 continue
             final.append(tr)
         self.tracks = final
+        expired = [tr for tr in self.lost if (self._now_ns - tr.t_ns) / 1e9 > p.relink_s]
+        if expired:
+            self.lost = [tr for tr in self.lost if tr not in expired]
+            ended.extend(expired)
         return ended
 
 

@@ -110,3 +110,39 @@ def test_two_people_crossing_keep_their_ids_with_shared_blobs() -> None:
     assert m["idsw"] == 0 and m["mota"] > 0.9, m
     lost, m_own = _crossing_ids(shared_pairs=False)  # own blobs only: one view left, that person is lost
     assert m_own["fn"] > 5 * m["fn"] + 20, (m_own, lost)
+
+
+def _lose(tracker: Tracker, tr: TrackRecord, start: int, ticks: int) -> tuple[int, list[str]]:
+    ended: list[str] = []
+    for k in range(start, start + ticks):
+        tracker.predict(k * 100_000_000)
+        tracker.miss(tr)
+        ended += [e.track_id for e in tracker.prune()]
+    return start + ticks, ended
+
+
+def _confirm(tracker: Tracker, x: float, y: float, start: int) -> tuple[TrackRecord, int]:
+    new = tracker.spawn(_meas(x, y), start * 100_000_000, {})
+    new.height_m = 1.75
+    for k in range(start + 1, start + 3):
+        tracker.predict(k * 100_000_000)
+        tracker.update(new, _meas(x, y), {})
+    return new, start + 3
+
+
+def test_a_lost_track_lends_its_id_to_a_new_track_where_it_was_lost() -> None:
+    params = TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0)
+    tracker, tr = _coasting(params, misses=0)
+    n = iter(range(2, 100))
+    tracker.new_id = lambda: f"m-{next(n)}"
+    tr.height_m = 1.75
+    assert tr.track_id == "m-1"
+    k, ended = _lose(tracker, tr, 6, 5)
+    assert ended == [] and tr not in tracker.tracks and tracker.lost == [tr]  # held, not published, not ended
+    again, k = _confirm(tracker, float(tr.x[0]) + 0.4, float(tr.x[1]), k)
+    assert again.track_id == "m-1" and tracker.lost == []
+    k, _ = _lose(tracker, again, k, 5)
+    elsewhere, k = _confirm(tracker, float(again.x[0]) + 3.0, float(again.x[1]), k)  # someone else
+    assert elsewhere.track_id == "m-2"
+    _, ended = _lose(tracker, elsewhere, k, 25)  # 2.5 s: the first one's hold expires, then this one's
+    assert ended == ["m-1", "m-2"] and tracker.lost == [] and tracker.tracks == []
