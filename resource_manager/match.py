@@ -253,7 +253,7 @@ def match_matrices(
     threshold: float = 0.1,
     track_xy: FloatArray | None = None,
 ) -> list[MatchMatrix]:
-    """Eq. 7 for several camera pairs at once (one vectorised pass; with many cameras this is most of a tick).
+    """Eq. 7 for several camera pairs at once (one vectorised pass: with many cameras the largest tick stage).
 
     Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is a view of
     its pair's (na, nb) corner. See :func:`match_matrix` for the measures. ``track_xy`` (m, 2): the tracks'
@@ -261,8 +261,9 @@ def match_matrices(
     nodes' 2D ids changed (the link-based c_t of ``temporals`` needs them unchanged).
 
     Cost: the ray geometry (Eqs. 1-2) runs on every blob pair; the distance-dependent measures (ray
-    convergence, widths, heights, feet, the positional temporal term) only on the pairs whose rays meet in
-    range (about half), their values elsewhere being constants of the views (0 distance).
+    convergence, widths, heights, feet) only on the pairs whose rays meet in range (in a room, most of
+    them), their values elsewhere being constants of the views (0 distance); the positional temporal term
+    only where Eq. 7 alone exceeds the threshold.
     """
     if not pairs:
         return []
