@@ -155,6 +155,8 @@ class Fusion:
                 max_speed_mps=t.max_speed_mps,
                 max_gate_m=t.max_gate_m,
                 coast_damping_s=t.coast_damping_s,
+                relink_s=t.relink_s,
+                relink_m=t.relink_m,
             ),
             new_id or _counter_ids(m.id),
         )
