@@ -52,6 +52,8 @@ LINK_BONUS = 0.5
 """Cost bonus (in squared gate units) of the blob with the node-side id a track had last tick."""
 OWNER_MIN_MISSES = 3
 """A track that missed this many ticks in a row (its gate has grown) yields fixes nearer a measured track."""
+LOOK_ALPHA = 0.1
+"""Weight of a new blob in a track's running per-view colour look."""
 RERANK_MOVE_M = 0.5
 """A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
@@ -90,6 +92,7 @@ class Associator:
             temporal_gate_m=mc.temporal_gate_m,
         )
         self.threshold = mc.threshold
+        self.look_weight = mc.look_weight if mc.use_colour else 0.0
         self.births = Births(config, tracker, self.params, self.matcher)
         self._all: AllBlobs | None = None
         self._blank: frozenset[str] = frozenset()
@@ -144,6 +147,8 @@ class Associator:
             lids = links.get(sid)
             if lids is not None:
                 cost -= LINK_BONUS * ((v.local_id[:, None] == lids[None, :]) & ok)
+            if self.look_weight > 0 and v.hist_sqrt is not None:
+                cost += self._look_cost(sid, v.hist_sqrt, tracks, ok)
             rows_any = np.nonzero(ok.any(axis=1))[0]
             cols_any = np.nonzero(ok.any(axis=0))[0]
             sub = cost[np.ix_(rows_any, cols_any)]
@@ -162,6 +167,39 @@ class Associator:
             for t in np.nonzero(near_ok)[0].tolist():
                 shared[t][sid] = int(nearest[t])
         return out, shared
+
+    def _look_cost(
+        self, sid: str, hist_sqrt: FloatArray, tracks: list[TrackRecord], ok: npt.NDArray[np.bool_]
+    ) -> FloatArray:
+        """(n_blobs, n_tracks) colour dissimilarity of each blob to each track's look in this view, weighted.
+
+        1 - Bhattacharyya coefficient against the running mean of the track's own blobs in this camera: two
+        people meeting swap blobs by position alone; by their shirts they seldom do. Tracks without a look
+        in this view cost nothing extra.
+        """
+        out = np.zeros(ok.shape)
+        cols = [t for t, tr in enumerate(tracks) if sid in tr.looks and tr.looks[sid].shape[0] == hist_sqrt.shape[1]]
+        if cols:
+            looks = np.array([tracks[t].looks[sid] for t in cols])
+            bc = np.clip(hist_sqrt @ looks.T, 0.0, 1.0)  # (n_blobs, len(cols))
+            out[:, cols] = self.look_weight * (1.0 - bc)
+        return np.where(ok, out, 0.0)
+
+    def _learn_looks(self, tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs]) -> None:
+        """Fold the colour of the blobs that localised the track into its per-view look."""
+        if self.look_weight <= 0:
+            return
+        for sid, i in used_blobs.items():
+            hs = views[sid].hist_sqrt
+            if hs is None:
+                continue
+            h = hs[i]
+            old = tr.looks.get(sid)
+            if old is None or old.shape != h.shape:
+                tr.looks[sid] = h.copy()
+            else:
+                mixed = (1.0 - LOOK_ALPHA) * old + LOOK_ALPHA * h
+                tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)
 
     # -- step 2 -----------------------------------------------------------------
     def _prefetch(
@@ -324,6 +362,7 @@ class Associator:
             claimed.update(used_blobs.items())
             links = {sid: int(views[sid].local_id[i]) for sid, i in used_blobs.items()}
             self.tracker.update(tr, meas, links)
+            self._learn_looks(tr, used_blobs, views)
             for sid in sup:
                 if sid not in used_blobs:
                     tr.links.pop(sid, None)  # that camera's blob is someone else's now

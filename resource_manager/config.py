@@ -140,6 +140,10 @@ class MatchSection(ConfigStruct, frozen=True):
     """False: r_is = 1 (e.g. detection files without colour)."""
     width_rel_sigma: Pos = 0.1
     """Relative width error epsilon fed to the size-ratio crossover."""
+    look_weight: NonNeg = 0.0
+    """Per camera, a blob's colour dissimilarity (1 - Bhattacharyya) to a track's running look in that view
+    times this is added to the support assignment cost (gate units squared): people who meet keep their own
+    blobs. 0: position (and node ids) only."""
     bearing_gate_sigmas: Pos = 4.0
     """A blob supports a track when its bearing is within this many sigmas of the predicted bearing."""
     link_gate_m: Pos = 1.0

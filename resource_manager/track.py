@@ -79,6 +79,9 @@ class TrackRecord:
     predicted_error_m: float = 0.0
     links: dict[str, int] = field(default_factory=dict)
     """sensor id -> the node's local blob id last associated with this track."""
+    looks: dict[str, FloatArray] = field(default_factory=dict)
+    """sensor id -> running mean of the square-rooted colour histograms of this track's blobs in that view
+    (appearance per view: the same shirt looks different from another side or under another light)."""
     pair_cache: tuple[float, float, frozenset[str], list[PairCandidate]] | None = None
     """(x, y, cameras, ranked pairs) of the last pair ranking (re-ranked when the track moved or views changed)."""
 

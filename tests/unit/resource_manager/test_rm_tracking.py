@@ -10,6 +10,7 @@ import numpy as np
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, TrackerSection
 from resource_manager.localize import Measurement
+from resource_manager.match import ViewBlobs
 from resource_manager.track import Tracker, TrackParams, TrackRecord
 from tests.unit.resource_manager.scenario import T0_NS, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person, colour_hist
@@ -146,3 +147,42 @@ def test_a_lost_track_lends_its_id_to_a_new_track_where_it_was_lost() -> None:
     assert elsewhere.track_id == "m-2"
     _, ended = _lose(tracker, elsewhere, k, 25)  # 2.5 s: the first one's hold expires, then this one's
     assert ended == ["m-1", "m-2"] and tracker.lost == [] and tracker.tracks == []
+
+
+def _view(bearings_deg: list[float], hists: list[list[float]], local_ids: list[int]) -> ViewBlobs:
+    h = np.array(hists)
+    n = len(bearings_deg)
+    return ViewBlobs(
+        sensor_id="c1",
+        origin_xy=np.array([0.0, 0.0]),
+        z_m=1.1,
+        sigma_rad=math.radians(0.2),
+        bearing_rad=np.radians(bearings_deg),
+        width_rad=np.full(n, 0.1),
+        top_elev_rad=np.full(n, 0.1),
+        hist=h,
+        local_id=np.array(local_ids, dtype=np.int64),
+        hist_sqrt=np.sqrt(h),
+    )
+
+
+def test_people_who_meet_keep_their_blobs_by_colour() -> None:
+    """Two tracks 3 m from a camera, 1.5 deg apart; this tick each blob sits slightly nearer the other track
+    (and the node's ids swapped too). By position they swap; by the colour each track has shown this camera
+    they keep their own."""
+    red, blue = colour_hist(0), colour_hist(3)
+    tracker = Tracker(TrackParams(), lambda: "m")
+    a = tracker.spawn(_meas(3.0 * math.cos(math.radians(10.0)), 3.0 * math.sin(math.radians(10.0))), 0, {"c1": 1})
+    b = tracker.spawn(_meas(3.0 * math.cos(math.radians(11.5)), 3.0 * math.sin(math.radians(11.5))), 0, {"c1": 2})
+    view = _view([11.0, 10.5], [red, blue], [2, 1])  # red (a's shirt) nearer b, blue nearer a
+    plain = Associator(_config(), tracker)
+    (sup_a, sup_b), _ = plain.support({"c1": view}, [a, b])
+    assert (sup_a["c1"], sup_b["c1"]) == (1, 0)  # swapped by position and ids alone
+    cfg = ManagerConfig(
+        manager=msgspec.convert({"id": "m1"}, ManagerSection), match=msgspec.convert({"look_weight": 1.0}, MatchSection)
+    )
+    looks = Associator(cfg, tracker)
+    looks._learn_looks(a, {"c1": 0}, {"c1": _view([10.0], [red], [1])})
+    looks._learn_looks(b, {"c1": 0}, {"c1": _view([11.5], [blue], [2])})
+    (sup_a, sup_b), _ = looks.support({"c1": view}, [a, b])
+    assert (sup_a["c1"], sup_b["c1"]) == (0, 1)
