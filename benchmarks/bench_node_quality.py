@@ -28,6 +28,9 @@ in view) and frame:
   holds another visible person's head column; *separable* merges are those
   with someone whose silhouette does not even touch theirs (a split should
   have parted them); both as fractions of the visible person-frames;
+* **cut heads** -- people so close that their head is above the panorama
+  (isolated): bearing error of the nearest blob on them (their "head" is
+  their neck or shoulders), scored apart;
 * **top error** -- blob top elevation minus the true head-top elevation (rows);
   **width error** -- blob angular width / silhouette width - 1 (isolated);
 * **false blobs** -- blobs that touch no person's silhouette columns.
@@ -98,6 +101,7 @@ class _Scores:
         self.false_blobs = 0
         self.err_px: list[float] = []
         self.err_iso_px: list[float] = []
+        self.err_cut_px: list[float] = []
         self.top_px: list[float] = []
         self.width_rel: list[float] = []
 
@@ -133,6 +137,7 @@ class _Scores:
             "head_bearing_err_px": stats(self.err_px, False),
             "isolated_head_bearing_err_deg": stats(self.err_iso_px, True),
             "isolated_head_bearing_err_px": stats(self.err_iso_px, False),
+            "cut_head_bearing_err_px": stats(self.err_cut_px, False),
             "top_err_rows": stats(self.top_px, False),
             "isolated_width_rel_err": stats(self.width_rel, False),
         }
@@ -220,6 +225,17 @@ def _score_frame(
                 [(round(visible[j]["u"], 1), round(visible[j]["a"], 1), round(visible[j]["b"], 1)) for j in others],
                 [(b.bbox_u_px, b.bbox_w_px, round(float(u), 1)) for b, u in zip(blobs, blob_u, strict=True)],
             )
+    # People too close to have their head in view (cut by the panorama's top), clear of everyone else:
+    # the nearest blob bearing on their silhouette (the blob's top is their neck or shoulders).
+    for q in persons:
+        if q["vis"] >= HEAD_VISIBLE or q["top_v"] >= 0.0 or n_b == 0:
+            continue
+        if any(gap(q, q2) <= ISOLATED_GAP_PX for q2 in persons if q2 is not q):
+            continue
+        e = _wrap(blob_u - q["u"], width)
+        ok = (e >= q["lo"] - ON_BODY_MARGIN_PX) & (e <= q["hi"] + ON_BODY_MARGIN_PX)
+        if ok.any():
+            sc.err_cut_px.append(float(e[ok][np.argmin(np.abs(e[ok]))]))
     # Assignment: a blob's head bearing on the person's silhouette columns; min total |error|.
     if visible and n_b:
         cost = np.full((len(visible), n_b), 1e6)

@@ -35,6 +35,10 @@ def test_panoramic_annotation_matches_camera_model() -> None:
     assert sum(f.hist) == pytest.approx(1.0) and len(f.hist) == 64
     b = decode(encode(to_wire(f, 7)), Blob)
     assert b.local_id == 7 and b.bbox_u_px == 500 and b.bearing_rad == pytest.approx(f.bearing_rad)
+    assert b.confidence == 1.0
+    # A blob reaching the top row: the head may be above the view, its bearing is less sure.
+    cut = annotate(_raw(img, 500, 0, 20, 100, mask), PanoFrame.from_image(img), PanoramicGeometry(cam))
+    assert cut.confidence < 0.5 and to_wire(cut, 1).confidence == cut.confidence
 
 
 def test_bearing_wraps_across_the_seam() -> None:
