@@ -275,14 +275,20 @@ class Associator:
         bodies: dict[str, float] | None = None,
         fovs: dict[str, tuple[float, float]] | None = None,
         mono: dict[str, tuple[float, float, float, float]] | None = None,
+        blind: frozenset[str] = frozenset(),
     ) -> Outcome:
+        """One tick of steps 1-3.
+
+        ``blind``: sensors that cannot detect anyone now (a robot driving to a view-plan goal, then relearning
+        its background): their blank views are no evidence that nobody is there.
+        """
         views = build_views(aligned, poses, sigma_of, bodies, fovs, mono=mono)
         blank = frozenset(sid for sid, v in views.items() if v.n == 0)
         self._all = AllBlobs.of(
             views,
             self.config.match.bearing_gate_sigmas,
             self.config.match.mono_gate_sigmas,
-            excused=blank - self._blank,
+            excused=(blank - self._blank) | (blank & blind),
         )
         self._blank = blank
         out = Outcome(sensors_in_use=sorted(views))
@@ -392,7 +398,6 @@ class Associator:
         chosen: set[tuple[str, str]],
     ) -> list[PairCandidate]:
         """The track's camera pairs, best first by the error model (``chosen``: pairs already matched this tick)."""
-        cams = [CameraGeom(sid, views[sid].origin_xy, views[sid].sigma_rad, pose_sigma.get(sid, 0.0)) for sid in sup]
         key = frozenset(sup)
         pc = tr.pair_cache
         ranked: list[PairCandidate] = []
@@ -400,6 +405,7 @@ class Associator:
             # Same place, no new camera: the earlier ranking restricted to the cameras that see it now.
             ranked = [c for c in pc[3] if c.a in key and c.b in key]
         if not ranked:
+            cams = [CameraGeom(s, views[s].origin_xy, views[s].sigma_rad, pose_sigma.get(s, 0.0)) for s in sup]
             random_pairs = self.config.match.pair_choice == "random"
             ranked = rank_pairs(tr.x[:2].copy(), cams, len(cams) if random_pairs else max_cams)
             tr.pair_cache = (float(tr.x[0]), float(tr.x[1]), key, list(ranked))

@@ -287,15 +287,23 @@ class Tracker:
         # Two tracks on one person: the younger (or tentative) one goes.
         keep.sort(key=lambda t: (not t.confirmed, t.born_ns, t.serial))
         final: list[TrackRecord] = []
+        kept_xy: list[tuple[float, float]] = []  # plain floats: this is O(tracks^2) every tick
         for tr in keep:
+            tx, ty = float(tr.x[0]), float(tr.x[1])
             dup = next(
-                (o for o in final if float(np.hypot(*(o.xy - tr.xy))) < 0.3 and (o.confirmed or not tr.confirmed)), None
+                (
+                    o
+                    for o, (ox, oy) in zip(final, kept_xy, strict=True)
+                    if math.hypot(ox - tx, oy - ty) < 0.3 and (o.confirmed or not tr.confirmed)
+                ),
+                None,
             )
             if dup is not None and (not tr.confirmed or tr.misses > 0 or _shared_links(dup, tr) >= 2):
                 if tr.confirmed:
                     ended.append(tr)
                 continue
             final.append(tr)
+            kept_xy.append((tx, ty))
         self.tracks = final
         expired = [tr for tr in self.lost if (self._now_ns - tr.t_ns) / 1e9 > p.relink_s]
         if expired:
