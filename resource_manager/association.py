@@ -110,7 +110,8 @@ class Associator:
         """
         out: list[dict[str, int]] = [{} for _ in tracks]
         shared: list[dict[str, int]] = [{} for _ in tracks]
-        if not tracks:
+        vs = [v for v in views.values() if v.n]
+        if not tracks or not vs:
             return out, shared
         txy = np.array([tr.x[:2] for tr in tracks])
         tvar = np.array([max(tr.p[0, 0], tr.p[1, 1]) for tr in tracks])
@@ -121,34 +122,47 @@ class Associator:
                 if sid not in links:
                     links[sid] = np.full(len(tracks), -1, dtype=np.int64)
                 links[sid][t] = lid
-        for sid, v in views.items():
-            if v.n == 0:
+        # Gates of every (view, track) and normalised distances of every (blob, track) in one pass over all
+        # views (per view: the same arithmetic on its rows); only the one-to-one assignment is per view.
+        counts = [v.n for v in vs]
+        of = np.repeat(np.arange(len(vs)), counts)
+        rel = txy[None, :, :] - np.array([v.origin_xy for v in vs])[:, None, :]  # (views, tracks, 2)
+        dist = np.maximum(np.hypot(rel[..., 0], rel[..., 1]), 0.3)
+        pred = np.arctan2(rel[..., 1], rel[..., 0])
+        sig2 = np.array([v.sigma_rad**2 for v in vs])[:, None]
+        gate = k * np.sqrt(sig2 + tvar / dist**2) + SUPPORT_HALF_M / dist
+        bearing = np.concatenate([v.bearing_rad for v in vs])
+        norm = np.abs(wrap(bearing[:, None] - pred[of])) / gate[of]  # (blobs, tracks)
+        if any(v.mono_range_m is not None and v.mono_sigma_m is not None for v in vs):
+            # Floor distance from the feet (mono.py): along the ray too, within the same number of sigmas.
+            known = [v.mono_range_m is not None and v.mono_sigma_m is not None for v in vs]
+            pairs = list(zip(vs, known, strict=True))
+            rng_m = np.concatenate([v.mono_range_m if ok else np.full(v.n, np.nan) for v, ok in pairs])
+            sig_m = np.concatenate([v.mono_sigma_m if ok else np.full(v.n, np.nan) for v, ok in pairs])
+            s_r = np.sqrt(sig_m[:, None] ** 2 + tvar[None, :])
+            rn = np.abs(rng_m[:, None] - dist[of]) / (k * s_r)
+            with_feet = np.repeat(np.array(known), counts)
+            norm = np.where(with_feet[:, None], np.hypot(norm, np.nan_to_num(rn, nan=0.0)), norm)
+        ok_all = (norm < 1.0) & ~(dist > self.params.max_range_m)[of]
+        cost_all = np.where(ok_all, norm**2, _FORBID)
+        stop = 0
+        for v, n in zip(vs, counts, strict=True):
+            sid = v.sensor_id
+            sl = slice(stop, stop + n)
+            stop += n
+            ok = ok_all[sl]
+            if not ok.any():
                 continue
-            rel = txy - v.origin_xy
-            dist = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 0.3)
-            pred = np.arctan2(rel[:, 1], rel[:, 0])
-            gate = k * np.sqrt(v.sigma_rad**2 + tvar / dist**2) + SUPPORT_HALF_M / dist
-            diff = np.abs(wrap(v.bearing_rad[:, None] - pred[None, :]))  # (n_blobs, n_tracks)
-            norm = diff / gate[None, :]
-            if v.mono_range_m is not None and v.mono_sigma_m is not None:
-                # Floor distance from the feet (mono.py): along the ray too, within the same number of sigmas.
-                s_r = np.sqrt(v.mono_sigma_m[:, None] ** 2 + tvar[None, :])
-                rn = np.abs(v.mono_range_m[:, None] - dist[None, :]) / (k * s_r)
-                norm = np.hypot(norm, np.nan_to_num(rn, nan=0.0))
             # One blob per track and one track per blob, by least total normalised distance (Hungarian):
             # in a crowd, "each track takes its nearest blob" lets one track steal its neighbour's blob.
             # The blob the node kept tracking for it (same local id) gets a bonus, not a free pass: the
             # node's 2D ids swap between people who cross.
-            far = dist > self.params.max_range_m
-            ok = (norm < 1.0) & ~far[None, :]
-            if not ok.any():
-                continue
-            cost = np.where(ok, norm**2, _FORBID)
+            cost = cost_all[sl]
             lids = links.get(sid)
             if lids is not None:
-                cost -= LINK_BONUS * ((v.local_id[:, None] == lids[None, :]) & ok)
+                cost = cost - LINK_BONUS * ((v.local_id[:, None] == lids[None, :]) & ok)
             if self.look_weight > 0 and v.hist_sqrt is not None:
-                cost += self._look_cost(sid, v.hist_sqrt, tracks, ok)
+                cost = cost + self._look_cost(sid, v.hist_sqrt, tracks, ok)
             rows_any = np.nonzero(ok.any(axis=1))[0]
             cols_any = np.nonzero(ok.any(axis=0))[0]
             sub = cost[np.ix_(rows_any, cols_any)]
@@ -158,7 +172,7 @@ class Associator:
             blob_of[cols_any[ci[good]]] = rows_any[ri[good]]
             claimed = np.zeros(v.n, dtype=bool)
             claimed[blob_of[blob_of >= 0]] = True
-            nearest = np.argmin(norm, axis=0)
+            nearest = np.argmin(norm[sl], axis=0)
             near_ok = ok[nearest, np.arange(len(tracks))] & claimed[nearest] & (blob_of < 0)
             for t in np.nonzero(blob_of >= 0)[0].tolist():
                 out[t][sid] = int(blob_of[t])
