@@ -97,7 +97,9 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
     return int(s[(k + 1) % len(s)])
 
 
-def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True) -> list[RawBlob]:
+def find_blobs(
+    fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True, *, check_frac: bool = True
+) -> list[RawBlob]:
     """Group the foreground pixels of one frame into validated blobs.
 
     Grouping runs on a ``group_scale``-times reduced mask (a reduced pixel is set
@@ -111,6 +113,10 @@ def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = 
         moving: (H, W) 255 = changed since the previous frame (frame differencing).
         settings: grouping and validation knobs.
         wrap: the image is a 360-degree panorama (columns wrap around).
+        check_frac: drop blobs with less than ``min_changed_frac`` of their box changed. False: the
+            caller checks that after splitting (a person beside a ghost makes a wide, sparse box
+            whose parts pass it; dropping the whole would also leave the person unprotected from
+            the background update).
     """
     height, width = fg.shape
     k = settings.group_scale
@@ -155,7 +161,7 @@ def find_blobs(fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = 
             continue
         if blob.w < settings.min_blob_width_px:
             continue
-        if blob.changed_frac < settings.min_changed_frac:
+        if check_frac and blob.changed_frac < settings.min_changed_frac:
             continue
         out.append(blob)
     return out

@@ -105,8 +105,17 @@ class ImagePipeline:
             self._last_sightings = self.bands.find(pf)
         self._frames += 1
         sightings = self._last_sightings
-        raws = find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps) if motion.reportable else []
-        raws = [part for raw in raws for part in split_at_heads(raw, motion.moving, s, width)]
+        raws = (
+            find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False)
+            if motion.reportable
+            else []
+        )
+        raws = [
+            part
+            for raw in raws
+            for part in split_at_heads(raw, motion.moving, s, width)
+            if part.changed_frac >= s.min_changed_frac
+        ]
         people = []
         n_body = 0
         bg = self.background.background if s.head_edges else None

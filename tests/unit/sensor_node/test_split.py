@@ -93,3 +93,17 @@ class _Cols:
 
     def width(self, u_left: float, u_right: float, v: float) -> float:
         return u_right - u_left
+
+
+def test_a_person_beside_a_sparse_region_survives_the_changed_fraction_check() -> None:
+    # A person 6 columns from a wide, sparse region (a ghost's speckle): grouped, the box is mostly
+    # empty and fails min_changed_frac; parted first, the person passes it on their own.
+    fg = _mask([(400.0, 40)])
+    fg[20:162:3, 418:520:3] = 255
+    fg[20:162, 418] = 255  # the region's edge column, so the gap is clean
+    s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8, min_changed_frac=0.3)
+    assert find_blobs(fg, fg, s) == []
+    (blob,) = find_blobs(fg, fg, s, check_frac=False)
+    parts = [p for p in split_at_heads(blob, fg, s, W) if p.changed_frac >= s.min_changed_frac]
+    assert len(parts) == 1
+    assert annotate(parts[0], None, _Cols(), s.head_ratio).head_u_px == pytest.approx(400.0, abs=0.5)
