@@ -255,8 +255,19 @@ class Fusion:
         self.last_poses = poses
         self.tracker.predict(t_ns)
         bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
+        # Robots the planner sent driving (then relearning their background) see nobody: no evidence.
+        blind: frozenset[str] = frozenset()
+        if self.planner.held:
+            blind = self.planner.driving({sid: p.origin for sid, p in poses.items()}, t_ns)
         outcome = self.associator.run(
-            aligned, poses, self.poses.bearing_sigma, t_ns, bodies=bodies, fovs=self._fovs(), mono=self._mono()
+            aligned,
+            poses,
+            self.poses.bearing_sigma,
+            t_ns,
+            bodies=bodies,
+            fovs=self._fovs(),
+            mono=self._mono(),
+            blind=blind,
         )
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
