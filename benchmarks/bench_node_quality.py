@@ -33,7 +33,9 @@ in view) and frame:
   their neck or shoulders), scored apart;
 * **top error** -- blob top elevation minus the true head-top elevation (rows);
   **width error** -- blob angular width / silhouette width - 1 (isolated);
-* **false blobs** -- blobs that touch no person's silhouette columns.
+* **false blobs** -- blobs that touch no person's silhouette columns;
+  **extra blobs** -- a second blob whose head bearing lies on a visible
+  person's silhouette (over-splitting, or a ghost in front of them).
 
 Prints one JSON object: per site (all its cameras pooled) and per camera.
 """
@@ -99,6 +101,7 @@ class _Scores:
         self.frames = 0
         self.blobs = 0
         self.false_blobs = 0
+        self.extra = 0
         self.err_px: list[float] = []
         self.err_iso_px: list[float] = []
         self.err_cut_px: list[float] = []
@@ -133,6 +136,7 @@ class _Scores:
             "separable_merge_rate": round(self.separable_merged / max(self.visible, 1), 4),
             "blobs_per_frame": round(self.blobs / max(self.frames, 1), 3),
             "false_blobs_per_frame": round(self.false_blobs / max(self.frames, 1), 4),
+            "extra_blobs_on_people_per_frame": round(self.extra / max(self.frames, 1), 4),
             "head_bearing_err_deg": stats(self.err_px, True),
             "head_bearing_err_px": stats(self.err_px, False),
             "isolated_head_bearing_err_deg": stats(self.err_iso_px, True),
@@ -244,6 +248,23 @@ def _score_frame(
             ok = (e >= q["lo"] - ON_BODY_MARGIN_PX) & (e <= q["hi"] + ON_BODY_MARGIN_PX)
             cost[i, ok] = np.abs(e[ok])
         rows, cols_a = linear_sum_assignment(cost)
+        assigned = {int(j) for i, j in zip(rows, cols_a, strict=True) if cost[i, j] < 1e6}
+        # A second blob on one person (over-splitting: an arm or a shoulder parted from the body).
+        extra = [j for j in range(n_b) if j not in assigned and bool((cost[:, j] < 1e6).any())]
+        sc.extra += len(extra)
+        for j in extra:
+            b = blobs[j]
+            logger.debug(
+                "%s t=%.2f extra blob: box u=%.0f v=%.0f w=%.0f h=%.0f head u=%.1f; people %s",
+                cam.id,
+                t_s,
+                b.bbox_u_px,
+                b.bbox_v_px,
+                b.bbox_w_px,
+                b.bbox_h_px,
+                blob_u[j],
+                [(round(q["u"], 1), round(q["a"], 1), round(q["b"], 1)) for q in visible],
+            )
         for i, j in zip(rows, cols_a, strict=True):
             if cost[i, j] >= 1e6:
                 continue

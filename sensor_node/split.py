@@ -45,6 +45,12 @@ SPLIT_MIN_WIDTH_FRAC = 0.3
 GAP_MAX_PX = 1
 """Changed pixels a column may hold and still be a gap of the vertical projection profile (a noise speck)."""
 
+GAP_MIN_WIDTH_FRAC = 0.6
+"""A part parted at a gap stands alone without a head if at least this wide relative to the widest part."""
+
+GAP_HEAD_DIP_PX = 8
+"""Rows below a part's top at which its head is measured when parting at gaps with ``split_dip_px`` 0."""
+
 
 def top_profile(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
     """First set row of each column of a blob mask (the mask's height where a column is empty)."""
@@ -181,8 +187,9 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
     """The blob's objects, one blob each (``[blob]`` when it holds one).
 
     First at the gaps of the vertical projection profile (``split_gap_cols``): grouping joined
-    regions that do not touch; each side that passes the blob checks stands alone, a fragment that
-    does not joins its neighbour. Then each part at the valleys between heads (``split_dip_px``):
+    regions that do not touch; each side that passes the blob checks and rises to a head (or is
+    wide) stands alone, a fragment or a narrow flat-topped strip (an arm swung clear of the body)
+    joins its neighbour. Then each part at the valleys between heads (``split_dip_px``):
     a cut is kept only if the parts on both sides are wide enough, rise to a head and pass the blob
     checks; otherwise the weak part joins its neighbour (one bump does not undo the other cuts).
 
@@ -195,11 +202,28 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
     dip = settings.split_dip_px
     if blob.w < 2 * settings.min_blob_width_px:
         return [blob]
-    edges = _merge_weak(
-        [0, *_gaps(blob.mask, settings.split_gap_cols), blob.w], lambda a, b: _ok_part(blob, a, b, settings)
+    gaps = _gaps(blob.mask, settings.split_gap_cols)
+    top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
+    head_dip = dip if dip > 0 else GAP_HEAD_DIP_PX
+
+    counts = np.count_nonzero(blob.mask, axis=0) if gaps else np.zeros(0, np.int64)
+    widest = max(
+        (int(np.count_nonzero(counts[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w])), default=0
     )
+
+    def ok_gap(a: int, b: int) -> bool:
+        # A part of its own passes the blob checks and rises to a head, or is wide (a ghost, a bag),
+        # or its top is the image's top row (a near person's head above the view). A narrow strip
+        # with a flat top -- an arm swung clear of the body -- stays with its neighbour.
+        if not _ok_part(blob, a, b, settings):
+            return False
+        t = top[a:b][counts[a:b] > GAP_MAX_PX]
+        if t.size == 0:
+            return False
+        return blob.v0 + int(t.min()) == 0 or t.size >= GAP_MIN_WIDTH_FRAC * widest or _has_head(t, head_dip)
+
+    edges = _merge_weak([0, *gaps, blob.w], ok_gap) if gaps else [0, blob.w]
     if dip > 0:
-        top = top_profile(blob.mask)
         radius = max(2, settings.min_blob_width_px // 2)
         fine: list[int] = [0]
         for a, b in itertools.pairwise(edges):

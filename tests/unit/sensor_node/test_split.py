@@ -107,3 +107,13 @@ def test_a_person_beside_a_sparse_region_survives_the_changed_fraction_check() -
     parts = [p for p in split_at_heads(blob, fg, s, W) if p.changed_frac >= s.min_changed_frac]
     assert len(parts) == 1
     assert annotate(parts[0], None, _Cols(), s.head_ratio).head_u_px == pytest.approx(400.0, abs=0.5)
+
+
+def test_an_arm_swung_clear_of_the_body_stays_with_it() -> None:
+    # A narrow flat-topped strip 2 columns beside the body (an arm swinging forward, seen from the
+    # side): a gap, but no head and much narrower than the body -- not a person of its own.
+    fg = _mask([(400.0, 40)])
+    fg[62:130, 381:387] = 255
+    s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_at_heads(blob, fg, s, W) == [blob]
