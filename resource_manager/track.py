@@ -57,6 +57,10 @@ class TrackParams:
     near where it was lost takes its id instead of a new one (0: off, a lost track ends at once)."""
     relink_m: float = 1.0
     """...when it is confirmed within this distance (plus 0.5 m per second lost) of the lost track's place."""
+    same_look_min: float = 0.6
+    """Two tracks whose colour looks (mean Bhattacharyya coefficient over the views both have) are below this
+    are two people: a lost track does not lend its id to the other, and two confirmed tracks side by side are not
+    pruned as one person's duplicates (0: looks are not compared)."""
 
 
 @dataclass(slots=True)
@@ -257,6 +261,8 @@ class Tracker:
                 continue
             if tr.height_m > 0 and old.height_m > 0 and abs(tr.height_m - old.height_m) > 0.15:
                 continue  # a head this much taller or shorter is someone else
+            if self._differ(tr, old):
+                continue  # another shirt
             if d < best_d:
                 best, best_d = old, d
         if best is None:
@@ -264,6 +270,13 @@ class Tracker:
         self.lost.remove(best)
         tr.born_ns = best.born_ns
         return best.track_id
+
+    def _differ(self, a: TrackRecord, b: TrackRecord) -> bool:
+        """True if two tracks' colour looks say they are two people."""
+        if self.params.same_look_min <= 0:
+            return False
+        sim = look_similarity(a, b)
+        return sim is not None and sim < self.params.same_look_min
 
     def prune(self) -> list[TrackRecord]:
         """Remove dead tracks; return the confirmed ones that ended (their ids are retired)."""
@@ -276,12 +289,11 @@ class Tracker:
                 if needed > p.birth_window - len(tr.window) or tr.misses >= 2:
                     continue
                 keep.append(tr)
-            elif tr.misses > p.max_misses and p.relink_s > 0:
-                self.lost.append(tr)  # lost: held for its id a while (see _relink)
             elif tr.misses > p.max_misses or (
                 tr.misses >= 3 and any(o is not tr and o.confirmed and _shared_links(o, tr) >= 2 for o in self.tracks)
             ):
-                ended.append(tr)  # lost, or a coasting copy of a track that holds its blobs
+                # Lost, or a coasting copy of a track that holds its blobs: held for its id a while (see _relink).
+                (self.lost if p.relink_s > 0 else ended).append(tr)
             else:
                 keep.append(tr)
         # Two tracks on one person: the younger (or tentative) one goes.
@@ -298,9 +310,11 @@ class Tracker:
                 ),
                 None,
             )
+            if dup is not None and tr.confirmed and self._differ(dup, tr):
+                dup = None  # two people side by side (one track pulled onto the other's fixes): their shirts differ
             if dup is not None and (not tr.confirmed or tr.misses > 0 or _shared_links(dup, tr) >= 2):
                 if tr.confirmed:
-                    ended.append(tr)
+                    (self.lost if p.relink_s > 0 else ended).append(tr)
                 continue
             final.append(tr)
             kept_xy.append((tx, ty))
@@ -315,3 +329,17 @@ class Tracker:
 def _shared_links(a: TrackRecord, b: TrackRecord) -> int:
     """How many cameras attribute the same node-side blob to both tracks (two tracks on one person)."""
     return sum(1 for sid, lid in a.links.items() if b.links.get(sid) == lid)
+
+
+def look_similarity(a: TrackRecord, b: TrackRecord) -> float | None:
+    """Mean Bhattacharyya coefficient of two tracks' per-view colour looks over the views both have.
+
+    Returns:
+        In [0, 1] (1: the same colours), or None when the tracks have no look in a common view.
+    """
+    sims = [
+        float(a.looks[sid] @ look)
+        for sid, look in b.looks.items()
+        if sid in a.looks and a.looks[sid].shape == look.shape
+    ]
+    return sum(sims) / len(sims) if sims else None

@@ -186,3 +186,49 @@ def test_people_who_meet_keep_their_blobs_by_colour() -> None:
     looks._learn_looks(b, {"c1": 0}, {"c1": _view([11.5], [blue], [2])})
     (sup_a, sup_b), _ = looks.support({"c1": view}, [a, b])
     assert (sup_a["c1"], sup_b["c1"]) == (0, 1)
+
+
+def _look(k: int) -> dict[str, np.ndarray]:
+    return {"c1": np.sqrt(np.array(colour_hist(k))), "c2": np.sqrt(np.array(colour_hist(k)))}
+
+
+def _confirm_looking(tracker: Tracker, x: float, y: float, start: int, colour: int) -> tuple[TrackRecord, int]:
+    new = tracker.spawn(_meas(x, y), start * 100_000_000, {})
+    new.height_m = 1.75
+    new.looks = _look(colour)  # the shirt its blobs showed while it was tentative
+    for k in range(start + 1, start + 3):
+        tracker.predict(k * 100_000_000)
+        tracker.update(new, _meas(x, y), {})
+    return new, start + 3
+
+
+def test_a_lost_track_lends_its_id_only_to_a_track_with_its_shirt() -> None:
+    params = TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0)
+    tracker, tr = _coasting(params, misses=0)
+    n = iter(range(2, 100))
+    tracker.new_id = lambda: f"m-{next(n)}"
+    tr.height_m = 1.75
+    tr.looks = _look(0)
+    k, _ = _lose(tracker, tr, 6, 5)
+    other, k = _confirm_looking(tracker, float(tr.x[0]) + 0.4, float(tr.x[1]), k, colour=3)
+    assert other.track_id == "m-2" and tracker.lost == [tr]  # another shirt where m-1 was lost: someone else
+    same, k = _confirm_looking(tracker, float(tr.x[0]) - 0.5, float(tr.x[1]), k, colour=0)
+    assert same.track_id == "m-1" and tracker.lost == []
+
+
+def _side_by_side(colour_b: int) -> tuple[Tracker, TrackRecord, TrackRecord]:
+    """Two confirmed tracks 0.2 m apart on the same blobs of two cameras (one was pulled onto the other)."""
+    tracker = Tracker(TrackParams(relink_s=2.0), lambda: "m")
+    a = tracker.spawn(_meas(1.0, 1.0), 0, {"c1": 4, "c2": 7})
+    b = tracker.spawn(_meas(1.2, 1.0), 100_000_000, {"c1": 4, "c2": 7})
+    for tr, colour in ((a, 0), (b, colour_b)):
+        tr.state, tr.track_id, tr.looks = "confirmed", f"m-{colour}", _look(colour)
+    return tracker, a, b
+
+
+def test_two_confirmed_tracks_side_by_side_are_kept_when_their_shirts_differ() -> None:
+    tracker, a, b = _side_by_side(colour_b=3)
+    assert tracker.prune() == [] and tracker.tracks == [a, b]  # two people passing close
+    tracker, a, b = _side_by_side(colour_b=0)
+    assert tracker.prune() == [] and tracker.tracks == [a] and tracker.lost == [b]  # one person: the younger
+    # copy goes, held for its id (a new track confirmed there soon takes it back)
