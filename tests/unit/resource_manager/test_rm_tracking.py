@@ -232,3 +232,18 @@ def test_two_confirmed_tracks_side_by_side_are_kept_when_their_shirts_differ() -
     tracker, a, b = _side_by_side(colour_b=0)
     assert tracker.prune() == [] and tracker.tracks == [a] and tracker.lost == [b]  # one person: the younger
     # copy goes, held for its id (a new track confirmed there soon takes it back)
+
+
+def test_a_lost_track_with_a_sure_look_match_lends_its_id_from_further() -> None:
+    """A person lost in a group reappears 1.8 m on: beyond the plain reach (1 m + 0.5 m/s), within the reach of
+    a sure colour match (2 m + 1 m/s)."""
+    for colour, expected in ((0, "m-1"), (None, "m-2")):
+        tracker, tr = _coasting(TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0), misses=0)
+        tracker.new_id = lambda: "m-2"
+        tr.height_m, tr.looks = 1.75, _look(0)
+        k, _ = _lose(tracker, tr, 6, 5)
+        if colour is None:  # no look to compare: the plain reach
+            new, _ = _confirm(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k)
+        else:
+            new, _ = _confirm_looking(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k, colour=colour)
+        assert new.track_id == expected
