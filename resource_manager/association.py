@@ -488,6 +488,8 @@ class Associator:
                         continue
                 if self._owned_elsewhere(tr, meas, tracks):
                     continue  # another, better-followed track explains this fix better: not this one's
+                if self._unlike(tr, ((a_id, ii), (b_id, jj)), views):
+                    continue  # in someone else's colours
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
                 agree, against = self._consistent(meas, used, views)
@@ -500,6 +502,19 @@ class Associator:
                         meas = lsq
                 return meas, (a_id, b_id, len(ranked)), used
         return None, None, {}
+
+    def _unlike(self, tr: TrackRecord, blobs: tuple[tuple[str, int], ...], views: dict[str, ViewBlobs]) -> bool:
+        """Whether the blobs of a fix look unlike the confirmed track in those views (``match.fix_look_min``)."""
+        floor = self.config.match.fix_look_min
+        if floor <= 0 or self.look_weight <= 0 or not tr.confirmed:
+            return False
+        sims: list[float] = []
+        for sid, i in blobs:
+            hs = views[sid].hist_sqrt
+            look = tr.looks.get(sid)
+            if hs is not None and look is not None and look.shape[0] == hs.shape[1]:
+                sims.append(float(hs[i] @ look))
+        return bool(sims) and sum(sims) / len(sims) < floor
 
     def _owned_elsewhere(self, tr: TrackRecord, meas: Measurement, tracks: list[TrackRecord]) -> bool:
         """Whether another track measured more recently than ``tr`` is nearer (Mahalanobis) to the fix.

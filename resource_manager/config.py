@@ -144,6 +144,10 @@ class MatchSection(ConfigStruct, frozen=True):
     """Per camera, a blob's colour dissimilarity (1 - Bhattacharyya) to a track's running look in that view
     times this is added to the support assignment cost (gate units squared): people who meet keep their own
     blobs. 0: position (and node ids) only."""
+    fix_look_min: Frac = 0.0
+    """A fix whose two blobs match the track's running looks in those views worse than this (mean Bhattacharyya
+    coefficient) is someone else's: two other people's rays, or the neighbour's blob after a merge (0: off;
+    needs ``look_weight`` > 0, which keeps the looks)."""
     bearing_gate_sigmas: Pos = 4.0
     """A blob supports a track when its bearing is within this many sigmas of the predicted bearing."""
     link_gate_m: Pos = 1.0

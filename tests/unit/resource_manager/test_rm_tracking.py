@@ -247,3 +247,25 @@ def test_a_lost_track_with_a_sure_look_match_lends_its_id_from_further() -> None
         else:
             new, _ = _confirm_looking(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k, colour=colour)
         assert new.track_id == expected
+
+
+def test_a_fix_in_someone_elses_colours_is_not_the_tracks() -> None:
+    """A red track: a fix from two blue blobs (two other people's rays, or a neighbour's blob after a merge) is
+    refused with ``fix_look_min``; red blobs are its own; a tentative track has no look to judge by."""
+    red, blue = colour_hist(0), colour_hist(3)
+    tracker = Tracker(TrackParams(), lambda: "m")
+    tr = tracker.spawn(_meas(2.0, 2.0), 0, {})
+    tr.state, tr.looks = "confirmed", _look(0)
+    views = {"c1": _view([10.0, 20.0], [red, blue], [1, 2]), "c2": _view([30.0, 40.0], [red, blue], [1, 2])}
+    match = {"look_weight": 1.0, "fix_look_min": 0.85}
+    cfg = ManagerConfig(
+        manager=msgspec.convert({"id": "m1"}, ManagerSection), match=msgspec.convert(match, MatchSection)
+    )
+    judge = Associator(cfg, tracker)
+    assert judge._unlike(tr, (("c1", 1), ("c2", 1)), views)
+    assert not judge._unlike(tr, (("c1", 0), ("c2", 0)), views)
+    assert judge._unlike(tr, (("c1", 0), ("c2", 1)), views)  # half a red fix: the mean is below the floor
+    off = Associator(_config(), tracker)
+    assert not off._unlike(tr, (("c1", 1), ("c2", 1)), views)
+    tr.state = "tentative"
+    assert not judge._unlike(tr, (("c1", 1), ("c2", 1)), views)
