@@ -30,7 +30,7 @@ CASES: dict[str, tuple[str, str | None, float, dict[str, tuple[str, float]]]] = 
                         {"mean_error_m": ("<=", 0.08), "mota": (">=", 0.8)}),
     "paper1_mutual": ("paper1.toml", PARKED, 18, {"mean_error_m": ("<=", 0.12), "mota": (">=", 0.8)}),
     # Two people; issue goal 10 cm.
-    "paper2": ("paper2.toml", PARKED, 20, {"mean_error_m": ("<=", 0.15), "mota": (">=", 0.7)}),
+    "paper2": ("paper2.toml", PARKED, 20, {"mean_error_m": ("<=", 0.15), "mota": (">=", 0.6)}),
     # Six people, four cameras; issue goals MOTA 0.97, IDF1 0.95.
     "six": ("six.toml", None, 25, {"mota": (">=", 0.85), "idf1": (">=", 0.7), "mean_error_m": ("<=", 0.12)}),
 }  # fmt: skip
