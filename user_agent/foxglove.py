@@ -16,14 +16,15 @@ import math
 from collections.abc import Mapping
 from typing import Any, Final
 
-from common.schema import Pose, SensorInfo, TrackSet
+from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet
 from user_agent.colors import id_color
-from user_agent.messages import placed_pose
+from user_agent.messages import camera_poses, placed_pose
 
 __all__ = [
     "FRAME_TRANSFORM_SCHEMA",
     "SCENE_UPDATE_SCHEMA",
     "WORLD_FRAME",
+    "CameraPlacements",
     "cameras_scene",
     "frame_transform",
     "tracks_scene",
@@ -366,3 +367,40 @@ def truth_scene(people: list[tuple[str, float, float, float]], stamp_ns: int, li
             )
         )
     return {"deletions": [], "entities": entities}
+
+
+class CameraPlacements:
+    """Where the scene's cameras are, kept from SensorInfo and the managers' status, and the scene messages for it.
+
+    Surveyed cameras come from their SensorInfo; mobile ones from the managers' mutual calibration
+    (``ManagerStatus.poses``, :func:`user_agent.messages.camera_poses`). The recorder and the live Foxglove
+    bridge feed it what they receive and log what it returns.
+    """
+
+    def __init__(self) -> None:
+        self._infos: dict[str, SensorInfo] = {}
+        self._estimates: dict[str, list[PoseEstimate]] = {}
+        self._poses: dict[str, Pose] = {}
+
+    @property
+    def camera_xyz(self) -> dict[str, tuple[float, float, float]]:
+        """Known optical centres by sensor id (for :func:`tracks_scene`)."""
+        return {s: (q.x_m, q.y_m, q.z_m) for s, q in self._poses.items()}
+
+    def update(self, msg: SensorInfo | ManagerStatus, stamp_ns: int) -> tuple[dict | None, list[dict]]:
+        """Take a SensorInfo or ManagerStatus; the cameras' SceneUpdate and the FrameTransforms it changes.
+
+        Returns:
+            ``(None, [])`` when the message places no camera (a status without mobile poses).
+        """
+        if isinstance(msg, SensorInfo):
+            self._infos[msg.sensor_id] = msg
+            moved = [msg.sensor_id]
+        else:
+            self._estimates[msg.manager_id] = list(msg.poses)
+            moved = [e.sensor_id for e in msg.poses if e.source == "mutual"]
+            if not moved:
+                return None, []
+        self._poses = camera_poses(self._infos, (e for ests in self._estimates.values() for e in ests))
+        tfs = [tf for sid in moved if (tf := frame_transform(sid, self._poses.get(sid), stamp_ns)) is not None]
+        return cameras_scene(list(self._infos.values()), stamp_ns, self._poses), tfs

@@ -19,16 +19,14 @@ import msgspec
 from common.codec import decode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
-from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet
+from common.schema import ManagerStatus, SensorInfo, TrackSet
 from common.transport import Inbox
 from user_agent.foxglove import (
     FRAME_TRANSFORM_SCHEMA,
     SCENE_UPDATE_SCHEMA,
-    cameras_scene,
-    frame_transform,
+    CameraPlacements,
     tracks_scene,
 )
-from user_agent.messages import camera_poses
 
 __all__ = ["FoxgloveBridge"]
 
@@ -72,8 +70,7 @@ class FoxgloveBridge:
         self._cameras = channel("/scene/cameras", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
         self._tf = channel("/tf", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
         self._raw = channel("/tracks", "pano.TrackSet", msgspec.json.schema(TrackSet))
-        self._infos: dict[str, SensorInfo] = {}
-        self._estimates: dict[str, list[PoseEstimate]] = {}
+        self._placements = CameraPlacements()
         self._in_tracks = Inbox(session, keys.tracks(), TrackSet, capacity=64)
         self._in_info = Inbox(session, keys.all_sensor_info, SensorInfo, capacity=64)
         self._in_status = Inbox(session, keys.all_manager_status, ManagerStatus, capacity=16)
@@ -89,42 +86,31 @@ class FoxgloveBridge:
             if reply.ok is None:
                 continue
             try:
-                self._add_info(decode(reply.ok.payload.to_bytes(), SensorInfo))
+                self._place(decode(reply.ok.payload.to_bytes(), SensorInfo))
             except SchemaError as err:
                 logger.warning("bad SensorInfo reply dropped: %s", err)
 
-    def _poses(self) -> dict[str, Pose]:
-        return camera_poses(self._infos, (e for ests in self._estimates.values() for e in ests))
-
-    def _log_cameras(self, moved: list[str], stamp_ns: int) -> None:
-        poses = self._poses()
-        self._cameras.log(cameras_scene(list(self._infos.values()), stamp_ns, poses), log_time=stamp_ns)
-        for sid in moved:
-            tf = frame_transform(sid, poses.get(sid), stamp_ns)
-            if tf is not None:
-                self._tf.log(tf, log_time=stamp_ns)
+    def _place(self, msg: SensorInfo | ManagerStatus) -> None:
+        """Log the cameras' scene and transforms a SensorInfo or a manager's status changes."""
+        scene, tfs = self._placements.update(msg, msg.stamp_ns)
+        if scene is None:
+            return
+        self._cameras.log(scene, log_time=msg.stamp_ns)
+        for tf in tfs:
+            self._tf.log(tf, log_time=msg.stamp_ns)
         self.messages += 1
-
-    def _add_info(self, info: SensorInfo) -> None:
-        self._infos[info.sensor_id] = info
-        self._log_cameras([info.sensor_id], info.stamp_ns)
 
     def pump(self, timeout_s: float = 0.1) -> int:
         """Forward what arrived (waits up to ``timeout_s`` for a TrackSet); returns messages logged."""
         before = self.messages
         for r in self._in_info.drain():
-            self._add_info(r.msg)
+            self._place(r.msg)
         for rs in self._in_status.drain():
-            st = rs.msg
-            self._estimates[st.manager_id] = list(st.poses)
-            moved = [e.sensor_id for e in st.poses if e.source == "mutual"]
-            if moved:
-                self._log_cameras(moved, st.stamp_ns)
+            self._place(rs.msg)
         first = self._in_tracks.get(timeout_s)
         for rt in ([first] if first is not None else []) + self._in_tracks.drain():
             ts = rt.msg
-            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, q in self._poses().items()}
-            self._tracks.log(tracks_scene(ts, xyz), log_time=ts.stamp_ns)
+            self._tracks.log(tracks_scene(ts, self._placements.camera_xyz), log_time=ts.stamp_ns)
             self._raw.log(msgspec.to_builtins(ts), log_time=ts.stamp_ns)
             self.messages += 2
         return self.messages - before

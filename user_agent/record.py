@@ -33,15 +33,14 @@ from mcap.writer import CompressionType, Writer
 
 from common.errors import ConfigError
 from common.keys import VERSION, Keys
-from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet, ViewPlan
+from common.schema import ManagerStatus, SensorInfo, TrackSet, ViewPlan
 from user_agent.foxglove import (
     FRAME_TRANSFORM_SCHEMA,
     SCENE_UPDATE_SCHEMA,
-    cameras_scene,
-    frame_transform,
+    CameraPlacements,
     tracks_scene,
 )
-from user_agent.messages import camera_poses, decode_on_key, type_for_key
+from user_agent.messages import decode_on_key, type_for_key
 
 __all__ = ["META_NAME", "RAW_ENCODING", "McapSink", "Recorder"]
 
@@ -86,9 +85,7 @@ class McapSink:
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._seq: dict[int, int] = {}
-        self._infos: dict[str, SensorInfo] = {}
-        self._estimates: dict[str, list[PoseEstimate]] = {}
-        """Latest pose estimates per manager (mobile cameras placed by mutual calibration)."""
+        self._cameras = CameraPlacements()
         self.plans: list[ViewPlan] = []
         """Every view plan written (the simulator's ground truth depends on them)."""
         self._lock = threading.Lock()
@@ -162,34 +159,20 @@ class McapSink:
     def _write_scene(self, msg: Any, log_ns: int, pub_ns: int) -> None:
         scene_sid = self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
         if isinstance(msg, TrackSet):
-            xyz = {s: (q.x_m, q.y_m, q.z_m) for s, q in self._poses().items()}
             cid = self._channel("/scene/tracks", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
-            self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, xyz)).encode())
+            self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, self._cameras.camera_xyz)).encode())
             return
-        if isinstance(msg, SensorInfo):
-            self._infos[msg.sensor_id] = msg
-            moved = [msg.sensor_id]
-        elif isinstance(msg, ManagerStatus) and msg.poses:
-            self._estimates[msg.manager_id] = list(msg.poses)
-            moved = [e.sensor_id for e in msg.poses if e.source == "mutual"]
-            if not moved:
-                return
-        else:
+        if not isinstance(msg, SensorInfo | ManagerStatus):
             return
-        poses = self._poses()
-        cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
-        scene = cameras_scene(list(self._infos.values()), pub_ns, poses)
-        self._add(cid, log_ns, pub_ns, json.dumps(scene).encode())
-        tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
-        for sid in moved:
-            tf = frame_transform(sid, poses.get(sid), pub_ns)
-            if tf is not None:
-                tcid = self._channel("/tf", MessageEncoding.JSON, tf_sid, {"kind": "foxglove"})
+        scene, tfs = self._cameras.update(msg, pub_ns)
+        if scene is not None:
+            cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
+            self._add(cid, log_ns, pub_ns, json.dumps(scene).encode())
+        if tfs:
+            tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
+            tcid = self._channel("/tf", MessageEncoding.JSON, tf_sid, {"kind": "foxglove"})
+            for tf in tfs:
                 self._add(tcid, log_ns, pub_ns, json.dumps(tf).encode())
-
-    def _poses(self) -> dict[str, Pose]:
-        """Every camera's known pose: surveyed, or where a manager's mutual calibration places it."""
-        return camera_poses(self._infos, (e for ests in self._estimates.values() for e in ests))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         with self._lock:
