@@ -90,6 +90,11 @@ def _wrap(x: np.ndarray | float, width: float) -> Any:
     return (np.asarray(x) + width / 2.0) % width - width / 2.0
 
 
+def _describe(b: Any, head_u: float) -> str:
+    """A blob's box and head column, for debug logs."""
+    return f"box u={b.bbox_u_px:.0f} v={b.bbox_v_px:.0f} w={b.bbox_w_px:.0f} h={b.bbox_h_px:.0f} head u={head_u:.1f}"
+
+
 class _Scores:
     """Accumulated per-camera (or pooled) figures."""
 
@@ -255,14 +260,10 @@ def _score_frame(
         for j in extra:
             b = blobs[j]
             logger.debug(
-                "%s t=%.2f extra blob: box u=%.0f v=%.0f w=%.0f h=%.0f head u=%.1f; people %s",
+                "%s t=%.2f extra blob: %s; people %s",
                 cam.id,
                 t_s,
-                b.bbox_u_px,
-                b.bbox_v_px,
-                b.bbox_w_px,
-                b.bbox_h_px,
-                blob_u[j],
+                _describe(b, blob_u[j]),
                 [(round(q["u"], 1), round(q["a"], 1), round(q["b"], 1)) for q in visible],
             )
         for i, j in zip(rows, cols_a, strict=True):
@@ -290,17 +291,7 @@ def _score_frame(
                 break
         if not touches:
             sc.false_blobs += 1
-            b = blobs[j]
-            logger.debug(
-                "%s t=%.2f false blob: box u=%.0f v=%.0f w=%.0f h=%.0f head u=%.1f",
-                cam.id,
-                t_s,
-                b.bbox_u_px,
-                b.bbox_v_px,
-                b.bbox_w_px,
-                b.bbox_h_px,
-                blob_u[j],
-            )
+            logger.debug("%s t=%.2f false blob: %s", cam.id, t_s, _describe(blobs[j], blob_u[j]))
 
 
 def run_camera(
