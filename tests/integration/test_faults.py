@@ -240,17 +240,23 @@ def site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
 
 
 @contextlib.contextmanager
-def observing(site: FaultSite) -> Iterator[Observer]:
+def observing_session(session: Any, site: FaultSite) -> Iterator[Observer]:
+    """An Observer on an already open session, its subscribers undeclared at the end."""
     obs = Observer(site.keys)
+    entities = obs.attach(session)
+    try:
+        yield obs
+    finally:
+        for e in entities:
+            with contextlib.suppress(Exception):
+                e.undeclare()
+
+
+@contextlib.contextmanager
+def observing(site: FaultSite) -> Iterator[Observer]:
     settings = SessionSettings(mode="client", connect=[site.endpoint], connect_timeout_ms=20_000)
-    with open_session(settings) as session:
-        entities = obs.attach(session)
-        try:
-            yield obs
-        finally:
-            for e in entities:
-                with contextlib.suppress(Exception):
-                    e.undeclare()
+    with open_session(settings) as session, observing_session(session, site) as obs:
+        yield obs
 
 
 def _up_to_speed(site: FaultSite, obs: Observer, need: set[str] | None = None, timeout_s: float = READY_S) -> None:

@@ -11,7 +11,6 @@ same receiver does get the legitimate message, through the same router, in the s
 
 from __future__ import annotations
 
-import contextlib
 import json
 import re
 import subprocess
@@ -49,6 +48,11 @@ def _run(args: list[str]) -> str:
     return res.stdout
 
 
+def _make_configs(certs: str | Path, out: Path, *args: str) -> str:
+    """Run deploy/security/make_configs.py with ``--certs``, ``--out`` and ``args``."""
+    return _run([sys.executable, str(SECURITY / "make_configs.py"), "--certs", str(certs), "--out", str(out), *args])
+
+
 def _json5(path: Path) -> dict[str, Any]:
     """Our generated JSON5 is JSON plus leading ``//`` comment lines."""
     return dict(json.loads(re.sub(r"^\s*//.*$", "", path.read_text(), flags=re.M)))
@@ -81,24 +85,8 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureSite]:
     # Another CA issuing certificates with the very same names: must not be trusted.
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(foreign), "--sensors", ids, "--ca-name", "evil-ca"])
     tls_port, tcp_port = free_port(), free_port()
-    _run(
-        [
-            sys.executable,
-            str(SECURITY / "make_configs.py"),
-            "--certs",
-            str(certs),
-            "--out",
-            str(cfg),
-            "--prefix",
-            KEYS.prefix,
-            "--sensors",
-            ids,
-            "--listen",
-            f"tls/127.0.0.1:{tls_port}",
-            "--listen-tcp",
-            f"tcp/127.0.0.1:{tcp_port}",
-        ]
-    )
+    _make_configs(certs, cfg, "--prefix", KEYS.prefix, "--sensors", ids, "--listen", f"tls/127.0.0.1:{tls_port}",
+                  "--listen-tcp", f"tcp/127.0.0.1:{tcp_port}")  # fmt: skip
     logs = root / "logs"
     router = spawn(
         [sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(cfg / "router-tls.json5")],
@@ -496,23 +484,8 @@ def test_committed_demo_configs_match_the_generator(tmp_path: Path) -> None:
     """deploy/security/demo/ is what make_configs.py writes for the demo site (no hand edits drift)."""
     demo = SECURITY / "demo"
     out = tmp_path / "demo"
-    _run(
-        [
-            sys.executable,
-            str(SECURITY / "make_configs.py"),
-            "--certs",
-            "deploy/security/generated",
-            "--out",
-            str(out),
-            "--sensors",
-            "pano1 pano2 pano3 ptz1",
-            "--managers",
-            "mgr1",
-            "--agents",
-            "agent1",
-            "--tls-only",
-        ]
-    )
+    _make_configs("deploy/security/generated", out, "--sensors", "pano1 pano2 pano3 ptz1", "--managers", "mgr1",
+                  "--agents", "agent1", "--tls-only")  # fmt: skip
     committed = sorted(p.name for p in demo.glob("*.json5"))
     assert committed == sorted(p.name for p in out.glob("*.json5"))
     for name in committed:
@@ -533,31 +506,15 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
     """Router (TLS + ACL), real manager and sensor nodes with their certificates, an agent: tracks flow;
     an agent certificate publishing fake tracks and a sensor certificate publishing another camera's
     features change nothing."""
-    from tests.integration.test_faults import MANAGER_ID, _up_to_speed, make_fault_site, running
+    from tests.integration.test_faults import MANAGER_ID, _up_to_speed, make_fault_site, observing_session, running
     from user_agent.client import AgentClient
 
     fsite = make_fault_site(tmp_path, prefix="secure")
     certs, cfg = tmp_path / "certs", tmp_path / "cfg"
     ids = " ".join(fsite.ids)
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), "--sensors", ids, "--managers", MANAGER_ID])
-    _run(
-        [
-            sys.executable,
-            str(SECURITY / "make_configs.py"),
-            "--certs",
-            str(certs),
-            "--out",
-            str(cfg),
-            "--prefix",
-            fsite.prefix,
-            "--sensors",
-            ids,
-            "--managers",
-            MANAGER_ID,
-            "--listen",
-            f"tls/127.0.0.1:{fsite.port}",
-        ]
-    )
+    _make_configs(certs, cfg, "--prefix", fsite.prefix, "--sensors", ids, "--managers", MANAGER_ID, "--listen",
+                  f"tls/127.0.0.1:{fsite.port}")  # fmt: skip
     fsite.connect_to = f"tls/localhost:{fsite.port}"
     with running(fsite, request):
         router = fsite._spawn(
@@ -590,18 +547,3 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
                 assert agent.tracks(timeout_s=2.0), "the agent API sees no tracks over TLS"
                 assert {v.sensor_id for v in agent.sensors()} >= set(fsite.ids)
         assert router.alive, router.log()
-
-
-@contextlib.contextmanager
-def observing_session(session: Any, fsite: Any) -> Iterator[Any]:
-    """An Observer (tests/integration/test_faults.py) on an already open session."""
-    from tests.integration.test_faults import Observer
-
-    obs = Observer(fsite.keys)
-    entities = obs.attach(session)
-    try:
-        yield obs
-    finally:
-        for e in entities:
-            with contextlib.suppress(Exception):
-                e.undeclare()
