@@ -98,7 +98,13 @@ def synthetic(duration_s: float) -> dict[str, Any]:
 
 
 # -- the real network ---------------------------------------------------------------------------------
-def _abs_site(site: Path, out: Path, manager_cfg: Path | None) -> Path:
+PARKED = "[planner]\nenabled = false\n"
+"""Manager variant: the view planner off, mobile robots stay where the site puts them."""
+PAPER1_ROBOT_POSE = '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n'
+"""Manager variant: paper1's robot at its true pose (deploy/sites/paper1.toml), i.e. surveyed."""
+
+
+def site_with_manager(site: Path, out: Path, manager_cfg: Path | None) -> Path:
     """A copy of ``site`` with absolute process config paths, the manager's replaced by ``manager_cfg``."""
     text = site.read_text()
     base = site.resolve().parent
@@ -119,7 +125,7 @@ def _abs_site(site: Path, out: Path, manager_cfg: Path | None) -> Path:
     return dest
 
 
-def _manager_variant(site: Path, out: Path, extra: str, name: str) -> Path:
+def manager_variant(site: Path, out: Path, extra: str, name: str) -> Path:
     """A copy of the site's manager config with ``extra`` TOML: ``[table]`` keys replace the table's own."""
     m = re.search(r'command = "manager"\s*\nconfig = "([^"]+)"', site.read_text())
     if m is None:
@@ -206,20 +212,17 @@ def network(out: Path, duration_s: float) -> dict[str, Any]:
     sites = REPO / "deploy" / "sites"
     res: dict[str, Any] = {}
     p1, p2 = sites / "paper1.toml", sites / "paper2.toml"
-    parked = "[planner]\nenabled = false\n"
-    p1m = _manager_variant(p1, out, parked, "p1m")
-    res["paper1_mutual"] = demo(_abs_site(p1, out, p1m), out, duration_s, "paper1_mutual")
+    p1m = manager_variant(p1, out, PARKED, "p1m")
+    res["paper1_mutual"] = demo(site_with_manager(p1, out, p1m), out, duration_s, "paper1_mutual")
     # The robot's true pose (deploy/sites/paper1.toml) given to the manager: both poses surveyed.
-    survey = _manager_variant(
-        p1, out, parked + '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n', "p1s"
-    )
-    res["paper1_surveyed"] = demo(_abs_site(p1, out, survey), out, duration_s, "paper1_surveyed")
+    survey = manager_variant(p1, out, PARKED + PAPER1_ROBOT_POSE, "p1s")
+    res["paper1_surveyed"] = demo(site_with_manager(p1, out, survey), out, duration_s, "paper1_surveyed")
     res["paper1_mutual_planner"] = _plan_stats(
-        demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner"), p1
+        demo(site_with_manager(p1, out, None), out, duration_s, "paper1_mutual_planner"), p1
     )
-    p2m = _manager_variant(p2, out, parked, "p2m")
-    res["paper2_two_people"] = demo(_abs_site(p2, out, p2m), out, duration_s, "paper2")
-    res["six_people_four_cameras"] = demo(_abs_site(sites / "six.toml", out, None), out, duration_s, "six")
+    p2m = manager_variant(p2, out, PARKED, "p2m")
+    res["paper2_two_people"] = demo(site_with_manager(p2, out, p2m), out, duration_s, "paper2")
+    res["six_people_four_cameras"] = demo(site_with_manager(sites / "six.toml", out, None), out, duration_s, "six")
     return res
 
 
@@ -273,12 +276,12 @@ def planner(out: Path, duration_s: float) -> dict[str, Any]:
     sites = REPO / "deploy" / "sites"
     p1, pl = sites / "paper1.toml", sites / "planning.toml"
     res: dict[str, Any] = {}
-    row = demo(_abs_site(p1, out, None), out, duration_s, "paper1_mutual_planner")
+    row = demo(site_with_manager(p1, out, None), out, duration_s, "paper1_mutual_planner")
     res["paper1_mutual_planner"] = _plan_stats(row, p1)
-    row = demo(_abs_site(pl, out, None), out, duration_s, "planning_planner")
+    row = demo(site_with_manager(pl, out, None), out, duration_s, "planning_planner")
     res["planning_planner"] = _plan_stats(row, pl)
-    parked = _manager_variant(pl, out, "[planner]\nenabled = false\n", "plparked")
-    row = demo(_abs_site(pl, out, parked), out, duration_s, "planning_parked")
+    parked = manager_variant(pl, out, PARKED, "plparked")
+    row = demo(site_with_manager(pl, out, parked), out, duration_s, "planning_parked")
     res["planning_parked"] = _plan_stats(row, pl)
     return res
 
@@ -291,7 +294,7 @@ def wildtrack(out: Path, dataset: Path, frames: int, pair_frames: int) -> dict[s
     res["pair_choice_bearing_noise_0.2deg"] = wildtrack_pairs(dataset, out, frames=pair_frames, seed=0, noise_deg=0.2)
     imp = import_wildtrack(dataset, out / "wildtrack", max_frames=frames)
     site = Path(imp.site)
-    res["tracking"] = demo(_abs_site(site, out, None), out, 0.0, "wildtrack-tracking")
+    res["tracking"] = demo(site_with_manager(site, out, None), out, 0.0, "wildtrack-tracking")
     return res
 
 

@@ -14,19 +14,17 @@ from typing import Any
 
 import pytest
 
-from benchmarks.bench_accuracy import REPO, _abs_site, _manager_variant, demo
+from benchmarks.bench_accuracy import PAPER1_ROBOT_POSE, PARKED, REPO, demo, manager_variant, site_with_manager
 from tests.support import skip_or_fail
 
 pytestmark = pytest.mark.integration
 
 SITES = REPO / "deploy" / "sites"
-PARKED = "[planner]\nenabled = false\n"
-ROBOT_TRUE_POSE = '[[pose]]\nid = "robot"\nx_m = 2.0\ny_m = 4.2\nz_m = 1.1\nyaw_deg = 250.0\n'
 
 # name: (site, manager variant (None: the site's own), seconds, {metric: (">=" | "<=", bound)})
 CASES: dict[str, tuple[str, str | None, float, dict[str, tuple[str, float]]]] = {
     # The paper's two-camera geometry, one person; issue goals 5 cm surveyed, 10 cm by mutual calibration.
-    "paper1_surveyed": ("paper1.toml", PARKED + ROBOT_TRUE_POSE, 18,
+    "paper1_surveyed": ("paper1.toml", PARKED + PAPER1_ROBOT_POSE, 18,
                         {"mean_error_m": ("<=", 0.08), "mota": (">=", 0.8)}),
     "paper1_mutual": ("paper1.toml", PARKED, 18, {"mean_error_m": ("<=", 0.12), "mota": (">=", 0.8)}),
     # Two people; issue goal 10 cm.
@@ -42,8 +40,8 @@ def test_network_accuracy_on_simulated_site(name: str, tmp_path: Path) -> None:
         skip_or_fail("the resource manager is not installed")
     site_file, variant, seconds, bounds = CASES[name]
     site = SITES / site_file
-    manager = _manager_variant(site, tmp_path, variant, name) if variant is not None else None
-    row: dict[str, Any] = demo(_abs_site(site, tmp_path, manager), tmp_path, seconds, name)
+    manager = manager_variant(site, tmp_path, variant, name) if variant is not None else None
+    row: dict[str, Any] = demo(site_with_manager(site, tmp_path, manager), tmp_path, seconds, name)
     assert "error" not in row, row
     assert row["frames"] >= 8 * 15, row  # at least 8 s scored at the sites' 15 fps
     for metric, (op, bound) in bounds.items():
