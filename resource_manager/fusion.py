@@ -44,7 +44,7 @@ from resource_manager.align import AlignedView, AlignParams, align_sensor
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest import Ingest
-from resource_manager.planner import PlannerParams, PlanTarget, ViewPlanner, plan_camera
+from resource_manager.planner import HEAD_HEIGHT_M, PlannerParams, PlanTarget, ViewPlanner, plan_camera
 from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.ptz import PtzAllocator, PtzParams, PtzTarget
 from resource_manager.track import Tracker, TrackParams, TrackRecord
@@ -355,12 +355,14 @@ class Fusion:
             plan_camera(sid, pose.origin, pose.z_m, infos.get(sid), self.poses.bearing_sigma(sid))
             for sid, pose in poses.items()
         ]
-        if not any(c.mobile for c in cams):
-            return []
         targets = [
-            PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors, tr.height_m)
-            if tr.height_m > 0
-            else PlanTarget(tr.track_id, tr.xy.copy(), tr.predicted_error_m, tr.sensors)
+            PlanTarget(
+                tr.track_id,
+                tr.xy.copy(),
+                tr.predicted_error_m,
+                tr.sensors,
+                tr.height_m if tr.height_m > 0 else HEAD_HEIGHT_M,
+            )
             for tr in self.tracker.tracks
             if tr.track_id and tr.state == "confirmed"
         ]

@@ -116,6 +116,10 @@ class PlanGoal:
     current_error_m: float
 
 
+HEAD_HEIGHT_M = 1.8
+"""Head top assumed for a track whose height is not measured yet."""
+
+
 @dataclass(frozen=True, slots=True)
 class PlanTarget:
     """What the planner needs of a track."""
@@ -124,7 +128,7 @@ class PlanTarget:
     xy: FloatArray
     predicted_error_m: float
     sensors: tuple[str, ...]
-    height_m: float = 1.8
+    height_m: float = HEAD_HEIGHT_M
     """Top of the head above the floor."""
 
 
