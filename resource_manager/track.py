@@ -66,7 +66,7 @@ class TrackParams:
     plus 1 m per second lost (a walker's reach) instead of ``relink_m`` plus 0.5 m/s (0: off)."""
 
 
-@dataclass(slots=True)
+@dataclass(slots=True, eq=False)
 class TrackRecord:
     """One track's filter and bookkeeping (mutable, owned by the Tracker)."""
 
@@ -324,10 +324,10 @@ class Tracker:
             final.append(tr)
             kept_xy.append((tx, ty))
         self.tracks = final
-        expired = [tr for tr in self.lost if (self._now_ns - tr.t_ns) / 1e9 > p.relink_s]
-        if expired:
-            self.lost = [tr for tr in self.lost if tr not in expired]
-            ended.extend(expired)
+        held: list[TrackRecord] = []
+        for tr in self.lost:
+            (ended if (self._now_ns - tr.t_ns) / 1e9 > p.relink_s else held).append(tr)
+        self.lost = held
         return ended
 
 
