@@ -39,6 +39,7 @@ import msgspec
 __all__ = [
     "MESSAGE_TYPES",
     "Blob",
+    "DetectorState",
     "Features",
     "ManagerStatus",
     "NodeStatus",
@@ -165,6 +166,9 @@ class Sighting(_Msg, frozen=True, tag="pano.Sighting"):
     body_radius_m: PosMetres
 
 
+DetectorState = Literal["ok", "learning", "moving"]
+
+
 class Features(_Msg, frozen=True, tag="pano.Features"):
     """Everything one frame of one camera yields; published per frame."""
 
@@ -177,6 +181,10 @@ class Features(_Msg, frozen=True, tag="pano.Features"):
     sightings: Annotated[list[Sighting], msgspec.Meta(max_length=MAX_SIGHTINGS)] = []
     processing_ms: Millis = 0.0
     """Time from capture to publication of this message."""
+    state: DetectorState = "ok"
+    """Whether an empty ``blobs`` list means nobody is there: "ok" (the detector sees), "learning" (the
+    background model is being (re)learnt, e.g. just after start or after the camera moved: no blobs yet,
+    whoever is there), "moving" (the camera itself moves: no blobs until it stops)."""
 
 
 class Pose(_Msg, frozen=True, tag="pano.Pose"):

@@ -130,6 +130,7 @@ def _mutated(msg: msgspec.Struct, path: list[str | int], value: object) -> bytes
         (["seq"], -1, "$.seq"),
         (["stamp_ns"], "yesterday", "$.stamp_ns"),
         (["processing_ms"], -0.5, "$.processing_ms"),
+        (["state"], "asleep", "$.state"),
         (["blobs", 0, "type"], "pano.Track", "$.blobs[0].type"),
     ],
 )
@@ -139,6 +140,12 @@ def test_schema_error_names_the_field(path: list[str | int], value: object, want
     assert info.value.path == want_path
     assert isinstance(info.value, PanoError)
     assert "Features" in str(info.value)
+
+
+def test_features_from_an_older_node_without_state_read_as_ok() -> None:
+    raw = msgpack.unpackb(encode(_features()), raw=False)
+    del raw["state"]
+    assert decode(msgpack.packb(raw), Features).state == "ok"
 
 
 def test_missing_required_field() -> None:
