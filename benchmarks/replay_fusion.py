@@ -94,9 +94,9 @@ def replay(data: ReplayInput, config: ManagerConfig) -> tuple[list[TrackSet], li
             msg = data.samples[k][1]
             (feats if isinstance(msg, Features) else infos).append(msg)  # type: ignore[arg-type]
             k += 1
-        t0 = time.perf_counter()
+        began = time.perf_counter()
         result = fusion.step(Batch(features=feats, infos=infos), fusion_ns)
-        tick_ms.append((time.perf_counter() - t0) * 1e3)
+        tick_ms.append((time.perf_counter() - began) * 1e3)
         if not result.skipped:
             out.append(result.trackset)
     return out, tick_ms

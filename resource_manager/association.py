@@ -25,37 +25,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import linear_sum_assignment
 
 from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.births import Births
 from resource_manager.config import ManagerConfig
+from resource_manager.group import group_fix
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
-from resource_manager.match import MatchMatrix, MatchParams, ViewBlobs, get_matcher, match_matrices
+from resource_manager.looks import learn_look, mean_similarity
+from resource_manager.match import MatchParams, ViewBlobs, get_matcher
 from resource_manager.mono import mono_measurement, range_mismatch
-from resource_manager.pairs import CameraGeom, PairCandidate, rank_pairs
+from resource_manager.pairmatch import PairMatches
+from resource_manager.pairs import PairCandidate, rank_for_track
 from resource_manager.poses import PoseEstimate
+from resource_manager.support import assign_support
 from resource_manager.track import Tracker, TrackRecord
-from resource_manager.views import AllBlobs, build_views, wrap
+from resource_manager.views import AllBlobs, build_views
 
 __all__ = ["Associator", "Outcome"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
-_FORBID = 1e6
-SUPPORT_HALF_M = 0.2
-"""Lateral slack (m) of the support gate around a track's predicted bearing: a head is within about this of the
-body's centre line. Under half the ~0.5 m between two people walking side by side, so one track's gate does not
-reach across to the neighbour's blob (0.25: demo recordings, seed 7, MOTA 0.913 mean of 5 vs 0.931 at 0.2)."""
-LINK_BONUS = 0.5
-"""Cost bonus (in squared gate units) of the blob with the node-side id a track had last tick."""
 OWNER_MIN_MISSES = 3
 """A track that missed this many ticks in a row (its gate has grown) yields fixes nearer a measured track."""
-LOOK_ALPHA = 0.1
-"""Weight of a new blob in a track's running per-view colour look."""
-RERANK_MOVE_M = 0.5
-"""A track's camera pairs are re-ranked by the error model when it moved this far (or its views changed)."""
 
 
 @dataclass(slots=True)
@@ -64,13 +56,6 @@ class Outcome:
     sensors_in_use: list[str] = field(default_factory=list)
     measured: int = 0
     births: int = 0
-
-
-@dataclass(slots=True)
-class _PairMatch:
-    mm: MatchMatrix
-    pairs: dict[int, int]
-    """row -> column of the accepted matches."""
 
 
 class Associator:
@@ -103,164 +88,16 @@ class Associator:
     def support(
         self, views: dict[str, ViewBlobs], tracks: list[TrackRecord]
     ) -> tuple[list[dict[str, int]], list[dict[str, int]]]:
-        """For each track, sensor id -> index of its own supporting blob, and of blobs it shares.
-
-        Per camera, tracks and blobs inside the gate (bearing, and the feet's floor distance where known) are
-        assigned one to one; a track left without a blob whose nearest blob is another track's shares it.
-        """
-        out: list[dict[str, int]] = [{} for _ in tracks]
-        shared: list[dict[str, int]] = [{} for _ in tracks]
-        vs = [v for v in views.values() if v.n]
-        if not tracks or not vs:
-            return out, shared
-        txy = np.array([tr.x[:2] for tr in tracks])
-        tvar = np.array([max(tr.p[0, 0], tr.p[1, 1]) for tr in tracks])
-        k = self.config.match.bearing_gate_sigmas
-        links: dict[str, npt.NDArray[np.int64]] = {}
-        for t, tr in enumerate(tracks):
-            for sid, lid in tr.links.items():
-                if sid not in links:
-                    links[sid] = np.full(len(tracks), -1, dtype=np.int64)
-                links[sid][t] = lid
-        # Gates of every (view, track) and normalised distances of every (blob, track) in one pass over all
-        # views (per view: the same arithmetic on its rows); only the one-to-one assignment is per view.
-        counts = [v.n for v in vs]
-        of = np.repeat(np.arange(len(vs)), counts)
-        rel = txy[None, :, :] - np.array([v.origin_xy for v in vs])[:, None, :]  # (views, tracks, 2)
-        dist = np.maximum(np.hypot(rel[..., 0], rel[..., 1]), 0.3)
-        pred = np.arctan2(rel[..., 1], rel[..., 0])
-        sig2 = np.array([v.sigma_rad**2 for v in vs])[:, None]
-        gate = k * np.sqrt(sig2 + tvar / dist**2) + SUPPORT_HALF_M / dist
-        bearing = np.concatenate([v.bearing_rad for v in vs])
-        norm = np.abs(wrap(bearing[:, None] - pred[of])) / gate[of]  # (blobs, tracks)
-        if any(v.mono_range_m is not None and v.mono_sigma_m is not None for v in vs):
-            # Floor distance from the feet (mono.py): along the ray too, within the same number of sigmas.
-            known = [v.mono_range_m is not None and v.mono_sigma_m is not None for v in vs]
-            pairs = list(zip(vs, known, strict=True))
-            rng_m = np.concatenate([v.mono_range_m if ok else np.full(v.n, np.nan) for v, ok in pairs])
-            sig_m = np.concatenate([v.mono_sigma_m if ok else np.full(v.n, np.nan) for v, ok in pairs])
-            s_r = np.sqrt(sig_m[:, None] ** 2 + tvar[None, :])
-            rn = np.abs(rng_m[:, None] - dist[of]) / (k * s_r)
-            with_feet = np.repeat(np.array(known), counts)
-            norm = np.where(with_feet[:, None], np.hypot(norm, np.nan_to_num(rn, nan=0.0)), norm)
-        ok_all = (norm < 1.0) & ~(dist > self.params.max_range_m)[of]
-        cost_all = np.where(ok_all, norm**2, _FORBID)
-        stop = 0
-        for v, n in zip(vs, counts, strict=True):
-            sid = v.sensor_id
-            sl = slice(stop, stop + n)
-            stop += n
-            ok = ok_all[sl]
-            if not ok.any():
-                continue
-            # One blob per track and one track per blob, by least total normalised distance (Hungarian):
-            # in a crowd, "each track takes its nearest blob" lets one track steal its neighbour's blob.
-            # The blob the node kept tracking for it (same local id) gets a bonus, not a free pass: the
-            # node's 2D ids swap between people who cross.
-            cost = cost_all[sl]
-            lids = links.get(sid)
-            if lids is not None:
-                cost = cost - LINK_BONUS * ((v.local_id[:, None] == lids[None, :]) & ok)
-            if self.look_weight > 0 and v.hist_sqrt is not None:
-                cost = cost + self._look_cost(sid, v.hist_sqrt, tracks, ok)
-            rows_any = np.nonzero(ok.any(axis=1))[0]
-            cols_any = np.nonzero(ok.any(axis=0))[0]
-            sub = cost[np.ix_(rows_any, cols_any)]
-            ri, ci = linear_sum_assignment(sub)
-            good = sub[ri, ci] < _FORBID / 2
-            blob_of = np.full(len(tracks), -1)
-            blob_of[cols_any[ci[good]]] = rows_any[ri[good]]
-            claimed = np.zeros(v.n, dtype=bool)
-            claimed[blob_of[blob_of >= 0]] = True
-            nearest = np.argmin(norm[sl], axis=0)
-            near_ok = ok[nearest, np.arange(len(tracks))] & claimed[nearest] & (blob_of < 0)
-            for t in np.nonzero(blob_of >= 0)[0].tolist():
-                out[t][sid] = int(blob_of[t])
-            # A track left without a blob whose nearest is another track's: this person is probably hidden
-            # behind it. It explains the blob (no birth from it) but its bearing is the other person's.
-            for t in np.nonzero(near_ok)[0].tolist():
-                shared[t][sid] = int(nearest[t])
-        return out, shared
-
-    def _look_cost(
-        self, sid: str, hist_sqrt: FloatArray, tracks: list[TrackRecord], ok: npt.NDArray[np.bool_]
-    ) -> FloatArray:
-        """(n_blobs, n_tracks) colour dissimilarity of each blob to each track's look in this view, weighted.
-
-        1 - Bhattacharyya coefficient against the running mean of the track's own blobs in this camera: two
-        people meeting swap blobs by position alone; by their shirts they seldom do. Tracks without a look
-        in this view cost nothing extra.
-        """
-        out = np.zeros(ok.shape)
-        cols = [t for t, tr in enumerate(tracks) if sid in tr.looks and tr.looks[sid].shape[0] == hist_sqrt.shape[1]]
-        if cols:
-            looks = np.array([tracks[t].looks[sid] for t in cols])
-            bc = np.clip(hist_sqrt @ looks.T, 0.0, 1.0)  # (n_blobs, len(cols))
-            out[:, cols] = self.look_weight * (1.0 - bc)
-        return np.where(ok, out, 0.0)
-
-    def _learn_looks(self, tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs]) -> None:
-        """Fold the colour of the blobs that localised the track into its per-view look."""
-        if self.look_weight <= 0:
-            return
-        for sid, i in used_blobs.items():
-            hs = views[sid].hist_sqrt
-            if hs is None:
-                continue
-            h = hs[i]
-            old = tr.looks.get(sid)
-            if old is None or old.shape != h.shape:
-                tr.looks[sid] = h.copy()
-            else:
-                mixed = (1.0 - LOOK_ALPHA) * old + LOOK_ALPHA * h
-                tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)
+        """For each track, sensor id -> index of its own supporting blob, and of blobs it shares (:mod:`.support`)."""
+        return assign_support(
+            views,
+            tracks,
+            gate_sigmas=self.config.match.bearing_gate_sigmas,
+            max_range_m=self.params.max_range_m,
+            look_weight=self.look_weight,
+        )
 
     # -- step 2 -----------------------------------------------------------------
-    def _prefetch(
-        self,
-        keys: set[tuple[str, str]],
-        views: dict[str, ViewBlobs],
-        tracks: list[TrackRecord],
-        cache: dict[tuple[str, str], _PairMatch],
-    ) -> None:
-        """Eq. 7 for every pair some track will try first, in one vectorised pass."""
-        todo = sorted(k for k in keys if k not in cache)
-        if not todo:
-            return
-        pairs = [(views[a], views[b]) for a, b in todo]
-        temporals = [self._temporal(a, b, tracks) for a, b in pairs]
-        txy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
-        mms = match_matrices(pairs, self.params, temporals, self.threshold, txy)
-        for key, mm in zip(todo, mms, strict=True):
-            cache[key] = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
-
-    @staticmethod
-    def _temporal(a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord]) -> FloatArray:
-        """c_t: 1 where the pair continues a track's previous correspondence (same node blob ids)."""
-        temporal = np.zeros((a.n, b.n))
-        if a.n and b.n:
-            rows = {int(lid): i for i, lid in enumerate(a.local_id)}
-            cols = {int(lid): j for j, lid in enumerate(b.local_id)}
-            for tr in tracks:
-                la, lb = tr.links.get(a.sensor_id), tr.links.get(b.sensor_id)
-                if la in rows and lb in cols:
-                    temporal[rows[la], cols[lb]] = 1.0
-        return temporal
-
-    def _pair_match(
-        self, a: ViewBlobs, b: ViewBlobs, tracks: list[TrackRecord], cache: dict[tuple[str, str], _PairMatch]
-    ) -> _PairMatch:
-        key = (a.sensor_id, b.sensor_id)
-        got = cache.get(key)
-        if got is not None:
-            return got
-        temporal = self._temporal(a, b, tracks)
-        txy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
-        mm = match_matrices([(a, b)], self.params, [temporal], self.threshold, txy)[0]
-        pm = _PairMatch(mm, dict(self.matcher.match(mm.r, self.threshold)))
-        cache[key] = pm
-        return pm
-
     def _consistent(self, meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs]) -> tuple[list[str], int]:
         """Supporting cameras whose blob points at the measurement, and how many point elsewhere."""
         k = self.config.match.bearing_gate_sigmas
@@ -308,7 +145,7 @@ class Associator:
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
         support, shared = self.support(views, tracks)
-        cache: dict[tuple[str, str], _PairMatch] = {}
+        cache = PairMatches(views, tracks, self.params, self.matcher, self.threshold)
         used: dict[str, set[int]] = {sid: set() for sid in views}
         pose_sigma = {sid: p.sigma_xy_m for sid, p in poses.items()}
         mc = self.config.match
@@ -316,17 +153,11 @@ class Associator:
         ranked_by: list[list[PairCandidate]] = []
         planned: set[tuple[str, str]] = set()
         for tr, sup in zip(tracks, support, strict=True):
-            ranked = (
-                self._rank(
-                    tr, sup=sup, views=views, pose_sigma=pose_sigma, max_cams=mc.max_pair_cameras, chosen=planned
-                )
-                if len(sup) >= 2
-                else []
-            )
+            ranked = self._rank(tr, sup, views, pose_sigma, planned) if len(sup) >= 2 else []
             ranked_by.append(ranked)
             if ranked:
                 planned.add((min(ranked[0].a, ranked[0].b), max(ranked[0].a, ranked[0].b)))
-        self._prefetch(planned, views, tracks, cache)
+        cache.prefetch(planned)
         for tr, sup, sh, ranked in zip(tracks, support, shared, ranked_by, strict=True):
             for sid, i in itertools.chain(sup.items(), sh.items()):
                 used[sid].add(i)
@@ -345,9 +176,7 @@ class Associator:
                 # own blobs with those shared ones. The shared bearing is the neighbour's, so the fix is off by
                 # at most their spacing; the motion gate and the other views still judge it.
                 both = {**sh, **sup}
-                ranked_sh = self._rank(
-                    tr, sup=both, views=views, pose_sigma=pose_sigma, max_cams=mc.max_pair_cameras, chosen=planned
-                )
+                ranked_sh = self._rank(tr, both, views, pose_sigma, planned)
                 ranked_sh = [c for c in ranked_sh if c.a in sup or c.b in sup]
                 meas, entry, used_blobs = self._measure(
                     tr,
@@ -374,6 +203,12 @@ class Associator:
                         v = views[sid]
                         if tr.links.get(sid) == int(v.local_id[i]):
                             self.tracker.bearing_update(tr, v.origin_xy, float(v.bearing_rad[i]), v.sigma_rad)
+            if meas is None and len(sup) == 1 and sh and tr.confirmed:
+                meas = self._group_measure(tr, sup, sh, views, t_ns)
+                if meas is not None:
+                    entry, used_blobs = None, dict(sup)
+            elif meas is not None and entry is not None:
+                tr.fixed_ns = t_ns
             if meas is None:
                 if tr.confirmed and self._nobody_there(tr.x[:2]):
                     tr.misses = self.tracker.params.max_misses  # this miss ends it: the person has left
@@ -382,7 +217,8 @@ class Associator:
             claimed.update(used_blobs.items())
             links = {sid: int(views[sid].local_id[i]) for sid, i in used_blobs.items()}
             self.tracker.update(tr, meas, links)
-            self._learn_looks(tr, used_blobs, views)
+            if self.look_weight > 0:
+                learn_look(tr, used_blobs, views)
             for sid in sup:
                 if sid not in used_blobs:
                     tr.links.pop(sid, None)  # that camera's blob is someone else's now
@@ -401,45 +237,44 @@ class Associator:
         out.births = self.births.run(views, used, pose_sigma, t_ns, self._agreement_ok)
         return out
 
+    def _group_measure(
+        self, tr: TrackRecord, sup: dict[str, int], sh: dict[str, int], views: dict[str, ViewBlobs], t_ns: int
+    ) -> Measurement | None:
+        """A fix from the track's own rays and the extents of the blobs it shares (:mod:`.group`), if allowed.
+
+        Only for ``group_coast_s`` after the track's last stereo fix, with an own blob that continues the node's
+        2D track it followed, inside the motion gate and where the cameras that could see it see someone.
+        """
+        limit_s = self.config.match.group_coast_s
+        if limit_s <= 0 or (t_ns - tr.fixed_ns) / 1e9 > limit_s:
+            return None
+        if not any(tr.links.get(sid) == int(views[sid].local_id[i]) for sid, i in sup.items()):
+            return None
+        meas = group_fix(tr.x[:2], sup, sh, views)
+        if meas is None or not math.isfinite(self.tracker.gate_distance(tr, meas)) or not self._agreement_ok(meas):
+            return None
+        return meas
+
     def _rank(
         self,
         tr: TrackRecord,
-        *,
         sup: dict[str, int],
         views: dict[str, ViewBlobs],
         pose_sigma: dict[str, float],
-        max_cams: int,
         chosen: set[tuple[str, str]],
     ) -> list[PairCandidate]:
-        """The track's camera pairs, best first by the error model (``chosen``: pairs already matched this tick)."""
-        key = frozenset(sup)
-        pc = tr.pair_cache
-        ranked: list[PairCandidate] = []
-        if pc is not None and key <= pc[2] and math.hypot(tr.x[0] - pc[0], tr.x[1] - pc[1]) < RERANK_MOVE_M:
-            # Same place, no new camera: the earlier ranking restricted to the cameras that see it now.
-            ranked = [c for c in pc[3] if c.a in key and c.b in key]
-        if not ranked:
-            cams = [CameraGeom(s, views[s].origin_xy, views[s].sigma_rad, pose_sigma.get(s, 0.0)) for s in sup]
-            random_pairs = self.config.match.pair_choice == "random"
-            ranked = rank_pairs(tr.x[:2].copy(), cams, len(cams) if random_pairs else max_cams)
-            tr.pair_cache = (float(tr.x[0]), float(tr.x[1]), key, list(ranked))
-        if self.config.match.pair_choice == "random":
-            ranked = [ranked[int(i)] for i in self._rng.permutation(len(ranked))]
-        tol = self.config.match.pair_reuse_tolerance
-        if (
-            self.config.match.pair_choice == "error_model"
-            and tol > 1.0
-            and ranked
-            and tuple(sorted((ranked[0].a, ranked[0].b))) not in chosen
-        ):
-            # A pair already matched this tick and nearly as good saves a whole Eq. 7 matrix.
-            reuse = next(
-                (c for c in ranked[1:] if c.error_m <= tol * ranked[0].error_m and tuple(sorted((c.a, c.b))) in chosen),
-                None,
-            )
-            if reuse is not None:
-                ranked = [reuse, *[c for c in ranked if c is not reuse]]
-        return ranked
+        mc = self.config.match
+        return rank_for_track(
+            tr,
+            sup=sup,
+            views=views,
+            pose_sigma=pose_sigma,
+            max_cams=mc.max_pair_cameras,
+            chosen=chosen,
+            choice=mc.pair_choice,
+            reuse_tolerance=mc.pair_reuse_tolerance,
+            rng=self._rng,
+        )
 
     def _measure(
         self,
@@ -448,7 +283,7 @@ class Associator:
         sup: dict[str, int],
         views: dict[str, ViewBlobs],
         tracks: list[TrackRecord],
-        cache: dict[tuple[str, str], _PairMatch],
+        cache: PairMatches,
         pose_sigma: dict[str, float],
         ranked: list[PairCandidate],
         claimed: set[tuple[str, int]],
@@ -458,7 +293,7 @@ class Associator:
         for cand in ranked[:3]:
             a_id, b_id = sorted((cand.a, cand.b))
             a, b = views[a_id], views[b_id]
-            pm = self._pair_match(a, b, tracks, cache)
+            pm = cache.get(a_id, b_id)
             i, j = sup[a_id], sup[b_id]
             options = []
             if pm.pairs.get(i) == j or pm.mm.r[i, j] > self.threshold:
@@ -508,13 +343,12 @@ class Associator:
         floor = self.config.match.fix_look_min
         if floor <= 0 or self.look_weight <= 0 or not tr.confirmed:
             return False
-        sims: list[float] = []
+        pairs = []
         for sid, i in blobs:
             hs = views[sid].hist_sqrt
-            look = tr.looks.get(sid)
-            if hs is not None and look is not None and look.shape[0] == hs.shape[1]:
-                sims.append(float(hs[i] @ look))
-        return bool(sims) and sum(sims) / len(sims) < floor
+            pairs.append((None if hs is None else hs[i], tr.looks.get(sid)))
+        sim = mean_similarity(pairs)
+        return sim is not None and sim < floor
 
     def _owned_elsewhere(self, tr: TrackRecord, meas: Measurement, tracks: list[TrackRecord]) -> bool:
         """Whether another track measured more recently than ``tr`` is nearer (Mahalanobis) to the fix.

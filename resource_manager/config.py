@@ -180,6 +180,10 @@ class MatchSection(ConfigStruct, frozen=True):
     shared_pairs: bool = False
     """A track whose person is hidden behind a neighbour in some views (one blob there explains both) is
     localised by pairing its own blobs with those shared blobs when no pair of its own does."""
+    group_coast_s: Annotated[float, msgspec.Meta(ge=0.0, le=30.0)] = 0.0
+    """A confirmed track with no stereo fix, one camera of its own and blobs it shares with neighbours elsewhere
+    (a merged group) is fixed from its own ray and those blobs' extents (resource_manager/group.py) for at most
+    this long after its last stereo fix (0: off; it coasts and may die while its group stays merged)."""
     min_view_agreement: Frac = 0.8
     """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
     (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not)."""

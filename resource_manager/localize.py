@@ -31,9 +31,18 @@ from common.geometry import intersect_rays, localize_pair
 from common.schema import Method
 from resource_manager.match import ViewBlobs
 
-__all__ = ["Measurement", "localize_best_pair", "localize_least_squares", "pair_sigmas"]
+__all__ = [
+    "MAX_PERSON_WIDTH_M",
+    "Measurement",
+    "localize_best_pair",
+    "localize_least_squares",
+    "pair_sigmas",
+    "wide_blob",
+]
 
 FloatArray = npt.NDArray[np.float64]
+MAX_PERSON_WIDTH_M = 0.75
+"""A blob wider than this (metric width at its distance) holds several people (simulated bodies: 0.40-0.52 m)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,6 +61,11 @@ class Measurement:
     """The error model's predicted position error of the views used."""
     blobs: tuple[tuple[str, int], ...]
     """(sensor_id, blob index) of every view used."""
+
+
+def wide_blob(v: ViewBlobs, i: int, distance_m: float) -> bool:
+    """Whether blob ``i`` of view ``v`` is plainly wider than one person at ``distance_m`` (a merged group)."""
+    return 2.0 * distance_m * math.tan(0.5 * float(v.width_rad[i])) > MAX_PERSON_WIDTH_M
 
 
 def pair_sigmas(a: ViewBlobs, b: ViewBlobs, sigma_xy_a: float, sigma_xy_b: float) -> tuple[float, float]:
@@ -104,6 +118,9 @@ def localize_best_pair(
     x1, y1, x2, y2 = float(o1[0]), float(o1[1]), float(o2[0]), float(o2[1])
     base = math.hypot(x2 - x1, y2 - y1)
     d1, d2 = float(fix.d1_m), float(fix.d2_m)
+    if fix.method == "size_ratio" and (wide_blob(a, i, d1) or wide_blob(b, j, d2)):
+        # Eq. 2 takes the widths for one person's: a merged group's blob puts the fix far off along the baseline.
+        return None
     # Covariance as (xx, xy, yy) in plain floats (one small matrix per call: numpy per element costs more).
     if fix.method == "size_ratio":
         ux, uy = (x2 - x1) / max(base, 1e-9), (y2 - y1) / max(base, 1e-9)

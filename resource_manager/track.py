@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from common.schema import Method, TrackState
 from resource_manager.localize import Measurement
+from resource_manager.looks import mean_similarity
 from resource_manager.pairs import PairCandidate
 
 __all__ = ["TrackParams", "TrackRecord", "Tracker"]
@@ -89,6 +90,8 @@ class TrackRecord:
     looks: dict[str, FloatArray] = field(default_factory=dict)
     """sensor id -> running mean of the square-rooted colour histograms of this track's blobs in that view
     (appearance per view: the same shirt looks different from another side or under another light)."""
+    fixed_ns: int = 0
+    """Fusion instant of the last stereo (pair or least-squares) fix; 0: none yet (see ``match.group_coast_s``)."""
     pair_cache: tuple[float, float, frozenset[str], list[PairCandidate]] | None = None
     """(x, y, cameras, ranked pairs) of the last pair ranking (re-ranked when the track moved or views changed)."""
 
@@ -239,6 +242,7 @@ class Tracker:
             p=p,
             t_ns=t_ns,
             born_ns=t_ns,
+            fixed_ns=t_ns,
             height_m=m.height_m,
             method=m.method,
             sensors=m.sensors,
@@ -342,9 +346,4 @@ def look_similarity(a: TrackRecord, b: TrackRecord) -> float | None:
     Returns:
         In [0, 1] (1: the same colours), or None when the tracks have no look in a common view.
     """
-    sims = [
-        float(a.looks[sid] @ look)
-        for sid, look in b.looks.items()
-        if sid in a.looks and a.looks[sid].shape == look.shape
-    ]
-    return sum(sims) / len(sims) if sims else None
+    return mean_similarity((a.looks[sid], look) for sid, look in b.looks.items() if sid in a.looks)

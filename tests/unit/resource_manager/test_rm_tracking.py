@@ -6,12 +6,14 @@ import math
 
 import msgspec
 import numpy as np
+import pytest
 
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, TrackerSection
 from resource_manager.localize import Measurement
+from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
 from resource_manager.match import ViewBlobs
-from resource_manager.track import Tracker, TrackParams, TrackRecord
+from resource_manager.track import Tracker, TrackParams, TrackRecord, look_similarity
 from tests.unit.resource_manager.scenario import T0_NS, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person, colour_hist
 
@@ -181,10 +183,9 @@ def test_people_who_meet_keep_their_blobs_by_colour() -> None:
     cfg = ManagerConfig(
         manager=msgspec.convert({"id": "m1"}, ManagerSection), match=msgspec.convert({"look_weight": 1.0}, MatchSection)
     )
-    looks = Associator(cfg, tracker)
-    looks._learn_looks(a, {"c1": 0}, {"c1": _view([10.0], [red], [1])})
-    looks._learn_looks(b, {"c1": 0}, {"c1": _view([11.5], [blue], [2])})
-    (sup_a, sup_b), _ = looks.support({"c1": view}, [a, b])
+    learn_look(a, {"c1": 0}, {"c1": _view([10.0], [red], [1])})
+    learn_look(b, {"c1": 0}, {"c1": _view([11.5], [blue], [2])})
+    (sup_a, sup_b), _ = Associator(cfg, tracker).support({"c1": view}, [a, b])
     assert (sup_a["c1"], sup_b["c1"]) == (0, 1)
 
 
@@ -269,3 +270,92 @@ def test_a_fix_in_someone_elses_colours_is_not_the_tracks() -> None:
     assert not off._unlike(tr, (("c1", 1), ("c2", 1)), views)
     tr.state = "tentative"
     assert not judge._unlike(tr, (("c1", 1), ("c2", 1)), views)
+
+
+def _cam_view(sid: str, origin: tuple[float, float], blobs: list[tuple[float, float, int]]) -> ViewBlobs:
+    """A view at ``origin`` whose blobs are (world x, world y of the head, angular width deg, local id) seen there."""
+    ox, oy = origin
+    return ViewBlobs(
+        sensor_id=sid,
+        origin_xy=np.array(origin),
+        z_m=1.1,
+        sigma_rad=math.radians(0.2),
+        bearing_rad=np.array([math.atan2(y - oy, x - ox) for x, y, _, _ in blobs]),
+        width_rad=np.radians([w for _, _, w, _ in blobs]),
+        top_elev_rad=np.full(len(blobs), 0.15),
+        hist=None,
+        local_id=np.array([k for _, _, _, k in blobs], dtype=np.int64),
+    )
+
+
+def _group(shared_width_deg: float) -> tuple[dict[str, ViewBlobs], TrackRecord, TrackRecord, Tracker]:
+    """A at (3, 3) and B at (3.5, 3) walk side by side. c1 sees them apart; c2 and c3 see one blob for both,
+    its head on B (the node found one head), ``shared_width_deg`` wide."""
+    tracker = Tracker(TrackParams(), lambda: "m")
+    a = tracker.spawn(_meas(3.0, 3.0), 0, {"c1": 1})
+    b = tracker.spawn(_meas(3.5, 3.0), 0, {"c1": 2, "c2": 5, "c3": 7})
+    for tr in (a, b):
+        tr.state, tr.track_id = "confirmed", f"m-{tr.serial}"
+    views = {
+        "c1": _cam_view("c1", (0.0, 0.0), [(3.0, 3.0, 8.0, 1), (3.5, 3.0, 7.0, 2)]),
+        "c2": _cam_view("c2", (6.0, 0.0), [(3.5, 3.0, shared_width_deg, 5)]),
+        "c3": _cam_view("c3", (6.0, 6.0), [(3.5, 3.0, shared_width_deg, 7)]),
+    }
+    return views, a, b, tracker
+
+
+def _group_config(coast_s: float) -> ManagerConfig:
+    return ManagerConfig(
+        manager=msgspec.convert({"id": "m1"}, ManagerSection),
+        match=msgspec.convert({"group_coast_s": coast_s}, MatchSection),
+    )
+
+
+def test_a_wide_blob_explains_two_people_and_the_hidden_one_keeps_its_fix() -> None:
+    """B takes the merged blob in c2 and c3; A, left with its own blob in c1 only, shares it. Its own ray and
+    the merged blob's extent fix it where it is (no stereo pair would); its lateral error is corrected."""
+    views, a, b, tracker = _group(shared_width_deg=17.0)  # 1.2 m at 4 m: two people
+    assoc = Associator(_group_config(3.0), tracker)
+    (own_a, own_b), (shared_a, _) = assoc.support(views, [a, b])
+    assert own_a == {"c1": 0} and set(shared_a) == {"c2", "c3"}
+    assert set(own_b) == {"c1", "c2", "c3"}
+    a.x[:2] = [3.15, 2.85]  # predicted 0.21 m off, across c1's ray
+    fix = assoc._group_measure(a, own_a, shared_a, views, 1_000_000_000)
+    assert fix is not None and fix.method == "least_squares"
+    assert math.hypot(fix.xy[0] - 3.0, fix.xy[1] - 3.0) < 0.08, fix.xy  # back on c1's ray, near the truth
+    assert fix.blobs == (("c1", 0),)  # its links: its own blob only, the merged one stays B's
+    assert Associator(_group_config(0.0), tracker)._group_measure(a, own_a, shared_a, views, 1_000_000_000) is None
+    late = assoc._group_measure(a, own_a, shared_a, views, 4_000_000_000)  # 4 s after its last stereo fix
+    assert late is None
+
+
+def test_a_one_person_blob_is_not_a_group_to_hide_in() -> None:
+    """The same views with c2's and c3's blob one person wide: it is B's alone, A is not fixed on it."""
+    views, a, b, tracker = _group(shared_width_deg=7.0)  # 0.5 m at 4 m
+    assoc = Associator(_group_config(3.0), tracker)
+    (own_a, _), (shared_a, _) = assoc.support(views, [a, b])
+    assert own_a == {"c1": 0} and shared_a
+    assert assoc._group_measure(a, own_a, shared_a, views, 1_000_000_000) is None
+
+
+def test_a_grouped_track_without_its_own_2d_track_is_not_fixed() -> None:
+    """The own blob must continue the node's 2D track the track followed (same local id)."""
+    views, a, b, tracker = _group(shared_width_deg=17.0)
+    a.links = {"c1": 9}
+    assoc = Associator(_group_config(3.0), tracker)
+    (own_a, _), (shared_a, _) = assoc.support(views, [a, b])
+    assert assoc._group_measure(a, own_a, shared_a, views, 1_000_000_000) is None
+
+
+def test_colour_similarity_is_one_bhattacharyya_in_every_shape() -> None:
+    red, blue = np.sqrt(np.array(colour_hist(0))), np.sqrt(np.array(colour_hist(3)))
+    bc = bhattacharyya(np.array([red, blue]), [red, None, blue, np.ones(3)])
+    assert bc.shape == (2, 4)
+    assert bc[0, 0] == pytest.approx(1.0) and bc[1, 2] == pytest.approx(1.0)
+    assert bc[0, 2] == pytest.approx(float(red @ blue)) and bc[0, 2] < 0.5
+    assert np.isnan(bc[:, 1]).all() and np.isnan(bc[:, 3]).all()  # no look, or another histogram size
+    assert mean_similarity([(red, red), (red, blue), (blue, None)]) == pytest.approx((1.0 + float(red @ blue)) / 2)
+    assert mean_similarity([(red, None)]) is None
+    one, two = TrackRecord(1, np.zeros(4), np.eye(4), 0, 0), TrackRecord(2, np.zeros(4), np.eye(4), 0, 0)
+    one.looks, two.looks = {"c1": red, "c2": red}, {"c2": blue, "c3": blue}
+    assert look_similarity(one, two) == pytest.approx(float(red @ blue))  # over the one view both have

@@ -1,0 +1,68 @@
+"""Colour looks: how much blobs and tracks look alike (the colour term of identity, beside Eq. 7's r_is).
+
+A track keeps, per camera, a running mean of the square-rooted, L1-normalised colour histograms of the blobs
+that localised it (:func:`learn_look`): the same shirt looks different from another side or under another light.
+Every comparison of colours here is one Bhattacharyya coefficient ``BC(p, q) = Σ √p·√q`` of square-rooted
+histograms, computed by :func:`bhattacharyya` in whatever shape it is asked: blobs of a view against the tracks'
+looks there (the support assignment), the blobs of a fix against one track (is the fix in its colours?), and
+two tracks against each other over the views both have (are they one person?).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from resource_manager.match import ViewBlobs
+    from resource_manager.track import TrackRecord
+
+__all__ = ["LOOK_ALPHA", "bhattacharyya", "learn_look", "mean_similarity"]
+
+FloatArray = npt.NDArray[np.float64]
+LOOK_ALPHA = 0.1
+"""Weight of a new blob in a track's running per-view colour look."""
+
+
+def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> FloatArray:
+    """(n, m) Bhattacharyya coefficients of n square-rooted histograms against m looks, in [0, 1].
+
+    Args:
+        hist_sqrt: (n, k) square-rooted histograms (or one, shape (k,)).
+        looks: m square-rooted histograms; None or another length than k: no comparison (NaN column).
+    """
+    h = np.atleast_2d(np.asarray(hist_sqrt, dtype=np.float64))
+    out = np.full((h.shape[0], len(looks)), np.nan)
+    cols = [c for c, look in enumerate(looks) if look is not None and look.shape == (h.shape[1],)]
+    if cols and h.shape[0]:
+        stacked = np.array([looks[c] for c in cols])
+        out[:, cols] = np.minimum(np.maximum(h @ stacked.T, 0.0), 1.0)
+    return out
+
+
+def mean_similarity(pairs: Iterable[tuple[FloatArray | None, FloatArray | None]]) -> float | None:
+    """Mean Bhattacharyya coefficient over (histogram, look) pairs that can be compared; None if none can."""
+    sims = [
+        float(bhattacharyya(h, [look])[0, 0])
+        for h, look in pairs
+        if h is not None and look is not None and h.shape == look.shape
+    ]
+    return sum(sims) / len(sims) if sims else None
+
+
+def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs]) -> None:
+    """Fold the colours of the blobs that localised ``tr`` into its per-view looks (running mean, renormalised)."""
+    for sid, i in used_blobs.items():
+        hs = views[sid].hist_sqrt
+        if hs is None:
+            continue
+        h = hs[i]
+        old = tr.looks.get(sid)
+        if old is None or old.shape != h.shape:
+            tr.looks[sid] = h.copy()
+        else:
+            mixed = (1.0 - LOOK_ALPHA) * old + LOOK_ALPHA * h
+            tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)
