@@ -37,7 +37,9 @@ from scipy.special import ndtr
 
 from common.errors import GeometryError
 from common.geometry import size_ratio
+from resource_manager.match_tables import Tables, colour_table
 from resource_manager.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
+from resource_manager.viewblobs import ViewBlobs
 
 __all__ = [
     "MATCHERS",
@@ -54,53 +56,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI: Final = 2.0 * math.pi
-
-
-@dataclass(frozen=True, slots=True)
-class ViewBlobs:
-    """The blobs of one camera at the fusion instant, in world terms."""
-
-    sensor_id: str
-    origin_xy: FloatArray
-    """(2,) optical centre on the floor plane."""
-    z_m: float
-    """Height of the optical centre."""
-    sigma_rad: float
-    """1-sigma bearing error (the sensor's, plus its pose's yaw error)."""
-    bearing_rad: FloatArray
-    """(n,) world azimuths of the heads."""
-    width_rad: FloatArray
-    """(n,) angular widths."""
-    top_elev_rad: FloatArray
-    """(n,) elevations of the blob tops."""
-    hist: FloatArray | None
-    """(n, k) L1-normalised histograms, or None when the sensor sends none."""
-    local_id: npt.NDArray[np.int64]
-    """(n,) the node's 2D track ids."""
-    hist_sqrt: FloatArray | None = None
-    """Element-wise square roots of ``hist`` (for the Bhattacharyya coefficient), precomputed per view."""
-    bottom_elev_rad: FloatArray | None = None
-    """(n,) elevations of the blob bottoms (feet), NaN where the feet are not visible; None: unknown."""
-    fov: tuple[float, float] | None = None
-    """(world azimuth of the optical axis, half width) of a perspective camera; None: 360 deg (panoramic)."""
-    mono_range_m: FloatArray | None = None
-    """(n,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.mono`), NaN where
-    not observable; None: the camera gives none."""
-    mono_sigma_m: FloatArray | None = None
-    """(n,) 1-sigma of ``mono_range_m``."""
-    top_cut: npt.NDArray[np.bool_] | None = None
-    """(n,) blobs whose top touches the image's upper border (a person close to the camera): their head-top
-    height is only a lower bound. None: none are."""
-
-    def sees(self, azimuth_rad: float) -> bool:
-        """Whether a world azimuth is inside this camera's horizontal field of view."""
-        if self.fov is None:
-            return True
-        return abs(math.remainder(azimuth_rad - self.fov[0], 2 * math.pi)) <= self.fov[1]
-
-    @property
-    def n(self) -> int:
-        return int(self.bearing_rad.shape[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -169,83 +124,6 @@ def match_matrix(
     return match_matrices([(a, b)], params, [temporal], threshold)[0]
 
 
-class _Tables:
-    """Per-blob quantities of every view used by a batch of pairs, padded to a common blob count.
-
-    Several pairs share a view (16 cameras, 20 people: ~12 pairs over ~14 views), so each view is padded and
-    its per-blob trigonometry (tan of half widths, tops, bottoms) computed once; pairs gather rows by index.
-    """
-
-    def __init__(self, views: list[ViewBlobs], n: int) -> None:
-        counts = np.array([v.n for v in views], dtype=np.int64)
-        total = int(counts.sum())
-        # Flat positions of every blob in the (v, n) padded tables.
-        starts = np.repeat(np.arange(len(views), dtype=np.int64) * n - np.cumsum(counts) + counts, counts)
-        self.flat = np.arange(total, dtype=np.int64) + starts
-        self.shape = (len(views), n)
-        self.views = views
-        self.total = total
-
-    def table(self, columns: list[list[FloatArray]]) -> FloatArray:
-        """(v, n, c) per-blob values of c columns (one list of per-view arrays each), NaN where padded."""
-        out = np.full((self.shape[0] * self.shape[1], len(columns)), np.nan)
-        if self.total:
-            out[self.flat] = np.column_stack([np.concatenate(col) for col in columns])
-        return out.reshape(self.shape[0], self.shape[1], len(columns))
-
-    def flags(self, arrays: list[npt.NDArray[np.bool_] | None]) -> npt.NDArray[np.bool_]:
-        """(v, n) flags, False where an array is None or padded."""
-        out = np.zeros(self.shape[0] * self.shape[1], dtype=bool)
-        if self.total and any(a is not None for a in arrays):
-            out[self.flat] = np.concatenate(
-                [
-                    a[: v.n] if a is not None else np.zeros(v.n, dtype=bool)
-                    for a, v in zip(arrays, self.views, strict=True)
-                ]
-            )
-        return out.reshape(self.shape)
-
-
-def _colour(
-    pairs: list[tuple[ViewBlobs, ViewBlobs]],
-    params: MatchParams,
-    shape: tuple[int, int, int],
-    *,
-    tabs: _Tables,
-    ia: npt.NDArray[np.int64],
-    ib: npt.NDArray[np.int64],
-) -> FloatArray:
-    """r_is (p, na, nb): the Bhattacharyya coefficients of the histograms (1 where a view has none)."""
-    if not params.use_colour:
-        return np.ones(shape)
-    roots = [
-        None if v.hist is None else (v.hist_sqrt if v.hist_sqrt is not None else np.sqrt(np.clip(v.hist, 0.0, None)))
-        for v in tabs.views
-    ]
-    bins = {r.shape[1] for r in roots if r is not None}
-    _, na, nb = shape
-    if (
-        len(pairs) > 2
-        and len(bins) == 1
-        and all(r is not None or v.n == 0 for r, v in zip(roots, tabs.views, strict=True))
-    ):
-        # Every view sends histograms of the same size: one stacked product for all pairs (a few pairs: the
-        # loop below is cheaper than building the table).
-        k = next(iter(bins))
-        flat = np.zeros((tabs.shape[0] * tabs.shape[1], k))
-        if tabs.total:
-            flat[tabs.flat] = np.concatenate([r for r in roots if r is not None])
-        table = flat.reshape(tabs.shape[0], tabs.shape[1], k)
-        return np.minimum(np.maximum(np.matmul(table[ia, :na], table[ib, :nb].transpose(0, 2, 1)), 0.0), 1.0)
-    out = np.ones(shape)
-    for k, (a, b) in enumerate(pairs):
-        if a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
-            sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
-            sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
-            out[k, : a.n, : b.n] = sa @ sb.T
-    return np.minimum(np.maximum(out, 0.0), 1.0)  # np.clip, without its per-call overhead
-
-
 def match_matrices(
     pairs: list[tuple[ViewBlobs, ViewBlobs]],
     params: MatchParams,
@@ -280,7 +158,7 @@ def match_matrices(
             if id(v) not in index:
                 index[id(v)] = len(uniq)
                 uniq.append(v)
-    tabs = _Tables(uniq, max(na, nb))
+    tabs = Tables(uniq, max(na, nb))
     ia = np.array([index[id(a)] for a, _ in pairs], dtype=np.int64)
     ib = np.array([index[id(b)] for _, b in pairs], dtype=np.int64)
     floor = params.floor_sigma_m > 0
@@ -405,7 +283,7 @@ def match_matrices(
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
     # -- colour and the temporal term ------------------------------------------------------------------------
-    r_is = _colour(pairs, params, shape, tabs=tabs, ia=ia, ib=ib)
+    r_is = colour_table(pairs, params, shape, tabs=tabs, ia=ia, ib=ib)
     r = r_is * r_all
     cos1, sin1 = np.cos(th1), np.sin(th1)
     hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb) hypothesised positions along camera 1's ray

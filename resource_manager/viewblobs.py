@@ -1,0 +1,60 @@
+"""The blobs of one camera at the fusion instant, in world terms: what every manager stage works on."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["ViewBlobs"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class ViewBlobs:
+    """The blobs of one camera at the fusion instant, in world terms."""
+
+    sensor_id: str
+    origin_xy: FloatArray
+    """(2,) optical centre on the floor plane."""
+    z_m: float
+    """Height of the optical centre."""
+    sigma_rad: float
+    """1-sigma bearing error (the sensor's, plus its pose's yaw error)."""
+    bearing_rad: FloatArray
+    """(n,) world azimuths of the heads."""
+    width_rad: FloatArray
+    """(n,) angular widths."""
+    top_elev_rad: FloatArray
+    """(n,) elevations of the blob tops."""
+    hist: FloatArray | None
+    """(n, k) L1-normalised histograms, or None when the sensor sends none."""
+    local_id: npt.NDArray[np.int64]
+    """(n,) the node's 2D track ids."""
+    hist_sqrt: FloatArray | None = None
+    """Element-wise square roots of ``hist`` (for the Bhattacharyya coefficient), precomputed per view."""
+    bottom_elev_rad: FloatArray | None = None
+    """(n,) elevations of the blob bottoms (feet), NaN where the feet are not visible; None: unknown."""
+    fov: tuple[float, float] | None = None
+    """(world azimuth of the optical axis, half width) of a perspective camera; None: 360 deg (panoramic)."""
+    mono_range_m: FloatArray | None = None
+    """(n,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.mono`), NaN where
+    not observable; None: the camera gives none."""
+    mono_sigma_m: FloatArray | None = None
+    """(n,) 1-sigma of ``mono_range_m``."""
+    top_cut: npt.NDArray[np.bool_] | None = None
+    """(n,) blobs whose top touches the image's upper border (a person close to the camera): their head-top
+    height is only a lower bound. None: none are."""
+
+    def sees(self, azimuth_rad: float) -> bool:
+        """Whether a world azimuth is inside this camera's horizontal field of view."""
+        if self.fov is None:
+            return True
+        return abs(math.remainder(azimuth_rad - self.fov[0], 2 * math.pi)) <= self.fov[1]
+
+    @property
+    def n(self) -> int:
+        return int(self.bearing_rad.shape[0])
