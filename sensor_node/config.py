@@ -274,6 +274,12 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """A blob whose vertical projection profile has a gap (columns with at most one changed pixel) at
     least this many columns wide is parted there, if both sides pass the blob checks (grouping joins
     regions up to ``merge_gap_px`` apart: people walking side by side). 0: never."""
+    track_split_hits: Annotated[int, msgspec.Meta(ge=0)] = 5
+    """A blob that holds the predicted head columns of two or more 2D tracks, each seen standing alone in
+    at least this many frames, is cut between them, at a shallow valley or where the far head comes out
+    from behind the near one (:mod:`sensor_node.groups`): people in a tight group stay apart when they
+    were apart a moment ago. 0: off. Lower: groups part sooner, an arm split off for a few frames may
+    keep cutting its own body; higher: the opposite."""
     head_edges: bool = True
     """Place each head row's ends to sub-pixel precision from the partly covered edge pixels (their
     difference to the background) instead of the thresholded mask's whole pixels. Off: the mask only."""

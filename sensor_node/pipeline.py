@@ -1,7 +1,8 @@
 """The image pipeline of one camera: frame in, Features out (pure: no zenoh, no clock).
 
 Panoramic cameras: annular frame -> unwarp -> grey -> background model ->
-blobs -> split at head valleys -> (robot bodies removed) -> head + annotation -> 2D tracks -> Features,
+blobs -> split at head valleys -> split between the 2D tracks' predicted heads -> (robot bodies
+removed) -> head + annotation -> 2D tracks -> Features,
 with the sightings of other robots (Eq. 3) every ``sighting_every`` frames.
 Perspective (PTZ) cameras skip the unwarp and the sightings and report world
 azimuths; the background model restarts whenever the head moves.
@@ -19,11 +20,12 @@ from typing import Any
 
 import numpy.typing as npt
 
-from common.schema import Features
+from common.schema import DetectorState, Features
 from sensor_node.background import BackgroundModel, MotionState
-from sensor_node.blobs import find_blobs
+from sensor_node.blobs import RawBlob, find_blobs
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import ImageGeometry, PanoramicGeometry, annotate, to_wire
+from sensor_node.groups import split_by_tracks
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
 from sensor_node.split import split_at_heads
 from sensor_node.tracks2d import Tracker2D
@@ -32,6 +34,21 @@ from sensor_node.unwarp import PanoFrame, Unwarper
 __all__ = ["FrameResult", "ImagePipeline"]
 
 Image = npt.NDArray[Any]
+
+DETECTOR_STATE: dict[MotionState, DetectorState] = {
+    "ok": "ok",
+    "relit": "ok",
+    "warmup": "learning",
+    "reinit": "learning",
+    "moving": "moving",
+}
+"""What an empty blob list means (``Features.state``): the background model's verdict on the frame. A
+relit frame is reported as seen (its objects are just not reported on that one frame); a PTZ head that
+slews resets the model, so its frames say "learning" until it is relearnt."""
+
+TRACK_SPLIT_MISSED = 2
+"""A 2D track unseen for up to this many frames still splits a blob its predicted head falls in (one
+frame whose cut failed does not end the split of a group)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,29 +122,38 @@ class ImagePipeline:
             self._last_sightings = self.bands.find(pf)
         self._frames += 1
         sightings = self._last_sightings
-        raws = (
+        raws_found = (
             find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False)
             if motion.reportable
             else []
         )
-        raws = [
-            part
-            for raw in raws
-            for part in split_at_heads(raw, motion.moving, s, width)
-            if part.changed_frac >= s.min_changed_frac
-        ]
+        if self._tracker is None:
+            self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
+        predicted = (
+            [u for u, _ in self._tracker.predicted(s.track_split_hits, TRACK_SPLIT_MISSED)]
+            if s.track_split_hits > 0
+            else []
+        )
+        raws, was_cut = [], []
+        for raw in raws_found:
+            for head_part in split_at_heads(raw, motion.moving, s, width):
+                split = split_by_tracks(head_part, predicted, motion.moving, s, width)
+                for part in split:
+                    if part.changed_frac >= s.min_changed_frac:
+                        raws.append(part)
+                        was_cut.append(len(split) > 1)
         people = []
+        cut: list[bool] = []
         n_body = 0
         bg = self.background.background if s.head_edges else None
-        for raw in raws:
+        for raw, raw_cut in zip(raws, was_cut, strict=True):
             if sightings and is_body_blob(raw.u0, raw.w, width, sightings, v0=raw.v0):
                 n_body += 1
                 continue
             people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins, background=bg))
-        if self._tracker is None:
-            self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
+            cut.append(raw_cut)
         ids = self._tracker.update(
-            [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people]
+            [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people], cut
         )
         if motion.state == "ok":
             # Not on a light jump's frame: its objects are unknown (nothing was detected), and blending
@@ -140,6 +166,7 @@ class ImagePipeline:
             frame_index=frame_index,
             blobs=[to_wire(f, i) for f, i in zip(people, ids, strict=True)][:256],
             sightings=[b.sighting for b in sightings][:32],
+            state=DETECTOR_STATE[motion.state],
         )
         self.seq += 1
         return FrameResult(features, motion.state, n_body, pf)

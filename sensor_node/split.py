@@ -29,7 +29,7 @@ import numpy.typing as npt
 from sensor_node.blobs import RawBlob, roi
 from sensor_node.config import PipelineSettings
 
-__all__ = ["split_at_heads", "top_profile"]
+__all__ = ["blob_part", "has_head", "ok_part", "split_at_heads", "top_profile"]
 
 Mask = npt.NDArray[Any]
 
@@ -108,7 +108,7 @@ def _cuts(top: npt.NDArray[np.int64], dip_px: int, radius: int, cut_above: int) 
     return cuts
 
 
-def _has_head(top: npt.NDArray[np.int64], dip_px: int) -> bool:
+def has_head(top: npt.NDArray[np.int64], dip_px: int) -> bool:
     """True if a part's profile rises to a head: at ``dip_px`` below its highest point it is at least
     ``HEAD_MIN_COLS`` and at most ``HEAD_MAX_FRAC`` of the part wide (not a spike, not a flat top)."""
     p = int(np.argmin(top))
@@ -150,7 +150,7 @@ def _gaps(mask: npt.NDArray[np.bool_], gap_cols: int) -> list[int]:
     return cuts
 
 
-def _ok_part(blob: RawBlob, a: int, b: int, settings: PipelineSettings) -> bool:
+def ok_part(blob: RawBlob, a: int, b: int, settings: PipelineSettings) -> bool:
     """Columns [a, b) of a blob hold enough of an object to stand alone (the blob checks)."""
     sub = blob.mask[:, a:b]
     rows = np.flatnonzero(sub.any(axis=1))
@@ -215,12 +215,12 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
         # A part of its own passes the blob checks and rises to a head, or is wide (a ghost, a bag),
         # or its top is the image's top row (a near person's head above the view). A narrow strip
         # with a flat top -- an arm swung clear of the body -- stays with its neighbour.
-        if not _ok_part(blob, a, b, settings):
+        if not ok_part(blob, a, b, settings):
             return False
         t = top[a:b][counts[a:b] > GAP_MAX_PX]
         if t.size == 0:
             return False
-        return blob.v0 + int(t.min()) == 0 or t.size >= GAP_MIN_WIDTH_FRAC * widest or _has_head(t, head_dip)
+        return blob.v0 + int(t.min()) == 0 or t.size >= GAP_MIN_WIDTH_FRAC * widest or has_head(t, head_dip)
 
     edges = _merge_weak([0, *gaps, blob.w], ok_gap) if gaps else [0, blob.w]
     if dip > 0:
@@ -236,20 +236,18 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
 
             def ok(x: int, y: int, widest: int = widest) -> bool:
                 return (
-                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest
-                    and _has_head(top[x:y], dip)
-                    and _ok_part(blob, x, y, settings)
+                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest and has_head(top[x:y], dip) and ok_part(blob, x, y, settings)
                 )
 
             fine.extend(_merge_weak(sub, ok)[1:])
         edges = fine
     if len(edges) == 2:
         return [blob]
-    parts = [p for a, b in itertools.pairwise(edges) if (p := _part(blob, a, b, moving, width_px)) is not None]
+    parts = [p for a, b in itertools.pairwise(edges) if (p := blob_part(blob, a, b, moving, width_px)) is not None]
     return parts or [blob]
 
 
-def _part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> RawBlob | None:
+def blob_part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> RawBlob | None:
     """Columns [a, b) of a blob as a blob of its own, trimmed to its pixels (end columns of a speck dropped)."""
     sub = blob.mask[:, a:b]
     counts = np.count_nonzero(sub, axis=0)

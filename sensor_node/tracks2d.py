@@ -29,6 +29,8 @@ class _Track:
     vy: float = 0.0
     missed: int = 0
     hits: int = 1
+    solo_hits: int = 1
+    """Frames whose blob stood alone (not cut from a group by its predicted position)."""
 
 
 class Tracker2D:
@@ -50,14 +52,30 @@ class Tracker2D:
     def __len__(self) -> int:
         return len(self._tracks)
 
+    def predicted(self, min_hits: int, max_missed: int = 0) -> list[tuple[float, float]]:
+        """Predicted next positions of the tracks with at least ``min_hits`` solo hits (frames whose blob
+        stood alone), missed at most ``max_missed`` frames in a row (0: seen in the last frame)."""
+        out = []
+        for t in self._tracks:
+            if t.missed <= max_missed and t.solo_hits >= min_hits:
+                x = t.x + t.vx
+                out.append((x % self.period if self.period > 0 else x, t.y + t.vy))
+        return out
+
     def _dx(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         d = a - b
         if self.period > 0:
             d = (d + self.period / 2) % self.period - self.period / 2
         return d
 
-    def update(self, positions: list[tuple[float, float]]) -> list[int]:
-        """Assign a local id to each position of this frame (same order); unmatched ones get new ids."""
+    def update(self, positions: list[tuple[float, float]], cut: list[bool] | None = None) -> list[int]:
+        """Assign a local id to each position of this frame (same order); unmatched ones get new ids.
+
+        Args:
+            positions: this frame's blob positions.
+            cut: per position, True if its blob was cut from a group by the tracks' predictions (it does
+                not count as a solo hit); None: none was.
+        """
         ids = [-1] * len(positions)
         if self._tracks and positions:
             p = np.asarray(positions, dtype=np.float64)
@@ -78,6 +96,7 @@ class Tracker2D:
                 vx = float(self._dx(np.asarray(x), np.asarray(t.x)))
                 t.vx, t.vy = 0.5 * t.vx + 0.5 * vx, 0.5 * t.vy + 0.5 * (y - t.y)
                 t.x, t.y, t.missed, t.hits = x, y, 0, t.hits + 1
+                t.solo_hits += not (cut and cut[di])
                 ids[di] = t.local_id
             for ti, t in enumerate(self._tracks):
                 if ti not in used_t:
@@ -91,7 +110,7 @@ class Tracker2D:
         self._tracks = [t for t in self._tracks if t.missed <= self.max_missed]
         for di, (x, y) in enumerate(positions):
             if ids[di] < 0:
-                t = _Track(self._next_id, x, y)
+                t = _Track(self._next_id, x, y, solo_hits=int(not (cut and cut[di])))
                 self._next_id += 1
                 self._tracks.append(t)
                 ids[di] = t.local_id

@@ -1,0 +1,131 @@
+"""Cutting a blob between the predicted heads of the 2D tracks it holds (people in a tight group)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from common.cameras import CylindricalCamera
+from sensor_node.blobs import RawBlob, find_blobs
+from sensor_node.config import PipelineSettings
+from sensor_node.features import PanoramicGeometry, annotate
+from sensor_node.groups import split_by_tracks
+from sensor_node.pipeline import ImagePipeline
+from sensor_node.split import split_at_heads
+from tests.unit.sensor_node.sn_synth import H, W, backdrop, draw_person, noisy
+
+WHITE = (255, 255, 255)
+NEAR = {"top": 30, "head_w": 10, "body_w": 22}
+"""A near person: big head high in the panorama, wide body."""
+FAR = {"top": 45, "head_w": 6, "body_w": 14}
+"""A far person: small head lower down (below the near one's shoulders, row 43)."""
+
+
+def _draw(
+    img: np.ndarray, near_u: float, far_u: float, near_bgr: tuple[int, int, int], far_bgr: tuple[int, int, int]
+) -> None:
+    draw_person(img, far_u, shirt=far_bgr, head=far_bgr, **FAR)  # type: ignore[arg-type]
+    draw_person(img, near_u, shirt=near_bgr, head=near_bgr, **NEAR)  # type: ignore[arg-type]
+
+
+def _group_blob(near_u: float, far_u: float, s: PipelineSettings) -> tuple[RawBlob, np.ndarray]:
+    img = np.zeros((H, W, 3), np.uint8)
+    _draw(img, near_u, far_u, WHITE, WHITE)
+    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    (blob,) = find_blobs(fg, fg, s)
+    return blob, fg
+
+
+class _Cols:
+    """Bearing = column (so heads are read off in pixels)."""
+
+    wraps = True
+
+    def bearing(self, u: float, v: float) -> float:
+        return u
+
+    def elevation(self, u: float, v: float) -> float:
+        return -v
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        return u_right - u_left
+
+
+def _heads(parts: list[RawBlob], s: PipelineSettings) -> list[float]:
+    return sorted(annotate(p, None, _Cols(), s.head_ratio).head_u_px % W for p in parts)
+
+
+@pytest.mark.parametrize(("near_u", "far_u"), [(316.0, 330.0), (344.0, 330.0), (1075.0, 9.0)])
+def test_a_far_head_coming_out_from_behind_a_near_one_is_cut_off_at_its_edge(near_u: float, far_u: float) -> None:
+    s = PipelineSettings()
+    blob, fg = _group_blob(near_u, far_u, s)
+    assert split_at_heads(blob, fg, s, W) == [blob]  # no valley between the heads: one blob
+    parts = split_by_tracks(blob, [near_u + 0.7, far_u % W - 0.6], fg, s, W)
+    assert len(parts) == 2
+    # The near body hides the far head's nearest column: its visible part's centre is up to 1 px off.
+    assert _heads(parts, s) == pytest.approx(sorted([near_u % W, far_u % W]), abs=1.5)
+
+
+def test_two_heads_with_a_shallow_valley_are_cut_at_its_bottom() -> None:
+    s = PipelineSettings()
+    img = np.zeros((H, W, 3), np.uint8)
+    for u in (400.0, 414.0):  # shoulder to shoulder: the valley is 4 rows deep (split_dip_px is 8)
+        draw_person(img, u, top=40, head_w=10, body_w=16, shirt=WHITE, head=WHITE)
+    img[44:53, 403:412] = WHITE  # hands raised between them fill the valley up to 4 rows below the heads
+    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_at_heads(blob, fg, s, W) == [blob]
+    parts = split_by_tracks(blob, [399.0, 415.0], fg, s, W)
+    assert len(parts) == 2
+    assert _heads(parts, s) == pytest.approx([400.0, 414.0], abs=1.0)
+
+
+def test_no_cut_for_one_prediction_predictions_too_close_or_outside_the_blob() -> None:
+    s = PipelineSettings()
+    blob, fg = _group_blob(316.0, 330.0, s)
+    assert split_by_tracks(blob, [316.0], fg, s, W) == [blob]
+    assert split_by_tracks(blob, [316.0, 317.5], fg, s, W) == [blob]  # one occludes the other
+    assert split_by_tracks(blob, [316.0, 600.0, 50.0], fg, s, W) == [blob]
+
+
+def test_a_body_is_not_cut_off_its_own_shoulder() -> None:
+    # A stale track predicted on a person's shoulder: the part there has no top of its own near it.
+    s = PipelineSettings()
+    img = np.zeros((H, W, 3), np.uint8)
+    draw_person(img, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
+    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_by_tracks(blob, [500.0, 509.0], fg, s, W) == [blob]
+
+
+def _walk(settings: PipelineSettings) -> list[tuple[float, float, list[float]]]:
+    """A near person walks up to a far one standing still until their heads nearly touch in the image.
+
+    Returns (near head column, far head column, reported head columns) per frame once both are in view.
+    """
+    cam = CylindricalCamera(W, H, f_v_px=250.0, v0_px=93.0, height_m=1.1)
+    pipe = ImagePipeline("cam", PanoramicGeometry(cam), settings)
+    rng = np.random.default_rng(4)
+    base = backdrop(4)
+    out = []
+    for k in range(78):
+        img = base.copy()
+        near_u = 268.0 + max(k - 12, 0) if k < 52 else 308.0 + 0.3 * (k - 52)  # slowing down
+        if k >= 12:
+            _draw(img, near_u, 330.0, (40, 40, 200), (200, 60, 40))
+        res = pipe.process(noisy(img, rng), stamp_ns=k, frame_index=k)
+        if k >= 14:
+            got = sorted(float(cam.col_from_bearing(b.bearing_rad)) for b in res.features.blobs)
+            out.append((near_u, 330.0, got))
+    return out
+
+
+def test_people_walking_into_a_tight_group_stay_two_blobs_with_their_own_heads() -> None:
+    runs = _walk(PipelineSettings(warmup_frames=5, warmup_stride=2))
+    merged = [r for r in runs if r[0] >= 311.0]  # bodies touch: grouping makes them one blob
+    assert len(merged) >= 12
+    good = sum(len(got) == 2 and got == pytest.approx([near, far], abs=1.5) for near, far, got in merged)
+    assert good == len(merged), [(near, got) for near, _, got in merged]
+    off = _walk(PipelineSettings(warmup_frames=5, warmup_stride=2, track_split_hits=0))
+    assert sum(len(got) == 2 for near, _, got in off if near >= 311.0) < 0.5 * len(merged)
