@@ -33,6 +33,9 @@ in view) and frame:
 * **cut heads** -- people so close that their head is above the panorama
   (isolated): bearing error of the nearest blob on them (their "head" is
   their neck or shoulders), scored apart;
+* **low-confidence head error** -- the head bearing error of the detections
+  whose blob has ``confidence`` < 1 (the node lowers it when the blob
+  reaches the panorama's top row: the head may be cut);
 * **top error** -- blob top elevation minus the true head-top elevation (rows);
   **width error** -- blob angular width / silhouette width - 1 (isolated);
 * **false blobs** -- blobs that touch no person's silhouette columns;
@@ -117,6 +120,7 @@ class _Scores:
         self.err_px: list[float] = []
         self.err_iso_px: list[float] = []
         self.err_cut_px: list[float] = []
+        self.err_low_conf_px: list[float] = []
         self.top_px: list[float] = []
         self.width_rel: list[float] = []
 
@@ -156,6 +160,7 @@ class _Scores:
             "isolated_head_bearing_err_deg": stats(self.err_iso_px, True),
             "isolated_head_bearing_err_px": stats(self.err_iso_px, False),
             "cut_head_bearing_err_px": stats(self.err_cut_px, False),
+            "low_confidence_head_bearing_err_px": stats(self.err_low_conf_px, False),
             "top_err_rows": stats(self.top_px, False),
             "isolated_width_rel_err": stats(self.width_rel, False),
         }
@@ -292,6 +297,8 @@ def _score_frame(
             sc.detected += 1
             e = float(_wrap(blob_u[j] - q["u"], width))
             sc.err_px.append(e)
+            if blobs[j].confidence < 1.0:
+                sc.err_low_conf_px.append(e)
             iso = q["vis"] >= 0.9 and all(gap(q, q2) > ISOLATED_GAP_PX for q2 in persons if q2 is not q)
             if iso:
                 sc.err_iso_px.append(e)
