@@ -29,10 +29,10 @@ import numpy as np
 from common.geometry import wrap_angle
 from common.schema import (
     MAX_SENSORS,
+    DetectorState,
     Features,
     PairChoice,
     PairEntry,
-    PinholeModel,
     PtzCommand,
     PtzState,
     SensorInfo,
@@ -40,15 +40,16 @@ from common.schema import (
     TrackSet,
     ViewPlan,
 )
-from resource_manager.align import AlignedView, AlignParams, align_sensor
+from resource_manager import wiring
+from resource_manager.align import AlignedView, align_sensor
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest import Ingest
-from resource_manager.planner import HEAD_HEIGHT_M, PlannerParams, PlanTarget, ViewPlanner, plan_camera
-from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
-from resource_manager.ptz import PtzAllocator, PtzParams, PtzTarget
-from resource_manager.track import Tracker, TrackParams, TrackRecord
-from resource_manager.views import pinhole_fov
+from resource_manager.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
+from resource_manager.poses import PoseEstimate
+from resource_manager.ptz import PtzTarget
+from resource_manager.track import TrackRecord
+from resource_manager.views import mono_cameras, perspective_fovs
 
 __all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
 
@@ -119,78 +120,13 @@ class Fusion:
         m = config.manager
         self.manager_id = m.id
         self.ingest = Ingest(m.buffer_frames, int(m.clock_step_ms * 1e6))
-        self.align_params = AlignParams(
-            max_extrapolation_ns=int(m.max_extrapolation_ms * 1e6),
-            stale_ns=int(m.stale_ms * 1e6),
-            max_gap_ns=int(m.max_gap_ms * 1e6),
-        )
-        mu = config.mutual
-        self.poses = PoseSolver(
-            MutualParams(
-                enabled=mu.enabled,
-                smoothing_s=mu.smoothing_s,
-                timeout_s=mu.timeout_s,
-                jump_m=mu.jump_m,
-                boundary_sigma_rad=math.radians(mu.boundary_sigma_deg),
-                default_bearing_sigma_rad=config.default_bearing_sigma_rad,
-                default_height_m=mu.default_height_m,
-            )
-        )
-        for p in config.pose:
-            self.poses.overrides[p.id] = PoseEstimate(
-                p.id, p.x_m, p.y_m, p.z_m, float(wrap_angle(math.radians(p.yaw_deg))), "surveyed"
-            )
-        t = config.tracker
-        self.tracker = Tracker(
-            TrackParams(
-                accel_sigma_mps2=t.accel_sigma_mps2,
-                gate_chi2=t.gate_chi2,
-                gate_min_m=t.gate_min_m,
-                min_meas_sigma_m=t.min_meas_sigma_m,
-                birth_hits=t.birth_hits,
-                birth_window=t.birth_window,
-                max_misses=t.max_misses,
-                init_speed_sigma_mps=t.init_speed_sigma_mps,
-                height_alpha=t.height_alpha,
-                max_speed_mps=t.max_speed_mps,
-                max_gate_m=t.max_gate_m,
-                coast_damping_s=t.coast_damping_s,
-                relink_s=t.relink_s,
-                relink_m=t.relink_m,
-            ),
-            new_id or _counter_ids(m.id),
-        )
+        self.align_params = wiring.align_params(config)
+        self.poses = wiring.pose_solver(config)
+        self.tracker = wiring.tracker(config, new_id or _counter_ids(m.id))
         self.associator = Associator(config, self.tracker)
-        pl = config.planner
-        room = tuple(pl.room) if len(pl.room) == 4 else None
-        self.planner = ViewPlanner(
-            PlannerParams(
-                enabled=pl.enabled,
-                period_ns=int(pl.period_s * 1e9),
-                room=room,  # type: ignore[arg-type]
-                margin_m=pl.margin_m,
-                min_move_m=pl.min_move_m,
-                gain_frac=pl.gain_frac,
-                min_gain_m=pl.min_gain_m,
-                settle_ns=int(pl.settle_s * 1e9),
-                band_z_m=pl.band_z_m,
-                elev_margin_rad=math.radians(pl.elev_margin_deg),
-                min_band_px=pl.min_band_px,
-                keep_m=pl.keep_m,
-            )
-        )
-        pz = config.ptz
-        self.ptz = PtzAllocator(
-            PtzParams(
-                pz.max_range_m,
-                pz.aim_height_frac,
-                pz.target_width_m,
-                math.radians(pz.hfov_deg),
-                pz.max_zoom,
-                math.radians(pz.min_tilt_deg),
-                math.radians(pz.max_tilt_deg),
-            )
-        )
+        self.planner = wiring.view_planner(config)
+        self.trust = wiring.view_trust(config)
+        self.ptz = wiring.ptz_allocator(config)
         self.present: dict[str, bool] = {}
         self.last_t_ns = 0
         self.seq = 0
@@ -255,19 +191,27 @@ class Fusion:
         self.last_poses = poses
         self.tracker.predict(t_ns)
         bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
-        # Robots the planner sent driving (then relearning their background) see nobody: no evidence.
-        blind: frozenset[str] = frozenset()
-        if self.planner.held:
-            blind = self.planner.driving({sid: p.origin for sid, p in poses.items()}, t_ns)
+        # A robot that moves, or has stopped but not settled (node relearning its background, pose converging),
+        # gives no views: the tracks carry on with the other cameras (settling.py).
+        positions = {sid: p.origin for sid, p in poses.items()}
+        driving = self.planner.driving(positions, t_ns) if self.planner.held else frozenset()
+        unsettled = self.trust.update(
+            t_ns,
+            poses,
+            mobile=[sid for sid, info in self.poses.infos.items() if info.mobile],
+            en_route=self.planner.en_route(positions) if self.planner.held else (),
+            with_blobs=[sid for sid, v in aligned.items() if v.blobs],
+            states=self._detector_states(t_ns),
+        )
         outcome = self.associator.run(
-            aligned,
+            {sid: v for sid, v in aligned.items() if sid not in unsettled} if unsettled else aligned,
             poses,
             self.poses.bearing_sigma,
             t_ns,
             bodies=bodies,
             fovs=self._fovs(),
             mono=self._mono(),
-            blind=blind,
+            blind=frozenset() if self.trust.params.enabled else driving,
         )
         ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
         self.ingest.trim(t_ns - self.align_params.stale_ns)
@@ -282,32 +226,20 @@ class Fusion:
             outcome.pair_entries, plans, commands, ended, in_use=outcome.sensors_in_use, aligned=aligned
         )
 
-    def _fovs(self) -> dict[str, tuple[float, float]]:
-        """Horizontal fields of view of the perspective cameras.
-
-        A PTZ head's SensorInfo is re-published with its current orientation whenever it moves: without its
-        field of view, every person outside it would count as "not seen" by the PTZ camera in the view
-        agreement and the ghost veto (with 4 cameras, min_view_agreement 0.8 then refuses 3 of 4).
-        """
-        out: dict[str, tuple[float, float]] = {}
-        for sid, info in self.poses.infos.items():
-            if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel):
-                fov = pinhole_fov(info.model)
-                if fov is not None:
-                    out[sid] = fov
+    def _detector_states(self, t_ns: int) -> dict[str, DetectorState]:
+        """Sensors whose frames around ``t_ns`` say their detector cannot see ("learning", "moving")."""
+        out: dict[str, DetectorState] = {}
+        for sid, buf in self.ingest.buffers.items():
+            for f in buf.bracket(t_ns):
+                if f is not None and f.state != "ok" and out.get(sid) != "moving":
+                    out[sid] = f.state
         return out
 
+    def _fovs(self) -> dict[str, tuple[float, float]]:
+        return perspective_fovs(self.poses.infos)
+
     def _mono(self) -> dict[str, tuple[float, float, float, float]]:
-        """Fixed perspective cameras whose feet elevations give floor distances (resource_manager/mono.py)."""
-        mc = self.config.match
-        if mc.mono_elev_sigma_deg <= 0:
-            return {}
-        sigma = math.radians(mc.mono_elev_sigma_deg)
-        return {
-            sid: (sigma, mc.mono_base_sigma_m, mc.max_range_m, float(info.model.height_px))
-            for sid, info in self.poses.infos.items()
-            if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel)
-        }
+        return mono_cameras(self.poses.infos, self.config.match)
 
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackRecord]:

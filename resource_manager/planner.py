@@ -7,21 +7,10 @@ and place the mobile camera O2 where the error map of Fig. 4 (model M1,
 current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
 (Eq. 4) -- among the places where the system keeps working:
 
-* **Mutual visibility** (Eq. 3 needs the other body in view): seen from a camera
-  at height z_c whose panorama reaches down to ε_min (-15° for the PAL lens),
-  the marking band of a body at horizontal range D is at elevation
-  atan((z_band - z_c)/(D - R)); it stays in view (with ``elev_margin_rad``) for
-  D >= R + (z_c - z_band)/tan(-ε_min - margin): a minimum baseline to every
-  other panoramic body, both ways. A maximum baseline keeps the body at least
-  ``min_band_px`` wide in the ranging camera: 2·asin(R/B) >= min_band_px·2π/W.
-  The drive there keeps the minimum baseline to the main camera too.
-* **The person in view**: the top of the head (track height) under the upper
-  elevation limit ε_max: D2 >= (h - z_c)/tan(ε_max - margin); and D2 >= D1/2
-  as in :func:`common.error_model.optimal_configuration` (M1 alone rewards
-  parking on the target).
-* **Room and clearance**: inside the room with ``margin_m``; the straight drive
-  keeps ``keep_m`` from every person and clear of every other body; the person
-  does not stand in the line of sight between the goal and the main camera.
+* **Where the system keeps working** (:mod:`resource_manager.plan_checks`): both
+  bodies' bands in each other's view (minimum and maximum baseline, Eq. 3), the
+  person's head in view and D2 >= D1/2, the room, clearance on the drive and at
+  the goal, and the line of sight to the main camera's body.
 * **Hysteresis**: a new goal only when its predicted error is below
   (1 - ``gain_frac``) times, and ``min_gain_m`` below, that of the goal held (or
   of where the robot stands, before any goal; judged without the constraints that
@@ -30,11 +19,16 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   first plan for that camera) unless the held one -- or where the robot stands --
   became infeasible, so the robot can settle, relearn its background and be
   re-calibrated. The held goal is re-published every period (a repeat:
-  the simulated world and :func:`common.scenario.goals_from_plans` ignore it).
-
+  the simulated world and :func:`common.scenario.goals_from_plans` ignore it),
+  also while nobody is tracked, until the robot gets there.
+* **Cost of moving**: while the robot drives and settles, its views count for
+  nothing (:mod:`resource_manager.settling`); on a site where the people it
+  helps have no other pair then, a move is made only when the found
+  person-seconds it gains over ``horizon_s`` exceed those lost on the way
+  (:func:`~resource_manager.plan_checks.move_payoff`, ``found_m``).
 * **One robot at a time**: while another robot drives or relearns its
-  background (:meth:`ViewPlanner.driving`, which the fusion also uses to excuse
-  that robot's empty frames), a robot standing in a usable place waits.
+  background (:meth:`ViewPlanner.driving`), a robot standing in a usable place
+  waits.
 
 The candidates are a grid (``grid_step_m``) over the room (or around the
 target); the map is smooth and flat near its minimum (notes/geometry.md §2.3).
@@ -54,8 +48,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import normalised_error_xy
 from common.schema import PanoramicModel, SensorInfo
+from resource_manager.plan_checks import feasible, found, move_payoff, predicted_error
 
 __all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
 
@@ -102,6 +96,19 @@ class PlannerParams:
     travel_frac_per_m: float = 0.01
     """Among near-equal goals (the map is flat; Fig. 4 has two symmetric optima) the nearer wins: the
     error is weighed (1 + this x the drive's length) when choosing."""
+    speed_mps: float = 0.4
+    """The robots' driving speed, for the time a move costs (``drive / speed + settle_cost_s``)."""
+    settle_cost_s: float = 1.5
+    """After the stop, its node relearns the background and its pose re-converges (settling.py) first."""
+    horizon_s: float = 15.0
+    """Cost of moving: how long a new viewpoint is counted on (from when the robot has settled there)."""
+    found_m: float = 0.5
+    """A person counts as found when localised within this (CLEAR-MOT's match distance): with predicted error
+    e, with probability 1 - exp(-found_m² / e²). A move must gain more found person-seconds than it loses
+    while the robot drives and settles. 0: moves cost nothing."""
+    persist_s: float = 3.0
+    """The target's chance of being found where the robot stands is averaged over about this long
+    (exponentially) before it is weighed: someone crossing the line between two cameras soon leaves it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,7 +169,7 @@ def plan_camera(sensor_id: str, xy: FloatArray, z_m: float, info: SensorInfo | N
 
 
 @dataclass(frozen=True, slots=True)
-class _Scene:
+class Scene:
     """One mobile camera's planning problem: itself, the main camera O1, its target, everything else."""
 
     cam: PlanCamera
@@ -184,6 +191,8 @@ class _Held:
     issued_ns: int
     arrived_ns: int | None = None
     """When the robot's pose first came within ``min_move_m`` of the goal."""
+    last: PlanGoal | None = None
+    """The goal as last published."""
 
 
 @dataclass(slots=True)
@@ -194,6 +203,8 @@ class ViewPlanner:
     """The goal each mobile camera was last sent (re-published until a better one)."""
     goals_issued: int = 0
     """New goals (not repeats) so far."""
+    ref_avg: dict[tuple[str, str], tuple[float, int]] = field(default_factory=dict)
+    """Per (mobile camera, track): the chance the person is found where the robot stands (averaged), when."""
     first_ns: dict[str, int] = field(default_factory=dict)
     """When each mobile camera was first planned for (its first goal waits ``settle_ns`` from then)."""
 
@@ -215,6 +226,17 @@ class ViewPlanner:
                 out.append(sid)
         return frozenset(out)
 
+    def en_route(self, positions: dict[str, FloatArray]) -> frozenset[str]:
+        """The mobile cameras sent to a goal they have not reached yet (by their pose in ``positions``)."""
+        lim = self.params.min_move_m
+        return frozenset(
+            sid
+            for sid, h in self.held.items()
+            if sid in positions
+            and h.arrived_ns is None
+            and math.dist((float(positions[sid][0]), float(positions[sid][1])), h.xy) > lim
+        )
+
     def _fixed(self, c: PlanCamera) -> PlanCamera:
         held = self.held.get(c.sensor_id) if c.mobile else None
         return c if held is None else replace(c, xy=np.asarray(held.xy))
@@ -223,11 +245,17 @@ class ViewPlanner:
         self, t_ns: int, cameras: list[PlanCamera], targets: list[PlanTarget], force: bool = False
     ) -> list[PlanGoal]:
         """Goals for the mobile cameras (at most once per period unless ``force``)."""
-        if not self.params.enabled or not targets:
+        if not self.params.enabled or (not targets and not self.held):
             return []
         if not force and t_ns - self.last_ns < self.params.period_ns:
             return []
         self.last_ns = t_ns
+        live = {t.track_id for t in targets}
+        self.ref_avg = {k: v for k, v in self.ref_avg.items() if k[1] in live}
+        if not targets:
+            # Nobody tracked now (a two-camera site while its robot drives): a robot still on its way keeps
+            # its goal, re-published as it was.
+            return [h.last for h in self.held.values() if h.arrived_ns is None and h.last is not None]
         by_id = {c.sensor_id: c for c in cameras}
         taken: set[str] = set()
         out: list[PlanGoal] = []
@@ -260,7 +288,7 @@ class ViewPlanner:
                 ]
                 fixed = [self._fixed(c) for c in cameras if c.sensor_id != cam.sensor_id]
                 busy = self.driving(positions, t_ns) - {cam.sensor_id}  # including goals sent this instant
-                scene = _Scene(cam, main, tgt, others, targets, fixed, bool(busy))
+                scene = Scene(cam, main, tgt, others, targets, fixed, bool(busy))
                 goal = self._goal(t_ns, scene)
                 if goal is None:
                     continue
@@ -270,27 +298,27 @@ class ViewPlanner:
         return out
 
     # -- one camera ---------------------------------------------------------------------------------
-    def _goal(self, t_ns: int, sc: _Scene) -> PlanGoal | None:
+    def _goal(self, t_ns: int, sc: Scene) -> PlanGoal | None:
         p = self.params
         cam, main, tgt = sc.cam, sc.main, sc.tgt
         d1 = float(np.hypot(*(tgt.xy - main.xy)))
         if d1 <= 2 * cam.radius_m:
             return None
         xy = self._grid(tgt.xy, d1)
-        err = self._error(xy, sc)
-        ok = self._feasible(xy, sc)
+        err = predicted_error(xy, sc)
+        ok = feasible(xy, sc, p)
         travel = 1.0 + p.travel_frac_per_m * np.hypot(*(xy - cam.xy).T)
         i = int(np.argmin(np.where(ok, err * travel, np.inf)))
         best_xy, best_err = xy[i], float(err[i]) if ok[i] else math.inf
         here = cam.xy[None, :]
-        now_err = float(self._error(here, sc)[0])
+        now_err = float(predicted_error(here, sc)[0])
         held = self.held.get(cam.sensor_id)
         if held is not None:
             h = np.asarray(held.xy)[None, :]
-            held_ok = bool(self._feasible(h, sc, drive=False, transient=False)[0])
-            ref_xy, ref_err = h[0], float(self._error(h, sc)[0]) if held_ok else math.inf
+            held_ok = bool(feasible(h, sc, p, drive=False, transient=False)[0])
+            ref_xy, ref_err = h[0], float(predicted_error(h, sc)[0]) if held_ok else math.inf
         else:
-            here_ok = bool(self._feasible(here, sc, drive=False, transient=False)[0])
+            here_ok = bool(feasible(here, sc, p, drive=False, transient=False)[0])
             ref_xy, ref_err = cam.xy, now_err if here_ok else math.inf
         since = t_ns - (held.issued_ns if held is not None else self.first_ns.setdefault(cam.sensor_id, t_ns))
         settling = (since < p.settle_ns or sc.others_busy) and math.isfinite(ref_err)
@@ -299,7 +327,8 @@ class ViewPlanner:
             or (best_err < (1.0 - p.gain_frac) * ref_err and best_err < ref_err - p.min_gain_m)
         )
         far = float(np.hypot(*(best_xy - ref_xy))) >= p.min_move_m
-        if better and far and not settling:
+        worth = self._worth(t_ns, sc, best_xy, best_err, ref_err)
+        if better and far and worth and not settling:
             self.held[cam.sensor_id] = _Held((float(best_xy[0]), float(best_xy[1])), tgt.track_id, t_ns)
             self.goals_issued += 1
             logger.info(
@@ -317,7 +346,7 @@ class ViewPlanner:
             now_err = goal_err  # arrived (the pose estimate's noise is below min_move_m)
         v1, v2 = tgt.xy - main.xy, goal_xy - main.xy
         phi1 = abs(math.atan2(v1[0] * v2[1] - v1[1] * v2[0], float(v1 @ v2)))
-        return PlanGoal(
+        goal = PlanGoal(
             sensor_id=cam.sensor_id,
             partner_id=main.sensor_id,
             track_id=tgt.track_id,
@@ -327,6 +356,33 @@ class ViewPlanner:
             predicted_error_m=min(goal_err, 1e5),
             current_error_m=min(now_err, 1e5),
         )
+        self.held[cam.sensor_id].last = goal
+        return goal
+
+    def _worth(self, t_ns: int, sc: Scene, goal_xy: FloatArray, goal_err: float, ref_err: float) -> bool:
+        """Is the move worth what it costs (:func:`~resource_manager.plan_checks.move_payoff`)?
+
+        The target's chance of being found where the robot stands (``ref_err``) is averaged over
+        ``persist_s`` first: someone crossing the line between two cameras soon leaves it.
+        """
+        p = self.params
+        cam = sc.cam
+        if not math.isfinite(ref_err):
+            return True  # it cannot stay there
+        key = (cam.sensor_id, sc.tgt.track_id)
+        # A new target starts as found (no evidence yet that it is lost where the robot stands).
+        avg, since = self.ref_avg.get(key, (1.0, t_ns))
+        a = 1.0 - math.exp(-max(t_ns - since, 0) / 1e9 / max(p.persist_s, 1e-3))
+        here = avg + a * (found(ref_err, p.found_m) - avg)
+        self.ref_avg[key] = (here, t_ns)
+        if p.found_m <= 0:
+            return True
+        gain, cost, blind_s = move_payoff(sc, p, goal_xy, goal_err, here)
+        if gain <= cost:
+            logger.debug(
+                "plan %s: a move gains %.1f found s, loses %.1f (%.1f s blind)", cam.sensor_id, gain, cost, blind_s
+            )
+        return gain > cost
 
     def _grid(self, centre: FloatArray, d1: float) -> FloatArray:
         step = self.params.grid_step_m
@@ -341,107 +397,3 @@ class ViewPlanner:
         ys = np.clip(np.round(np.arange(y0, y1 + 1e-9, step), 6), y0, y1)
         gx, gy = np.meshgrid(xs, ys)
         return np.stack([gx.ravel(), gy.ravel()], axis=1)
-
-    @staticmethod
-    def _error(xy: FloatArray, sc: _Scene) -> FloatArray:
-        """Predicted ∂D1 (m) for the mobile camera at each of ``xy``: Fig. 4's map in the world (model M1)."""
-        main, tgt, cam = sc.main, sc.tgt, sc.cam
-        v = tgt.xy - main.xy
-        d1 = float(np.hypot(*v))
-        c, s = v / d1
-        rel = xy - main.xy
-        lx = rel[:, 0] * c + rel[:, 1] * s
-        ly = -rel[:, 0] * s + rel[:, 1] * c
-        e = np.asarray(normalised_error_xy(lx, ly, d1, cam.radius_m), dtype=np.float64)
-        return e * d1 * cam.sigma_rad
-
-    def _feasible(self, xy: FloatArray, sc: _Scene, drive: bool = True, transient: bool = True) -> BoolArray:
-        """Which of ``xy`` the mobile camera may be sent to.
-
-        ``drive``: also check the way there. ``transient``: also the constraints that depend on where the
-        people are now (a goal already held, or where the robot stands, is not left because someone walks by).
-        """
-        p = self.params
-        cam, main, tgt = sc.cam, sc.main, sc.tgt
-        ok = np.ones(len(xy), dtype=bool)
-        if p.room is not None:
-            x0, y0, x1, y1 = p.room
-            m = p.margin_m - 1e-6
-            ok &= (xy[:, 0] >= x0 + m) & (xy[:, 0] <= x1 - m) & (xy[:, 1] >= y0 + m) & (xy[:, 1] <= y1 - m)
-        if transient:
-            # The person: head top in view, and D2 >= D1 / 2 (the interior optimum of Fig. 4).
-            d1 = float(np.hypot(*(tgt.xy - main.xy)))
-            d2 = np.hypot(*(xy - tgt.xy).T)
-            ok &= d2 >= max(_head_min_range(cam, tgt.height_m, p.elev_margin_rad), 0.5 * d1, p.keep_m)
-            for person in sc.people:
-                ok &= np.hypot(*(xy - person.xy).T) >= p.keep_m
-                if drive:
-                    now = float(np.hypot(*(cam.xy - person.xy))) - 1e-6
-                    ok &= _segment_dist(cam.xy, xy, person.xy) >= min(p.keep_m, now)
-            # The line of sight to the main camera's body (mutual calibration) not blocked by the person.
-            if main.radius_m > 0:
-                ok &= _segment_dist(main.xy, xy, tgt.xy) >= p.sight_clearance_m
-        ranged = np.zeros(len(xy), dtype=bool)
-        for other in sc.others if transient else sc.fixed:
-            d = np.hypot(*(xy - other.xy).T)
-            clear = cam.radius_m + max(other.radius_m, 0.1) + p.body_clearance_m
-            lo = max(clear, _min_baseline(cam, other, p))
-            ok &= d >= lo
-            if drive:
-                # The way there: clear of every body, and no nearer to the main camera's than the goal's
-                # minimum baseline (its sightings range the robot all along), unless it starts nearer.
-                now = float(np.hypot(*(cam.xy - other.xy))) - 1e-6
-                ok &= _segment_dist(cam.xy, xy, other.xy) >= min(lo if other is main else clear, now)
-            if other.radius_m > 0 and cam.width_px > 0:
-                ranged |= d <= _max_baseline(cam, other, p)
-            if other is main and main.radius_m > 0:
-                ok &= d <= _max_baseline(cam, other, p)
-        if any(o.radius_m > 0 for o in sc.fixed):
-            ok &= ranged
-        return ok
-
-
-def _head_min_range(cam: PlanCamera, head_m: float, margin_rad: float) -> float:
-    """Nearest horizontal range at which the top of a head ``head_m`` high is under the upper elevation limit."""
-    up = cam.elev_max_rad - margin_rad
-    if head_m <= cam.z_m or up <= 0:
-        return 0.0
-    return (head_m - cam.z_m) / math.tan(up)
-
-
-def _band_range(seer: PlanCamera, body: PlanCamera, p: PlannerParams) -> float:
-    """Nearest range (axis to axis) at which ``seer`` sees ``body``'s band above its lower elevation limit."""
-    if seer.width_px <= 0 or body.radius_m <= 0:
-        return 0.0
-    drop = seer.z_m - p.band_z_m
-    down = -(seer.elev_min_rad + p.elev_margin_rad)
-    if drop <= 0 or down <= 0:
-        return 0.0
-    return body.radius_m + drop / math.tan(down)
-
-
-def _min_baseline(cam: PlanCamera, other: PlanCamera, p: PlannerParams) -> float:
-    """Mutual visibility: each body's band within the other's elevation range (both ways)."""
-    return max(_band_range(cam, other, p), _band_range(other, cam, p))
-
-
-def _max_baseline(cam: PlanCamera, other: PlanCamera, p: PlannerParams) -> float:
-    """Farthest range at which each body is ``min_band_px`` wide in the other's panorama (Eq. 3's α)."""
-    out = math.inf
-    for seer, body in ((cam, other), (other, cam)):
-        if seer.width_px <= 0 or body.radius_m <= 0:
-            continue
-        half = math.pi * p.min_band_px / seer.width_px
-        if half < math.pi / 2:
-            out = min(out, body.radius_m / math.sin(half))
-    return out
-
-
-def _segment_dist(a: FloatArray, b: FloatArray, q: FloatArray) -> FloatArray:
-    """Distance from point ``q`` to each segment a -> b[i] (``a`` and ``q`` points, ``b`` (N, 2))."""
-    ab = b - a
-    n2 = np.einsum("ij,ij->i", ab, ab)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(n2 > 0, (ab @ (q - a)) / n2, 0.0)
-    near = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-    return np.asarray(np.hypot(*(near - q).T), dtype=np.float64)

@@ -10,15 +10,16 @@ cameras that could see it (in range, in their field of view) have a blob toward 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
 import numpy.typing as npt
 
-from common.schema import PinholeModel
+from common.schema import PinholeModel, SensorInfo
 from resource_manager.align import AlignedBlob, AlignedView
+from resource_manager.config import MatchSection
 from resource_manager.match import ViewBlobs
 from resource_manager.mono import mono_ranges
 from resource_manager.poses import PoseEstimate
@@ -26,7 +27,16 @@ from resource_manager.poses import PoseEstimate
 TOP_CUT_PX = 0.5
 """A blob whose box starts this close to the image's upper border has its head cut off (too close)."""
 
-__all__ = ["BODY_TOP_MARGIN_M", "AllBlobs", "build_views", "pinhole_fov", "subset_view", "wrap"]
+__all__ = [
+    "BODY_TOP_MARGIN_M",
+    "AllBlobs",
+    "build_views",
+    "mono_cameras",
+    "perspective_fovs",
+    "pinhole_fov",
+    "subset_view",
+    "wrap",
+]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
@@ -179,6 +189,34 @@ def _not_bodies(
     )
     keep &= ~np.any(is_body, axis=1)
     return keep
+
+
+def perspective_fovs(infos: Mapping[str, SensorInfo]) -> dict[str, tuple[float, float]]:
+    """Horizontal fields of view of the perspective cameras (see :func:`pinhole_fov`).
+
+    A PTZ head's SensorInfo is re-published with its current orientation whenever it moves: without its
+    field of view, every person outside it would count as "not seen" by the PTZ camera in the view
+    agreement and the ghost veto (with 4 cameras, min_view_agreement 0.8 then refuses 3 of 4).
+    """
+    out: dict[str, tuple[float, float]] = {}
+    for sid, info in infos.items():
+        if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel):
+            fov = pinhole_fov(info.model)
+            if fov is not None:
+                out[sid] = fov
+    return out
+
+
+def mono_cameras(infos: Mapping[str, SensorInfo], mc: MatchSection) -> dict[str, tuple[float, float, float, float]]:
+    """Perspective cameras whose feet elevations give floor distances (:mod:`resource_manager.mono`)."""
+    if mc.mono_elev_sigma_deg <= 0:
+        return {}
+    sigma = math.radians(mc.mono_elev_sigma_deg)
+    return {
+        sid: (sigma, mc.mono_base_sigma_m, mc.max_range_m, float(info.model.height_px))
+        for sid, info in infos.items()
+        if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel)
+    }
 
 
 def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, float] | None:
