@@ -263,6 +263,17 @@ class PlannerSection(ConfigStruct, frozen=True):
     """Maximum baseline: the ranged body at least this many pixels wide."""
     keep_m: NonNeg = 0.8
     """Clearance from people on the drive and at the goal."""
+    found_m: NonNeg = 0.5
+    """Cost of moving: a person counts as found within this (CLEAR-MOT's match distance); where nobody else can
+    pair the people a robot helps, it moves only when the found person-seconds gained over ``horizon_s`` exceed
+    those lost while it drives and settles (resource_manager/plan_checks.py). 0: moves cost nothing."""
+    horizon_s: Pos = 15.0
+    """How long a new viewpoint is counted on, from when the robot has settled there."""
+    speed_mps: Pos = 0.4
+    """The robots' driving speed, for the time a move takes."""
+    settle_views: bool = True
+    """Leave out the views of a camera whose node cannot see (Features.state) and of a robot that moved, until it
+    has stopped, relearnt its background and its pose has converged (resource_manager/settling.py)."""
 
 
 class PtzSection(ConfigStruct, frozen=True):

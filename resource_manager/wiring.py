@@ -88,13 +88,16 @@ def view_planner(config: ManagerConfig) -> ViewPlanner:
             elev_margin_rad=math.radians(pl.elev_margin_deg),
             min_band_px=pl.min_band_px,
             keep_m=pl.keep_m,
+            found_m=pl.found_m,
+            horizon_s=pl.horizon_s,
+            speed_mps=pl.speed_mps,
         )
     )
 
 
 def view_trust(config: ManagerConfig) -> ViewTrust:
-    """Which mobile cameras' views count (settling.py)."""
-    return ViewTrust(SettleParams())
+    """Which cameras' views count (settling.py)."""
+    return ViewTrust(SettleParams(enabled=config.planner.settle_views))
 
 
 def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
