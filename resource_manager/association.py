@@ -30,11 +30,12 @@ from common.schema import PairEntry
 from resource_manager.align import AlignedView
 from resource_manager.births import Births
 from resource_manager.config import ManagerConfig
-from resource_manager.group import group_fix
+from resource_manager.fixcheck import owned_elsewhere, views_agreeing
+from resource_manager.group import HOLD_MIN_HITS, group_fix, hidden_in_group
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.looks import learn_look, mean_similarity
 from resource_manager.match import MatchParams, ViewBlobs, get_matcher
-from resource_manager.mono import mono_measurement, range_mismatch
+from resource_manager.mono import mono_measurement
 from resource_manager.pairmatch import PairMatches
 from resource_manager.pairs import PairCandidate, rank_for_track
 from resource_manager.poses import PoseEstimate
@@ -46,8 +47,6 @@ __all__ = ["Associator", "Outcome"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
-OWNER_MIN_MISSES = 3
-"""A track that missed this many ticks in a row (its gate has grown) yields fixes nearer a measured track."""
 
 
 @dataclass(slots=True)
@@ -98,24 +97,6 @@ class Associator:
         )
 
     # -- step 2 -----------------------------------------------------------------
-    def _consistent(self, meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs]) -> tuple[list[str], int]:
-        """Supporting cameras whose blob points at the measurement, and how many point elsewhere."""
-        k = self.config.match.bearing_gate_sigmas
-        mono_k = self.config.match.mono_gate_sigmas
-        x, y = float(meas.xy[0]), float(meas.xy[1])
-        agree: list[str] = []
-        against = 0
-        for sid, i in sup.items():  # plain floats: a handful of views, numpy per element would cost more
-            v = views[sid]
-            dx, dy = x - float(v.origin_xy[0]), y - float(v.origin_xy[1])
-            dist = max(math.hypot(dx, dy), 0.3)
-            off = math.remainder(float(v.bearing_rad[i]) - math.atan2(dy, dx), 2 * math.pi)
-            if abs(off) < k * v.sigma_rad + 0.25 / dist and range_mismatch(v, i, meas.xy) < mono_k:
-                agree.append(sid)
-            else:
-                against += 1
-        return agree, against
-
     def run(
         self,
         aligned: dict[str, AlignedView],
@@ -158,6 +139,7 @@ class Associator:
             if ranked:
                 planned.add((min(ranked[0].a, ranked[0].b), max(ranked[0].a, ranked[0].b)))
         cache.prefetch(planned)
+        owner = {(sid, i): u for u, sp in zip(tracks, support, strict=True) for sid, i in sp.items()}
         for tr, sup, sh, ranked in zip(tracks, support, shared, ranked_by, strict=True):
             for sid, i in itertools.chain(sup.items(), sh.items()):
                 used[sid].add(i)
@@ -209,6 +191,8 @@ class Associator:
                     entry, used_blobs = None, dict(sup)
             elif meas is not None and entry is not None:
                 tr.fixed_ns = t_ns
+            if meas is None and tr.confirmed and sh and self._hold_in_group(tr, sup, sh, views, t_ns, owner):
+                continue  # hidden in its group: it walks with its mates, no miss counted
             if meas is None:
                 if tr.confirmed and self._nobody_there(tr.x[:2]):
                     tr.misses = self.tracker.params.max_misses  # this miss ends it: the person has left
@@ -254,6 +238,27 @@ class Associator:
         if meas is None or not math.isfinite(self.tracker.gate_distance(tr, meas)) or not self._agreement_ok(meas):
             return None
         return meas
+
+    def _hold_in_group(  # noqa: PLR0917
+        self,
+        tr: TrackRecord,
+        sup: dict[str, int],
+        sh: dict[str, int],
+        views: dict[str, ViewBlobs],
+        t_ns: int,
+        owner: dict[tuple[str, int], TrackRecord],
+    ) -> bool:
+        """Hold a well-followed track hidden in a merged group (:func:`.group.hidden_in_group`): no miss counted,
+        its velocity its group mates' (the tracks that own the blobs it shares), for ``group_coast_s`` at most."""
+        limit_s = self.config.match.group_coast_s
+        if limit_s <= 0 or (t_ns - tr.fixed_ns) / 1e9 > limit_s or tr.hits < HOLD_MIN_HITS:
+            return False
+        mates = [u for u in (owner.get(b) for b in sh.items()) if u is not None and u is not tr and u.confirmed]
+        if not mates or not hidden_in_group(tr.x[:2], sup, sh, views):
+            return False
+        tr.x[2:] = np.mean([u.x[2:] for u in mates], axis=0)
+        self.tracker.hold(tr)
+        return True
 
     def _rank(
         self,
@@ -327,7 +332,9 @@ class Associator:
                     continue  # in someone else's colours
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
-                agree, against = self._consistent(meas, used, views)
+                agree, against = views_agreeing(
+                    meas, used, views, self.config.match.bearing_gate_sigmas, self.config.match.mono_gate_sigmas
+                )
                 if against > len(agree) - 2 or not self._agreement_ok(meas):
                     continue  # a ghost of two other people's rays: the other cameras look elsewhere
                 used = {s: used[s] for s in agree}
@@ -351,25 +358,7 @@ class Associator:
         return sim is not None and sim < floor
 
     def _owned_elsewhere(self, tr: TrackRecord, meas: Measurement, tracks: list[TrackRecord]) -> bool:
-        """Whether another track measured more recently than ``tr`` is nearer (Mahalanobis) to the fix.
-
-        A coasting track's gate keeps growing; without this it takes the fix of the person next to it (the
-        neighbour's own, active track loses it, and ids swap when the two walk apart).
-        """
-        if tr.misses < OWNER_MIN_MISSES:
-            return False  # its gate is still about as tight as its neighbours'
-        d_tr = self.tracker.gate_distance(tr, meas)
-        x, y = float(meas.xy[0]), float(meas.xy[1])
-        for u in tracks:
-            if u is tr or not u.confirmed:
-                continue
-            if u.misses >= tr.misses:
-                continue
-            if abs(float(u.x[0]) - x) > 1.5 or abs(float(u.x[1]) - y) > 1.5:
-                continue
-            if self.tracker.gate_distance(u, meas) < d_tr:
-                return True
-        return False
+        return owned_elsewhere(self.tracker, tr, meas, tracks)
 
     # -- step 3 -----------------------------------------------------------------
     def _nobody_there(self, xy: FloatArray) -> bool:

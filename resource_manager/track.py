@@ -217,6 +217,13 @@ class Tracker:
         self._clamp_speed(tr)
         return True
 
+    def hold(self, tr: TrackRecord) -> None:
+        """No fix, but the track is known to be hidden (in a merged group): it coasts without counting a miss."""
+        tr.method = "predicted"
+        tr.sensors = ()
+        if tr.state == "confirmed":
+            tr.state = "coasting"
+
     def miss(self, tr: TrackRecord) -> None:
         tr.misses += 1
         tr.method = "predicted"

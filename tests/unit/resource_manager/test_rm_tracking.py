@@ -10,6 +10,7 @@ import pytest
 
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, TrackerSection
+from resource_manager.group import HOLD_MIN_HITS, hidden_in_group
 from resource_manager.localize import Measurement
 from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
 from resource_manager.match import ViewBlobs
@@ -359,3 +360,26 @@ def test_colour_similarity_is_one_bhattacharyya_in_every_shape() -> None:
     one, two = TrackRecord(1, np.zeros(4), np.eye(4), 0, 0), TrackRecord(2, np.zeros(4), np.eye(4), 0, 0)
     one.looks, two.looks = {"c1": red, "c2": red}, {"c2": blue, "c3": blue}
     assert look_similarity(one, two) == pytest.approx(float(red @ blue))  # over the one view both have
+
+
+def test_a_well_followed_track_hidden_in_its_group_walks_with_it() -> None:
+    """A has no view of its own at all this tick: c1 sees one blob for both too. All its views hold its
+    predicted bearing and the blobs are two people wide: it is held (no miss) and moves with B, who owns the blobs;
+    a young track (the ghosts of the first seconds) or one whose views look elsewhere is not held."""
+    views, a, b, tracker = _group(shared_width_deg=17.0)
+    views["c1"] = _cam_view("c1", (0.0, 0.0), [(3.5, 3.0, 15.0, 2)])
+    b.x[2:] = [0.8, 0.0]
+    assoc = Associator(_group_config(3.0), tracker)
+    (own_a, own_b), (shared_a, _) = assoc.support(views, [a, b])
+    assert own_a == {} and set(shared_a) == {"c1", "c2", "c3"}
+    owner = dict.fromkeys(own_b.items(), b)
+    a.hits = HOLD_MIN_HITS - 1
+    assert not assoc._hold_in_group(a, own_a, shared_a, views, 1_000_000_000, owner)
+    a.hits, a.misses = HOLD_MIN_HITS, 2
+    assert assoc._hold_in_group(a, own_a, shared_a, views, 1_000_000_000, owner)
+    assert a.state == "coasting" and a.misses == 2
+    assert np.allclose(a.x[2:], [0.8, 0.0])  # its group's velocity
+    a.x[:2] = [2.0, 3.6]  # predicted out of the blobs: it is not in this group
+    assert not hidden_in_group(a.x[:2], own_a, shared_a, views)
+    narrow, *_ = _group(shared_width_deg=7.0)
+    assert not hidden_in_group(np.array([3.0, 3.0]), {"c1": 0}, {"c2": 0, "c3": 0}, narrow)
