@@ -11,6 +11,9 @@ Usage::
 
     python -m benchmarks.replay_fusion RUN_DIR [RUN_DIR ...] [--manager-config F] [--seconds]
 
+Without ``--manager-config`` the manager config of the recorded site (``deploy/sites/<site>.toml``) is used: a
+run whose manager was a variant (e.g. the site accuracy test's) needs its config given.
+
 Prints JSON: per run MOTA, IDF1, ID switches, misses, false positives, mean error, and (``--seconds``) misses /
 false positives / switches per second of the run, so one sees *where* frames are lost. The ground truth is read
 only to score; nothing of it reaches the Fusion.
@@ -40,6 +43,9 @@ from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.messages import decode_on_key
 from user_agent.record import keys_for
 from user_agent.recording import iter_raw, read_metadata
+
+SITES = Path(__file__).resolve().parents[1] / "deploy" / "sites"
+"""Where a recording's site (its ``site`` metadata: the site name) is looked up for its manager config."""
 
 __all__ = ["ReplayInput", "load_input", "main", "replay", "score"]
 
@@ -156,13 +162,14 @@ def score(
 def _manager_config(run_dir: Path, metadata: dict[str, str], given: str | None) -> ManagerConfig:
     if given:
         return load_manager_config(given)
-    site_path = metadata.get("site_path") or metadata.get("site", "")
-    if site_path and Path(site_path).is_file():
+    name = metadata.get("site", "")
+    site_path = Path(name) if name.endswith(".toml") else SITES / f"{name}.toml"
+    if name and site_path.is_file():
         site = load_site(site_path)
         for proc in site.process:
             if proc.command == "manager":
                 return load_manager_config(resolve_path(site.path, proc.config))
-    raise ConfigError(f"{run_dir}: the recording names no site file with a manager: pass --manager-config")
+    raise ConfigError(f"{run_dir}: site {name!r} of the recording has no manager in {SITES}: pass --manager-config")
 
 
 def run_one(run_dir: Path, config_path: str | None, per_second: bool) -> dict[str, Any]:

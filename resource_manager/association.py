@@ -192,7 +192,7 @@ class Associator:
             elif meas is not None and entry is not None:
                 tr.fixed_ns = t_ns
             if meas is None and tr.confirmed and sh and self._hold_in_group(tr, sup, sh, views, t_ns, owner):
-                continue  # hidden in its group: it walks with its mates, no miss counted
+                continue  # hidden in its group: held, no miss counted
             if meas is None:
                 if tr.confirmed and self._nobody_there(tr.x[:2]):
                     tr.misses = self.tracker.params.max_misses  # this miss ends it: the person has left
@@ -248,15 +248,15 @@ class Associator:
         t_ns: int,
         owner: dict[tuple[str, int], TrackRecord],
     ) -> bool:
-        """Hold a well-followed track hidden in a merged group (:func:`.group.hidden_in_group`): no miss counted,
-        its velocity its group mates' (the tracks that own the blobs it shares), for ``group_coast_s`` at most."""
+        """Hold a well-followed track hidden in a merged group (:func:`.group.hidden_in_group`) where it is: no
+        miss counted, no velocity, for ``group_coast_s`` at most; the blobs it shares must be confirmed group mates'."""
         limit_s = self.config.match.group_coast_s
         if limit_s <= 0 or (t_ns - tr.fixed_ns) / 1e9 > limit_s or tr.hits < HOLD_MIN_HITS:
             return False
         mates = [u for u in (owner.get(b) for b in sh.items()) if u is not None and u is not tr and u.confirmed]
         if not mates or not hidden_in_group(tr.x[:2], sup, sh, views):
             return False
-        tr.x[2:] = np.mean([u.x[2:] for u in mates], axis=0)
+        tr.x[2:] = 0.0  # where it was last seen: its mates' velocity carried a standing person off (replays)
         self.tracker.hold(tr)
         return True
 

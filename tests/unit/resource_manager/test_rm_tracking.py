@@ -364,11 +364,11 @@ def test_colour_similarity_is_one_bhattacharyya_in_every_shape() -> None:
 
 def test_a_well_followed_track_hidden_in_its_group_walks_with_it() -> None:
     """A has no view of its own at all this tick: c1 sees one blob for both too. All its views hold its
-    predicted bearing and the blobs are two people wide: it is held (no miss) and moves with B, who owns the blobs;
+    predicted bearing and the blobs are two people wide, owned by B: it is held where it is (no miss, no velocity);
     a young track (the ghosts of the first seconds) or one whose views look elsewhere is not held."""
     views, a, b, tracker = _group(shared_width_deg=17.0)
     views["c1"] = _cam_view("c1", (0.0, 0.0), [(3.5, 3.0, 15.0, 2)])
-    b.x[2:] = [0.8, 0.0]
+    a.x[2:] = [0.8, 0.0]
     assoc = Associator(_group_config(3.0), tracker)
     (own_a, own_b), (shared_a, _) = assoc.support(views, [a, b])
     assert own_a == {} and set(shared_a) == {"c1", "c2", "c3"}
@@ -378,8 +378,11 @@ def test_a_well_followed_track_hidden_in_its_group_walks_with_it() -> None:
     a.hits, a.misses = HOLD_MIN_HITS, 2
     assert assoc._hold_in_group(a, own_a, shared_a, views, 1_000_000_000, owner)
     assert a.state == "coasting" and a.misses == 2
-    assert np.allclose(a.x[2:], [0.8, 0.0])  # its group's velocity
+    assert np.allclose(a.x[2:], 0.0)  # held in place: a standing person does not walk off with a passer-by
     a.x[:2] = [2.0, 3.6]  # predicted out of the blobs: it is not in this group
     assert not hidden_in_group(a.x[:2], own_a, shared_a, views)
     narrow, *_ = _group(shared_width_deg=7.0)
     assert not hidden_in_group(np.array([3.0, 3.0]), {"c1": 0}, {"c2": 0, "c3": 0}, narrow)
+    alone = dict.fromkeys(own_b.items(), a)  # the blobs are nobody else's: no group
+    a.x[:2] = [3.0, 3.0]
+    assert not assoc._hold_in_group(a, own_a, shared_a, views, 1_000_000_000, alone)
