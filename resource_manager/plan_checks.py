@@ -27,12 +27,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import normalised_error_xy
+from common.error_model import normalised_error_xy, pair_position_error
 
 if TYPE_CHECKING:
     from resource_manager.planner import PlanCamera, PlannerParams, Scene
 
-__all__ = ["feasible", "found", "max_baseline", "min_baseline", "move_payoff", "predicted_error", "segment_dist"]
+__all__ = [
+    "feasible",
+    "found",
+    "max_baseline",
+    "min_baseline",
+    "move_payoff",
+    "others_error",
+    "predicted_error",
+    "segment_dist",
+]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -49,6 +58,17 @@ def predicted_error(xy: FloatArray, sc: Scene) -> FloatArray:
     ly = -rel[:, 0] * s + rel[:, 1] * c
     e = np.asarray(normalised_error_xy(lx, ly, d1, cam.radius_m), dtype=np.float64)
     return e * d1 * cam.sigma_rad
+
+
+def others_error(sc: Scene) -> float:
+    """The target's predicted error (m) with the best pair of the other cameras (where they will stay), without
+    the mobile camera of ``sc``: what the system already has for that person (inf: no other pair)."""
+    best = math.inf
+    cams = sc.fixed
+    for i, a in enumerate(cams):
+        for b in cams[i + 1 :]:
+            best = min(best, pair_position_error(a.xy, b.xy, sc.tgt.xy, max(a.sigma_rad, b.sigma_rad)))
+    return best
 
 
 def found(err_m: float, found_m: float) -> float:
@@ -68,11 +88,11 @@ def move_payoff(
     for nothing (:mod:`resource_manager.settling`): each person it helps localise who has no other pair
     then (fewer than two other cameras) is lost, who is found now with probability :func:`found` of their
     predicted error (the target: ``found_here``). Then, for ``horizon_s``, the target is found with the
-    goal's predicted error (Fig. 4's map, model M1) instead.
+    goal's predicted error (Fig. 4's map, model M1) instead -- or the other cameras' best pair's, if better.
     """
     cam = sc.cam
     blind_s = float(np.hypot(*(goal_xy - cam.xy))) / max(p.speed_mps, 1e-3) + p.settle_cost_s
-    gain = p.horizon_s * (found(goal_err, p.found_m) - found_here)
+    gain = p.horizon_s * (found(min(goal_err, others_error(sc)), p.found_m) - found_here)
     cost = 0.0
     if len(sc.fixed) < 2:
         cost = blind_s * sum(

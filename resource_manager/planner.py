@@ -49,7 +49,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.schema import PanoramicModel, SensorInfo
-from resource_manager.plan_checks import feasible, found, move_payoff, predicted_error
+from resource_manager.plan_checks import feasible, found, move_payoff, others_error, predicted_error
 
 __all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
 
@@ -106,6 +106,8 @@ class PlannerParams:
     """A person counts as found when localised within this (CLEAR-MOT's match distance): with predicted error
     e, with probability 1 - exp(-found_m² / e²). A move must gain more found person-seconds than it loses
     while the robot drives and settles. 0: moves cost nothing."""
+    min_found_gain_s: float = 1.0
+    """A move must gain this many found person-seconds more than it loses (everyone found either way: no gain)."""
     persist_s: float = 3.0
     """The target's chance of being found where the robot stands is averaged over about this long
     (exponentially) before it is weighed: someone crossing the line between two cameras soon leaves it."""
@@ -373,16 +375,15 @@ class ViewPlanner:
         # A new target starts as found (no evidence yet that it is lost where the robot stands).
         avg, since = self.ref_avg.get(key, (1.0, t_ns))
         a = 1.0 - math.exp(-max(t_ns - since, 0) / 1e9 / max(p.persist_s, 1e-3))
-        here = avg + a * (found(ref_err, p.found_m) - avg)
+        here = avg + a * (found(min(ref_err, others_error(sc)), p.found_m) - avg)  # or the others' best pair
         self.ref_avg[key] = (here, t_ns)
         if p.found_m <= 0:
             return True
         gain, cost, blind_s = move_payoff(sc, p, goal_xy, goal_err, here)
-        if gain <= cost:
-            logger.debug(
-                "plan %s: a move gains %.1f found s, loses %.1f (%.1f s blind)", cam.sensor_id, gain, cost, blind_s
-            )
-        return gain > cost
+        logger.debug(
+            "plan %s: a move gains %.1f found s, loses %.1f (%.1f s blind)", cam.sensor_id, gain, cost, blind_s
+        )
+        return gain > cost + p.min_found_gain_s
 
     def _grid(self, centre: FloatArray, d1: float) -> FloatArray:
         step = self.params.grid_step_m
