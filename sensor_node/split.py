@@ -12,7 +12,10 @@ blob is cut at the valley's deepest column and each part keeps its own pixels.
 A shoulder or a raised arm is also a bump on the profile, but a narrow one
 beside a much wider body: a part must be at least ``SPLIT_MIN_WIDTH_FRAC`` as
 wide as the widest part, rise to a head (narrower than its body, wider than
-a spike), and pass the blob checks (pixels, width, height). A
+a spike), and pass the blob checks (pixels, width, height). A part parted at an
+(almost) empty column, or narrower than ``NARROW_PART_FRAC`` of the widest, must
+also have a head narrower than the body below it: an arm swung clear of the
+body is a strip as wide all the way down, even where its top is ragged. A
 blob cut by the top of the image (a near person whose head is above the view)
 has no heads to split at there.
 """
@@ -41,6 +44,13 @@ HEAD_MAX_FRAC = 0.85
 
 SPLIT_MIN_WIDTH_FRAC = 0.3
 """Least width of a split part relative to the widest part (an arm or shoulder is narrower)."""
+
+HEAD_BODY_FRAC = 0.75
+"""Largest width of a head relative to the body below it (people: ~0.3-0.5; an arm: ~1)."""
+
+NARROW_PART_FRAC = 0.5
+"""A part of a head-valley split narrower than this fraction of the widest part must have a head
+narrower than its body (an arm is a strip; a person's body is wider than the head)."""
 
 GAP_MAX_PX = 1
 """Changed pixels a column may hold and still be a gap of the vertical projection profile (a noise speck)."""
@@ -108,9 +118,15 @@ def _cuts(top: npt.NDArray[np.int64], dip_px: int, radius: int, cut_above: int) 
     return cuts
 
 
-def has_head(top: npt.NDArray[np.int64], dip_px: int) -> bool:
+def has_head(top: npt.NDArray[np.int64], dip_px: int, mask: npt.NDArray[np.bool_] | None = None) -> bool:
     """True if a part's profile rises to a head: at ``dip_px`` below its highest point it is at least
-    ``HEAD_MIN_COLS`` and at most ``HEAD_MAX_FRAC`` of the part wide (not a spike, not a flat top)."""
+    ``HEAD_MIN_COLS`` and at most ``HEAD_MAX_FRAC`` of the part wide (not a spike, not a flat top).
+
+    Given the part's pixels (``mask``, the columns of ``top``), the head must also be narrower than
+    the body below it (at most ``HEAD_BODY_FRAC`` of the part's median row width from 2.5 to 5 head
+    widths below its top): an arm or a leg is a strip as wide all the way down, whose ragged top
+    passes the profile test.
+    """
     p = int(np.argmin(top))
     above = top <= top[p] + dip_px
     a = p
@@ -120,7 +136,14 @@ def has_head(top: npt.NDArray[np.int64], dip_px: int) -> bool:
     while b + 1 < top.size and above[b + 1]:
         b += 1
     cols = b - a + 1
-    return HEAD_MIN_COLS <= cols <= HEAD_MAX_FRAC * top.size
+    if not HEAD_MIN_COLS <= cols <= HEAD_MAX_FRAC * top.size:
+        return False
+    if mask is None:
+        return True
+    t0 = int(top[p])
+    counts = np.count_nonzero(mask[t0 + round(2.5 * cols) : t0 + 5 * cols], axis=1)
+    counts = counts[counts > 0]
+    return counts.size < 3 or cols <= HEAD_BODY_FRAC * float(np.median(counts))
 
 
 def _gaps(mask: npt.NDArray[np.bool_], gap_cols: int) -> list[int]:
@@ -217,13 +240,19 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
         # with a flat top -- an arm swung clear of the body -- stays with its neighbour.
         if not ok_part(blob, a, b, settings):
             return False
-        t = top[a:b][counts[a:b] > GAP_MAX_PX]
+        cols = counts[a:b] > GAP_MAX_PX
+        t = top[a:b][cols]
         if t.size == 0:
             return False
-        return blob.v0 + int(t.min()) == 0 or t.size >= GAP_MIN_WIDTH_FRAC * widest or has_head(t, head_dip)
+        return (
+            blob.v0 + int(t.min()) == 0
+            or t.size >= GAP_MIN_WIDTH_FRAC * widest
+            or has_head(t, head_dip, blob.mask[:, a:b][:, cols])
+        )
 
     edges = _merge_weak([0, *gaps, blob.w], ok_gap) if gaps else [0, blob.w]
     if dip > 0:
+        col_px = np.count_nonzero(blob.mask, axis=0)
         radius = max(2, settings.min_blob_width_px // 2)
         fine: list[int] = [0]
         for a, b in itertools.pairwise(edges):
@@ -235,8 +264,17 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
             widest = max(y - x for x, y in itertools.pairwise(sub))
 
             def ok(x: int, y: int, widest: int = widest) -> bool:
+                # A side parted at an (almost) empty column, or much narrower than the widest, must
+                # have a head narrower than its body (an arm swung clear of the body is a strip).
+                strip = (
+                    y - x < NARROW_PART_FRAC * widest
+                    or (x > 0 and col_px[x] <= GAP_MAX_PX)
+                    or (y < blob.w and col_px[y] <= GAP_MAX_PX)
+                )
                 return (
-                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest and has_head(top[x:y], dip) and ok_part(blob, x, y, settings)
+                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest
+                    and has_head(top[x:y], dip, blob.mask[:, x:y] if strip else None)
+                    and ok_part(blob, x, y, settings)
                 )
 
             fine.extend(_merge_weak(sub, ok)[1:])

@@ -117,3 +117,20 @@ def test_an_arm_swung_clear_of_the_body_stays_with_it() -> None:
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
     (blob,) = find_blobs(fg, fg, s)
     assert split_at_heads(blob, fg, s, W) == [blob]
+
+
+def test_an_arm_with_a_ragged_top_beside_the_body_stays_with_it() -> None:
+    # An arm one empty column beside the body whose top is ragged (its outer edge column starts
+    # lower): on the profile alone its top looks like a head 5 of 6 columns wide; but it is no
+    # narrower than the strip below it, so it is no head.
+    fg = _mask([(400.0, 40)])
+    fg[56:120, 413:419] = 255
+    fg[56:66, 418] = 0
+    s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_at_heads(blob, fg, s, W) == [blob]
+    # A person there (a head narrower than the body below it) is still parted at the gap.
+    fg[56:120, 413:419] = 0
+    draw_person_mask = _mask([(400.0, 40), (425.0, 50)])
+    (blob,) = find_blobs(draw_person_mask, draw_person_mask, s)
+    assert len(split_at_heads(blob, draw_person_mask, s, W)) == 2
