@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -284,7 +284,10 @@ class Fusion:
         if not any(sid in infos and infos[sid].mobile for sid in poses):
             return []  # no mobile camera: nothing to plan (checked before building the cameras)
         cams = [
-            plan_camera(sid, pose.origin, pose.z_m, infos.get(sid), self.poses.bearing_sigma(sid))
+            replace(
+                plan_camera(sid, pose.origin, pose.z_m, infos.get(sid), self.poses.bearing_sigma(sid)),
+                ranged=pose.source == "mutual",
+            )
             for sid, pose in poses.items()
         ]
         targets = [

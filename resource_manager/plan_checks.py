@@ -103,11 +103,15 @@ def move_payoff(
     return gain, cost, blind_s
 
 
-def feasible(xy: FloatArray, sc: Scene, p: PlannerParams, *, drive: bool = True, transient: bool = True) -> BoolArray:
+def feasible(
+    xy: FloatArray, sc: Scene, p: PlannerParams, *, drive: bool = True, transient: bool = True, bands: bool = True
+) -> BoolArray:
     """Which of ``xy`` the mobile camera of ``sc`` may be sent to.
 
     ``drive``: also check the way there. ``transient``: also the constraints that depend on where the
     people are now (a goal already held, or where the robot stands, is not left because someone walks by).
+    ``bands``: also mutual visibility (minimum and maximum baselines; not for where a robot stands whose pose
+    mutual calibration knows: the bands that range it are in view there).
     """
     cam, main, tgt = sc.cam, sc.main, sc.tgt
     ok = np.ones(len(xy), dtype=bool)
@@ -132,7 +136,7 @@ def feasible(xy: FloatArray, sc: Scene, p: PlannerParams, *, drive: bool = True,
     for other in sc.others if transient else sc.fixed:
         d = np.hypot(*(xy - other.xy).T)
         clear = cam.radius_m + max(other.radius_m, 0.1) + p.body_clearance_m
-        lo = max(clear, min_baseline(cam, other, p))
+        lo = max(clear, min_baseline(cam, other, p)) if bands else clear
         ok &= d >= lo
         if drive:
             # The way there: clear of every body, and no nearer to the main camera's than the goal's
@@ -141,9 +145,9 @@ def feasible(xy: FloatArray, sc: Scene, p: PlannerParams, *, drive: bool = True,
             ok &= segment_dist(cam.xy, xy, other.xy) >= min(lo if other is main else clear, now)
         if other.radius_m > 0 and cam.width_px > 0:
             ranged |= d <= max_baseline(cam, other, p)
-        if other is main and main.radius_m > 0:
+        if bands and other is main and main.radius_m > 0:
             ok &= d <= max_baseline(cam, other, p)
-    if any(o.radius_m > 0 for o in sc.fixed):
+    if bands and any(o.radius_m > 0 for o in sc.fixed):
         ok &= ranged
     return ok
 

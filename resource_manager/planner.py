@@ -30,13 +30,11 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   background (:meth:`ViewPlanner.driving`), a robot standing in a usable place
   waits.
 
-The candidates are a grid (``grid_step_m``) over the room (or around the
-target); the map is smooth and flat near its minimum (notes/geometry.md §2.3).
-Among near-equal candidates the shorter drive wins (``travel_frac_per_m``).
+The candidates are a grid (``grid_step_m``) over the room (or around the target; the map is smooth and flat
+near its minimum, notes/geometry.md §2.3); among near-equal ones the shorter drive wins (``travel_frac_per_m``).
 
-Assignment: each mobile camera takes the confirmed track with the largest
-predicted error among those not yet taken, nearest first when equal; two mobile
-cameras never take the same person.
+Assignment: each mobile camera takes the confirmed track with the largest predicted error among those not yet
+taken, nearest first when equal; two mobile cameras never take the same person.
 """
 
 from __future__ import annotations
@@ -155,6 +153,8 @@ class PlanCamera:
     elev_max_rad: float = PAL_ELEV_MAX_RAD
     width_px: int = 1080
     """Panorama width (0: not a panoramic camera, it does not range bodies)."""
+    ranged: bool = False
+    """Its pose is from mutual calibration: the bands that range it are in view where it stands."""
 
 
 def plan_camera(sensor_id: str, xy: FloatArray, z_m: float, info: SensorInfo | None, sigma_rad: float) -> PlanCamera:
@@ -320,7 +320,7 @@ class ViewPlanner:
             held_ok = bool(feasible(h, sc, p, drive=False, transient=False)[0])
             ref_xy, ref_err = h[0], float(predicted_error(h, sc)[0]) if held_ok else math.inf
         else:
-            here_ok = bool(feasible(here, sc, p, drive=False, transient=False)[0])
+            here_ok = bool(feasible(here, sc, p, drive=False, transient=False, bands=not cam.ranged)[0])
             ref_xy, ref_err = cam.xy, now_err if here_ok else math.inf
         since = t_ns - (held.issued_ns if held is not None else self.first_ns.setdefault(cam.sensor_id, t_ns))
         settling = (since < p.settle_ns or sc.others_busy) and math.isfinite(ref_err)

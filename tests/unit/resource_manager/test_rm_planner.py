@@ -293,3 +293,16 @@ def test_no_move_when_everyone_is_found_either_way() -> None:
     assert g.predicted_error_m < 0.65 * g.current_error_m and g.current_error_m < 0.3
     costly = ViewPlanner(PlannerParams(period_ns=0, settle_ns=0, room=(0.0, 0.0, 8.0, 8.0)))
     assert all(costly.plan(k * S // 2, cams, people) == [] for k in range(20))
+
+
+def test_a_robot_placed_by_mutual_calibration_is_not_sent_off_for_band_visibility() -> None:
+    # r1 stands 1 m from p1: by the lens model p1's band would be below its -15 deg limit (minimum baseline ~2.1 m).
+    p = PlannerParams(period_ns=0, settle_ns=0, room=(0.0, 0.0, 8.0, 8.0))
+    main, robot = _cam("p1", 4.0, 0.5), _cam("r1", 5.0, 0.6, mobile=True)
+    target = _tgt(4.5, 5.0, ("p1", "r1"))
+    (forced,) = ViewPlanner(p).plan(0, [main, robot], [target])  # its place is infeasible: it must move
+    assert forced.current_error_m < 0.5  # not for a poor view: for the bands
+    # ...but if mutual calibration places it there, the bands that range it are in view after all.
+    ranged = PlanCamera("r1", np.array([5.0, 0.6]), 0.18, SIG, True, ranged=True)
+    planner = ViewPlanner(p)
+    assert all(planner.plan(k * S // 2, [main, ranged], [target]) == [] for k in range(10))
