@@ -78,10 +78,28 @@ class Associator:
         self.threshold = mc.threshold
         self.look_weight = mc.look_weight if mc.use_colour else 0.0
         self.births = Births(config, tracker, self.params, self.matcher)
+        self.births.in_room = self.in_room
         self._all: AllBlobs | None = None
         self._blank: frozenset[str] = frozenset()
         """Views without any blob at the previous tick."""
         self._rng = np.random.default_rng(0)
+        room = config.planner.room
+        self.room = (
+            (
+                room[0] - mc.room_margin_m,
+                room[1] - mc.room_margin_m,
+                room[2] + mc.room_margin_m,
+                room[3] + mc.room_margin_m,
+            )
+            if len(room) == 4
+            else None
+        )
+        """The room (``[planner] room``) grown by ``match.room_margin_m``: nobody stands outside it."""
+
+    def in_room(self, xy: FloatArray) -> bool:
+        """Whether a floor position can be someone's: inside the room (plus the margin), or no room given."""
+        r = self.room
+        return r is None or (r[0] <= float(xy[0]) <= r[2] and r[1] <= float(xy[1]) <= r[3])
 
     # -- step 1 -----------------------------------------------------------------
     def support(
@@ -235,7 +253,12 @@ class Associator:
         if not any(tr.links.get(sid) == int(views[sid].local_id[i]) for sid, i in sup.items()):
             return None
         meas = group_fix(tr.x[:2], sup, sh, views)
-        if meas is None or not math.isfinite(self.tracker.gate_distance(tr, meas)) or not self._agreement_ok(meas):
+        if (
+            meas is None
+            or not self.in_room(meas.xy)
+            or not math.isfinite(self.tracker.gate_distance(tr, meas))
+            or not self._agreement_ok(meas)
+        ):
             return None
         return meas
 
@@ -318,7 +341,7 @@ class Associator:
                     sigma_xy_b=pose_sigma.get(b_id, 0.0),
                     width_rel_sigma=self.config.match.width_rel_sigma,
                 )
-                if meas is None:
+                if meas is None or not self.in_room(meas.xy):
                     continue
                 if not math.isfinite(self.tracker.gate_distance(tr, meas)):
                     # Outside the motion gate (a sharp turn): still the same person if the nodes' own 2D

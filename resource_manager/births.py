@@ -38,6 +38,8 @@ class Births:
         self.threshold = config.match.threshold
         self._birth_rr = 0
         self._gates: tuple[FloatArray, FloatArray] | None = None
+        self.in_room: Callable[[FloatArray], bool] = lambda _xy: True
+        """Whether a position is inside the room (set by the associator): nobody is born outside it."""
 
     def run(
         self,
@@ -74,7 +76,7 @@ class Births:
                     sigma_xy_b=pose_sigma.get(b_id, 0.0),
                     width_rel_sigma=self.config.match.width_rel_sigma,
                 )
-                if meas is None or self._near_track(meas):
+                if meas is None or not self.in_room(meas.xy) or self._near_track(meas):
                     continue
                 mono_k = self.config.match.mono_gate_sigmas
                 if range_mismatch(a, ii, meas.xy) >= mono_k or range_mismatch(b, jj, meas.xy) >= mono_k:

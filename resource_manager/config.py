@@ -180,6 +180,9 @@ class MatchSection(ConfigStruct, frozen=True):
     shared_pairs: bool = False
     """A track whose person is hidden behind a neighbour in some views (one blob there explains both) is
     localised by pairing its own blobs with those shared blobs when no pair of its own does."""
+    room_margin_m: NonNeg = 0.5
+    """A fix or a new person further than this outside ``[planner] room`` (when given) is refused: nobody stands
+    outside the room (near-colinear cameras put fixes far along the ray)."""
     group_coast_s: Annotated[float, msgspec.Meta(ge=0.0, le=30.0)] = 0.0
     """A confirmed track with no stereo fix, one camera of its own and blobs it shares with neighbours elsewhere
     (a merged group) is fixed from its own ray and those blobs' extents (resource_manager/group.py) for at most

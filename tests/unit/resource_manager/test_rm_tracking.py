@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from resource_manager.association import Associator
-from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, TrackerSection
+from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, PlannerSection, TrackerSection
 from resource_manager.group import HOLD_MIN_HITS, hidden_in_group
 from resource_manager.localize import Measurement
 from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
@@ -386,3 +386,25 @@ def test_a_well_followed_track_hidden_in_its_group_walks_with_it() -> None:
     alone = dict.fromkeys(own_b.items(), a)  # the blobs are nobody else's: no group
     a.x[:2] = [3.0, 3.0]
     assert not assoc._hold_in_group(a, own_a, shared_a, views, 1_000_000_000, alone)
+
+
+def test_nobody_is_fixed_or_born_outside_the_room() -> None:
+    """With ``[planner] room`` 6 x 8 m and the 0.5 m margin: a pair of rays meeting at y = 9 m (near-colinear
+    cameras put fixes far along the ray) is outside (``in_room``, which also gates every fix) and starts no track;
+    at y = 7 m it does."""
+    from tests.unit.resource_manager.test_rm_match import view
+
+    def born(y: float) -> list[TrackRecord]:
+        cfg = ManagerConfig(
+            manager=msgspec.convert({"id": "m1"}, ManagerSection),
+            planner=msgspec.convert({"room": [0.0, 0.0, 6.0, 8.0]}, PlannerSection),
+        )
+        tracker = Tracker(TrackParams(), lambda: "m")
+        assoc = Associator(cfg, tracker)
+        views = {"c1": view("c1", (0.5, 0.5), [(3.0, y, 1.8, 1)]), "c2": view("c2", (5.5, 0.5), [(3.0, y, 1.8, 1)])}
+        assoc.births.run(views, {sid: set() for sid in views}, {}, 0, lambda _m: True)
+        assert assoc.in_room(np.array([3.0, y])) == (y <= 8.5)
+        return tracker.tracks
+
+    assert len(born(7.0)) == 1
+    assert born(9.0) == []
