@@ -39,6 +39,7 @@ from resource_manager.mono import mono_measurement
 from resource_manager.pairmatch import PairMatches
 from resource_manager.pairs import PairCandidate, rank_for_track
 from resource_manager.poses import PoseEstimate
+from resource_manager.room import Room
 from resource_manager.support import assign_support
 from resource_manager.track import Tracker, TrackRecord
 from resource_manager.views import AllBlobs, build_views
@@ -83,23 +84,11 @@ class Associator:
         self._blank: frozenset[str] = frozenset()
         """Views without any blob at the previous tick."""
         self._rng = np.random.default_rng(0)
-        room = config.planner.room
-        self.room = (
-            (
-                room[0] - mc.room_margin_m,
-                room[1] - mc.room_margin_m,
-                room[2] + mc.room_margin_m,
-                room[3] + mc.room_margin_m,
-            )
-            if len(room) == 4
-            else None
-        )
-        """The room (``[planner] room``) grown by ``match.room_margin_m``: nobody stands outside it."""
+        self.room = Room.of(config.planner.room, mc.room_margin_m)
+        """``[planner] room``: nobody is fixed or born outside it, no track walks through its walls."""
 
     def in_room(self, xy: FloatArray) -> bool:
-        """Whether a floor position can be someone's: inside the room (plus the margin), or no room given."""
-        r = self.room
-        return r is None or (r[0] <= float(xy[0]) <= r[2] and r[1] <= float(xy[1]) <= r[3])
+        return self.room is None or self.room.holds(xy)
 
     # -- step 1 -----------------------------------------------------------------
     def support(
@@ -143,6 +132,9 @@ class Associator:
         self._blank = blank
         out = Outcome(sensors_in_use=sorted(views))
         tracks = sorted(self.tracker.tracks, key=lambda tr: (not tr.confirmed, tr.born_ns, tr.serial))
+        if self.room is not None:
+            for tr in tracks:
+                self.room.stop_at_walls(tr)
         support, shared = self.support(views, tracks)
         cache = PairMatches(views, tracks, self.params, self.matcher, self.threshold)
         used: dict[str, set[int]] = {sid: set() for sid in views}

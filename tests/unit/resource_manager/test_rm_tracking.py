@@ -14,6 +14,7 @@ from resource_manager.group import HOLD_MIN_HITS, hidden_in_group
 from resource_manager.localize import Measurement
 from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
 from resource_manager.match import ViewBlobs
+from resource_manager.room import Room
 from resource_manager.track import Tracker, TrackParams, TrackRecord, look_similarity
 from tests.unit.resource_manager.scenario import T0_NS, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person, colour_hist
@@ -408,3 +409,15 @@ def test_nobody_is_fixed_or_born_outside_the_room() -> None:
 
     assert len(born(7.0)) == 1
     assert born(9.0) == []
+
+
+def test_a_coasting_track_stops_at_the_wall() -> None:
+    """A track predicted 0.3 m through the far wall (y = 8) by a velocity built from fixes along near-colinear
+    rays comes back to the wall without its velocity into it; its velocity along the wall stays."""
+    tr = TrackRecord(1, np.array([2.9, 8.3, 0.4, 1.5]), np.eye(4), 0, 0)
+    room = Room(0.0, 0.0, 6.0, 8.0)
+    room.stop_at_walls(tr)
+    assert np.allclose(tr.x, [2.9, 8.0, 0.4, 0.0])
+    inside = TrackRecord(2, np.array([2.9, 7.3, 0.4, 1.5]), np.eye(4), 0, 0)
+    room.stop_at_walls(inside)
+    assert np.allclose(inside.x, [2.9, 7.3, 0.4, 1.5])
