@@ -42,8 +42,11 @@ HEAD_MIN_COLS = 3
 HEAD_MAX_FRAC = 0.85
 """Largest width of a head relative to its part: a flat top is an arm, a shoulder or a ghost, not a head."""
 
-SPLIT_MIN_WIDTH_FRAC = 0.3
-"""Least width of a split part relative to the widest part (an arm or shoulder is narrower)."""
+SPLIT_MIN_WIDTH_FRAC = 0.15
+"""Least width of a split part relative to the widest part. Parts under ``NARROW_PART_FRAC`` must also
+have a head narrower than their body, which tells a far person beside a near one (0.3 of their width
+or less, e.g. arms out) from an arm; 0.3 without that test lost such people (six seed 5: 0.2 % fewer
+found, ``benchmarks/bench_node_quality.py``)."""
 
 HEAD_BODY_FRAC = 0.75
 """Largest width of a head relative to the body below it (people: ~0.3-0.5; an arm: ~1)."""

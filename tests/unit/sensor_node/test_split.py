@@ -134,3 +134,17 @@ def test_an_arm_with_a_ragged_top_beside_the_body_stays_with_it() -> None:
     draw_person_mask = _mask([(400.0, 40), (425.0, 50)])
     (blob,) = find_blobs(draw_person_mask, draw_person_mask, s)
     assert len(split_at_heads(blob, draw_person_mask, s, W)) == 2
+
+
+def test_a_far_person_much_narrower_than_a_near_one_beside_them_is_split_off() -> None:
+    # A near person (70 px wide, arms out) with a far one (20 px wide, head lower) touching their side:
+    # the far part is under 0.3 of the near one's width, but its head is narrower than its body.
+    img = np.zeros((H, W, 3), np.uint8)
+    draw_person(img, 400.0, top=20, head_w=14, body_w=70, shirt=WHITE, head=WHITE)
+    draw_person(img, 442.0, top=50, head_w=8, body_w=20, shirt=WHITE, head=WHITE)
+    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    s = PipelineSettings()
+    parts = _split(fg, s)
+    assert len(parts) == 2
+    heads = sorted(p.u0 + annotate(p, None, _Cols(), s.head_ratio).head_u_px - p.u0 for p in parts)
+    assert heads == pytest.approx([400.0, 442.0], abs=1.0)
