@@ -146,6 +146,10 @@ class Blob(_Msg, frozen=True, tag="pano.Blob"):
     feet_visible: bool = True
     """False when the blob touches the image border or is cut by occlusion."""
     confidence: Unit = 1.0
+    """How far the bearing and top can be trusted: 1.0, or lower (panoramic nodes: 0.3) when the blob reaches
+    the image's top row, so the head may be above the view (a person within ~1.5-2 m): the bearing may be the
+    neck's or shoulders' and ``top_elev_rad`` is the image's top edge, a lower bound. Detection-file nodes: the
+    detector's score."""
 
 
 class Sighting(_Msg, frozen=True, tag="pano.Sighting"):
