@@ -41,7 +41,7 @@ SITE = REPO / "deploy" / "sites" / "planning.toml"
 NODES = REPO / "deploy" / "nodes" / "planning"
 PREFIX = "itest-plan"
 MID = "mgr-plan"
-AFTER_S = 4.0
+AFTER_S = 6.0
 """Seconds of tracks scored from the moment the robot stops at its goal."""
 EARLY_S = 2.0
 """The first seconds after the stop, when the robot's node relearns its background and its pose re-converges:
