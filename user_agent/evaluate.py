@@ -35,7 +35,7 @@ from scipy.optimize import linear_sum_assignment
 
 from common.errors import ConfigError
 from common.schema import TrackSet
-from user_agent.groundtruth import GroundTruth
+from user_agent.groundtruth import GroundTruth, GtPoint
 
 __all__ = [
     "DEFAULT_STATES",
@@ -43,6 +43,7 @@ __all__ = [
     "MotAccumulator",
     "MotMetrics",
     "evaluate_positions",
+    "frame_distances",
     "hypotheses_from_tracksets",
 ]
 
@@ -274,14 +275,19 @@ def evaluate_positions(
     for k in sorted(gt.frames) if frames is None else sorted(frames):
         objs = gt.frames.get(k, [])
         hs = hyps.get(k, [])
-        d = np.full((len(objs), len(hs)), math.nan)
-        if objs and hs:
-            a = np.array([[p.x_m, p.y_m] for p in objs])
-            b = np.array([[h.x_m, h.y_m] for h in hs])
-            e = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
-            d = np.where(e <= threshold_m, e, math.nan)
-        acc.update([p.person_id for p in objs], [h.track_id for h in hs], d)
+        acc.update([p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m))
     return acc.summary(threshold_m)
+
+
+def frame_distances(objs: Sequence[GtPoint], hyps: Sequence[HypPoint], threshold_m: float) -> npt.NDArray[np.float64]:
+    """One frame's (people x tracks) floor distances, NaN where farther than ``threshold_m`` (cannot match)."""
+    d = np.full((len(objs), len(hyps)), math.nan)
+    if objs and hyps:
+        a = np.array([[p.x_m, p.y_m] for p in objs])
+        b = np.array([[h.x_m, h.y_m] for h in hyps])
+        e = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
+        d = np.where(e <= threshold_m, e, math.nan)
+    return d
 
 
 def hypotheses_from_tracksets(
