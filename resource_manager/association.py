@@ -350,7 +350,10 @@ class Associator:
                 agree, against = views_agreeing(
                     meas, used, views, self.config.match.bearing_gate_sigmas, self.config.match.mono_gate_sigmas
                 )
-                if against > len(agree) - 2 or not self._agreement_ok(meas):
+                # A confirmed track's fix that three or more of its cameras point at, and none elsewhere, is no ghost:
+                # one more camera with nobody there missed a detection (min_view_agreement 0.8 asks 4 of 4 cameras).
+                outvoted = tr.confirmed and len(agree) >= 3 and not against
+                if against > len(agree) - 2 or not (outvoted or self._agreement_ok(meas)):
                     continue  # a ghost of two other people's rays: the other cameras look elsewhere
                 used = {s: used[s] for s in agree}
                 if self.config.manager.fuse_all and len(used) >= 3:

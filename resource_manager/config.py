@@ -189,7 +189,8 @@ class MatchSection(ConfigStruct, frozen=True):
     this long after its last stereo fix (0: off; it coasts and may die while its group stays merged)."""
     min_view_agreement: Frac = 0.8
     """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
-    (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not)."""
+    (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not). A confirmed
+    track's fix that 3+ of its own cameras point at, none elsewhere, is taken whatever the others see."""
     """A new person is refused when this many other cameras that should see the spot see nothing there."""
 
 

@@ -16,6 +16,7 @@ from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
 from resource_manager.match import ViewBlobs
 from resource_manager.room import Room
 from resource_manager.track import Tracker, TrackParams, TrackRecord, look_similarity
+from resource_manager.views import AllBlobs
 from tests.unit.resource_manager.scenario import T0_NS, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person, colour_hist
 
@@ -421,3 +422,43 @@ def test_a_coasting_track_stops_at_the_wall() -> None:
     inside = TrackRecord(2, np.array([2.9, 7.3, 0.4, 1.5]), np.eye(4), 0, 0)
     room.stop_at_walls(inside)
     assert np.allclose(inside.x, [2.9, 7.3, 0.4, 1.5])
+
+
+def test_three_cameras_on_a_confirmed_track_outvote_one_that_missed_it() -> None:
+    """c1, c2 and c3 see the tracked person at (3, 3); c4, which should, has only someone else far to the side
+    (a missed detection: with four cameras ``min_view_agreement`` 0.8 asks all four). The confirmed track takes
+    its fix; a tentative one (which could be a ghost) does not."""
+    from resource_manager.pairmatch import PairMatches
+    from tests.unit.resource_manager.test_rm_match import view
+
+    person = (3.0, 3.0, 1.8, 1)
+    views = {
+        "c1": view("c1", (0.0, 0.0), [person]),
+        "c2": view("c2", (6.0, 0.0), [person]),
+        "c3": view("c3", (6.5, 5.0), [person]),
+        "c4": view("c4", (0.0, 6.5), [(1.0, 4.0, 1.7, 2)]),
+    }
+
+    def fix(state: str) -> Measurement | None:
+        tracker = Tracker(TrackParams(), lambda: "m")
+        tr = tracker.spawn(_meas(3.0, 3.0), 0, {"c1": 0, "c2": 0, "c3": 0})
+        tr.state = state
+        assoc = Associator(_config(), tracker)
+        assoc._all = AllBlobs.of(views, 4.0)
+        (sup,), _ = assoc.support(views, [tr])
+        assert set(sup) == {"c1", "c2", "c3"}
+        meas, _, _ = assoc._measure(
+            tr,
+            sup=sup,
+            views=views,
+            tracks=[tr],
+            cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
+            pose_sigma={},
+            ranked=assoc._rank(tr, sup, views, {}, set()),
+            claimed=set(),
+        )
+        return meas
+
+    confirmed = fix("confirmed")
+    assert confirmed is not None and math.hypot(confirmed.xy[0] - 3.0, confirmed.xy[1] - 3.0) < 0.05
+    assert fix("tentative") is None
