@@ -38,7 +38,7 @@ from common.schema import Features, SensorInfo, TrackSet
 from common.site import load_site
 from resource_manager.config import ManagerConfig, load_manager_config
 from resource_manager.fusion import Batch, Fusion
-from user_agent.evaluate import MotAccumulator, hypotheses_from_tracksets
+from user_agent.evaluate import MotAccumulator, frame_distances, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.messages import decode_on_key
 from user_agent.record import keys_for
@@ -126,13 +126,9 @@ def score(
     for f in sorted(frames):
         objs = gt.frames.get(f, [])
         hs = hyps.get(f, [])
-        d = np.full((len(objs), len(hs)), math.nan)
-        if objs and hs:
-            a = np.array([[p.x_m, p.y_m] for p in objs])
-            b = np.array([[h.x_m, h.y_m] for h in hs])
-            e = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
-            d = np.where(e <= threshold_m, e, math.nan)
-        events = acc.update([p.person_id for p in objs], [h.track_id for h in hs], d)
+        events = acc.update(
+            [p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m)
+        )
         second = int((f - 1) / fps)
         sec = per_s.setdefault(second, [0, 0, 0])
         for kind, obj, _hyp, _dist in events:
