@@ -16,9 +16,12 @@ from when it starts moving until:
 * its node has relearnt the background: its state is "ok" again -- or, from an older node that always
   says "ok", it reports blobs again after the stop, or ``relearn_max_ns`` has passed (nobody in view).
 
-"Moving" is what its node says, or seen in the pose itself (more than ``move_m`` from where the robot
-stood still last: moved by someone else); from an older node, a robot the view planner sent to a goal
-(:meth:`ViewPlanner.en_route`) that goes blank.
+"Moving" is what its node says (its frames say "moving" while the camera moves, whoever moves it). From
+an older node that never says, it is seen in the pose itself (more than ``move_m`` from where the robot
+stood still last: moved by someone else), or a robot the view planner sent to a goal
+(:meth:`ViewPlanner.en_route`) goes blank. A node that reports its state is not judged by its pose: a
+mutual-calibration pose that jumps while the robot stands (a band half hidden by a person) is pose
+noise, and dropping the views of a robot that stands still costs more than that noise.
 """
 
 from __future__ import annotations
@@ -115,7 +118,7 @@ class ViewTrust:
                 st.reports_state = True  # a node that says when it cannot see (older ones always say "ok")
             # Its node says it moves; or, from an older node, it goes blank on its way to a goal.
             driving = state == "moving" or (sid in en_route and sid not in with_blobs and not st.reports_state)
-            if driving or math.dist(st.anchor, (pose.x_m, pose.y_m)) > p.move_m:
+            if driving or (not st.reports_state and math.dist(st.anchor, (pose.x_m, pose.y_m)) > p.move_m):
                 st.moved = True
             if not st.moved:
                 if self._still(st, t_ns, pose):

@@ -216,3 +216,22 @@ def test_a_node_that_says_it_cannot_see_is_left_out_and_a_robot_back_when_relear
     assert all(not seen[k] for k in range(1, 10))
     assert all(seen[k] == {"r1"} for k in range(10, 50))  # moving, learning, then its pose still loose
     assert all(not seen[k] for k in range(50, 70))  # relearnt, still, converged
+
+
+def test_a_node_that_reports_its_state_is_not_judged_moved_by_a_pose_jump() -> None:
+    # A robot that stands still while its mutual-calibration pose jumps 0.45 m for 1 s (a band half hidden):
+    # its node says "ok" all along (it said "learning" while warming up), so its views stay in use; the same
+    # jump from a node that never reports a state is taken as a move.
+    for reports, expect_dropped in ((True, False), (False, True)):
+        trust = ViewTrust(SettleParams())
+        dropped = []
+        for k in range(60):
+            t = k * 100 * MS
+            x = 2.45 if 30 <= k < 40 else 2.0
+            state = "learning" if (reports and k < 5) else "ok"
+            out = trust.update(
+                t, {"r1": _pose("r1", x, 1.0)}, mobile=["r1"], en_route=[], with_blobs=["r1"], states={"r1": state}
+            )
+            if k >= 5 and out:
+                dropped.append(k)
+        assert bool(dropped) == expect_dropped, dropped
