@@ -53,12 +53,13 @@ class MutualParams:
     smoothing_s: float = 1.0
     timeout_s: float = 2.0
     jump_m: float = 1.0
+    """A raw pose this far from the smoothed one restarts the filter there (the robot was moved)."""
     hold: bool = True
+    """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     outlier_sigmas: float = 3.0
     """A raw pose further than this many sigmas (plus 5 cm, 0.5 deg) from the smoothed one is refused; 0: off."""
     outlier_run: int = 5
     """...unless this many in a row were (then it is followed: the robot moved)."""
-    """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     boundary_sigma_rad: float = 0.0
     """0: use the observer's bearing sigma."""
     default_bearing_sigma_rad: float = math.radians(0.2)
