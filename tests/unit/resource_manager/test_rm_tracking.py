@@ -462,3 +462,53 @@ def test_three_cameras_on_a_confirmed_track_outvote_one_that_missed_it() -> None
     confirmed = fix("confirmed")
     assert confirmed is not None and math.hypot(confirmed.xy[0] - 3.0, confirmed.xy[1] - 3.0) < 0.05
     assert fix("tentative") is None
+
+
+def test_a_groups_wide_blob_spanning_a_fix_is_no_vote_against_a_well_followed_track() -> None:
+    """c1 and c2 see the tracked person at (3, 3) alone, on the nodes' 2D tracks the track followed; c3 still sees
+    them inside their group's merged blob (16 deg wide, its bearing 6 deg off theirs). The group's blob is no vote
+    against the fix of a well-followed track (a person walking out of a group, six replays); a young track, which
+    may be a ghost of two other people's rays, still needs every other camera to agree."""
+    from resource_manager.pairmatch import PairMatches
+    from tests.unit.resource_manager.test_rm_match import view
+
+    person = (3.0, 3.0, 1.8, 1)
+    c3 = view("c3", (6.0, 6.0), [person])
+    views = {
+        "c1": view("c1", (0.0, 0.0), [person]),
+        "c2": view("c2", (6.0, 0.0), [person]),
+        "c3": ViewBlobs(
+            sensor_id="c3",
+            origin_xy=c3.origin_xy,
+            z_m=c3.z_m,
+            sigma_rad=c3.sigma_rad,
+            bearing_rad=c3.bearing_rad + math.radians(6.0),
+            width_rad=np.array([math.radians(16.0)]),
+            top_elev_rad=c3.top_elev_rad,
+            hist=c3.hist,
+            local_id=c3.local_id,
+        ),
+    }
+
+    def fix(hits: int) -> Measurement | None:
+        tracker = Tracker(TrackParams(), lambda: "m")
+        tr = tracker.spawn(_meas(3.0, 3.0), 0, {"c1": 0, "c2": 0, "c3": 0})
+        tr.state, tr.hits = "confirmed", hits
+        assoc = Associator(_config(), tracker)
+        assoc._all = AllBlobs.of(views, 4.0)
+        sup = {"c1": 0, "c2": 0, "c3": 0}
+        meas, _, _ = assoc._measure(
+            tr,
+            sup=sup,
+            views=views,
+            tracks=[tr],
+            cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
+            pose_sigma={},
+            ranked=assoc._rank(tr, sup, views, {}, set()),
+            claimed=set(),
+        )
+        return meas
+
+    followed = fix(HOLD_MIN_HITS)
+    assert followed is not None and math.hypot(followed.xy[0] - 3.0, followed.xy[1] - 3.0) < 0.05
+    assert fix(5) is None
