@@ -183,10 +183,8 @@ class Associator:
                 if meas is not None:
                     used_blobs = {s: i for s, i in used_blobs.items() if s in sup}  # links: own blobs only
             if meas is None:
-                # No pair localises it this tick: the views that still follow it (same node-side blob) steer it
-                # by bearing alone, so the prediction stays on the person while the stereo pair is broken.
+                # No pair localises it: its views' floor points (mono.py; one is enough) or, linked, their bearings.
                 if mc.mono_updates and sup:
-                    # The views' own floor points (mono.py): one view is enough to stay on the person.
                     mono_meas = mono_measurement([(views[s], i) for s, i in sup.items()])
                     if mono_meas is not None and math.isfinite(self.tracker.gate_distance(tr, mono_meas)):
                         meas, entry, used_blobs = mono_meas, None, dict(mono_meas.blobs)
@@ -348,10 +346,12 @@ class Associator:
                     continue  # in someone else's colours
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
-                # Linked blobs of a well-followed track: a group's wide blob spanning the fix is no vote against it.
+                # Linked blobs of a well-followed track: a group's wide blob spanning the fix, or a blob Eq. 7 pairs
+                # with neither of its blobs (no view of someone else there), is no vote against it.
                 spare = linked and tr.hits >= HOLD_MIN_HITS and tr.confirmed
                 k, mono_k = mc.bearing_gate_sigmas, mc.mono_gate_sigmas
-                agree, against = views_agreeing(meas, used, views, k, mono_k, spare_wide=spare)
+                agree, elsewhere = views_agreeing(meas, used, views, k, mono_k, spare_wide=spare)
+                against = cache.dissent(elsewhere, used, ((a_id, ii), (b_id, jj))) if spare else len(elsewhere)
                 # A confirmed track's fix that three or more of its cameras point at, and none elsewhere, is no ghost:
                 # one more camera with nobody there missed a detection (min_view_agreement 0.8 asks 4 of 4 cameras).
                 outvoted = tr.confirmed and len(agree) >= 3 and not against

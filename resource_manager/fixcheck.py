@@ -30,8 +30,8 @@ def views_agreeing(
     mono_k: float,
     *,
     spare_wide: bool = False,
-) -> tuple[list[str], int]:
-    """Supporting cameras whose blob points at the measurement, and how many point elsewhere.
+) -> tuple[list[str], list[str]]:
+    """Supporting cameras whose blob points at the measurement, and those whose blob points elsewhere.
 
     A blob points at it when its bearing is within ``k`` sigmas (plus 0.25 m of lateral slack) and its feet, where
     known, within ``mono_k`` sigmas of the distance (:func:`~resource_manager.mono.range_mismatch`). With
@@ -42,7 +42,7 @@ def views_agreeing(
     """
     x, y = float(meas.xy[0]), float(meas.xy[1])
     agree: list[str] = []
-    against = 0
+    against: list[str] = []
     for sid, i in sup.items():  # plain floats: a handful of views, numpy per element would cost more
         v = views[sid]
         dx, dy = x - float(v.origin_xy[0]), y - float(v.origin_xy[1])
@@ -52,7 +52,7 @@ def views_agreeing(
         if abs(off) < k * v.sigma_rad + slack and range_mismatch(v, i, meas.xy) < mono_k:
             agree.append(sid)
         elif not (spare_wide and abs(off) < 0.5 * float(v.width_rad[i]) + slack and wide_blob(v, i, dist)):
-            against += 1
+            against.append(sid)
     return agree, against
 
 

@@ -512,3 +512,46 @@ def test_a_groups_wide_blob_spanning_a_fix_is_no_vote_against_a_well_followed_tr
     followed = fix(HOLD_MIN_HITS)
     assert followed is not None and math.hypot(followed.xy[0] - 3.0, followed.xy[1] - 3.0) < 0.05
     assert fix(5) is None
+
+
+def test_a_view_eq7_pairs_with_neither_blob_of_a_fix_is_no_vote_against_a_well_followed_track() -> None:
+    """c1, c2 and c4 see the tracked person at (3, 3), c1 and c2 on the nodes' 2D tracks the track followed; c3 misses
+    them and sees only Q, 20 deg to the side, whose blob the track's support took there. Q's blob (one person's)
+    matches neither blob of the fix by Eq. 7, so it is no vote against a well-followed track's fix, which three
+    cameras then carry (six replays: a camera's blob wrongly supporting the track pointed at the neighbour); a
+    young track, which could be a ghost, still needs every camera that could see it to agree."""
+    from resource_manager.pairmatch import PairMatches
+    from tests.unit.resource_manager.test_rm_match import view
+
+    person = (3.0, 3.0, 1.8, 1)
+    views = {
+        "c1": view("c1", (0.0, 0.0), [person]),
+        "c2": view("c2", (6.0, 0.0), [person]),
+        "c3": view("c3", (6.0, 6.0), [(4.5, 2.8, 1.5, 2)]),
+        "c4": view("c4", (0.0, 6.5), [person]),
+    }
+
+    def fix(hits: int) -> tuple[Measurement | None, float]:
+        tracker = Tracker(TrackParams(), lambda: "m")
+        tr = tracker.spawn(_meas(3.0, 3.0), 0, {"c1": 0, "c2": 0, "c4": 0})
+        tr.state, tr.hits = "confirmed", hits
+        assoc = Associator(_config(), tracker)
+        assoc._all = AllBlobs.of(views, 4.0)
+        sup = {"c1": 0, "c2": 0, "c3": 0, "c4": 0}
+        cache = PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold)
+        meas, _, _ = assoc._measure(
+            tr,
+            sup=sup,
+            views=views,
+            tracks=[tr],
+            cache=cache,
+            pose_sigma={},
+            ranked=assoc._rank(tr, sup, views, {}, set()),
+            claimed=set(),
+        )
+        return meas, max(cache.score("c3", 0, s, 0) for s in ("c1", "c2", "c4"))
+
+    followed, r = fix(HOLD_MIN_HITS)
+    assert r < 0.1  # Q's blob pairs with neither of the person's
+    assert followed is not None and math.hypot(followed.xy[0] - 3.0, followed.xy[1] - 3.0) < 0.05
+    assert fix(5)[0] is None
