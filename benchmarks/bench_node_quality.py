@@ -290,6 +290,10 @@ def _score_frame(
                 _describe(b, blob_u[j]),
                 [(round(q["u"], 1), round(q["a"], 1), round(q["b"], 1)) for q in visible],
             )
+        found = {int(i) for i, j in zip(rows, cols_a, strict=True) if cost[i, j] < 1e6}
+        for i, q in enumerate(visible):
+            if i not in found:
+                logger.debug("%s t=%.2f missed: person at u=%.1f [%.1f, %.1f]", cam.id, t_s, q["u"], q["a"], q["b"])
         for i, j in zip(rows, cols_a, strict=True):
             if cost[i, j] >= 1e6:
                 continue

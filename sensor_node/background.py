@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
+from sensor_node.ghosts import UnderGhosts, surround_deviation
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
 
@@ -92,6 +93,10 @@ class BackgroundModel:
         """Warm-up stride now: 1 when relearning after the camera moved (it must see again soon;
         the ghost checks clean up after anyone who stood still), else ``warmup_stride``."""
         self._static: Mask | None = None
+        self._born: Mask | None = None
+        """Changed pixels that have stayed changed since the model was learnt: where a start-up hole can be."""
+        self._under: UnderGhosts | None = None
+        """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
         self._last_fg: Mask | None = None
         """Objects of the last normal frame: kept out of the light-change estimate."""
         self._frames = 0
@@ -104,6 +109,8 @@ class BackgroundModel:
         """Ghost blobs (objects that left the background) absorbed."""
         self.kept = 0
         """Still-region tests that found a paused object (its outline in the frame) and kept it."""
+        self.restored = 0
+        """Regions of the model under an absorbed ghost put back (the frame showed them again: a mistake)."""
         self.ego_frames = 0
         """Frames in which the camera itself was seen to move."""
 
@@ -158,6 +165,7 @@ class BackgroundModel:
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
+            self._born = fg.copy() if self._born is None else cv2.bitwise_and(self._born, fg)
             self._update_static(grey, fg, moving)
             self._last_fg = fg
             return Motion(fg, moving, "ok", frac)
@@ -179,6 +187,7 @@ class BackgroundModel:
         if frac2 <= s.abnormal_frac:
             self._set_background(new_bg)
             self.relights += 1
+            self._under = None
             logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
             # The frame of the jump is not reported: frame differencing is meaningless across it.
             return Motion(empty, empty, "relit", frac, gain)
@@ -216,6 +225,8 @@ class BackgroundModel:
         self._warm, self._warm_seen = [], 0
         self._stride = 1
         self._static = None
+        self._born = None
+        self._under = None
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
         empty = np.zeros(self._prev.shape if self._prev is not None else (1, 1), np.uint8)
@@ -269,6 +280,14 @@ class BackgroundModel:
         white post where someone stood) passes that test too and must not stay
         for ever; a still region that neither test recognises (on a textured floor) becomes
         background after ``still_absorb_frames``, so no ghost stays.
+
+        The surface beside a region is a second test (:func:`~sensor_node.ghosts.surround_deviation`):
+        a region changed ever since the model was learnt whose frame continues the surface on
+        both sides while the model differs from it is a start-up hole, absorbed at its first test
+        even when its outline says nothing (a plain shirt before a textured wall); an outline
+        "ghost" whose frame is no closer to its surroundings than the model is, is not absorbed.
+        What an absorption overwrote (outside start-up holes) is kept a while and put back where
+        the frame shows it again (:class:`~sensor_node.ghosts.UnderGhosts`).
         """
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
@@ -278,6 +297,15 @@ class BackgroundModel:
         if self._static is None:
             self._static = np.zeros_like(grey)
         self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        if self._under is not None and self._bg is not None:
+            before = self._under.restored
+            back = self._under.restore(
+                grey, still, self._bg, frame=self._frames, match_level=s.fg_threshold, least_px=s.min_blob_px
+            )
+            self.restored += self._under.restored - before
+            if back is not None:
+                self._static[back > 0] = 0
+                self._bg_u8 = cv2.convertScaleAbs(self._bg)
         samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
         if cv2.countNonZero(old) < s.min_blob_px:
@@ -302,6 +330,30 @@ class BackgroundModel:
             # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
             # whose ratio is noise: the still inside of a slowly walking person's shirt).
             ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
+            # The surface beside the region decides too: a hole shows in the frame what continues on
+            # both sides, while the model holds the one who left. It overrules the outline test when
+            # the frame is no closer to the surroundings than the model is (someone standing in front
+            # of a window: its frame is a strong outline of the model, but that is no ghost).
+            dev_cur, dev_bg = surround_deviation(grey, self._bg_u8, fg, mask, (x, y))
+            born = self._born is not None and bool(
+                np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area
+            )
+            if dev_cur + dev_bg > 0.0:
+                ghost = (ghost and dev_cur < dev_bg) or (
+                    born and dev_bg >= SURROUND_MIN_DEV and dev_cur <= SURROUND_GHOST * dev_bg
+                )
+            logger.debug(
+                "still region x=%d w=%d area=%d: bg edge %.1f, frame edge %.1f, age %d, ghost %s, dev cur %.1f bg %.1f",
+                x,
+                w,
+                area,
+                was_sum / n_out,
+                float(cur[outline].sum()) / n_out,
+                int(self._static[y : y + h, x : x + w][mask].max()),
+                ghost,
+                dev_cur,
+                dev_bg,
+            )
             if not ghost:
                 # A paused person is the reverse: the silhouette is an edge of the current frame, not of
                 # the background. They stay an object region (never learnt) however long they stand;
@@ -329,6 +381,12 @@ class BackgroundModel:
                 continue
             take = grown & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
             sub = self._bg[y0:y1, x0:x1]
+            if not born:
+                # A region changed since the model was learnt is a start-up hole (the model holds whoever
+                # stood there): nothing to put back. Anything else may be a mistake: keep what was there.
+                if self._under is None:
+                    self._under = UnderGhosts(grey.shape)
+                self._under.keep((x0, y0), take, sub, self._frames)
             sub[take] = grey[y0:y1, x0:x1][take]
             self._static[y0:y1, x0:x1][take] = 0
             self.ghosts += 1
@@ -361,6 +419,14 @@ GHOST_RING_CHANGED = 0.35
 
 PERSON_SCORE = 1.5
 """Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""
+
+SURROUND_GHOST = 0.5
+"""A still region whose frame is this much closer (grey-level deviation ratio) to the surface beside it than
+the model is, is a ghost: a hole left by someone who walked away."""
+
+SURROUND_MIN_DEV = 15.0
+"""Least mean grey-level deviation of the model from the surface beside a still region for the surround test
+to call it a ghost (the model must hold something there)."""
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)

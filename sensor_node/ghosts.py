@@ -1,0 +1,161 @@
+"""Ghost tests of the background model: the surface beside a still region, and undoing a wrong absorption.
+
+Used by :mod:`sensor_node.background` (stage 2). A *ghost* is a changed region
+where something that was in the background left (a person who stood still
+while the model was learnt). Two helpers:
+
+* :func:`surround_deviation` -- how far the frame and the model inside a still
+  region are from the surface beside it: a hole shows in the frame what
+  continues on both sides, while the model still holds whoever left;
+* :class:`UnderGhosts` -- the model as it was under absorbed ghosts, put back
+  where the frame shows it again (the absorption was a mistake: someone in
+  front of a narrow bright window looks like a ghost of the window).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["UnderGhosts", "surround_deviation"]
+
+logger = logging.getLogger(__name__)
+
+Mask = npt.NDArray[Any]
+
+SIDE_PX = 8
+"""Columns either side of a still region whose unchanged model pixels stand for the surface around it."""
+
+RESTORE_FRAMES = 90
+"""Frames (6 s at 15 fps) for which the model from under an absorbed ghost is kept for putting back."""
+
+RESTORE_MATCH = 0.7
+"""Fraction of a still region over an absorbed ghost that must match the model from before for it to be put back."""
+
+_K5 = np.ones((5, 5), np.uint8)
+
+
+def surround_deviation(
+    grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
+) -> tuple[float, float]:
+    """How far the frame and the model inside a still region are from the background beside it.
+
+    Row by row (walls, floors and their edges run across a panorama's rows), the
+    mean grey level of the region's pixels -- in the current frame and in the
+    model -- is compared with the mean of the model's unchanged pixels up to
+    ``SIDE_PX`` columns left and right of the region on that row (wrapping). A
+    hole left by someone who walked away shows, in the frame, the surface that
+    continues on both sides (small frame deviation) while the model still holds
+    the person (large model deviation); a person who stands still is the reverse.
+
+    Args:
+        grey: the frame (H, W) uint8.
+        bg: the model (H, W) uint8.
+        fg: the changed pixels (255) of the frame.
+        mask: the region inside its bounding box.
+        origin: (column, row) of the box's top-left corner.
+
+    Returns:
+        (frame deviation, model deviation): pixel-weighted mean absolute grey-level
+        differences over the rows that have both region and side pixels (0, 0 if none).
+    """
+    x, y = origin
+    h, w = mask.shape
+    cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
+    rows = slice(y, y + h)
+    g = grey[rows][:, cols].astype(np.float32)
+    b = bg[rows][:, cols].astype(np.float32)
+    inside = np.zeros(g.shape, bool)
+    inside[:, SIDE_PX : SIDE_PX + w] = mask
+    side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
+    n_in = inside.sum(axis=1)
+    n_side = side.sum(axis=1)
+    ok = (n_in > 0) & (n_side >= 3)
+    if not ok.any():
+        return 0.0, 0.0
+    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    weight = n_in[ok].astype(np.float32)
+    cur_mean = (g * inside).sum(axis=1)[ok] / weight
+    bg_mean = (b * inside).sum(axis=1)[ok] / weight
+    total = float(weight.sum())
+    dev_cur = float((np.abs(cur_mean - side_mean) * weight).sum()) / total
+    dev_bg = float((np.abs(bg_mean - side_mean) * weight).sum()) / total
+    return dev_cur, dev_bg
+
+
+class UnderGhosts:
+    """The background model as it was under absorbed ghosts, put back where the frame shows it again.
+
+    A still region wrongly taken for a ghost (a person standing in front of a
+    narrow bright window: the model's outline there is the window's, the
+    frame's is flat) is painted into the model; when the person walks on, the
+    window reappears as a changed, still region with its outline in the frame:
+    a paused person to the ghost test, reported for up to ``still_keep_frames``.
+    Keeping what the absorption overwrote (for ``RESTORE_FRAMES``: someone
+    wrongly absorbed walks on soon, and an old copy must not come back with
+    whoever stands there much later) lets a still region that the frame matches
+    again (``RESTORE_MATCH`` of its pixels) get it back at once.
+    """
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        self._under = np.zeros(shape, np.float32)
+        self._mask = np.zeros(shape, np.uint8)
+        self._frame = np.zeros(shape, np.int32)
+        self.restored = 0
+        """Regions put back."""
+
+    def keep(
+        self, origin: tuple[int, int], take: npt.NDArray[np.bool_], sub: npt.NDArray[np.float32], frame: int
+    ) -> None:
+        """Remember the model ``sub`` (box at ``origin`` = (column, row)) on ``take`` before it is overwritten."""
+        x0, y0 = origin
+        h, w = take.shape
+        box = (slice(y0, y0 + h), slice(x0, x0 + w))
+        first = take & (self._mask[box] == 0)  # the model from before the first absorption
+        self._under[box][first] = sub[first]
+        self._frame[box][first] = frame
+        self._mask[box][take] = 255
+
+    def restore(
+        self, grey: Mask, still: Mask, bg: npt.NDArray[np.float32], *, frame: int, match_level: int, least_px: int
+    ) -> Mask | None:
+        """Put the kept model back into ``bg`` (in place) on still regions that the frame matches again.
+
+        Args:
+            grey: the frame.
+            still: its changed, not moving pixels (255).
+            bg: the float background model, updated in place.
+            frame: the model's frame count now.
+            match_level: grey levels within which a frame pixel matches the kept model (``fg_threshold``).
+            least_px: the least region (pixels) tested: a whole object, not a few pixels of a passing shirt.
+
+        Returns:
+            255 where the model was put back (None if nowhere).
+        """
+        self._mask[self._frame < frame - RESTORE_FRAMES] = 0
+        cand = cv2.bitwise_and(still, self._mask)
+        if cv2.countNonZero(cand) < least_px:
+            return None
+        near = cv2.absdiff(grey, cv2.convertScaleAbs(self._under)) <= match_level
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
+        done: Mask | None = None
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            if area < least_px:
+                continue
+            box = (slice(y, y + h), slice(x, x + w))
+            comp = labels[box] == k
+            if np.count_nonzero(near[box][comp]) < RESTORE_MATCH * area:
+                continue
+            bg[box][comp] = self._under[box][comp]
+            self._mask[box][comp] = 0
+            if done is None:
+                done = np.zeros_like(self._mask)
+            done[box][comp] = 255
+            self.restored += 1
+            logger.debug("background under a ghost of %d px at column %d put back (the frame shows it)", area, x)
+        return done
