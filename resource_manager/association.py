@@ -183,8 +183,10 @@ class Associator:
                 if meas is not None:
                     used_blobs = {s: i for s, i in used_blobs.items() if s in sup}  # links: own blobs only
             if meas is None:
-                # No pair localises it: its views' floor points (mono.py; one is enough) or, linked, their bearings.
+                # No pair localises it this tick: the views that still follow it (same node-side blob) steer it
+                # by bearing alone, so the prediction stays on the person while the stereo pair is broken.
                 if mc.mono_updates and sup:
+                    # The views' own floor points (mono.py): one view is enough to stay on the person.
                     mono_meas = mono_measurement([(views[s], i) for s, i in sup.items()])
                     if mono_meas is not None and math.isfinite(self.tracker.gate_distance(tr, mono_meas)):
                         meas, entry, used_blobs = mono_meas, None, dict(mono_meas.blobs)
@@ -308,7 +310,6 @@ class Associator:
     ) -> tuple[Measurement | None, tuple[str, str, int] | None, dict[str, int]]:
         if len(sup) < 2:
             return None, None, {}
-        mc = self.config.match
         for cand in ranked[:3]:
             a_id, b_id = sorted((cand.a, cand.b))
             a, b = views[a_id], views[b_id]
@@ -330,28 +331,25 @@ class Associator:
                     jj,
                     sigma_xy_a=pose_sigma.get(a_id, 0.0),
                     sigma_xy_b=pose_sigma.get(b_id, 0.0),
-                    width_rel_sigma=mc.width_rel_sigma,
+                    width_rel_sigma=self.config.match.width_rel_sigma,
                 )
                 if meas is None or not self.in_room(meas.xy):
                     continue
-                linked = tr.links.get(a_id) == int(a.local_id[ii]) and tr.links.get(b_id) == int(b.local_id[jj])
-                # Outside the motion gate (a sharp turn): still the person if both blobs continue its 2D tracks.
-                if not math.isfinite(self.tracker.gate_distance(tr, meas)) and (
-                    not linked or float(np.hypot(*(meas.xy - tr.x[:2]))) > mc.link_gate_m
-                ):
-                    continue
+                if not math.isfinite(self.tracker.gate_distance(tr, meas)):
+                    # Outside the motion gate (a sharp turn): still the same person if the nodes' own 2D
+                    # tracks say so in both cameras and the jump is plausible.
+                    linked = tr.links.get(a_id) == int(a.local_id[ii]) and tr.links.get(b_id) == int(b.local_id[jj])
+                    if not linked or float(np.hypot(*(meas.xy - tr.x[:2]))) > self.config.match.link_gate_m:
+                        continue
                 if self._owned_elsewhere(tr, meas, tracks):
                     continue  # another, better-followed track explains this fix better: not this one's
                 if self._unlike(tr, ((a_id, ii), (b_id, jj)), views):
                     continue  # in someone else's colours
                 used = dict(sup)
                 used[a_id], used[b_id] = ii, jj
-                # Linked blobs of a well-followed track: a group's wide blob spanning the fix, or a blob Eq. 7 pairs
-                # with neither of its blobs (no view of someone else there), is no vote against it.
-                spare = linked and tr.hits >= HOLD_MIN_HITS and tr.confirmed
-                k, mono_k = mc.bearing_gate_sigmas, mc.mono_gate_sigmas
-                agree, elsewhere = views_agreeing(meas, used, views, k, mono_k, spare_wide=spare)
-                against = cache.dissent(elsewhere, used, ((a_id, ii), (b_id, jj))) if spare else len(elsewhere)
+                agree, against = views_agreeing(
+                    meas, used, views, self.config.match.bearing_gate_sigmas, self.config.match.mono_gate_sigmas
+                )
                 # A confirmed track's fix that three or more of its cameras point at, and none elsewhere, is no ghost:
                 # one more camera with nobody there missed a detection (min_view_agreement 0.8 asks 4 of 4 cameras).
                 outvoted = tr.confirmed and len(agree) >= 3 and not against

@@ -1,8 +1,7 @@
 """Is a fix the track's? Checks of step 2 that refuse fixes belonging to someone else or to nobody.
 
 * :func:`views_agreeing`: the cameras supporting the track whose blob points at the fix (a ghost of two other
-  people's rays has the other cameras looking elsewhere; a merged group's wide blob that spans the fix says
-  nothing either way);
+  people's rays has the other cameras looking elsewhere);
 * :func:`owned_elsewhere`: a coasting track's grown gate reaches the neighbour's fix; a track measured more
   recently that explains it better keeps it.
 """
@@ -11,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from resource_manager.localize import Measurement, wide_blob
+from resource_manager.localize import Measurement
 from resource_manager.match import ViewBlobs
 from resource_manager.mono import range_mismatch
 from resource_manager.track import Tracker, TrackRecord
@@ -23,36 +22,25 @@ OWNER_MIN_MISSES = 3
 
 
 def views_agreeing(
-    meas: Measurement,
-    sup: dict[str, int],
-    views: dict[str, ViewBlobs],
-    k: float,
-    mono_k: float,
-    *,
-    spare_wide: bool = False,
-) -> tuple[list[str], list[str]]:
-    """Supporting cameras whose blob points at the measurement, and those whose blob points elsewhere.
+    meas: Measurement, sup: dict[str, int], views: dict[str, ViewBlobs], k: float, mono_k: float
+) -> tuple[list[str], int]:
+    """Supporting cameras whose blob points at the measurement, and how many point elsewhere.
 
     A blob points at it when its bearing is within ``k`` sigmas (plus 0.25 m of lateral slack) and its feet, where
-    known, within ``mono_k`` sigmas of the distance (:func:`~resource_manager.mono.range_mismatch`). With
-    ``spare_wide``, a blob wider than one person there (:func:`~resource_manager.localize.wide_blob`: a merged
-    group) whose extent spans the fix's bearing is neither: its bearing is the group's, not each member's (a
-    person walking out of a group is seen alone by two cameras while a third still sees them inside its group's
-    blob).
+    known, within ``mono_k`` sigmas of the distance (:func:`~resource_manager.mono.range_mismatch`).
     """
     x, y = float(meas.xy[0]), float(meas.xy[1])
     agree: list[str] = []
-    against: list[str] = []
+    against = 0
     for sid, i in sup.items():  # plain floats: a handful of views, numpy per element would cost more
         v = views[sid]
         dx, dy = x - float(v.origin_xy[0]), y - float(v.origin_xy[1])
         dist = max(math.hypot(dx, dy), 0.3)
         off = math.remainder(float(v.bearing_rad[i]) - math.atan2(dy, dx), 2 * math.pi)
-        slack = 0.25 / dist
-        if abs(off) < k * v.sigma_rad + slack and range_mismatch(v, i, meas.xy) < mono_k:
+        if abs(off) < k * v.sigma_rad + 0.25 / dist and range_mismatch(v, i, meas.xy) < mono_k:
             agree.append(sid)
-        elif not (spare_wide and abs(off) < 0.5 * float(v.width_rad[i]) + slack and wide_blob(v, i, dist)):
-            against.append(sid)
+        else:
+            against += 1
     return agree, against
 
 

@@ -72,19 +72,6 @@ class PairMatches:
         got = self.cache.get(key)
         return got if got is not None else self._match([key])[0]
 
-    def score(self, s_id: str, i: int, t_id: str, j: int) -> float:
-        """Eq. 7 r of blob ``i`` of camera ``s_id`` with blob ``j`` of camera ``t_id`` (0 for one camera)."""
-        if s_id == t_id:
-            return 0.0
-        if s_id > t_id:
-            s_id, i, t_id, j = t_id, j, s_id, i
-        return float(self.get(s_id, t_id).mm.r[i, j])
-
-    def dissent(self, elsewhere: list[str], blobs: dict[str, int], fix: tuple[tuple[str, int], ...]) -> int:
-        """How many cameras in ``elsewhere`` have a blob (``blobs[camera]``) that Eq. 7 pairs with a blob of
-        ``fix``: a view of someone else there, against the fix. A blob that pairs with none says nothing of it."""
-        return sum(any(self.score(s, blobs[s], t, j) > self.threshold for t, j in fix) for s in elsewhere)
-
     def _match(self, keys: list[tuple[str, str]]) -> list[PairMatch]:
         pairs = [(self.views[a], self.views[b]) for a, b in keys]
         temporals = [temporal_links(a, b, self.tracks) for a, b in pairs]
