@@ -127,9 +127,12 @@ def _lose(tracker: Tracker, tr: TrackRecord, start: int, ticks: int) -> tuple[in
     return start + ticks, ended
 
 
-def _confirm(tracker: Tracker, x: float, y: float, start: int) -> tuple[TrackRecord, int]:
+def _confirm(tracker: Tracker, x: float, y: float, start: int, colour: int | None = None) -> tuple[TrackRecord, int]:
+    """A new track confirmed at (x, y) over three ticks; with ``colour``, the shirt its blobs showed while tentative."""
     new = tracker.spawn(_meas(x, y), start * 100_000_000, {})
     new.height_m = 1.75
+    if colour is not None:
+        new.looks = _look(colour)
     for k in range(start + 1, start + 3):
         tracker.predict(k * 100_000_000)
         tracker.update(new, _meas(x, y), {})
@@ -196,16 +199,6 @@ def _look(k: int) -> dict[str, np.ndarray]:
     return {"c1": np.sqrt(np.array(colour_hist(k))), "c2": np.sqrt(np.array(colour_hist(k)))}
 
 
-def _confirm_looking(tracker: Tracker, x: float, y: float, start: int, colour: int) -> tuple[TrackRecord, int]:
-    new = tracker.spawn(_meas(x, y), start * 100_000_000, {})
-    new.height_m = 1.75
-    new.looks = _look(colour)  # the shirt its blobs showed while it was tentative
-    for k in range(start + 1, start + 3):
-        tracker.predict(k * 100_000_000)
-        tracker.update(new, _meas(x, y), {})
-    return new, start + 3
-
-
 def test_a_lost_track_lends_its_id_only_to_a_track_with_its_shirt() -> None:
     params = TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0)
     tracker, tr = _coasting(params, misses=0)
@@ -214,9 +207,9 @@ def test_a_lost_track_lends_its_id_only_to_a_track_with_its_shirt() -> None:
     tr.height_m = 1.75
     tr.looks = _look(0)
     k, _ = _lose(tracker, tr, 6, 5)
-    other, k = _confirm_looking(tracker, float(tr.x[0]) + 0.4, float(tr.x[1]), k, colour=3)
+    other, k = _confirm(tracker, float(tr.x[0]) + 0.4, float(tr.x[1]), k, colour=3)
     assert other.track_id == "m-2" and tracker.lost == [tr]  # another shirt where m-1 was lost: someone else
-    same, k = _confirm_looking(tracker, float(tr.x[0]) - 0.5, float(tr.x[1]), k, colour=0)
+    same, k = _confirm(tracker, float(tr.x[0]) - 0.5, float(tr.x[1]), k, colour=0)
     assert same.track_id == "m-1" and tracker.lost == []
 
 
@@ -246,10 +239,7 @@ def test_a_lost_track_with_a_sure_look_match_lends_its_id_from_further() -> None
         tracker.new_id = lambda: "m-2"
         tr.height_m, tr.looks = 1.75, _look(0)
         k, _ = _lose(tracker, tr, 6, 5)
-        if colour is None:  # no look to compare: the plain reach
-            new, _ = _confirm(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k)
-        else:
-            new, _ = _confirm_looking(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k, colour=colour)
+        new, _ = _confirm(tracker, float(tr.x[0]) + 1.8, float(tr.x[1]), k, colour=colour)  # None: the plain reach
         assert new.track_id == expected
 
 
