@@ -121,9 +121,9 @@ def hidden_in_group(
     """Whether a track without a fix is plausibly hidden in a merged group at its predicted position.
 
     Every blob that supports it (own or shared, at least two views) holds its predicted bearing within about the
-    blob's width, and at least one shared blob is wider than one person there. Then the track is held: it walks
-    with the group (its mates' velocity) instead of coasting off, dying and being reborn under a new id when the
-    group splits.
+    blob's width, and at least one shared blob is wider than one person there. Then the track is held where it
+    was last seen (the caller drops its velocity) instead of coasting off, dying and being reborn under a new id
+    when the group splits.
     """
     if len(own) + len(shared) < 2:
         return False

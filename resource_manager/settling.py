@@ -62,9 +62,9 @@ class _State:
     moved: bool = False
     """It has moved since it last settled: its node must relearn before its views count."""
     still_since_ns: int | None = None
+    """When the robot stopped (it has been still since), while it settles."""
     reports_state: bool = False
     """Its node has said it could not see (``Features.state``): its "ok" means it has relearnt."""
-    """When the robot stopped (it has been still since), while it settles."""
 
 
 @dataclass(slots=True)
