@@ -326,7 +326,9 @@ class BackgroundModel:
             cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was_sum, n_out = float(was[outline].sum()), max(1, int(np.count_nonzero(outline)))
-            score = was_sum / (float(cur[outline].sum()) + 1.0)
+            cur_sum = float(cur[outline].sum())
+            age = int(self._static[y : y + h, x : x + w][mask].max())
+            score = was_sum / (cur_sum + 1.0)
             # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
             # whose ratio is noise: the still inside of a slowly walking person's shirt).
             ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
@@ -334,10 +336,11 @@ class BackgroundModel:
             # both sides, while the model holds the one who left. It overrules the outline test when
             # the frame is no closer to the surroundings than the model is (someone standing in front
             # of a window: its frame is a strong outline of the model, but that is no ghost).
-            dev_cur, dev_bg = surround_deviation(grey, self._bg_u8, fg, mask, (x, y))
             born = self._born is not None and bool(
                 np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area
             )
+            # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
+            dev_cur, dev_bg = surround_deviation(grey, self._bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
             if dev_cur + dev_bg > 0.0:
                 ghost = (ghost and dev_cur < dev_bg) or (
                     born and dev_bg >= SURROUND_MIN_DEV and dev_cur <= SURROUND_GHOST * dev_bg
@@ -348,8 +351,8 @@ class BackgroundModel:
                 w,
                 area,
                 was_sum / n_out,
-                float(cur[outline].sum()) / n_out,
-                int(self._static[y : y + h, x : x + w][mask].max()),
+                cur_sum / n_out,
+                age,
                 ghost,
                 dev_cur,
                 dev_bg,
@@ -358,8 +361,6 @@ class BackgroundModel:
                 # A paused person is the reverse: the silhouette is an edge of the current frame, not of
                 # the background. They stay an object region (never learnt) however long they stand;
                 # only what neither test recognises becomes background after still_absorb_frames.
-                cur_sum = float(cur[outline].sum())
-                age = int(self._static[y : y + h, x : x + w][mask].max())
                 if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE and age < keep_still:
                     self.kept += 1
                     continue

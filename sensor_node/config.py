@@ -272,8 +272,10 @@ class PipelineSettings(ConfigStruct, frozen=True):
     blobs of their own. Lower: people side by side separate sooner, a shoulder may pass for a head."""
     split_gap_cols: Annotated[int, msgspec.Meta(ge=0)] = 1
     """A blob whose vertical projection profile has a gap (columns with at most one changed pixel) at
-    least this many columns wide is parted there, if both sides pass the blob checks (grouping joins
-    regions up to ``merge_gap_px`` apart: people walking side by side). 0: never."""
+    least this many columns wide is parted there (grouping joins regions up to ``merge_gap_px`` apart:
+    people walking side by side), if each side passes the blob checks and rises to a head narrower than
+    its body, or is wide, or reaches the image's top row; a narrow flat strip (an arm swung clear of
+    the body) stays with its neighbour. 0: never."""
     track_split_hits: Annotated[int, msgspec.Meta(ge=0)] = 5
     """A blob that holds the predicted head columns of two or more 2D tracks, each seen standing alone in
     at least this many frames, is cut between them, at a shallow valley or where the far head comes out

@@ -149,7 +149,7 @@ def has_head(top: npt.NDArray[np.int64], dip_px: int, mask: npt.NDArray[np.bool_
     return counts.size < 3 or cols <= HEAD_BODY_FRAC * float(np.median(counts))
 
 
-def _gaps(mask: npt.NDArray[np.bool_], gap_cols: int) -> list[int]:
+def _gaps(col_px: npt.NDArray[np.intp], gap_cols: int) -> list[int]:
     """Cut columns at the gaps of a blob's vertical projection profile.
 
     A gap is a run of at least ``gap_cols`` columns with at most ``GAP_MAX_PX`` changed pixels
@@ -158,7 +158,7 @@ def _gaps(mask: npt.NDArray[np.bool_], gap_cols: int) -> list[int]:
     """
     if gap_cols <= 0:
         return []
-    low = np.count_nonzero(mask, axis=0) <= GAP_MAX_PX
+    low = col_px <= GAP_MAX_PX
     if not low[1:-1].any():
         return []
     cuts: list[int] = []
@@ -228,13 +228,13 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
     dip = settings.split_dip_px
     if blob.w < 2 * settings.min_blob_width_px:
         return [blob]
-    gaps = _gaps(blob.mask, settings.split_gap_cols)
+    col_px = np.count_nonzero(blob.mask, axis=0)  # changed pixels per column: gaps, part widths, dips
+    gaps = _gaps(col_px, settings.split_gap_cols)
     top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
     head_dip = dip if dip > 0 else GAP_HEAD_DIP_PX
 
-    counts = np.count_nonzero(blob.mask, axis=0) if gaps else np.zeros(0, np.int64)
     widest = max(
-        (int(np.count_nonzero(counts[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w])), default=0
+        (int(np.count_nonzero(col_px[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w])), default=0
     )
 
     def ok_gap(a: int, b: int) -> bool:
@@ -243,7 +243,7 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
         # with a flat top -- an arm swung clear of the body -- stays with its neighbour.
         if not ok_part(blob, a, b, settings):
             return False
-        cols = counts[a:b] > GAP_MAX_PX
+        cols = col_px[a:b] > GAP_MAX_PX
         t = top[a:b][cols]
         if t.size == 0:
             return False
@@ -255,7 +255,6 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
 
     edges = _merge_weak([0, *gaps, blob.w], ok_gap) if gaps else [0, blob.w]
     if dip > 0:
-        col_px = np.count_nonzero(blob.mask, axis=0)
         radius = max(2, settings.min_blob_width_px // 2)
         fine: list[int] = [0]
         for a, b in itertools.pairwise(edges):
