@@ -399,8 +399,9 @@ class CameraPlacements:
         else:
             self._estimates[msg.manager_id] = list(msg.poses)
             moved = [e.sensor_id for e in msg.poses if e.source == "mutual"]
-            if not moved:
-                return None, []
+        # Always from the latest estimates: a robot whose pose a manager lost is no longer placed (no rays from it).
         self._poses = camera_poses(self._infos, (e for ests in self._estimates.values() for e in ests))
+        if not moved:
+            return None, []
         tfs = [tf for sid in moved if (tf := frame_transform(sid, self._poses.get(sid), stamp_ns)) is not None]
         return cameras_scene(list(self._infos.values()), stamp_ns, self._poses), tfs

@@ -166,3 +166,21 @@ def test_mobile_camera_is_drawn_where_the_manager_places_it(tmp_path: Path) -> N
     assert robot["cubes"][0]["pose"]["position"] == {"x": 3.0, "y": 2.0, "z": 1.1}
     tfs = [body for topic, body in msgs if topic == "/tf" and body["child_frame_id"] == "robot"]
     assert tfs and tfs[-1]["translation"] == {"x": 3.0, "y": 2.0, "z": 1.1}
+
+
+def test_a_pose_the_manager_lost_no_longer_places_the_camera() -> None:
+    from common.schema import ManagerStatus, PoseEstimate
+    from user_agent.foxglove import CameraPlacements
+
+    places = CameraPlacements()
+    places.update(msgspec_replace(_info("robot", 0.0, 0.0), pose_source="mutual"), EPOCH)
+    est = PoseEstimate(sensor_id="robot", pose=Pose(x_m=3.0, y_m=2.0, z_m=0.0, yaw_rad=0.5), source="mutual")
+
+    def status(poses: list[PoseEstimate]) -> ManagerStatus:
+        return ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=EPOCH, tick_ms=1.0, tick_p99_ms=1.0,
+                             tick_rate_hz=10.0, poses=poses)  # fmt: skip
+
+    places.update(status([est]), EPOCH)
+    assert places.camera_xyz["robot"] == (3.0, 2.0, 1.1)
+    places.update(status([]), EPOCH)  # the manager lost it: no rays drawn from where it was
+    assert "robot" not in places.camera_xyz
