@@ -149,7 +149,12 @@ class Associator:
             if ranked:
                 planned.add((min(ranked[0].a, ranked[0].b), max(ranked[0].a, ranked[0].b)))
         cache.prefetch(planned)
-        owner = {(sid, i): u for u, sp in zip(tracks, support, strict=True) for sid, i in sp.items()}
+        # Who owns each blob: only the group hold reads it (``group_coast_s`` > 0).
+        owner = (
+            {(sid, i): u for u, sp in zip(tracks, support, strict=True) for sid, i in sp.items()}
+            if self.config.match.group_coast_s > 0
+            else {}
+        )
         for tr, sup, sh, ranked in zip(tracks, support, shared, ranked_by, strict=True):
             for sid, i in itertools.chain(sup.items(), sh.items()):
                 used[sid].add(i)
@@ -264,12 +269,13 @@ class Associator:
         owner: dict[tuple[str, int], TrackRecord],
     ) -> bool:
         """Hold a well-followed track hidden in a merged group (:func:`.group.hidden_in_group`) where it is: no
-        miss counted, no velocity, for ``group_coast_s`` at most; the blobs it shares must be confirmed group mates'."""
+        miss counted, no velocity, for ``group_coast_s`` at most; at least one blob it shares must be a confirmed
+        group mate's."""
         limit_s = self.config.match.group_coast_s
         if limit_s <= 0 or (t_ns - tr.fixed_ns) / 1e9 > limit_s or tr.hits < HOLD_MIN_HITS:
             return False
-        mates = [u for u in (owner.get(b) for b in sh.items()) if u is not None and u is not tr and u.confirmed]
-        if not mates or not hidden_in_group(tr.x[:2], sup, sh, views):
+        mate = any(u is not None and u is not tr and u.confirmed for u in (owner.get(b) for b in sh.items()))
+        if not mate or not hidden_in_group(tr.x[:2], sup, sh, views):
             return False
         tr.x[2:] = 0.0  # where it was last seen: its mates' velocity carried a standing person off (replays)
         self.tracker.hold(tr)
@@ -341,7 +347,7 @@ class Associator:
                     linked = tr.links.get(a_id) == int(a.local_id[ii]) and tr.links.get(b_id) == int(b.local_id[jj])
                     if not linked or float(np.hypot(*(meas.xy - tr.x[:2]))) > self.config.match.link_gate_m:
                         continue
-                if self._owned_elsewhere(tr, meas, tracks):
+                if owned_elsewhere(self.tracker, tr, meas, tracks):
                     continue  # another, better-followed track explains this fix better: not this one's
                 if self._unlike(tr, ((a_id, ii), (b_id, jj)), views):
                     continue  # in someone else's colours
@@ -374,9 +380,6 @@ class Associator:
             pairs.append((None if hs is None else hs[i], tr.looks.get(sid)))
         sim = mean_similarity(pairs)
         return sim is not None and sim < floor
-
-    def _owned_elsewhere(self, tr: TrackRecord, meas: Measurement, tracks: list[TrackRecord]) -> bool:
-        return owned_elsewhere(self.tracker, tr, meas, tracks)
 
     # -- step 3 -----------------------------------------------------------------
     def _nobody_there(self, xy: FloatArray) -> bool:

@@ -195,13 +195,17 @@ class Fusion:
         # gives no views: the tracks carry on with the other cameras (settling.py).
         positions = {sid: p.origin for sid, p in poses.items()}
         driving = self.planner.driving(positions, t_ns) if self.planner.held else frozenset()
-        unsettled = self.trust.update(
-            t_ns,
-            poses,
-            mobile=[sid for sid, info in self.poses.infos.items() if info.mobile],
-            en_route=self.planner.en_route(positions) if self.planner.held else (),
-            with_blobs=[sid for sid, v in aligned.items() if v.blobs],
-            states=self._detector_states(t_ns),
+        unsettled = (
+            self.trust.update(
+                t_ns,
+                poses,
+                mobile=[sid for sid, info in self.poses.infos.items() if info.mobile],
+                en_route=self.planner.en_route(positions) if self.planner.held else (),
+                with_blobs=[sid for sid, v in aligned.items() if v.blobs],
+                states=self._detector_states(t_ns),
+            )
+            if self.trust.params.enabled
+            else frozenset()
         )
         outcome = self.associator.run(
             {sid: v for sid, v in aligned.items() if sid not in unsettled} if unsettled else aligned,

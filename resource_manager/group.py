@@ -9,10 +9,11 @@ angular extent. This stage turns that into a floor fix by least squares on beari
 
 * each own view: the blob's head bearing with the view's sigma (inflated for a head cut by the panorama's top
   border: :data:`CUT_SIGMA_FACTOR`);
-* each shared view: the track's predicted bearing clamped into the blob's extent (head bearing ± half its
-  width, less half a person's width at the predicted distance), with a sigma of a quarter of that extent. While
-  the prediction lies inside the extent, the shared view only holds the position along the own ray where the
-  prediction has it; when the prediction drifts out of the blob, it is pulled back to the blob's edge.
+* each shared view: the track's predicted bearing clamped into the blob's extent (head bearing ± its
+  width, less half a person's width at the predicted distance: the head may be at either edge of the
+  blob), with a sigma of a quarter of that extent. While the prediction lies inside the extent, the shared
+  view only holds the position along the own ray where the prediction has it; when the prediction drifts
+  out of the blob, it is pulled back to the blob's edge.
 
 The fix keeps a confirmed track on its person through the 1-3 s its group stays merged, instead of coasting off
 and dying (then being reborn under a new id). It is used only for a confirmed track whose own blob continues the

@@ -271,13 +271,14 @@ class Tracker:
         for old in self.lost:
             dt_s = max(0.0, (tr.t_ns - old.t_ns) / 1e9)
             d = math.hypot(float(tr.x[0] - old.x[0]), float(tr.x[1] - old.x[1]))
-            sure = p.sure_look_min > 0 and (look_similarity(tr, old) or 0.0) >= p.sure_look_min
+            sim = look_similarity(tr, old)
+            sure = p.sure_look_min > 0 and (sim or 0.0) >= p.sure_look_min
             reach_m = 2.0 * p.relink_m + 1.0 * dt_s if sure else p.relink_m + 0.5 * dt_s
             if dt_s > p.relink_s or d > reach_m:
                 continue
             if tr.height_m > 0 and old.height_m > 0 and abs(tr.height_m - old.height_m) > 0.15:
                 continue  # a head this much taller or shorter is someone else
-            if self._differ(tr, old):
+            if self._looks_apart(sim):
                 continue  # another shirt
             if d < best_d:
                 best, best_d = old, d
@@ -289,10 +290,11 @@ class Tracker:
 
     def _differ(self, a: TrackRecord, b: TrackRecord) -> bool:
         """True if two tracks' colour looks say they are two people."""
-        if self.params.same_look_min <= 0:
-            return False
-        sim = look_similarity(a, b)
-        return sim is not None and sim < self.params.same_look_min
+        return self.params.same_look_min > 0 and self._looks_apart(look_similarity(a, b))
+
+    def _looks_apart(self, sim: float | None) -> bool:
+        """True if a similarity of two tracks' looks (None: nothing to compare) says they are two people."""
+        return self.params.same_look_min > 0 and sim is not None and sim < self.params.same_look_min
 
     def prune(self) -> list[TrackRecord]:
         """Remove dead tracks; return the confirmed ones that ended (their ids are retired)."""

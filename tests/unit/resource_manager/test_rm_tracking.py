@@ -10,6 +10,7 @@ import pytest
 
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig, ManagerSection, MatchSection, PlannerSection, TrackerSection
+from resource_manager.fixcheck import owned_elsewhere
 from resource_manager.group import HOLD_MIN_HITS, hidden_in_group
 from resource_manager.localize import Measurement
 from resource_manager.looks import bhattacharyya, learn_look, mean_similarity
@@ -67,19 +68,17 @@ def _config(*, shared_pairs: bool = False, **tracker: object) -> ManagerConfig:
 
 
 def test_a_fix_a_more_recently_measured_track_explains_better_is_not_a_coasting_tracks() -> None:
-    cfg = _config(max_gate_m=1.0)
     tracker, active = _coasting(TrackParams(max_misses=50, max_gate_m=1.0), misses=0)
     _, lost = _coasting(TrackParams(max_misses=50, max_gate_m=1.0), misses=6)
     tracker.tracks.append(lost)
     lost.x[:2] = active.x[:2] + np.array([0.6, 0.0])
-    assoc = Associator(cfg, tracker)
     tracks = tracker.tracks
     at_active = _meas(float(active.x[0]) + 0.05, float(active.x[1]))
     assert math.isfinite(tracker.gate_distance(lost, at_active))  # inside its gate...
-    assert assoc._owned_elsewhere(lost, at_active, tracks)  # ...but the active one's
-    assert not assoc._owned_elsewhere(active, at_active, tracks)
+    assert owned_elsewhere(tracker, lost, at_active, tracks)  # ...but the active one's
+    assert not owned_elsewhere(tracker, active, at_active, tracks)
     at_lost = _meas(float(lost.x[0]) + 0.1, float(lost.x[1]))
-    assert not assoc._owned_elsewhere(lost, at_lost, tracks)
+    assert not owned_elsewhere(tracker, lost, at_lost, tracks)
 
 
 CAMS = [Cam("c1", 0.0, 3.0), Cam("c2", 6.0, 0.0, yaw=math.pi / 2), Cam("c3", 6.0, 6.0, yaw=math.pi)]
