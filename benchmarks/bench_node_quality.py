@@ -69,7 +69,7 @@ import msgspec
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from common.scenario import World, sensor_bearing
+from common.scenario import World, sensor_bearing, site_with_seed
 from common.schema import Blob
 from common.site import CameraSpec, SiteConfig, load_site
 from sensor_node.config import BodySpec, PipelineSettings
@@ -389,9 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict[str, Any] = {"benchmark": "sensor_node.quality", "settings": vars(args) | {"site": sites}}
     t_start = time.perf_counter()
     for path in sites:
-        site = load_site(Path(path))
-        if args.world_seed is not None:
-            site = msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=args.world_seed))
+        site = site_with_seed(load_site(Path(path)), args.world_seed)
         pooled = _Scores()
         per_cam: dict[str, Any] = {}
         f_h = 1.0

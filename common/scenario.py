@@ -55,6 +55,7 @@ __all__ = [
     "World",
     "goals_from_plans",
     "sensor_bearing",
+    "site_with_seed",
     "site_with_seed_from_env",
     "world_time_s",
     "write_gt_csv",
@@ -401,7 +402,14 @@ def site_with_seed_from_env(site: SiteConfig, env: Mapping[str, str] | None = No
         seed = int(raw)
     except ValueError as err:
         raise ConfigError(f"{SEED_ENV} must be an integer, got {raw!r}") from err
-    return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=seed))
+    return site_with_seed(site, seed)
+
+
+def site_with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
+    """The site with its world seed replaced by ``seed`` (None: unchanged)."""
+    if seed is None:
+        return site
+    return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=int(seed)))
 
 
 def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Goal]:

@@ -26,8 +26,6 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-import msgspec
-
 from common.codec import encode
 from common.errors import ConfigError, SessionError
 from common.keys import Keys
@@ -99,12 +97,6 @@ def _wait_router(router: Supervisor, endpoint: str, log: Path, timeout_s: float 
     raise SessionError(f"the demo's router did not report listening on {endpoint} within {timeout_s:g} s")
 
 
-def _with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
-    if seed is None:
-        return site
-    return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=seed))
-
-
 def _progress(elapsed: float, duration: float, client: Any) -> str:
     tracks = client.tracks(timeout_s=0)
     return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
@@ -112,11 +104,12 @@ def _progress(elapsed: float, duration: float, client: Any) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; returns 0 when it completed (whatever the scores)."""
+    from common.scenario import site_with_seed
     from user_agent.client import AgentClient
     from user_agent.record import McapSink, Recorder
     from user_agent.views import CLEAR_SCREEN, watch_screen
 
-    site = _with_seed(load_site(args.site or default_site()), args.seed)
+    site = site_with_seed(load_site(args.site or default_site()), args.seed)
     dataset = site.dataset
     fps = dataset.fps if dataset is not None else site.site.fps
     if args.duration is not None:

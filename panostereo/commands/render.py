@@ -27,7 +27,7 @@ import msgspec
 import numpy as np
 
 from common.errors import ConfigError
-from common.scenario import World, sensor_bearing, site_with_seed_from_env
+from common.scenario import World, sensor_bearing, site_with_seed, site_with_seed_from_env
 from common.site import load_site
 from sensor_node.render import PanoramicRenderer, PtzRenderer
 
@@ -62,9 +62,7 @@ def _write(path: Path, img: np.ndarray[Any, Any]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render the frame(s) and print the summary."""
-    site = site_with_seed_from_env(load_site(args.site))
-    if args.seed is not None:
-        site = msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=int(args.seed)))
+    site = site_with_seed(site_with_seed_from_env(load_site(args.site)), args.seed)
     if not math.isfinite(args.time) or args.time < 0:
         raise ConfigError(f"--time must be a finite number >= 0, got {args.time}")
     cam = site.camera_by_id(args.camera)
