@@ -80,7 +80,7 @@ def found(err_m: float, found_m: float) -> float:
 
 
 def move_payoff(
-    sc: Scene, p: PlannerParams, goal_xy: FloatArray, goal_err: float, found_here: float
+    sc: Scene, p: PlannerParams, goal_xy: FloatArray, goal_err: float, found_here: float, *, others_err: float
 ) -> tuple[float, float, float]:
     """(found person-seconds gained, lost, seconds blind) if the mobile camera of ``sc`` drives to ``goal_xy``.
 
@@ -88,11 +88,12 @@ def move_payoff(
     for nothing (:mod:`resource_manager.settling`): each person it helps localise who has no other pair
     then (fewer than two other cameras) is lost, who is found now with probability :func:`found` of their
     predicted error (the target: ``found_here``). Then, for ``horizon_s``, the target is found with the
-    goal's predicted error (Fig. 4's map, model M1) instead -- or the other cameras' best pair's, if better.
+    goal's predicted error (Fig. 4's map, model M1) instead -- or the other cameras' best pair's
+    (``others_err``, :func:`others_error`), if better.
     """
     cam = sc.cam
     blind_s = float(np.hypot(*(goal_xy - cam.xy))) / max(p.speed_mps, 1e-3) + p.settle_cost_s
-    gain = p.horizon_s * (found(min(goal_err, others_error(sc)), p.found_m) - found_here)
+    gain = p.horizon_s * (found(min(goal_err, others_err), p.found_m) - found_here)
     cost = 0.0
     if len(sc.fixed) < 2:
         cost = blind_s * sum(

@@ -274,22 +274,16 @@ class ViewPlanner:
                     float(np.hypot(*(t.xy - cam.xy))),
                 ),
             )
+            rest = [c for c in cameras if c.sensor_id != cam.sensor_id]
+            fixed = [self._fixed(c) for c in rest]
+            # Where the other robots are going counts as well as where they are.
+            others = rest + [f for c, f in zip(rest, fixed, strict=True) if f is not c]
+            busy = self.driving(positions, t_ns) - {cam.sensor_id}  # including goals sent this instant
             for tgt in order:
-                partners = [by_id[s] for s in tgt.sensors if s in by_id and s != cam.sensor_id]
-                if not partners:
-                    partners = [c for c in cameras if c.sensor_id != cam.sensor_id]
+                partners = [by_id[s] for s in tgt.sensors if s in by_id and s != cam.sensor_id] or rest
                 if not partners:
                     continue
                 main = min(partners, key=lambda c: float(np.hypot(*(c.xy - tgt.xy))))
-                others = [c for c in cameras if c.sensor_id != cam.sensor_id]
-                # Where the other robots are going counts as well as where they are.
-                others += [
-                    replace(c, xy=np.asarray(self.held[c.sensor_id].xy))
-                    for c in others
-                    if c.mobile and c.sensor_id in self.held
-                ]
-                fixed = [self._fixed(c) for c in cameras if c.sensor_id != cam.sensor_id]
-                busy = self.driving(positions, t_ns) - {cam.sensor_id}  # including goals sent this instant
                 scene = Scene(cam, main, tgt, others, targets, fixed, bool(busy))
                 goal = self._goal(t_ns, scene)
                 if goal is None:
@@ -375,11 +369,12 @@ class ViewPlanner:
         # A new target starts as found (no evidence yet that it is lost where the robot stands).
         avg, since = self.ref_avg.get(key, (1.0, t_ns))
         a = 1.0 - math.exp(-max(t_ns - since, 0) / 1e9 / max(p.persist_s, 1e-3))
-        here = avg + a * (found(min(ref_err, others_error(sc)), p.found_m) - avg)  # or the others' best pair
+        others_err = others_error(sc)
+        here = avg + a * (found(min(ref_err, others_err), p.found_m) - avg)  # or the others' best pair
         self.ref_avg[key] = (here, t_ns)
         if p.found_m <= 0:
             return True
-        gain, cost, blind_s = move_payoff(sc, p, goal_xy, goal_err, here)
+        gain, cost, blind_s = move_payoff(sc, p, goal_xy, goal_err, here, others_err=others_err)
         logger.debug(
             "plan %s: a move gains %.1f found s, loses %.1f (%.1f s blind)", cam.sensor_id, gain, cost, blind_s
         )
