@@ -38,7 +38,7 @@ from common.schema import Features, SensorInfo, TrackSet
 from common.site import load_site
 from resource_manager.config import ManagerConfig, load_manager_config
 from resource_manager.fusion import Batch, Fusion
-from user_agent.evaluate import MotAccumulator, frame_distances, hypotheses_from_tracksets
+from user_agent.evaluate import evaluate_positions, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.messages import decode_on_key
 from user_agent.record import keys_for
@@ -120,15 +120,10 @@ def score(
     hyps, frames = hypotheses_from_tracksets(
         tracksets, epoch, fps, gt.frame_numbers, start_ns=start if start >= 0 else None
     )
-    acc = MotAccumulator()
     per_s: dict[int, list[int]] = {}
     missed: dict[str, dict[int, int]] = {}
-    for f in sorted(frames):
-        objs = gt.frames.get(f, [])
-        hs = hyps.get(f, [])
-        events = acc.update(
-            [p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m)
-        )
+
+    def tally(f: int, events: list[tuple[str, str, str, float]]) -> None:
         second = int((f - 1) / fps)
         sec = per_s.setdefault(second, [0, 0, 0])
         for kind, obj, _hyp, _dist in events:
@@ -140,7 +135,8 @@ def score(
                 sec[1] += 1
             elif kind == "SWITCH":
                 sec[2] += 1
-    m = acc.summary(threshold_m)
+
+    m = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=tally)
     return {
         "mota": round(m.mota, 4),
         "idf1": round(m.idf1, 4),

@@ -26,7 +26,7 @@ floor positions, and :func:`hypotheses_from_tracksets` lines recorded
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -259,7 +259,11 @@ class MotAccumulator:
 
 
 def evaluate_positions(
-    gt: GroundTruth, hyps: dict[int, list[HypPoint]], threshold_m: float = 0.5, frames: Iterable[int] | None = None
+    gt: GroundTruth,
+    hyps: dict[int, list[HypPoint]],
+    threshold_m: float = 0.5,
+    frames: Iterable[int] | None = None,
+    on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
 ) -> MotMetrics:
     """Score floor positions against the ground truth.
 
@@ -268,6 +272,8 @@ def evaluate_positions(
         hyps: the tracks' positions, by the same frame numbers.
         threshold_m: a track farther than this from a person cannot be that person.
         frames: which frames to score (default: every ground-truth frame).
+        on_events: called with each scored frame's number and its events (:meth:`MotAccumulator.update`),
+            for a scorer that also wants to know where frames were lost.
     """
     if not threshold_m > 0:
         raise ConfigError(f"threshold must be > 0 m, got {threshold_m}")
@@ -275,7 +281,11 @@ def evaluate_positions(
     for k in sorted(gt.frames) if frames is None else sorted(frames):
         objs = gt.frames.get(k, [])
         hs = hyps.get(k, [])
-        acc.update([p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m))
+        events = acc.update(
+            [p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m)
+        )
+        if on_events is not None:
+            on_events(k, events)
     return acc.summary(threshold_m)
 
 
