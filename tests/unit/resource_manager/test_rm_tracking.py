@@ -59,10 +59,18 @@ def test_a_coasting_track_slows_down_and_a_measured_one_does_not() -> None:
     assert math.hypot(*active.x[2:]) > 0.9
 
 
-def _config(*, shared_pairs: bool = False, **tracker: object) -> ManagerConfig:
+def _config(
+    *,
+    match: dict[str, object] | None = None,
+    planner: dict[str, object] | None = None,
+    shared_pairs: bool = False,
+    **tracker: object,
+) -> ManagerConfig:
+    """Manager "m1" with these ``[match]``, ``[planner]`` and ``[tracker]`` keys, defaults elsewhere."""
     return ManagerConfig(
         manager=msgspec.convert({"id": "m1"}, ManagerSection),
-        match=msgspec.convert({"shared_pairs": shared_pairs}, MatchSection),
+        match=msgspec.convert({"shared_pairs": shared_pairs, **(match or {})}, MatchSection),
+        planner=msgspec.convert(planner or {}, PlannerSection),
         tracker=msgspec.convert(tracker, TrackerSection),
     )
 
@@ -185,9 +193,7 @@ def test_people_who_meet_keep_their_blobs_by_colour() -> None:
     plain = Associator(_config(), tracker)
     (sup_a, sup_b), _ = plain.support({"c1": view}, [a, b])
     assert (sup_a["c1"], sup_b["c1"]) == (1, 0)  # swapped by position and ids alone
-    cfg = ManagerConfig(
-        manager=msgspec.convert({"id": "m1"}, ManagerSection), match=msgspec.convert({"look_weight": 1.0}, MatchSection)
-    )
+    cfg = _config(match={"look_weight": 1.0})
     learn_look(a, {"c1": 0}, {"c1": _view([10.0], [red], [1])})
     learn_look(b, {"c1": 0}, {"c1": _view([11.5], [blue], [2])})
     (sup_a, sup_b), _ = Associator(cfg, tracker).support({"c1": view}, [a, b])
@@ -250,10 +256,7 @@ def test_a_fix_in_someone_elses_colours_is_not_the_tracks() -> None:
     tr = tracker.spawn(_meas(2.0, 2.0), 0, {})
     tr.state, tr.looks = "confirmed", _look(0)
     views = {"c1": _view([10.0, 20.0], [red, blue], [1, 2]), "c2": _view([30.0, 40.0], [red, blue], [1, 2])}
-    match = {"look_weight": 1.0, "fix_look_min": 0.85}
-    cfg = ManagerConfig(
-        manager=msgspec.convert({"id": "m1"}, ManagerSection), match=msgspec.convert(match, MatchSection)
-    )
+    cfg = _config(match={"look_weight": 1.0, "fix_look_min": 0.85})
     judge = Associator(cfg, tracker)
     assert judge._unlike(tr, (("c1", 1), ("c2", 1)), views)
     assert not judge._unlike(tr, (("c1", 0), ("c2", 0)), views)
@@ -297,10 +300,7 @@ def _group(shared_width_deg: float) -> tuple[dict[str, ViewBlobs], TrackRecord, 
 
 
 def _group_config(coast_s: float) -> ManagerConfig:
-    return ManagerConfig(
-        manager=msgspec.convert({"id": "m1"}, ManagerSection),
-        match=msgspec.convert({"group_coast_s": coast_s}, MatchSection),
-    )
+    return _config(match={"group_coast_s": coast_s})
 
 
 def test_a_wide_blob_explains_two_people_and_the_hidden_one_keeps_its_fix() -> None:
@@ -386,10 +386,7 @@ def test_nobody_is_fixed_or_born_outside_the_room() -> None:
     from tests.unit.resource_manager.test_rm_match import view
 
     def born(y: float) -> list[TrackRecord]:
-        cfg = ManagerConfig(
-            manager=msgspec.convert({"id": "m1"}, ManagerSection),
-            planner=msgspec.convert({"room": [0.0, 0.0, 6.0, 8.0]}, PlannerSection),
-        )
+        cfg = _config(planner={"room": [0.0, 0.0, 6.0, 8.0]})
         tracker = Tracker(TrackParams(), lambda: "m")
         assoc = Associator(cfg, tracker)
         views = {"c1": view("c1", (0.5, 0.5), [(3.0, y, 1.8, 1)]), "c2": view("c2", (5.5, 0.5), [(3.0, y, 1.8, 1)])}
