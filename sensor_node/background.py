@@ -298,11 +298,10 @@ class BackgroundModel:
             self._static = np.zeros_like(grey)
         self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
         if self._under is not None and self._bg is not None:
-            before = self._under.restored
-            back = self._under.restore(
+            back, regions = self._under.restore(
                 grey, still, self._bg, frame=self._frames, match_level=s.fg_threshold, least_px=s.min_blob_px
             )
-            self.restored += self._under.restored - before
+            self.restored += regions
             if back is not None:
                 self._static[back > 0] = 0
                 self._bg_u8 = cv2.convertScaleAbs(self._bg)

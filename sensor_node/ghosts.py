@@ -103,10 +103,10 @@ class UnderGhosts:
 
     def __init__(self, shape: tuple[int, int]) -> None:
         self._under = np.zeros(shape, np.float32)
+        self._under_u8 = np.zeros(shape, np.uint8)
+        """``_under`` as 8-bit grey levels, for matching frames (updated where ``keep`` writes)."""
         self._mask = np.zeros(shape, np.uint8)
         self._frame = np.zeros(shape, np.int32)
-        self.restored = 0
-        """Regions put back."""
 
     def keep(
         self, origin: tuple[int, int], take: npt.NDArray[np.bool_], sub: npt.NDArray[np.float32], frame: int
@@ -117,12 +117,13 @@ class UnderGhosts:
         box = (slice(y0, y0 + h), slice(x0, x0 + w))
         first = take & (self._mask[box] == 0)  # the model from before the first absorption
         self._under[box][first] = sub[first]
+        self._under_u8[box] = cv2.convertScaleAbs(self._under[box])
         self._frame[box][first] = frame
         self._mask[box][take] = 255
 
     def restore(
         self, grey: Mask, still: Mask, bg: npt.NDArray[np.float32], *, frame: int, match_level: int, least_px: int
-    ) -> Mask | None:
+    ) -> tuple[Mask | None, int]:
         """Put the kept model back into ``bg`` (in place) on still regions that the frame matches again.
 
         Args:
@@ -134,15 +135,16 @@ class UnderGhosts:
             least_px: the least region (pixels) tested: a whole object, not a few pixels of a passing shirt.
 
         Returns:
-            255 where the model was put back (None if nowhere).
+            255 where the model was put back (None if nowhere), and how many regions were.
         """
         self._mask[self._frame < frame - RESTORE_FRAMES] = 0
         cand = cv2.bitwise_and(still, self._mask)
         if cv2.countNonZero(cand) < least_px:
-            return None
-        near = cv2.absdiff(grey, cv2.convertScaleAbs(self._under)) <= match_level
+            return None, 0
+        near = cv2.absdiff(grey, self._under_u8) <= match_level
         n, labels, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
         done: Mask | None = None
+        regions = 0
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
             if area < least_px:
@@ -156,6 +158,6 @@ class UnderGhosts:
             if done is None:
                 done = np.zeros_like(self._mask)
             done[box][comp] = 255
-            self.restored += 1
+            regions += 1
             logger.debug("background under a ghost of %d px at column %d put back (the frame shows it)", area, x)
-        return done
+        return done, regions
