@@ -93,6 +93,12 @@ ON_BODY_MARGIN_PX = 2.0
 """A blob's head bearing may lie this far outside the silhouette's columns and still detect the person."""
 
 
+def _on_body(blob_u: Any, q: dict[str, Any], width: float) -> tuple[Any, Any]:
+    """Each blob's column offset from person ``q``'s head, and whether it lies on their silhouette's columns."""
+    e = _wrap(blob_u - q["u"], width)
+    return e, (e >= q["lo"] - ON_BODY_MARGIN_PX) & (e <= q["hi"] + ON_BODY_MARGIN_PX)
+
+
 def _wrap(x: np.ndarray | float, width: float) -> Any:
     """Column differences wrapped to [-W/2, W/2)."""
     return (np.asarray(x) + width / 2.0) % width - width / 2.0
@@ -259,19 +265,18 @@ def _score_frame(
             continue
         if any(gap(q, q2) <= ISOLATED_GAP_PX for q2 in persons if q2 is not q):
             continue
-        e = _wrap(blob_u - q["u"], width)
-        ok = (e >= q["lo"] - ON_BODY_MARGIN_PX) & (e <= q["hi"] + ON_BODY_MARGIN_PX)
+        e, ok = _on_body(blob_u, q, width)
         if ok.any():
             sc.err_cut_px.append(float(e[ok][np.argmin(np.abs(e[ok]))]))
     # Assignment: a blob's head bearing on the person's silhouette columns; min total |error|.
     if visible and n_b:
         cost = np.full((len(visible), n_b), 1e6)
         for i, q in enumerate(visible):
-            e = _wrap(blob_u - q["u"], width)
-            ok = (e >= q["lo"] - ON_BODY_MARGIN_PX) & (e <= q["hi"] + ON_BODY_MARGIN_PX)
+            e, ok = _on_body(blob_u, q, width)
             cost[i, ok] = np.abs(e[ok])
         rows, cols_a = linear_sum_assignment(cost)
-        assigned = {int(j) for i, j in zip(rows, cols_a, strict=True) if cost[i, j] < 1e6}
+        matched = [(int(i), int(j)) for i, j in zip(rows, cols_a, strict=True) if cost[i, j] < 1e6]
+        assigned = {j for _, j in matched}
         # A second blob on one person (over-splitting: an arm or a shoulder parted from the body).
         extra = [j for j in range(n_b) if j not in assigned and bool((cost[:, j] < 1e6).any())]
         # A blob on the head of someone partly hidden behind a visible person (less than HEAD_VISIBLE of
@@ -290,13 +295,11 @@ def _score_frame(
                 _describe(b, blob_u[j]),
                 [(round(q["u"], 1), round(q["a"], 1), round(q["b"], 1)) for q in visible],
             )
-        found = {int(i) for i, j in zip(rows, cols_a, strict=True) if cost[i, j] < 1e6}
+        found = {i for i, _ in matched}
         for i, q in enumerate(visible):
             if i not in found:
                 logger.debug("%s t=%.2f missed: person at u=%.1f [%.1f, %.1f]", cam.id, t_s, q["u"], q["a"], q["b"])
-        for i, j in zip(rows, cols_a, strict=True):
-            if cost[i, j] >= 1e6:
-                continue
+        for i, j in matched:
             q = visible[i]
             sc.detected += 1
             e = float(_wrap(blob_u[j] - q["u"], width))
