@@ -6,7 +6,25 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.cameras import CylindricalCamera
+
 W, H = 1080, 162
+WHITE = (255, 255, 255)
+
+
+class ColumnGeometry:
+    """Bearing = column, elevation = row (stages that need a geometry read heads off in pixels)."""
+
+    wraps = True
+
+    def bearing(self, u: float, v: float) -> float:
+        return u
+
+    def elevation(self, u: float, v: float) -> float:
+        return v
+
+    def width(self, u_left: float, u_right: float, v: float) -> float:
+        return u_right - u_left
 
 
 def backdrop(seed: int = 0, w: int = W, h: int = H) -> npt.NDArray[np.uint8]:
@@ -65,3 +83,13 @@ def noisy(
 
 def grey(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
     return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+
+
+def mask_of(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    """255 wherever a drawing on black is (people drawn on a zero image as a foreground mask)."""
+    return cv2.threshold(grey(img), 0, 255, cv2.THRESH_BINARY)[1]
+
+
+def pano_camera() -> CylindricalCamera:
+    """The W x H test panorama's cylindrical camera."""
+    return CylindricalCamera(W, H, f_v_px=250.0, v0_px=93.0, height_m=1.1)

@@ -2,20 +2,27 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
-from common.cameras import CylindricalCamera
 from sensor_node.blobs import RawBlob, find_blobs
 from sensor_node.config import PipelineSettings
 from sensor_node.features import PanoramicGeometry, annotate
 from sensor_node.groups import split_by_tracks
 from sensor_node.pipeline import ImagePipeline
 from sensor_node.split import split_at_heads
-from tests.unit.sensor_node.sn_synth import H, W, backdrop, draw_person, noisy
+from tests.unit.sensor_node.sn_synth import (
+    WHITE,
+    ColumnGeometry,
+    H,
+    W,
+    backdrop,
+    draw_person,
+    mask_of,
+    noisy,
+    pano_camera,
+)
 
-WHITE = (255, 255, 255)
 NEAR = {"top": 30, "head_w": 10, "body_w": 22}
 """A near person: big head high in the panorama, wide body."""
 FAR = {"top": 45, "head_w": 6, "body_w": 14}
@@ -32,28 +39,13 @@ def _draw(
 def _group_blob(near_u: float, far_u: float, s: PipelineSettings) -> tuple[RawBlob, np.ndarray]:
     img = np.zeros((H, W, 3), np.uint8)
     _draw(img, near_u, far_u, WHITE, WHITE)
-    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    fg = mask_of(img)
     (blob,) = find_blobs(fg, fg, s)
     return blob, fg
 
 
-class _Cols:
-    """Bearing = column (so heads are read off in pixels)."""
-
-    wraps = True
-
-    def bearing(self, u: float, v: float) -> float:
-        return u
-
-    def elevation(self, u: float, v: float) -> float:
-        return -v
-
-    def width(self, u_left: float, u_right: float, v: float) -> float:
-        return u_right - u_left
-
-
 def _heads(parts: list[RawBlob], s: PipelineSettings) -> list[float]:
-    return sorted(annotate(p, None, _Cols(), s.head_ratio).head_u_px % W for p in parts)
+    return sorted(annotate(p, None, ColumnGeometry(), s.head_ratio).head_u_px % W for p in parts)
 
 
 @pytest.mark.parametrize(("near_u", "far_u"), [(316.0, 330.0), (344.0, 330.0), (1075.0, 9.0)])
@@ -73,7 +65,7 @@ def test_two_heads_with_a_shallow_valley_are_cut_at_its_bottom() -> None:
     for u in (400.0, 414.0):  # shoulder to shoulder: the valley is 4 rows deep (split_dip_px is 8)
         draw_person(img, u, top=40, head_w=10, body_w=16, shirt=WHITE, head=WHITE)
     img[44:53, 403:412] = WHITE  # hands raised between them fill the valley up to 4 rows below the heads
-    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    fg = mask_of(img)
     (blob,) = find_blobs(fg, fg, s)
     assert split_at_heads(blob, fg, s, W) == [blob]
     parts = split_by_tracks(blob, [399.0, 415.0], fg, s, W)
@@ -94,7 +86,7 @@ def test_a_body_is_not_cut_off_its_own_shoulder() -> None:
     s = PipelineSettings()
     img = np.zeros((H, W, 3), np.uint8)
     draw_person(img, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
-    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    fg = mask_of(img)
     (blob,) = find_blobs(fg, fg, s)
     assert split_by_tracks(blob, [500.0, 509.0], fg, s, W) == [blob]
 
@@ -104,7 +96,7 @@ def _walk(settings: PipelineSettings) -> list[tuple[float, float, list[float]]]:
 
     Returns (near head column, far head column, reported head columns) per frame once both are in view.
     """
-    cam = CylindricalCamera(W, H, f_v_px=250.0, v0_px=93.0, height_m=1.1)
+    cam = pano_camera()
     pipe = ImagePipeline("cam", PanoramicGeometry(cam), settings)
     rng = np.random.default_rng(4)
     base = backdrop(4)

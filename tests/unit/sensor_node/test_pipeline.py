@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from common.cameras import CylindricalCamera
 from sensor_node.config import PipelineSettings
 from sensor_node.features import PanoramicGeometry
 from sensor_node.pipeline import ImagePipeline
-from tests.unit.sensor_node.sn_synth import H, W, backdrop, draw_person, noisy
+from tests.unit.sensor_node.sn_synth import W, backdrop, draw_person, noisy, pano_camera
 
 
 def _pipeline(*, mobile: bool = False) -> ImagePipeline:
-    cam = CylindricalCamera(W, H, f_v_px=250.0, v0_px=93.0, height_m=1.1)
+    cam = pano_camera()
     return ImagePipeline(
         "cam", PanoramicGeometry(cam), PipelineSettings(warmup_frames=5, warmup_stride=1), mobile=mobile
     )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
@@ -10,9 +9,7 @@ from sensor_node.blobs import find_blobs
 from sensor_node.config import PipelineSettings
 from sensor_node.features import annotate
 from sensor_node.split import split_at_heads, top_profile
-from tests.unit.sensor_node.sn_synth import H, W, draw_person
-
-WHITE = (255, 255, 255)
+from tests.unit.sensor_node.sn_synth import WHITE, ColumnGeometry, H, W, draw_person, mask_of
 
 
 def _mask(people: list[tuple[float, int]]) -> np.ndarray:
@@ -20,7 +17,7 @@ def _mask(people: list[tuple[float, int]]) -> np.ndarray:
     img = np.zeros((H, W, 3), np.uint8)
     for u, top in people:
         draw_person(img, u, top=top, shirt=WHITE, head=WHITE)
-    return cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    return mask_of(img)
 
 
 def _split(fg: np.ndarray, settings: PipelineSettings) -> list:
@@ -35,7 +32,7 @@ def test_people_side_by_side_are_split_at_the_valley_between_their_heads(people:
     s = PipelineSettings(split_dip_px=8)
     parts = _split(_mask(people), s)
     assert len(parts) == 2
-    heads = sorted((b.u0 + annotate(b, None, _Cols(), s.head_ratio).head_u_px - b.u0) % W for b in parts)
+    heads = sorted((b.u0 + annotate(b, None, ColumnGeometry(), s.head_ratio).head_u_px - b.u0) % W for b in parts)
     assert heads == pytest.approx(sorted(u % W for u, _ in people), abs=1.0)
 
 
@@ -58,7 +55,7 @@ def test_a_gap_in_the_projection_profile_parts_what_grouping_joined() -> None:
     (blob,) = find_blobs(fg, fg, s)
     parts = split_at_heads(blob, fg, s, W)
     assert [(p.u0, p.w) for p in parts] == [(384, 28), (420, 20)]
-    head = annotate(parts[0], None, _Cols(), s.head_ratio)
+    head = annotate(parts[0], None, ColumnGeometry(), s.head_ratio)
     assert head.head_u_px == pytest.approx(400.0, abs=0.5)
     # A fragment too small to be a blob stays with its neighbour; off (0) keeps the blob whole.
     fg[70:162, 420:440] = 0
@@ -80,21 +77,6 @@ def test_splitting_off_when_dip_is_zero_and_profile_of_a_blob() -> None:
     assert top_profile(m).tolist() == [2, 4, 1]
 
 
-class _Cols:
-    """Column = bearing geometry (annotate needs one)."""
-
-    wraps = True
-
-    def bearing(self, u: float, v: float) -> float:
-        return u
-
-    def elevation(self, u: float, v: float) -> float:
-        return v
-
-    def width(self, u_left: float, u_right: float, v: float) -> float:
-        return u_right - u_left
-
-
 def test_a_person_beside_a_sparse_region_survives_the_changed_fraction_check() -> None:
     # A person 6 columns from a wide, sparse region (a ghost's speckle): grouped, the box is mostly
     # empty and fails min_changed_frac; parted first, the person passes it on their own.
@@ -106,7 +88,7 @@ def test_a_person_beside_a_sparse_region_survives_the_changed_fraction_check() -
     (blob,) = find_blobs(fg, fg, s, check_frac=False)
     parts = [p for p in split_at_heads(blob, fg, s, W) if p.changed_frac >= s.min_changed_frac]
     assert len(parts) == 1
-    assert annotate(parts[0], None, _Cols(), s.head_ratio).head_u_px == pytest.approx(400.0, abs=0.5)
+    assert annotate(parts[0], None, ColumnGeometry(), s.head_ratio).head_u_px == pytest.approx(400.0, abs=0.5)
 
 
 def test_an_arm_swung_clear_of_the_body_stays_with_it() -> None:
@@ -142,9 +124,9 @@ def test_a_far_person_much_narrower_than_a_near_one_beside_them_is_split_off() -
     img = np.zeros((H, W, 3), np.uint8)
     draw_person(img, 400.0, top=20, head_w=14, body_w=70, shirt=WHITE, head=WHITE)
     draw_person(img, 442.0, top=50, head_w=8, body_w=20, shirt=WHITE, head=WHITE)
-    fg = cv2.threshold(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), 0, 255, cv2.THRESH_BINARY)[1]
+    fg = mask_of(img)
     s = PipelineSettings()
     parts = _split(fg, s)
     assert len(parts) == 2
-    heads = sorted(p.u0 + annotate(p, None, _Cols(), s.head_ratio).head_u_px - p.u0 for p in parts)
+    heads = sorted(p.u0 + annotate(p, None, ColumnGeometry(), s.head_ratio).head_u_px - p.u0 for p in parts)
     assert heads == pytest.approx([400.0, 442.0], abs=1.0)
