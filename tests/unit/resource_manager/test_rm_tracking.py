@@ -146,12 +146,17 @@ def _confirm(tracker: Tracker, x: float, y: float, start: int, colour: int | Non
     return new, start + 3
 
 
-def test_a_lost_track_lends_its_id_to_a_new_track_where_it_was_lost() -> None:
-    params = TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0)
-    tracker, tr = _coasting(params, misses=0)
+def _relinking() -> tuple[Tracker, TrackRecord]:
+    """A tracker that holds lost ids 2 s (relink_m 1 m), new ids m-2, m-3, ..., and its confirmed track m-1."""
+    tracker, tr = _coasting(TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0), misses=0)
     n = iter(range(2, 100))
     tracker.new_id = lambda: f"m-{next(n)}"
     tr.height_m = 1.75
+    return tracker, tr
+
+
+def test_a_lost_track_lends_its_id_to_a_new_track_where_it_was_lost() -> None:
+    tracker, tr = _relinking()
     assert tr.track_id == "m-1"
     k, ended = _lose(tracker, tr, 6, 5)
     assert ended == [] and tr not in tracker.tracks and tracker.lost == [tr]  # held, not published, not ended
@@ -205,11 +210,7 @@ def _look(k: int) -> dict[str, np.ndarray]:
 
 
 def test_a_lost_track_lends_its_id_only_to_a_track_with_its_shirt() -> None:
-    params = TrackParams(max_misses=3, relink_s=2.0, relink_m=1.0)
-    tracker, tr = _coasting(params, misses=0)
-    n = iter(range(2, 100))
-    tracker.new_id = lambda: f"m-{next(n)}"
-    tr.height_m = 1.75
+    tracker, tr = _relinking()
     tr.looks = _look(0)
     k, _ = _lose(tracker, tr, 6, 5)
     other, k = _confirm(tracker, float(tr.x[0]) + 0.4, float(tr.x[1]), k, colour=3)
