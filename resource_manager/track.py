@@ -170,12 +170,25 @@ class Tracker:
         return max(self.params.gate_min_m, radius)
 
     def update(self, tr: TrackRecord, m: Measurement, links: dict[str, int]) -> None:
-        """Kalman update with a measurement; counts a hit and may confirm the track."""
+        """Kalman update with a measurement; counts a hit and may confirm the track.
+
+        A measurement outside the motion gate (taken because the nodes' 2D tracks say it is the same person,
+        ``match.link_gate_m``) contradicts the constant-velocity model: it moves the position as usual but not
+        the velocity, which keeps its prediction with the uncertainty of a new track. The Kalman gain would turn
+        the whole jump into metres per second (one camera's blob merged with a ghost for a tick: 2.2 m/s in a
+        paper1 replay), and the track would walk off on it while the next fixes are missing.
+        """
+        jump = not math.isfinite(self.gate_distance(tr, m))
+        velocity = tr.x[2:].copy()
         nu, s = self.innovation(tr, m)
         k = tr.p @ _H.T @ np.linalg.inv(s)
         tr.x = tr.x + k @ nu
         tr.p = (np.eye(4) - k @ _H) @ tr.p
         tr.p = 0.5 * (tr.p + tr.p.T)
+        if jump:
+            tr.x[2:] = velocity
+            tr.p[2:, :2] = tr.p[:2, 2:] = 0.0
+            tr.p[2:, 2:] = self.params.init_speed_sigma_mps**2 * np.eye(2)
         self._clamp_speed(tr)
         if m.height_m > 0:
             a = self.params.height_alpha if tr.height_m > 0 else 1.0
@@ -240,9 +253,7 @@ class Tracker:
     def spawn(self, m: Measurement, t_ns: int, links: dict[str, int]) -> TrackRecord:
         """Start a tentative track at a measurement."""
         self._serial += 1
-        p = np.zeros((4, 4))
-        p[:2, :2] = m.cov + self.params.min_meas_sigma_m**2 * np.eye(2)
-        p[2, 2] = p[3, 3] = self.params.init_speed_sigma_mps**2
+        p = self._initial_cov(m)
         tr = TrackRecord(
             serial=self._serial,
             x=np.array([m.xy[0], m.xy[1], 0.0, 0.0]),
@@ -262,6 +273,13 @@ class Tracker:
             tr.track_id = self.new_id()
         self.tracks.append(tr)
         return tr
+
+    def _initial_cov(self, m: Measurement) -> FloatArray:
+        """State covariance of a track started at a measurement: its position error, an unknown walking speed."""
+        p = np.zeros((4, 4))
+        p[:2, :2] = m.cov + self.params.min_meas_sigma_m**2 * np.eye(2)
+        p[2, 2] = p[3, 3] = self.params.init_speed_sigma_mps**2
+        return p
 
     def _relink(self, tr: TrackRecord) -> str:
         """The id of the lost track nearest a newly confirmed one, if it is near enough to be that person."""

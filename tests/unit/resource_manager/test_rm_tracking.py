@@ -59,6 +59,25 @@ def test_a_coasting_track_slows_down_and_a_measured_one_does_not() -> None:
     assert math.hypot(*active.x[2:]) > 0.9
 
 
+def test_a_fix_outside_the_motion_gate_moves_the_track_but_not_its_velocity() -> None:
+    # A fix taken outside the gate (the nodes' 2D tracks link it, match.link_gate_m) used to be a Kalman step
+    # whose gain turned the 0.8 m jump into metres per second (paper1 replay: 2.2 m/s, the track walked off).
+    tracker, tr = _coasting(TrackParams(max_misses=50), misses=0)
+    walking = tr.x[2:].copy()
+    tracker.predict(600_000_000)
+    sideways = _meas(float(tr.x[0]), float(tr.x[1]) + 0.8)
+    assert math.isinf(tracker.gate_distance(tr, sideways))
+    tracker.update(tr, sideways, {})
+    assert float(tr.x[1]) > 0.4  # the position follows the fix
+    assert np.allclose(tr.x[2:], walking)  # the velocity is the prediction's
+    assert tr.p[2, 2] == pytest.approx(tracker.params.init_speed_sigma_mps**2)  # ...and as uncertain as at birth
+    inside = _meas(float(tr.x[0]) + 0.1 + 0.1, float(tr.x[1]))
+    tracker.predict(700_000_000)
+    assert math.isfinite(tracker.gate_distance(tr, inside))
+    tracker.update(tr, inside, {})
+    assert float(tr.x[2]) > float(walking[0])  # a fix inside the gate still steers the velocity
+
+
 def _config(
     *,
     match: dict[str, object] | None = None,
