@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
-from sensor_node.ghosts import UnderGhosts, surround_deviation
+from sensor_node.ghosts import UnderGhosts, start_up_hole, surround_deviation
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
 
@@ -94,7 +94,10 @@ class BackgroundModel:
         the ghost checks clean up after anyone who stood still), else ``warmup_stride``."""
         self._static: Mask | None = None
         self._born: Mask | None = None
-        """Changed pixels that have stayed changed since the model was learnt: where a start-up hole can be."""
+        """Changed pixels that have stayed changed since the model was learnt, or since the last of its first
+        ``BORN_FRAMES`` normal frames: where a start-up hole can be."""
+        self._born_age = 0
+        """Normal frames seen since the model was learnt (up to the re-seeding of ``_born``)."""
         self._under: UnderGhosts | None = None
         """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
         self._last_fg: Mask | None = None
@@ -165,7 +168,15 @@ class BackgroundModel:
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
-            self._born = fg.copy() if self._born is None else cv2.bitwise_and(self._born, fg)
+            # Born: changed ever since the model was learnt. Someone standing in the view while it was
+            # learnt is in the model, and their hole opens only as they walk off: what is changed at the
+            # end of the model's first BORN_FRAMES counts too (not what changed meanwhile and left: anyone
+            # in view then would count).
+            self._born_age += 1
+            if self._born is None or self._born_age == BORN_FRAMES:
+                self._born = fg.copy()
+            else:
+                cv2.bitwise_and(self._born, fg, dst=self._born)
             self._update_static(grey, fg, moving)
             self._last_fg = fg
             return Motion(fg, moving, "ok", frac)
@@ -226,6 +237,7 @@ class BackgroundModel:
         self._stride = 1
         self._static = None
         self._born = None
+        self._born_age = 0
         self._under = None
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
@@ -282,10 +294,11 @@ class BackgroundModel:
         background after ``still_absorb_frames``, so no ghost stays.
 
         The surface beside a region is a second test (:func:`~sensor_node.ghosts.surround_deviation`):
-        a region changed ever since the model was learnt whose frame continues the surface on
-        both sides while the model differs from it is a start-up hole, absorbed at its first test
-        even when its outline says nothing (a plain shirt before a textured wall); an outline
-        "ghost" whose frame is no closer to its surroundings than the model is, is not absorbed.
+        a region changed ever since the model was young (*born*) is a start-up hole unless the frame,
+        not the model, clearly departs from the surface beside it (:func:`~sensor_node.ghosts.start_up_hole`),
+        absorbed at its first test whatever its outline says (a plain shirt before a textured wall; a
+        grey shirt held where the frame shows a bright ceiling corner); an outline "ghost" whose frame
+        is no closer to its surroundings than the model is, is not absorbed.
         What an absorption overwrote (outside start-up holes) is kept a while and put back where
         the frame shows it again (:class:`~sensor_node.ghosts.UnderGhosts`).
         """
@@ -340,10 +353,9 @@ class BackgroundModel:
             )
             # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
             dev_cur, dev_bg = surround_deviation(grey, self._bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
+            hole = born and dev_cur + dev_bg > 0.0 and start_up_hole(dev_cur, dev_bg)
             if dev_cur + dev_bg > 0.0:
-                ghost = (ghost and dev_cur < dev_bg) or (
-                    born and dev_bg >= SURROUND_MIN_DEV and dev_cur <= SURROUND_GHOST * dev_bg
-                )
+                ghost = hole or (ghost and dev_cur < dev_bg)
             logger.debug(
                 "still region x=%d w=%d area=%d: bg edge %.1f, frame edge %.1f, age %d, ghost %s, dev cur %.1f bg %.1f",
                 x,
@@ -381,9 +393,10 @@ class BackgroundModel:
                 continue
             take = grown & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
             sub = self._bg[y0:y1, x0:x1]
-            if not born:
-                # A region changed since the model was learnt is a start-up hole (the model holds whoever
-                # stood there): nothing to put back. Anything else may be a mistake: keep what was there.
+            if not hole:
+                # A start-up hole (the model holds whoever stood there): nothing to put back. Anything else
+                # may be a mistake -- a born region too: someone in view since the model was young who
+                # stood still -- keep what was there.
                 if self._under is None:
                     self._under = UnderGhosts(grey.shape)
                 self._under.keep((x0, y0), take, sub, self._frames)
@@ -405,6 +418,10 @@ EGO_SECTOR_PX = 10
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
 
+BORN_FRAMES = 30
+"""Normal frames (2 s at 15 fps) after the model is learnt during which someone who stood in the view while
+it was learnt can walk off and leave a start-up hole (changed pixels still changed at the end of them)."""
+
 MIN_LIGHT_STEP = 0.04
 """A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
 
@@ -419,14 +436,6 @@ GHOST_RING_CHANGED = 0.35
 
 PERSON_SCORE = 1.5
 """Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""
-
-SURROUND_GHOST = 0.5
-"""A still region whose frame is this much closer (grey-level deviation ratio) to the surface beside it than
-the model is, is a ghost: a hole left by someone who walked away."""
-
-SURROUND_MIN_DEV = 15.0
-"""Least mean grey-level deviation of the model from the surface beside a still region for the surround test
-to call it a ghost (the model must hold something there)."""
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)

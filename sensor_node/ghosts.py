@@ -2,11 +2,12 @@
 
 Used by :mod:`sensor_node.background` (stage 2). A *ghost* is a changed region
 where something that was in the background left (a person who stood still
-while the model was learnt). Two helpers:
+while the model was learnt). The helpers:
 
 * :func:`surround_deviation` -- how far the frame and the model inside a still
   region are from the surface beside it: a hole shows in the frame what
   continues on both sides, while the model still holds whoever left;
+  :func:`start_up_hole` judges a region changed since the model was young by it;
 * :class:`UnderGhosts` -- the model as it was under absorbed ghosts, put back
   where the frame shows it again (the absorption was a mistake: someone in
   front of a narrow bright window looks like a ghost of the window).
@@ -21,7 +22,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["UnderGhosts", "surround_deviation"]
+__all__ = ["UnderGhosts", "start_up_hole", "surround_deviation"]
 
 logger = logging.getLogger(__name__)
 
@@ -29,6 +30,14 @@ Mask = npt.NDArray[Any]
 
 SIDE_PX = 8
 """Columns either side of a still region whose unchanged model pixels stand for the surface around it."""
+
+SURROUND_GHOST = 0.5
+"""A still region whose frame is this much closer (grey-level deviation ratio) to the surface beside it than
+the model is, is a ghost: a hole left by someone who walked away."""
+
+SURROUND_MIN_DEV = 15.0
+"""Mean grey-level deviation from the surface beside a still region that is a clear departure (the model
+holds someone there, or the frame does); below it, the surface continues."""
 
 RESTORE_FRAMES = 90
 """Frames (6 s at 15 fps) for which the model from under an absorbed ghost is kept for putting back."""
@@ -85,6 +94,29 @@ def surround_deviation(
     dev_cur = float((np.abs(cur_mean - side_mean) * weight).sum()) / total
     dev_bg = float((np.abs(bg_mean - side_mean) * weight).sum()) / total
     return dev_cur, dev_bg
+
+
+def start_up_hole(dev_cur: float, dev_bg: float) -> bool:
+    """A region changed ever since the background model was young is a start-up hole, by the surface beside it.
+
+    Args:
+        dev_cur: how far the frame inside the region is from the surface beside it.
+        dev_bg: how far the model is (both from :func:`surround_deviation`).
+
+    A hole: the model departs clearly (``SURROUND_MIN_DEV``) and the frame is
+    twice as close (``SURROUND_GHOST``: someone stood through the warm-up and
+    left), or the frame continues the surface and the model is not twice as
+    close. The latter is the remnant of a hole where the one who left looks like
+    the surface around: a grey shirt held where the frame now shows the bright
+    corner of the ceiling, at the edge of both (ceiling beside it on one side,
+    wall on the other); the surface decides nothing, and a region changed since
+    the model was young is then more likely a hole than someone who came in just
+    then and stands. Someone who does departs from the surface clearly while the
+    model does not -- or both do (a shirt in front of a poster): no hole.
+    """
+    frame_closer = dev_bg >= SURROUND_MIN_DEV and dev_cur <= SURROUND_GHOST * dev_bg
+    undecided = dev_cur < SURROUND_MIN_DEV and dev_bg >= SURROUND_GHOST * dev_cur
+    return frame_closer or undecided
 
 
 class UnderGhosts:
