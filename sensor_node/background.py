@@ -310,6 +310,8 @@ class BackgroundModel:
         if self._static is None:
             self._static = np.zeros_like(grey)
         self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        if self._under is not None and self._under.expired(self._frames):
+            self._under = None  # everything it kept is too old to put back
         if self._under is not None and self._bg is not None:
             back, regions = self._under.restore(
                 grey, still, self._bg, frame=self._frames, match_level=s.fg_threshold, least_px=s.min_blob_px

@@ -139,6 +139,12 @@ class UnderGhosts:
         """``_under`` as 8-bit grey levels, for matching frames (updated where ``keep`` writes)."""
         self._mask = np.zeros(shape, np.uint8)
         self._frame = np.zeros(shape, np.int32)
+        self._newest = -RESTORE_FRAMES - 1
+        """Frame of the latest ``keep``: once it is ``RESTORE_FRAMES`` old, nothing is kept."""
+
+    def expired(self, frame: int) -> bool:
+        """Everything kept is older than ``RESTORE_FRAMES`` at ``frame``: nothing can be put back any more."""
+        return self._newest < frame - RESTORE_FRAMES
 
     def keep(
         self, origin: tuple[int, int], take: npt.NDArray[np.bool_], sub: npt.NDArray[np.float32], frame: int
@@ -152,6 +158,7 @@ class UnderGhosts:
         self._under_u8[box] = cv2.convertScaleAbs(self._under[box])
         self._frame[box][first] = frame
         self._mask[box][take] = 255
+        self._newest = max(self._newest, frame)
 
     def restore(
         self, grey: Mask, still: Mask, bg: npt.NDArray[np.float32], *, frame: int, match_level: int, least_px: int
@@ -167,8 +174,11 @@ class UnderGhosts:
             least_px: the least region (pixels) tested: a whole object, not a few pixels of a passing shirt.
 
         Returns:
-            255 where the model was put back (None if nowhere), and how many regions were.
+            255 where the model was put back (None if nowhere), and how many regions were. Returns at
+            once (no image work) when everything kept has expired.
         """
+        if self.expired(frame):
+            return None, 0
         self._mask[self._frame < frame - RESTORE_FRAMES] = 0
         cand = cv2.bitwise_and(still, self._mask)
         if cv2.countNonZero(cand) < least_px:
