@@ -322,7 +322,7 @@ class BackgroundModel:
                 self._bg_u8 = cv2.convertScaleAbs(self._bg)
         samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
-        if cv2.countNonZero(old) < s.min_blob_px:
+        if cv2.countNonZero(old) == 0:
             return
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
         # would measure texture, not the silhouette.
@@ -333,9 +333,21 @@ class BackgroundModel:
         absorbed = False
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
-            if area < s.min_blob_px or area < 0.3 * w * h:
-                continue
             mask = labels[y : y + h, x : x + w] == k
+            if area < s.min_blob_px or area < 0.3 * w * h:
+                # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
+                # left by an absorption (the model there still holds the person's outline, a few grey
+                # levels over the threshold). Changed pixels are never learnt, so it would stay for
+                # ever and join the blob of whoever passes it: it becomes background after
+                # still_absorb_frames too, unless changed pixels surround it (part of someone). What it
+                # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
+                # wall's grey in front of a poster) comes back when they walk on.
+                if int(self._static[y : y + h, x : x + w][mask].max()) >= long_still and self._absorb(
+                    grey, fg, moving, mask, (x, y), keep=True
+                ):
+                    absorbed = True
+                    logger.debug("still fragment of %d px at column %d absorbed", area, x)
+                continue
             outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
             cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
             was = cv2.morphologyEx(self._bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
@@ -379,36 +391,50 @@ class BackgroundModel:
                     continue
                 if age < long_still:
                     continue
-            assert self._bg is not None
-            # The ghost's fringe too: its changed, not moving pixels up to 4 px around the still region
-            # (not the edge of someone walking past it).
-            y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
-            region = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
-            grown = cv2.dilate(region, _K9) > 0
-            ring = grown & (region == 0)
-            around = np.count_nonzero(ring & (fg[y0:y1, x0:x1] > 0))
-            if around > GHOST_RING_CHANGED * np.count_nonzero(ring):
-                # A ghost is the whole changed region (beyond it the frame matches the model); this one
-                # continues into changed pixels all around: the still inside of someone walking (a
-                # uniform shirt does not change from frame to frame). Learning it would paint them in.
-                continue
-            take = grown & (fg[y0:y1, x0:x1] > 0) & (moving[y0:y1, x0:x1] == 0)
-            sub = self._bg[y0:y1, x0:x1]
-            if not hole:
-                # A start-up hole (the model holds whoever stood there): nothing to put back. Anything else
-                # may be a mistake -- a born region too: someone in view since the model was young who
-                # stood still -- keep what was there.
-                if self._under is None:
-                    self._under = UnderGhosts(grey.shape)
-                self._under.keep((x0, y0), take, sub, self._frames)
-            sub[take] = grey[y0:y1, x0:x1][take]
-            self._static[y0:y1, x0:x1][take] = 0
-            self.ghosts += 1
-            absorbed = True
-            logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
+            # A start-up hole (the model holds whoever stood there): nothing to put back. Anything else
+            # may be a mistake -- a born region too: someone in view since the model was young who stood
+            # still -- keep what was there.
+            if self._absorb(grey, fg, moving, mask, (x, y), keep=not hole):
+                absorbed = True
+                logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
         if absorbed and self._bg is not None:
             self._bg_u8 = cv2.convertScaleAbs(self._bg)
+
+    def _absorb(
+        self, grey: Mask, fg: Mask, moving: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int], *, keep: bool
+    ) -> bool:
+        """Copy a still region (``mask`` in its box at ``origin`` = (column, row)) of the frame into the model.
+
+        The ghost's fringe too: its not moving pixels up to 4 px around the region (not the edge of
+        someone walking past it; unchanged ones are within ``fg_threshold`` of the model anyway, but
+        the faint rest of a ghost's outline there would flicker over it). Not if the region continues
+        into changed pixels all around (``GHOST_RING_CHANGED``). ``keep``: remember the model it
+        overwrote (:class:`UnderGhosts`). Returns whether it was absorbed (``_bg_u8`` is left to the caller).
+        """
+        assert self._bg is not None and self._static is not None
+        x, y = origin
+        h, w = mask.shape
+        y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
+        region = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
+        grown = cv2.dilate(region, _K9) > 0
+        ring = grown & (region == 0)
+        around = np.count_nonzero(ring & (fg[y0:y1, x0:x1] > 0))
+        if around > GHOST_RING_CHANGED * np.count_nonzero(ring):
+            # A ghost is the whole changed region (beyond it the frame matches the model); this one
+            # continues into changed pixels all around: the still inside of someone walking (a
+            # uniform shirt does not change from frame to frame). Learning it would paint them in.
+            return False
+        take = grown & (moving[y0:y1, x0:x1] == 0)
+        sub = self._bg[y0:y1, x0:x1]
+        if keep:
+            if self._under is None:
+                self._under = UnderGhosts(grey.shape)
+            self._under.keep((x0, y0), take, sub, self._frames)
+        sub[take] = grey[y0:y1, x0:x1][take]
+        self._static[y0:y1, x0:x1][take] = 0
+        self.ghosts += 1
+        return True
 
 
 EGO_SECTORS = 36
