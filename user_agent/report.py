@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,12 +33,14 @@ def score_recording(
     fps: float | None = None,
     max_gap_s: float = 0.25,
     start_ns: int | None = None,
+    on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
 ) -> Scored:
     """Evaluate a recording's TrackSets against ground truth.
 
     ``epoch_ns``, ``fps`` and ``start_ns`` (end of the run's warm-up) default
     to the recording's metadata (written by the recorder from the site,
-    ``PANOSTEREO_EPOCH_NS`` and, for a demo run, its warm-up).
+    ``PANOSTEREO_EPOCH_NS`` and, for a demo run, its warm-up). ``on_events`` is called with each scored
+    frame's events (see :func:`~user_agent.evaluate.evaluate_positions`), to see where frames are lost.
 
     Raises:
         ConfigError: if the epoch or fps is neither given nor in the recording.
@@ -52,7 +55,7 @@ def score_recording(
     hyps, frames = hypotheses_from_tracksets(
         rec.tracksets, epoch, rate, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start if start >= 0 else None
     )
-    metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames)
+    metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events)
     published = {t.track_id for ts in rec.tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
     return Scored(metrics, len(published), len(rec.tracksets), len(frames))
 
