@@ -38,11 +38,11 @@ from common.schema import Features, SensorInfo, TrackSet
 from common.site import load_site
 from resource_manager.config import ManagerConfig, load_manager_config
 from resource_manager.fusion import Batch, Fusion
-from user_agent.evaluate import evaluate_positions, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.messages import decode_on_key
 from user_agent.record import keys_for
-from user_agent.recording import iter_raw, read_metadata
+from user_agent.recording import Recording, iter_raw, read_metadata
+from user_agent.report import score_recording
 
 SITES = Path(__file__).resolve().parents[1] / "deploy" / "sites"
 """Where a recording's site (its ``site`` metadata: the site name) is looked up for its manager config."""
@@ -111,15 +111,9 @@ def replay(data: ReplayInput, config: ManagerConfig) -> tuple[list[TrackSet], li
 def score(
     tracksets: list[TrackSet], gt: GroundTruth, metadata: dict[str, str], *, threshold_m: float = 0.5
 ) -> dict[str, Any]:
-    """CLEAR-MOT and IDF1 of TrackSets (as ``user_agent.report.score_recording``), plus per-second events."""
-    epoch = int(metadata.get("epoch_ns", "-1"))
-    fps = float(metadata.get("fps", "-1"))
-    if epoch < 0 or fps <= 0:
-        raise ConfigError("the recording has no epoch_ns/fps metadata")
-    start = int(metadata.get("score_from_ns", "-1"))
-    hyps, frames = hypotheses_from_tracksets(
-        tracksets, epoch, fps, gt.frame_numbers, start_ns=start if start >= 0 else None
-    )
+    """CLEAR-MOT and IDF1 of TrackSets through ``user_agent.report.score_recording``, plus per-second events."""
+    rec = Recording(metadata=metadata, tracksets=tracksets)
+    fps = rec.meta_float("fps", -1.0)  # score_recording refuses a recording without it before any frame is scored
     per_s: dict[int, list[int]] = {}
     missed: dict[str, dict[int, int]] = {}
 
@@ -136,7 +130,7 @@ def score(
             elif kind == "SWITCH":
                 sec[2] += 1
 
-    m = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=tally)
+    m = score_recording(rec, gt, threshold_m=threshold_m, on_events=tally).metrics
     return {
         "mota": round(m.mota, 4),
         "idf1": round(m.idf1, 4),
