@@ -246,6 +246,15 @@ def _score_frame(
             sc.merged += 1
         if any(not (q["head_cols"] & visible[j]["head_cols"]) for j in others):
             sc.heads_apart_merged += 1
+            logger.debug(
+                "%s t=%.2f heads-apart merge: person at u=%.1f [%.1f, %.1f] with %s",
+                cam.id,
+                t_s,
+                q["u"],
+                q["a"],
+                q["b"],
+                [round(visible[j]["u"], 1) for j in others if not (q["head_cols"] & visible[j]["head_cols"])],
+            )
         if any(gap(q, visible[j]) > 0 for j in others):
             sc.separable_merged += 1
             logger.debug(
@@ -380,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--set", action="append", default=[], metavar="KEY=TOML", help="[pipeline] override, e.g. split_dip_px=6"
     )
-    p.add_argument("-v", "--verbose", action="store_true", help="log each separable merge (stderr)")
+    p.add_argument("-v", "--verbose", action="store_true", help="log merges, extra and false blobs, misses (stderr)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(message)s")
     for name in ("sensor_node", "common"):
