@@ -43,8 +43,10 @@ def draw_person(
     body_offset: float = 0.0,
     shirt: tuple[int, int, int] = (30, 30, 200),
     head: tuple[int, int, int] = (200, 220, 240),
+    neck_px: int = 0,
 ) -> None:
-    """A person: elliptic head centred at column ``u`` and a body box (offset sideways by ``body_offset``).
+    """A person: elliptic head centred at column ``u`` and a body box (offset sideways by ``body_offset``),
+    ``neck_px`` rows below the head's bottom (a neck half the head's width between them).
 
     Drawn with 1/16-px precision (cv2 shift=4); wraps around the panorama seam.
     """
@@ -53,9 +55,19 @@ def draw_person(
         cu = u + shift
         head_h = round(1.5 * head_w)
         b0 = cu + body_offset - body_w / 2
+        if neck_px > 0:
+            n0 = cu - head_w / 4
+            cv2.rectangle(
+                img,
+                (round(n0 * 16), (top + head_h - 2) * 16),
+                (round((n0 + head_w / 2) * 16), (top + head_h + neck_px) * 16),
+                shirt,
+                -1,
+                shift=4,
+            )
         cv2.rectangle(
             img,
-            (round(b0 * 16), (top + head_h - 2) * 16),
+            (round(b0 * 16), (top + head_h - 2 + neck_px) * 16),
             (round((b0 + body_w) * 16), (img.shape[0] + 5) * 16),
             shirt,
             -1,

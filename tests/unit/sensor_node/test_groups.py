@@ -27,18 +27,28 @@ NEAR = {"top": 30, "head_w": 10, "body_w": 22}
 """A near person: big head high in the panorama, wide body."""
 FAR = {"top": 45, "head_w": 6, "body_w": 14}
 """A far person: small head lower down (below the near one's shoulders, row 43)."""
+FAR_NECK = {**FAR, "top": 38, "neck_px": 12, "body_w": 20}
+"""A far person whose head rises above the near one's shoulders, but less than ``split_dip_px``, and
+well above their own (a neck): their head is a bump beside the near one's shoulder."""
 
 
 def _draw(
-    img: np.ndarray, near_u: float, far_u: float, near_bgr: tuple[int, int, int], far_bgr: tuple[int, int, int]
+    img: np.ndarray,
+    near_u: float,
+    far_u: float,
+    near_bgr: tuple[int, int, int],
+    far_bgr: tuple[int, int, int],
+    far: dict[str, int] = FAR,
 ) -> None:
-    draw_person(img, far_u, shirt=far_bgr, head=far_bgr, **FAR)  # type: ignore[arg-type]
+    draw_person(img, far_u, shirt=far_bgr, head=far_bgr, **far)  # type: ignore[arg-type]
     draw_person(img, near_u, shirt=near_bgr, head=near_bgr, **NEAR)  # type: ignore[arg-type]
 
 
-def _group_blob(near_u: float, far_u: float, s: PipelineSettings) -> tuple[RawBlob, np.ndarray]:
+def _group_blob(
+    near_u: float, far_u: float, s: PipelineSettings, far: dict[str, int] = FAR
+) -> tuple[RawBlob, np.ndarray]:
     img = np.zeros((H, W, 3), np.uint8)
-    _draw(img, near_u, far_u, WHITE, WHITE)
+    _draw(img, near_u, far_u, WHITE, WHITE, far)
     fg = mask_of(img)
     (blob,) = find_blobs(fg, fg, s)
     return blob, fg
@@ -73,12 +83,44 @@ def test_two_heads_with_a_shallow_valley_are_cut_at_its_bottom() -> None:
     assert _heads(parts, s) == pytest.approx([400.0, 414.0], abs=1.0)
 
 
-def test_no_cut_for_one_prediction_predictions_too_close_or_outside_the_blob() -> None:
+@pytest.mark.parametrize(("near_u", "far_u"), [(316.0, 330.0), (344.0, 330.0), (1075.0, 9.0)])
+def test_a_far_head_beside_a_tracked_near_one_is_cut_off_without_a_track_of_its_own(
+    near_u: float, far_u: float
+) -> None:
+    # The far person never stood alone (no track): their head is a bump beside the near one's
+    # shoulder, lower than it, dropping to their own shoulders on the far side.
     s = PipelineSettings()
-    blob, fg = _group_blob(316.0, 330.0, s)
-    assert split_by_tracks(blob, [316.0], fg, s, W) == [blob]
-    assert split_by_tracks(blob, [316.0, 317.5], fg, s, W) == [blob]  # one occludes the other
-    assert split_by_tracks(blob, [316.0, 600.0, 50.0], fg, s, W) == [blob]
+    blob, fg = _group_blob(near_u, far_u, s, FAR_NECK)
+    assert split_at_heads(blob, fg, s, W) == [blob]  # no valley deep enough between the heads
+    parts = split_by_tracks(blob, [near_u + 0.7], fg, s, W)
+    assert len(parts) == 2
+    assert _heads(parts, s) == pytest.approx(sorted([near_u % W, far_u % W]), abs=1.5)
+    assert split_by_tracks(blob, [], fg, s, W) == [blob]  # no track: nothing says the blob holds a person
+
+
+@pytest.mark.parametrize("offset", [-4.0, 0.0, 3.0])
+@pytest.mark.parametrize(("head_w", "body_w"), [(10, 22), (6, 14), (8, 26)])
+def test_a_lone_tracked_person_keeps_their_shoulders(offset: float, head_w: int, body_w: int) -> None:
+    s = PipelineSettings()
+    img = np.zeros((H, W, 3), np.uint8)
+    draw_person(img, 500.0, top=35, head_w=head_w, body_w=body_w, body_offset=offset, shirt=WHITE, head=WHITE)
+    fg = mask_of(img)
+    (blob,) = find_blobs(fg, fg, s)
+    for pred in (496.0, 500.0, 504.0):
+        assert split_by_tracks(blob, [pred], fg, s, W) == [blob]
+
+
+def test_no_cut_for_predictions_too_close_or_outside_the_blob() -> None:
+    s = PipelineSettings()
+    blob, fg = _group_blob(316.0, 330.0, s, FAR_NECK)
+    assert split_by_tracks(blob, [316.0, 317.5, 318.5], fg, s, W) != [blob]  # the far head is a bump
+    assert split_by_tracks(blob, [600.0, 50.0], fg, s, W) == [blob]
+    side = np.zeros((H, W, 3), np.uint8)
+    draw_person(side, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
+    draw_person(side, 501.5, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
+    fg = mask_of(side)
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_by_tracks(blob, [500.0, 501.5], fg, s, W) == [blob]  # one occludes the other
 
 
 def test_a_body_is_not_cut_off_its_own_shoulder() -> None:
@@ -121,3 +163,24 @@ def test_people_walking_into_a_tight_group_stay_two_blobs_with_their_own_heads()
     assert good == len(merged), [(near, got) for near, _, got in merged]
     off = _walk(PipelineSettings(warmup_frames=5, warmup_stride=2, track_split_hits=0))
     assert sum(len(got) == 2 for near, _, got in off if near >= 311.0) < 0.5 * len(merged)
+
+
+def test_people_who_enter_as_a_tight_group_get_a_blob_each() -> None:
+    # Never seen apart, so the far one never had a track of their own: their head beside the near
+    # one's shoulder is what parts them once the near one is tracked.
+    cam = pano_camera()
+    pipe = ImagePipeline("cam", PanoramicGeometry(cam), PipelineSettings(warmup_frames=5, warmup_stride=2))
+    rng = np.random.default_rng(5)
+    base = backdrop(5)
+    good = frames = 0
+    for k in range(48):
+        img = base.copy()
+        near_u, far_u = 600.0 + 0.8 * k, 614.0 + 0.8 * k
+        if k >= 12:
+            _draw(img, near_u, far_u, (30, 30, 30), (230, 230, 230), FAR_NECK)
+        res = pipe.process(noisy(img, rng), stamp_ns=k, frame_index=k)
+        if k >= 24:  # the near one's track is confirmed (track_split_hits solo frames)
+            got = sorted(float(cam.col_from_bearing(b.bearing_rad)) for b in res.features.blobs)
+            frames += 1
+            good += len(got) == 2 and got == pytest.approx([near_u, far_u], abs=1.5)
+    assert good == frames, (good, frames)
