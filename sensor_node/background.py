@@ -96,6 +96,9 @@ class BackgroundModel:
         self._born: Mask | None = None
         """Changed pixels that have stayed changed since the model was learnt, or since the last of its first
         ``BORN_FRAMES`` normal frames: where a start-up hole can be."""
+        self._born_first: Mask | None = None
+        """Changed pixels that have stayed changed since the model was learnt: someone who came in later
+        cannot be among them."""
         self._born_age = 0
         """Normal frames seen since the model was learnt (up to the re-seeding of ``_born``)."""
         self._under: UnderGhosts | None = None
@@ -173,10 +176,14 @@ class BackgroundModel:
             # end of the model's first BORN_FRAMES counts too (not what changed meanwhile and left: anyone
             # in view then would count).
             self._born_age += 1
-            if self._born is None or self._born_age == BORN_FRAMES:
-                self._born = fg.copy()
+            if self._born is None or self._born_first is None:
+                self._born, self._born_first = fg.copy(), fg.copy()
             else:
-                cv2.bitwise_and(self._born, fg, dst=self._born)
+                cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
+                if self._born_age == BORN_FRAMES:
+                    self._born = fg.copy()
+                else:
+                    cv2.bitwise_and(self._born, fg, dst=self._born)
             self._update_static(grey, fg, moving)
             self._last_fg = fg
             return Motion(fg, moving, "ok", frac)
@@ -237,6 +244,7 @@ class BackgroundModel:
         self._stride = 1
         self._static = None
         self._born = None
+        self._born_first = None
         self._born_age = 0
         self._under = None
         self.reinits += 1
@@ -368,6 +376,14 @@ class BackgroundModel:
             # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
             dev_cur, dev_bg = surround_deviation(grey, self._bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
             hole = born and dev_cur + dev_bg > 0.0 and start_up_hole(dev_cur, dev_bg)
+            # Changed since the model was learnt, the model holds whoever stood there: nothing to put
+            # back. Changed since the end of its first BORN_FRAMES only, it may be someone who came in
+            # meanwhile and stands (in front of a window, looking like its hole): keep what was there.
+            first = (
+                hole
+                and self._born_first is not None
+                and bool(np.count_nonzero(self._born_first[y : y + h, x : x + w][mask]) >= 0.5 * area)
+            )
             if dev_cur + dev_bg > 0.0:
                 ghost = hole or (ghost and dev_cur < dev_bg)
             logger.debug(
@@ -391,10 +407,9 @@ class BackgroundModel:
                     continue
                 if age < long_still:
                     continue
-            # A start-up hole (the model holds whoever stood there): nothing to put back. Anything else
-            # may be a mistake -- a born region too: someone in view since the model was young who stood
-            # still -- keep what was there.
-            if self._absorb(grey, fg, moving, mask, (x, y), keep=not hole):
+            # Anything but a hole since the model was learnt may be a mistake -- a born region too:
+            # someone in view since the model was young who stood still -- keep what was there.
+            if self._absorb(grey, fg, moving, mask, (x, y), keep=not first):
                 absorbed = True
                 logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
         if absorbed and self._bg is not None:
