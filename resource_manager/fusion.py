@@ -194,7 +194,8 @@ class Fusion:
         # A robot that moves, or has stopped but not settled (node relearning its background, pose converging),
         # gives no views: the tracks carry on with the other cameras (settling.py).
         positions = {sid: p.origin for sid, p in poses.items()}
-        driving = self.planner.driving(positions, t_ns) if self.planner.held else frozenset()
+        self.planner.note_arrivals(positions, t_ns)
+        driving = self.planner.driving(positions, t_ns)
         unsettled = (
             self.trust.update(
                 t_ns,

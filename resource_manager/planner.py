@@ -210,23 +210,29 @@ class ViewPlanner:
     first_ns: dict[str, int] = field(default_factory=dict)
     """When each mobile camera was first planned for (its first goal waits ``settle_ns`` from then)."""
 
-    def driving(self, positions: dict[str, FloatArray], t_ns: int) -> frozenset[str]:
-        """The mobile cameras this planner set moving that cannot detect anyone yet.
+    def note_arrivals(self, positions: dict[str, FloatArray], t_ns: int) -> None:
+        """Record when each robot sent to a goal first came within ``min_move_m`` of it (by ``positions``).
 
-        From a new goal until ``relearn_ns`` after the robot's pose (``positions``) reached it, its node sees
+        Called once per tick with the cameras' poses, before :meth:`driving` and :meth:`en_route` are asked.
+        """
+        lim = self.params.min_move_m
+        for sid, h in self.held.items():
+            xy = positions.get(sid)
+            if h.arrived_ns is None and xy is not None and math.dist(tuple(map(float, xy[:2])), h.xy) <= lim:
+                h.arrived_ns = t_ns
+
+    def driving(self, positions: dict[str, FloatArray], t_ns: int) -> frozenset[str]:
+        """The mobile cameras (with a pose in ``positions``) this planner set moving that cannot detect anyone yet.
+
+        From a new goal until ``relearn_ns`` after the robot reached it (:meth:`note_arrivals`), its node sees
         the world move and relearns its background: its empty blob lists say nothing about where people
         are, and must not count as "seen nothing there" against the other cameras' detections.
         """
-        out = []
-        for sid, h in self.held.items():
-            xy = positions.get(sid)
-            if xy is None:
-                continue
-            if h.arrived_ns is None and math.dist((float(xy[0]), float(xy[1])), h.xy) <= self.params.min_move_m:
-                h.arrived_ns = t_ns
-            if h.arrived_ns is None or t_ns - h.arrived_ns < self.params.relearn_ns:
-                out.append(sid)
-        return frozenset(out)
+        return frozenset(
+            sid
+            for sid, h in self.held.items()
+            if sid in positions and (h.arrived_ns is None or t_ns - h.arrived_ns < self.params.relearn_ns)
+        )
 
     def en_route(self, positions: dict[str, FloatArray]) -> frozenset[str]:
         """The mobile cameras sent to a goal they have not reached yet (by their pose in ``positions``)."""
@@ -278,6 +284,7 @@ class ViewPlanner:
             fixed = [self._fixed(c) for c in rest]
             # Where the other robots are going counts as well as where they are.
             others = rest + [f for c, f in zip(rest, fixed, strict=True) if f is not c]
+            self.note_arrivals(positions, t_ns)
             busy = self.driving(positions, t_ns) - {cam.sensor_id}  # including goals sent this instant
             for tgt in order:
                 partners = [by_id[s] for s in tgt.sensors if s in by_id and s != cam.sensor_id] or rest

@@ -214,6 +214,9 @@ def test_driving_until_relearnt_and_one_robot_moves_at_a_time() -> None:
     g1 = goals[0]
     assert planner.driving({"r1": r1.xy, "r2": r2.xy}, 1 * S) == {"r1"}
     at = np.array(g1.goal_xy) + 0.05
+    assert planner.driving({"r1": at}, 2 * S) == {"r1"}
+    planner.note_arrivals({"r1": at}, 2 * S)
+    assert planner.held["r1"].arrived_ns == 2 * S
     assert planner.driving({"r1": at}, 2 * S) == {"r1"}  # arrived: relearning its background
     assert planner.driving({"r1": at}, 4 * S) == {"r1"}
     assert planner.driving({"r1": at}, 5 * S + 1) == frozenset()
