@@ -30,10 +30,10 @@ lower and no wider than the tracked head, a dip between the two, and their
 own shoulders well below it on the far side); each bump is one more
 candidate, cut and checked exactly like a prediction. On the six site
 (``benchmarks/bench_node_quality.py``, world seeds 5, 9, 3, 11, 21) this
-found 1.0-1.3 % more people and left 1.9-3.0 % fewer people merged with
-someone whose head is apart from theirs, at the cost of 0.01-0.05 more
+found 0.8-1.3 % more people and left 1.5-2.5 % fewer people merged with
+someone whose head is apart from theirs, at the cost of 0.01-0.04 more
 extra blobs per frame (four cameras): a ghost or a ragged arm beside a
-person can pass for a far head.
+person can still pass for a far head.
 
 Only pixels decide where the cut goes; the tracks only say that a cut is
 worth looking for (the measured bearings are the parts' heads, never the
@@ -83,6 +83,10 @@ HEAD_SEARCH_PX = 4
 ROUND_MIN_COLS = 2
 """Columns by which a far head's bump widens from its top row to ``HEAD_DIP_PX`` rows below it (a
 head is round; a near person's shoulder beside a far body is a flat step that ends abruptly)."""
+
+SHOULDER_GAP_FRAC = 0.5
+"""Least gap between a far head's bump and the tracked head, in widths of the tracked head: the near
+person's shoulder spans about that much beside their head (a bump there is that shoulder)."""
 
 BUMP_REACH_PX = 4
 """Columns beyond a bump's edge in which its drop to the far person's shoulders is looked for (the
@@ -171,8 +175,8 @@ def _head_bumps(
             continue  # as high as the tracked head: not a head behind it
         a, b = _extent(top, p)
         ha, hb = _extent(top, head)
-        if a <= hb and b >= ha:
-            continue  # on the tracked head's own slope
+        if a - hb < SHOULDER_GAP_FRAC * (hb - ha + 1) and ha - b < SHOULDER_GAP_FRAC * (hb - ha + 1):
+            continue  # on the tracked head's own slope, or where its shoulder is
         if b - a > hb - ha or b - a + 1 < e - c + 1 + ROUND_MIN_COLS:
             continue  # wider than the tracked head, or flat-topped: a shoulder
         # From its top towards the tracked head, the profile must dip before it rises above the top.
