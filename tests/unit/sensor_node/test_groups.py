@@ -110,6 +110,19 @@ def test_a_lone_tracked_person_keeps_their_shoulders(offset: float, head_w: int,
         assert split_by_tracks(blob, [pred], fg, s, W) == [blob]
 
 
+def test_a_notch_on_a_near_shoulder_above_a_far_body_is_no_far_head() -> None:
+    # The far person's head is hidden behind the near one; their body drops far below the near
+    # one's shoulder, and a notch makes that shoulder a round local top beside the neck.
+    s = PipelineSettings()
+    img = np.zeros((H, W, 3), np.uint8)
+    draw_person(img, 507.0, top=47, head_w=6, body_w=16, shirt=WHITE, head=WHITE, neck_px=20)
+    draw_person(img, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
+    img[43:46, 507:509] = 0
+    fg = mask_of(img)
+    (blob,) = find_blobs(fg, fg, s)
+    assert split_by_tracks(blob, [500.0], fg, s, W) == [blob]
+
+
 def test_no_cut_for_predictions_too_close_or_outside_the_blob() -> None:
     s = PipelineSettings()
     blob, fg = _group_blob(316.0, 330.0, s, FAR_NECK)
