@@ -351,7 +351,7 @@ class BackgroundModel:
                 # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
                 # wall's grey in front of a poster) comes back when they walk on.
                 if int(self._static[y : y + h, x : x + w][mask].max()) >= long_still and self._absorb(
-                    grey, fg, moving, mask, (x, y), keep=True
+                    grey, fg, moving, mask, (x, y), keep=True, fringe=False
                 ):
                     absorbed = True
                     logger.debug("still fragment of %d px at column %d absorbed", area, x)
@@ -416,14 +416,22 @@ class BackgroundModel:
             self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
     def _absorb(
-        self, grey: Mask, fg: Mask, moving: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int], *, keep: bool
+        self,
+        grey: Mask,
+        fg: Mask,
+        moving: Mask,
+        mask: npt.NDArray[np.bool_],
+        origin: tuple[int, int],
+        *,
+        keep: bool,
+        fringe: bool = True,
     ) -> bool:
         """Copy a still region (``mask`` in its box at ``origin`` = (column, row)) of the frame into the model.
 
-        The ghost's fringe too: its not moving pixels up to 4 px around the region (not the edge of
-        someone walking past it; unchanged ones are within ``fg_threshold`` of the model anyway, but
-        the faint rest of a ghost's outline there would flicker over it). Not if the region continues
-        into changed pixels all around (``GHOST_RING_CHANGED``). ``keep``: remember the model it
+        With ``fringe``, the ghost's fringe too: its changed, not moving pixels up to 4 px around the
+        region (not the edge of someone walking past it); without, the region's own not moving pixels
+        only (a fragment: what is around it may be someone whose rest matches the wall). Not if the
+        region continues into changed pixels all around (``GHOST_RING_CHANGED``). ``keep``: remember the model it
         overwrote (:class:`UnderGhosts`). Returns whether it was absorbed (``_bg_u8`` is left to the caller).
         """
         assert self._bg is not None and self._static is not None
@@ -440,7 +448,7 @@ class BackgroundModel:
             # continues into changed pixels all around: the still inside of someone walking (a
             # uniform shirt does not change from frame to frame). Learning it would paint them in.
             return False
-        take = grown & (moving[y0:y1, x0:x1] == 0)
+        take = (grown & (fg[y0:y1, x0:x1] > 0) if fringe else region > 0) & (moving[y0:y1, x0:x1] == 0)
         sub = self._bg[y0:y1, x0:x1]
         if keep:
             if self._under is None:
