@@ -148,7 +148,7 @@ def test_ghost_of_someone_who_stood_through_warmup_is_absorbed() -> None:
     _still_run(model, with_person, rng, 5)  # learnt with the person standing there
     assert model.ready
     fracs = _still_run(model, base, rng, 30)  # they left: a ghost, found by its outline
-    assert fracs[0] > 0.005 and fracs[-1] < 0.001 and model.ghosts >= 1
+    assert fracs[0] > 0.005 and fracs[-1] < 0.001 and model.still.ghosts >= 1
 
 
 def test_someone_standing_still_is_kept_up_to_still_keep_frames() -> None:
@@ -163,7 +163,7 @@ def test_someone_standing_still_is_kept_up_to_still_keep_frames() -> None:
     draw_person(standing, 700.0)
     fracs = _still_run(model, standing, rng, 100)
     # A paused person's outline is an edge of the frame, not of the background: not absorbed ...
-    assert min(fracs) > 0.005 and model.kept > 0 and model.ghosts == 0
+    assert min(fracs) > 0.005 and model.still.kept > 0 and model.still.ghosts == 0
     fracs = _still_run(model, base, rng, 5)  # they walk off: nothing was learnt, so no ghost is left
     assert fracs[-1] < 0.001
     fracs = _still_run(model, standing, rng, 180)  # ... until still_keep_frames (a ghost could pass for one)
@@ -259,12 +259,12 @@ def test_a_person_wrongly_absorbed_in_front_of_a_window_is_put_back_when_they_le
     standing = wall.copy()
     standing[20:150, 494:522] = 92
     fracs = _still_run(model, standing, rng, 40)
-    assert fracs[0] > 0.003 and fracs[-1] < 0.001 and model.ghosts >= 1  # (a mistake, but a likely one)
+    assert fracs[0] > 0.003 and fracs[-1] < 0.001 and model.still.ghosts >= 1  # (a mistake, but a likely one)
     # They walk on: the window shows again. The model from before the mistake is put back at once,
     # not kept as a "paused person" (the window's outline is in the frame) for still_keep_frames.
     fracs = _still_run(model, wall, rng, 16)
     assert fracs[0] > 0.003
-    assert fracs[-1] < 0.001 and model.restored >= 1
+    assert fracs[-1] < 0.001 and model.still.restored >= 1
 
 
 def test_a_hole_left_at_start_on_a_textured_wall_goes_within_a_second() -> None:
@@ -283,7 +283,7 @@ def test_a_hole_left_at_start_on_a_textured_wall_goes_within_a_second() -> None:
     assert model.ready
     fracs = _still_run(model, wall, rng, 20)
     assert fracs[0] > 0.005  # the hole
-    assert max(fracs[-4:]) < 0.001 and model.ghosts >= 1
+    assert max(fracs[-4:]) < 0.001 and model.still.ghosts >= 1
 
 
 def _ceiling_corner(wall: int = 150, ceiling: int = 190, corner_u: int = 480) -> np.ndarray:
@@ -315,7 +315,7 @@ def test_a_hole_at_the_top_left_by_someone_in_the_model_goes_once_they_are_gone(
     assert model.ready
     fracs = _still_run(model, room, rng, 45)
     assert min(fracs[:10]) > 0.002  # the hole, reported while it is new ...
-    assert max(fracs[-10:]) < 0.001 and model.ghosts >= 1  # ... gone within 3 s, not kept for 10 s
+    assert max(fracs[-10:]) < 0.001 and model.still.ghosts >= 1  # ... gone within 3 s, not kept for 10 s
 
 
 def test_someone_standing_at_the_corner_since_the_model_was_young_is_kept() -> None:
@@ -330,7 +330,7 @@ def test_someone_standing_at_the_corner_since_the_model_was_young_is_kept() -> N
     standing = room.copy()
     draw_person(standing, 505.0, top=4, head_w=16, body_w=36, head=(60, 70, 90))
     fracs = _still_run(model, standing, rng, 120)
-    assert min(fracs) > 0.005 and model.kept > 0 and model.ghosts == 0
+    assert min(fracs) > 0.005 and model.still.kept > 0 and model.still.ghosts == 0
 
 
 def test_a_sliver_too_small_to_test_goes_after_still_absorb_frames() -> None:
@@ -349,7 +349,7 @@ def test_a_sliver_too_small_to_test_goes_after_still_absorb_frames() -> None:
         m = model.apply(grey(noisy(room, rng)))
         sliver.append(int(np.count_nonzero(m.fg[40:60, 500:502])))
     assert min(sliver[:40]) >= 30  # changed, and under min_blob_px (60) ...
-    assert max(sliver[-20:]) == 0 and model.ghosts >= 1  # ... background after still_absorb_frames
+    assert max(sliver[-20:]) == 0 and model.still.ghosts >= 1  # ... background after still_absorb_frames
 
 
 def test_someone_at_a_window_when_the_young_model_is_reseeded_is_still_put_back() -> None:
@@ -365,7 +365,7 @@ def test_someone_at_a_window_when_the_young_model_is_reseeded_is_still_put_back(
     standing = wall.copy()
     standing[20:150, 494:522] = 92
     fracs = _still_run(model, standing, rng, 50)  # in view at BORN_FRAMES (30), tested after it
-    assert fracs[0] > 0.003 and fracs[-1] < 0.001 and model.ghosts >= 1
+    assert fracs[0] > 0.003 and fracs[-1] < 0.001 and model.still.ghosts >= 1
     fracs = _still_run(model, wall, rng, 16)  # they walk on: the window is put back at once
     assert fracs[0] > 0.003
-    assert fracs[-1] < 0.001 and model.restored >= 1
+    assert fracs[-1] < 0.001 and model.still.restored >= 1

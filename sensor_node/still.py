@@ -1,0 +1,281 @@
+"""Stage 2b: still regions of the background model -- ghosts absorbed, people who pause kept.
+
+Used by :class:`sensor_node.background.BackgroundModel` on every normal frame. A
+*ghost* -- something that was in the background and left (a person who stood
+still while the model learnt) -- changes pixels like a person does but never
+moves. :class:`StillRegions` counts, per pixel, the frames it has been
+changed-but-still and tests the regions that stayed so for ``ghost_frames``:
+a ghost's outline is an edge of the background image but not of the current
+frame (where the wall is smooth), a paused person's outline the reverse.
+Ghosts are copied into the background; people who stand still are kept while
+they stand (their outline is an edge of the frame, not of the model) up to
+``still_keep_frames`` -- a ghost revealing a contrasted background (a white
+post where someone stood) passes that test too and must not stay for ever; a
+still region that neither test recognises (on a textured floor) becomes
+background after ``still_absorb_frames``, so no ghost stays.
+
+The surface beside a region is a second test (:func:`~sensor_node.ghosts.surround_deviation`):
+a region changed ever since the model was young (*born*) is a start-up hole unless the frame,
+not the model, clearly departs from the surface beside it (:func:`~sensor_node.ghosts.start_up_hole`),
+absorbed at its first test whatever its outline says (a plain shirt before a textured wall; a
+grey shirt held where the frame shows a bright ceiling corner); an outline "ghost" whose frame
+is no closer to its surroundings than the model is, is not absorbed. What an absorption
+overwrote (outside start-up holes) is kept a while and put back where the frame shows it again
+(:class:`~sensor_node.ghosts.UnderGhosts`).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from sensor_node.config import PipelineSettings
+from sensor_node.ghosts import UnderGhosts, start_up_hole, surround_deviation
+
+__all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
+
+logger = logging.getLogger(__name__)
+
+Mask = npt.NDArray[Any]
+FloatImage = npt.NDArray[np.float32]
+
+STATIC_EVERY = 4
+"""Frames between samples of the changed-but-still counter (ghost detection)."""
+
+BORN_FRAMES = 30
+"""Normal frames (2 s at 15 fps) after the model is learnt during which someone who stood in the view while
+it was learnt can walk off and leave a start-up hole (changed pixels still changed at the end of them)."""
+
+GHOST_EDGE = 10.0
+"""Least mean edge strength (grey levels, 3x3 morphological gradient) of a ghost's outline in the background."""
+
+GHOST_SCORE = 2.5
+"""Background-outline / frame-outline edge ratio above which a still region is a ghost (people: < 1)."""
+
+GHOST_RING_CHANGED = 0.35
+"""Fraction of the 4-px ring around a still region that may be changed for it to be absorbed as a ghost."""
+
+PERSON_SCORE = 1.5
+"""Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""
+
+_K3 = np.ones((3, 3), np.uint8)
+_K5 = np.ones((5, 5), np.uint8)
+_K9 = np.ones((9, 9), np.uint8)
+
+
+class StillRegions:
+    """The changed-but-still regions of one learnt background model (a new one after each re-learning).
+
+    Args:
+        settings: the ``[pipeline]`` knobs (``ghost_frames``, ``still_absorb_frames``, ``still_keep_frames``,
+            ``min_blob_px``, ``fg_threshold``).
+    """
+
+    def __init__(self, settings: PipelineSettings) -> None:
+        self.settings = settings
+        self._born_age = 0
+        """Normal frames seen since the model was learnt (up to the re-seeding of ``_born``)."""
+        self._static: Mask | None = None
+        self._born: Mask | None = None
+        """Changed pixels that have stayed changed since the model was learnt, or since the last of its first
+        ``BORN_FRAMES`` normal frames: where a start-up hole can be."""
+        self._born_first: Mask | None = None
+        """Changed pixels that have stayed changed since the model was learnt: someone who came in later
+        cannot be among them."""
+        self._under: UnderGhosts | None = None
+        """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
+        self.ghosts = 0
+        """Ghost blobs (objects that left the background) absorbed."""
+        self.kept = 0
+        """Still-region tests that found a paused object (its outline in the frame) and kept it."""
+        self.restored = 0
+        """Regions of the model under an absorbed ghost put back (the frame showed them again: a mistake)."""
+
+    def reset(self) -> None:
+        """Forget every region (the model is learnt afresh); the counters go on."""
+        self._born_age = 0
+        self._static = self._born = self._born_first = None
+        self._under = None
+
+    def forget_under(self) -> None:
+        """Drop what absorptions overwrote (the model was rescaled by a light change: it no longer fits)."""
+        self._under = None
+
+    def update(self, grey: Mask, fg: Mask, moving: Mask, *, bg: FloatImage, bg_u8: Mask, frame: int) -> bool:
+        """Follow one normal frame; absorb ghosts into ``bg`` (in place). True if ``bg`` changed.
+
+        Args:
+            grey: the frame.
+            fg: its changed pixels (255) against the model.
+            moving: its moving pixels (frame differencing).
+            bg: the float model, updated in place.
+            bg_u8: the model as 8-bit grey levels before this frame's changes.
+            frame: the model's frame count (sampling and the age of what absorptions overwrote).
+        """
+        # Born: changed ever since the model was learnt. Someone standing in the view while it was
+        # learnt is in the model, and their hole opens only as they walk off: what is changed at the
+        # end of the model's first BORN_FRAMES counts too (not what changed meanwhile and left: anyone
+        # in view then would count).
+        self._born_age += 1
+        if self._born is None or self._born_first is None:
+            self._born, self._born_first = fg.copy(), fg.copy()
+        else:
+            cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
+            if self._born_age == BORN_FRAMES:
+                self._born = fg.copy()
+            else:
+                cv2.bitwise_and(self._born, fg, dst=self._born)
+        s = self.settings
+        # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
+        if frame % STATIC_EVERY:
+            return False
+        still = cv2.bitwise_and(fg, cv2.bitwise_not(moving))
+        if self._static is None:
+            self._static = np.zeros_like(grey)
+        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        changed = False
+        if self._under is not None and self._under.expired(frame):
+            self._under = None  # everything it kept is too old to put back
+        if self._under is not None:
+            back, regions = self._under.restore(
+                grey, still, bg, frame=frame, match_level=s.fg_threshold, least_px=s.min_blob_px
+            )
+            self.restored += regions
+            if back is not None:
+                self._static[back > 0] = 0
+                bg_u8 = cv2.convertScaleAbs(bg)
+                changed = True
+        samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
+        old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
+        if cv2.countNonZero(old) == 0:
+            return changed
+        # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
+        # would measure texture, not the silhouette.
+        old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
+        long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
+        keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            mask = labels[y : y + h, x : x + w] == k
+            if area < s.min_blob_px or area < 0.3 * w * h:
+                # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
+                # left by an absorption (the model there still holds the person's outline, a few grey
+                # levels over the threshold). Changed pixels are never learnt, so it would stay for
+                # ever and join the blob of whoever passes it: it becomes background after
+                # still_absorb_frames too, unless changed pixels surround it (part of someone). What it
+                # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
+                # wall's grey in front of a poster) comes back when they walk on.
+                if int(self._static[y : y + h, x : x + w][mask].max()) >= long_still and self._absorb(
+                    grey, fg, moving, mask, (x, y), bg=bg, frame=frame, keep=True, fringe=False
+                ):
+                    changed = True
+                    logger.debug("still fragment of %d px at column %d absorbed", area, x)
+                continue
+            outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
+            cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+            was = cv2.morphologyEx(bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+            was_sum, n_out = float(was[outline].sum()), max(1, int(np.count_nonzero(outline)))
+            cur_sum = float(cur[outline].sum())
+            age = int(self._static[y : y + h, x : x + w][mask].max())
+            score = was_sum / (cur_sum + 1.0)
+            # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
+            # whose ratio is noise: the still inside of a slowly walking person's shirt).
+            ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
+            # The surface beside the region decides too: a hole shows in the frame what continues on
+            # both sides, while the model holds the one who left. It overrules the outline test when
+            # the frame is no closer to the surroundings than the model is (someone standing in front
+            # of a window: its frame is a strong outline of the model, but that is no ghost).
+            born = self._born is not None and bool(
+                np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area
+            )
+            # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
+            dev_cur, dev_bg = surround_deviation(grey, bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
+            hole = born and dev_cur + dev_bg > 0.0 and start_up_hole(dev_cur, dev_bg)
+            # Changed since the model was learnt, the model holds whoever stood there: nothing to put
+            # back. Changed since the end of its first BORN_FRAMES only, it may be someone who came in
+            # meanwhile and stands (in front of a window, looking like its hole): keep what was there.
+            first = (
+                hole
+                and self._born_first is not None
+                and bool(np.count_nonzero(self._born_first[y : y + h, x : x + w][mask]) >= 0.5 * area)
+            )
+            if dev_cur + dev_bg > 0.0:
+                ghost = hole or (ghost and dev_cur < dev_bg)
+            logger.debug(
+                "still region x=%d w=%d area=%d: bg edge %.1f, frame edge %.1f, age %d, ghost %s, dev cur %.1f bg %.1f",
+                x,
+                w,
+                area,
+                was_sum / n_out,
+                cur_sum / n_out,
+                age,
+                ghost,
+                dev_cur,
+                dev_bg,
+            )
+            if not ghost:
+                # A paused person is the reverse: the silhouette is an edge of the current frame, not of
+                # the background. They stay an object region (never learnt) however long they stand;
+                # only what neither test recognises becomes background after still_absorb_frames.
+                if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE and age < keep_still:
+                    self.kept += 1
+                    continue
+                if age < long_still:
+                    continue
+            # Anything but a hole since the model was learnt may be a mistake -- a born region too:
+            # someone in view since the model was young who stood still -- keep what was there.
+            if self._absorb(grey, fg, moving, mask, (x, y), bg=bg, frame=frame, keep=not first):
+                changed = True
+                logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
+        return changed
+
+    def _absorb(
+        self,
+        grey: Mask,
+        fg: Mask,
+        moving: Mask,
+        mask: npt.NDArray[np.bool_],
+        origin: tuple[int, int],
+        *,
+        bg: FloatImage,
+        frame: int,
+        keep: bool,
+        fringe: bool = True,
+    ) -> bool:
+        """Copy a still region (``mask`` in its box at ``origin`` = (column, row)) of the frame into the model.
+
+        With ``fringe``, the ghost's fringe too: its changed, not moving pixels up to 4 px around the
+        region (not the edge of someone walking past it); without, the region's own not moving pixels
+        only (a fragment: what is around it may be someone whose rest matches the wall). Not if the
+        region continues into changed pixels all around (``GHOST_RING_CHANGED``). ``keep``: remember the model it
+        overwrote (:class:`UnderGhosts`). Returns whether it was absorbed into ``bg``.
+        """
+        assert self._static is not None
+        x, y = origin
+        h, w = mask.shape
+        y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
+        region = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
+        grown = cv2.dilate(region, _K9) > 0
+        ring = grown & (region == 0)
+        around = np.count_nonzero(ring & (fg[y0:y1, x0:x1] > 0))
+        if around > GHOST_RING_CHANGED * np.count_nonzero(ring):
+            # A ghost is the whole changed region (beyond it the frame matches the model); this one
+            # continues into changed pixels all around: the still inside of someone walking (a
+            # uniform shirt does not change from frame to frame). Learning it would paint them in.
+            return False
+        take = (grown & (fg[y0:y1, x0:x1] > 0) if fringe else region > 0) & (moving[y0:y1, x0:x1] == 0)
+        sub = bg[y0:y1, x0:x1]
+        if keep:
+            if self._under is None:
+                self._under = UnderGhosts(grey.shape)
+            self._under.keep((x0, y0), take, sub, frame)
+        sub[take] = grey[y0:y1, x0:x1][take]
+        self._static[y0:y1, x0:x1][take] = 0
+        self.ghosts += 1
+        return True
