@@ -468,3 +468,39 @@ def test_three_cameras_on_a_confirmed_track_outvote_one_that_missed_it() -> None
     confirmed = fix("confirmed")
     assert confirmed is not None and math.hypot(confirmed.xy[0] - 3.0, confirmed.xy[1] - 3.0) < 0.05
     assert fix("tentative") is None
+
+
+def test_a_well_followed_tracks_fix_is_the_one_nearest_its_prediction() -> None:
+    """A at (3, 3), B at (3.4, 3.4) behind A as c1 sees them (one blob there). The support step gave A's track
+    B's blob in c2 (the node's 2D ids swapped in a crossing); Eq. 7 pairs A's c1 blob with A's own c2 blob. A
+    well-followed track takes that fix, on its prediction, over its own blobs' fix ~0.5 m off; a young track's
+    prediction does not judge (it may sit between two people): it keeps its own blobs' fix."""
+    from resource_manager.pairmatch import PairMatches
+    from tests.unit.resource_manager.test_rm_match import view
+
+    a, b = (3.0, 3.0, 1.8, 1), (3.4, 3.4, 1.7, 1)
+    views = {"c1": view("c1", (0.0, 0.0), [a]), "c2": view("c2", (6.0, 0.0), [a, b])}
+
+    def fix(hits: int) -> Measurement | None:
+        tracker = Tracker(TrackParams(), lambda: "m")
+        tr = tracker.spawn(_meas(3.0, 3.0, sigma=0.2), 0, {})
+        tr.state, tr.hits = "confirmed", hits
+        assoc = Associator(_config(), tracker)
+        assoc._all = AllBlobs.of(views, 4.0)
+        sup = {"c1": 0, "c2": 1}  # the support step gave it B's blob in c2
+        meas, _, _ = assoc._measure(
+            tr,
+            sup=sup,
+            views=views,
+            tracks=[tr],
+            cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
+            pose_sigma={},
+            ranked=assoc._rank(tr, sup, views, {}, set()),
+            claimed=set(),
+        )
+        return meas
+
+    followed = fix(HOLD_MIN_HITS)
+    assert followed is not None and math.hypot(followed.xy[0] - 3.0, followed.xy[1] - 3.0) < 0.05
+    young = fix(5)
+    assert young is not None and math.hypot(young.xy[0] - 3.0, young.xy[1] - 3.0) > 0.2
