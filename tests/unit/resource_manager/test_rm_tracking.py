@@ -430,11 +430,29 @@ def test_a_coasting_track_stops_at_the_wall() -> None:
     assert np.allclose(inside.x, [2.9, 7.3, 0.4, 1.5])
 
 
+def _measure_alone(
+    assoc: Associator, tr: TrackRecord, sup: dict[str, int], views: dict[str, ViewBlobs]
+) -> Measurement | None:
+    """Step 2's fix of one track supported by ``sup``, the only track this tick, poses exact."""
+    from resource_manager.pairmatch import PairMatches
+
+    meas, _, _ = assoc._measure(
+        tr,
+        sup=sup,
+        views=views,
+        tracks=[tr],
+        cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
+        pose_sigma={},
+        ranked=assoc._rank(tr, sup, views, {}, set()),
+        claimed=set(),
+    )
+    return meas
+
+
 def test_three_cameras_on_a_confirmed_track_outvote_one_that_missed_it() -> None:
     """c1, c2 and c3 see the tracked person at (3, 3); c4, which should, has only someone else far to the side
     (a missed detection: with four cameras ``min_view_agreement`` 0.8 asks all four). The confirmed track takes
     its fix; a tentative one (which could be a ghost) does not."""
-    from resource_manager.pairmatch import PairMatches
     from tests.unit.resource_manager.test_rm_match import view
 
     person = (3.0, 3.0, 1.8, 1)
@@ -453,17 +471,7 @@ def test_three_cameras_on_a_confirmed_track_outvote_one_that_missed_it() -> None
         assoc._all = AllBlobs.of(views, 4.0)
         (sup,), _ = assoc.support(views, [tr])
         assert set(sup) == {"c1", "c2", "c3"}
-        meas, _, _ = assoc._measure(
-            tr,
-            sup=sup,
-            views=views,
-            tracks=[tr],
-            cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
-            pose_sigma={},
-            ranked=assoc._rank(tr, sup, views, {}, set()),
-            claimed=set(),
-        )
-        return meas
+        return _measure_alone(assoc, tr, sup, views)
 
     confirmed = fix("confirmed")
     assert confirmed is not None and math.hypot(confirmed.xy[0] - 3.0, confirmed.xy[1] - 3.0) < 0.05
@@ -475,7 +483,6 @@ def test_a_well_followed_tracks_fix_is_the_one_nearest_its_prediction() -> None:
     B's blob in c2 (the node's 2D ids swapped in a crossing); Eq. 7 pairs A's c1 blob with A's own c2 blob. A
     well-followed track takes that fix, on its prediction, over its own blobs' fix ~0.5 m off; a young track's
     prediction does not judge (it may sit between two people): it keeps its own blobs' fix."""
-    from resource_manager.pairmatch import PairMatches
     from tests.unit.resource_manager.test_rm_match import view
 
     a, b = (3.0, 3.0, 1.8, 1), (3.4, 3.4, 1.7, 1)
@@ -487,18 +494,7 @@ def test_a_well_followed_tracks_fix_is_the_one_nearest_its_prediction() -> None:
         tr.state, tr.hits = "confirmed", hits
         assoc = Associator(_config(), tracker)
         assoc._all = AllBlobs.of(views, 4.0)
-        sup = {"c1": 0, "c2": 1}  # the support step gave it B's blob in c2
-        meas, _, _ = assoc._measure(
-            tr,
-            sup=sup,
-            views=views,
-            tracks=[tr],
-            cache=PairMatches(views, [tr], assoc.params, assoc.matcher, assoc.threshold),
-            pose_sigma={},
-            ranked=assoc._rank(tr, sup, views, {}, set()),
-            claimed=set(),
-        )
-        return meas
+        return _measure_alone(assoc, tr, {"c1": 0, "c2": 1}, views)  # the support gave it B's blob in c2
 
     followed = fix(HOLD_MIN_HITS)
     assert followed is not None and math.hypot(followed.xy[0] - 3.0, followed.xy[1] - 3.0) < 0.05
