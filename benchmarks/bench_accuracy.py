@@ -379,11 +379,11 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
 
     from common.pinhole import PinholeCamera
     from panostereo.datasets.wildtrack import GridSpec, calibration, camera_id
-    from resource_manager.align import AlignedBlob, AlignedView
     from resource_manager.config import MatchSection
+    from resource_manager.ingest.align import AlignedBlob, AlignedView
     from resource_manager.localize import localize_least_squares
     from resource_manager.pairs import CameraGeom, rank_pairs
-    from resource_manager.poses import PoseEstimate
+    from resource_manager.poses.solver import PoseEstimate
     from resource_manager.views import build_views
     from sensor_node.detections import features_from_detections, read_mot
 

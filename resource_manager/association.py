@@ -27,18 +27,18 @@ import numpy as np
 import numpy.typing as npt
 
 from common.schema import PairEntry
-from resource_manager.align import AlignedView
 from resource_manager.births import Births
 from resource_manager.config import ManagerConfig
 from resource_manager.fixcheck import owned_elsewhere, views_agreeing
 from resource_manager.group import HOLD_MIN_HITS, group_fix, hidden_in_group
+from resource_manager.ingest.align import AlignedView
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.looks import learn_look, mean_similarity
 from resource_manager.match import MatchParams, ViewBlobs, get_matcher
 from resource_manager.mono import mono_measurement
 from resource_manager.pairmatch import PairMatches
 from resource_manager.pairs import PairCandidate, rank_for_track
-from resource_manager.poses import PoseEstimate
+from resource_manager.poses.solver import PoseEstimate
 from resource_manager.room import Room
 from resource_manager.support import assign_support
 from resource_manager.track import Tracker, TrackRecord

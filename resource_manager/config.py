@@ -270,7 +270,7 @@ class PlannerSection(ConfigStruct, frozen=True):
     found_m: NonNeg = 0.5
     """Cost of moving: a person counts as found within this (CLEAR-MOT's match distance); where nobody else can
     pair the people a robot helps, it moves only when the found person-seconds gained over ``horizon_s`` exceed
-    those lost while it drives and settles (resource_manager/plan_checks.py). 0: moves cost nothing."""
+    those lost while it drives and settles (resource_manager/plan/checks.py). 0: moves cost nothing."""
     horizon_s: Pos = 15.0
     """How long a new viewpoint is counted on, from when the robot has settled there."""
     speed_mps: Pos = 0.4

@@ -3,8 +3,8 @@
 ``Fusion(config).step(batch, t_ns)`` runs, at the fusion instant ``t_ns``:
 
 1. ingest (bounded buffers; late, duplicate, out-of-order counted) and align
-   every sensor's blobs to ``t_ns`` (:mod:`~resource_manager.align`);
-2. poses: surveyed ones plus mutual calibration (:mod:`~resource_manager.poses`);
+   every sensor's blobs to ``t_ns`` (:mod:`~resource_manager.ingest.align`);
+2. poses: surveyed ones plus mutual calibration (:mod:`~resource_manager.poses.solver`);
 3. for each predicted track, the cameras whose blobs support it, and every pair
    of them ranked by the error model (:mod:`~resource_manager.pairs`);
 4. Eq. (7) stereo matching of the chosen pairs with the temporal term from the
@@ -41,13 +41,13 @@ from common.schema import (
     ViewPlan,
 )
 from resource_manager import wiring
-from resource_manager.align import AlignedView, align_sensor
 from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
-from resource_manager.ingest import Ingest
-from resource_manager.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
-from resource_manager.poses import PoseEstimate
-from resource_manager.ptz import PtzTarget
+from resource_manager.ingest.align import AlignedView, align_sensor
+from resource_manager.ingest.buffers import Ingest
+from resource_manager.plan.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
+from resource_manager.poses.solver import PoseEstimate
+from resource_manager.serve.ptz import PtzTarget
 from resource_manager.track import TrackRecord
 from resource_manager.views import mono_cameras, perspective_fovs
 
@@ -112,7 +112,7 @@ class Fusion:
     Args:
         config: the manager config.
         new_id: returns the next unique track id (default: an in-memory counter;
-            the node passes the persisted allocator of :mod:`resource_manager.history`).
+            the node passes the persisted allocator of :mod:`resource_manager.serve.history`).
     """
 
     def __init__(self, config: ManagerConfig, new_id: Callable[[], str] | None = None) -> None:

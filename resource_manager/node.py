@@ -9,7 +9,7 @@ TrackSet on ``tracks``, each track on ``track/{id}``, the pair choices on
 ``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
 (latest state, or the path with ``?history=SECONDS``) and PTZ allocation
 requests on ``manager/{id}/ptz``. The track history is logged to disk and
-reloaded at start (:mod:`resource_manager.history`).
+reloaded at start (:mod:`resource_manager.serve.history`).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from common.session import MSGPACK, Shutdown, install_signal_handlers, open_sess
 from common.transport import Inbox, TypedPublisher
 from resource_manager.config import ManagerConfig
 from resource_manager.fusion import Batch, Fusion, TickResult
-from resource_manager.history import IdAllocator, TrackLog, TrackStore, read_segments
+from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 
 __all__ = ["ManagerNode", "run"]
 

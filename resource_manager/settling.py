@@ -6,7 +6,7 @@ nobody is there and nobody is born from it.
 
 A robot that drives cannot detect anyone (its node sees the whole room move, reports no blobs and
 relearns its background from still frames once stopped), and its mutual-calibration pose
-(:mod:`~resource_manager.poses`) lags behind the motion and overshoots when it stops. Localising with
+(:mod:`~resource_manager.poses.solver`) lags behind the motion and overshoots when it stops. Localising with
 its views in that time puts people metres off, and births tracks there. So a mobile camera's views are
 left out of matching, localisation and births (the tracks carry on with the other cameras, or coast)
 from when it starts moving until:
@@ -32,7 +32,7 @@ from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 
 from common.schema import DetectorState
-from resource_manager.poses import PoseEstimate
+from resource_manager.poses.solver import PoseEstimate
 
 __all__ = ["SettleParams", "ViewTrust"]
 

@@ -18,11 +18,11 @@ import numpy as np
 import numpy.typing as npt
 
 from common.schema import PinholeModel, SensorInfo
-from resource_manager.align import AlignedBlob, AlignedView
 from resource_manager.config import MatchSection
+from resource_manager.ingest.align import AlignedBlob, AlignedView
 from resource_manager.match import ViewBlobs
 from resource_manager.mono import mono_ranges
-from resource_manager.poses import PoseEstimate
+from resource_manager.poses.solver import PoseEstimate
 
 TOP_CUT_PX = 0.5
 """A blob whose box starts this close to the image's upper border has its head cut off (too close)."""

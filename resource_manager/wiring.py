@@ -7,11 +7,11 @@ import math
 from collections.abc import Callable
 
 from common.geometry import wrap_angle
-from resource_manager.align import AlignParams
 from resource_manager.config import ManagerConfig
-from resource_manager.planner import PlannerParams, ViewPlanner
-from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
-from resource_manager.ptz import PtzAllocator, PtzParams
+from resource_manager.ingest.align import AlignParams
+from resource_manager.plan.planner import PlannerParams, ViewPlanner
+from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
+from resource_manager.serve.ptz import PtzAllocator, PtzParams
 from resource_manager.settling import SettleParams, ViewTrust
 from resource_manager.track import Tracker, TrackParams
 

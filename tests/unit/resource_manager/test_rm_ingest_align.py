@@ -7,8 +7,8 @@ import math
 import pytest
 
 from common.schema import Blob, Features, Sighting
-from resource_manager.align import AlignParams, align_sensor
-from resource_manager.ingest import Ingest
+from resource_manager.ingest.align import AlignParams, align_sensor
+from resource_manager.ingest.buffers import Ingest
 
 MS = 1_000_000
 BASE_MS = 10_000
@@ -154,8 +154,8 @@ def test_world_views_drop_known_bodies_keep_people() -> None:
     view keeps its own histograms (none for a sensor that sends none)."""
     import numpy as np
 
-    from resource_manager.align import AlignedBlob, AlignedView
-    from resource_manager.poses import PoseEstimate
+    from resource_manager.ingest.align import AlignedBlob, AlignedView
+    from resource_manager.poses.solver import PoseEstimate
     from resource_manager.views import build_views
 
     poses = {

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from common.schema import Blob, Features, PinholeModel, Pose, SensorInfo
-from resource_manager.align import AlignedBlob, AlignedView, AlignParams, align_sensor
 from resource_manager.config import ManagerConfig, ManagerSection
 from resource_manager.fusion import Batch, Fusion
-from resource_manager.ingest import Ingest
+from resource_manager.ingest.align import AlignedBlob, AlignedView, AlignParams, align_sensor
+from resource_manager.ingest.buffers import Ingest
 from resource_manager.mono import mono_measurement, mono_ranges, range_mismatch
-from resource_manager.poses import PoseEstimate
+from resource_manager.poses.solver import PoseEstimate
 from resource_manager.views import build_views
 
 Z_M = 2.5

@@ -12,7 +12,7 @@ import pytest
 from common.cameras import design_pal
 from common.error_model import m1_error
 from common.schema import SensorInfo
-from resource_manager.planner import PlanCamera, PlanGoal, PlannerParams, PlanTarget, ViewPlanner, plan_camera
+from resource_manager.plan.planner import PlanCamera, PlanGoal, PlannerParams, PlanTarget, ViewPlanner, plan_camera
 
 SIG = math.radians(0.2)
 S = 1_000_000_000

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from resource_manager.align import AlignedSighting
-from resource_manager.poses import MutualParams, PoseEstimate, PoseSolver
+from resource_manager.ingest.align import AlignedSighting
+from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.settling import SettleParams, ViewTrust
 from tests.unit.resource_manager.synth import Cam, features_for, info_for
 

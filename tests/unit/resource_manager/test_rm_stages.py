@@ -13,10 +13,10 @@ from common.error_model import pair_position_error
 from common.errors import ConfigError
 from common.schema import PinholeModel, Pose, SensorInfo, Track
 from resource_manager.config import load_manager_config
-from resource_manager.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
 from resource_manager.pairs import CameraGeom, rank_pairs
-from resource_manager.ptz import PtzAllocator, PtzTarget
+from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
+from resource_manager.serve.ptz import PtzAllocator, PtzTarget
 from resource_manager.track import Tracker, TrackParams
 from tests.support import REPO
 from tests.unit.resource_manager.test_rm_match import view
@@ -242,8 +242,8 @@ def test_config_is_frozen() -> None:
 
 
 def test_known_bodies_are_not_people() -> None:
-    from resource_manager.align import AlignedBlob, AlignedView
-    from resource_manager.poses import PoseEstimate
+    from resource_manager.ingest.align import AlignedBlob, AlignedView
+    from resource_manager.poses.solver import PoseEstimate
     from resource_manager.views import build_views
 
     def b(lid: int, bearing: float, width: float) -> AlignedBlob:

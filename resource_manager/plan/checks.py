@@ -1,4 +1,4 @@
-"""The view planner's checks (paper, "Error Characteristics and View Planning"; :mod:`resource_manager.planner`):
+"""The view planner's checks (paper, "Error Characteristics and View Planning"; :mod:`resource_manager.plan.planner`):
 Fig. 4's predicted error of a candidate place, where a mobile camera may be sent, and whether it is worth it.
 
 * **Mutual visibility** (Eq. 3 needs the other body in view): seen from a camera
@@ -30,7 +30,7 @@ import numpy.typing as npt
 from common.error_model import normalised_error_xy, pair_position_error
 
 if TYPE_CHECKING:
-    from resource_manager.planner import PlanCamera, PlannerParams, Scene
+    from resource_manager.plan.planner import PlanCamera, PlannerParams, Scene
 
 __all__ = [
     "feasible",

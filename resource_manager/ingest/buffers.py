@@ -2,7 +2,7 @@
 
 Messages arrive over the network late, twice, out of order, or from a sender
 whose clock was just stepped by NTP. The buffer keeps each sensor's frames
-sorted by ``stamp_ns`` so that alignment (:mod:`resource_manager.align`) can
+sorted by ``stamp_ns`` so that alignment (:mod:`resource_manager.ingest.align`) can
 always find the two frames that bracket the fusion instant, whatever the
 arrival order:
 

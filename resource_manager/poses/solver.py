@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from common.geometry import baseline_from_alpha, sighting_bearing, wrap_angle
 from common.schema import SensorInfo
-from resource_manager.align import AlignedSighting
+from resource_manager.ingest.align import AlignedSighting
 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
 

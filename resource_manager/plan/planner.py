@@ -7,7 +7,7 @@ and place the mobile camera O2 where the error map of Fig. 4 (model M1,
 current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
 (Eq. 4) -- among the places where the system keeps working:
 
-* **Where the system keeps working** (:mod:`resource_manager.plan_checks`): both
+* **Where the system keeps working** (:mod:`resource_manager.plan.checks`): both
   bodies' bands in each other's view (minimum and maximum baseline, Eq. 3), the
   person's head in view and D2 >= D1/2, the room, clearance on the drive and at
   the goal, and the line of sight to the main camera's body.
@@ -25,7 +25,7 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   nothing (:mod:`resource_manager.settling`); on a site where the people it
   helps have no other pair then, a move is made only when the found
   person-seconds it gains over ``horizon_s`` exceed those lost on the way
-  (:func:`~resource_manager.plan_checks.move_payoff`, ``found_m``).
+  (:func:`~resource_manager.plan.checks.move_payoff`, ``found_m``).
 * **One robot at a time**: while another robot drives or relearns its
   background (:meth:`ViewPlanner.driving`), a robot standing in a usable place
   waits.
@@ -47,7 +47,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.schema import PanoramicModel, SensorInfo
-from resource_manager.plan_checks import feasible, found, move_payoff, others_error, predicted_error
+from resource_manager.plan.checks import feasible, found, move_payoff, others_error, predicted_error
 
 __all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
 
@@ -363,7 +363,7 @@ class ViewPlanner:
         return goal
 
     def _worth(self, t_ns: int, sc: Scene, goal_xy: FloatArray, goal_err: float, ref_err: float) -> bool:
-        """Is the move worth what it costs (:func:`~resource_manager.plan_checks.move_payoff`)?
+        """Is the move worth what it costs (:func:`~resource_manager.plan.checks.move_payoff`)?
 
         The target's chance of being found where the robot stands (``ref_err``) is averaged over
         ``persist_s`` first: someone crossing the line between two cameras soon leaves it.

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 from common.clock import interp_angle
 from common.schema import Blob, Features, Sighting
-from resource_manager.ingest import SensorBuffer
+from resource_manager.ingest.buffers import SensorBuffer
 
 _TWO_PI = 2.0 * math.pi
 

@@ -1,0 +1,1 @@
+"""Ingest: every sensor's Features in bounded per-sensor buffers, and their blobs aligned to the fusion instant."""

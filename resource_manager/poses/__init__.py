@@ -1,0 +1,1 @@
+"""Poses: where every camera is, surveyed or by mutual calibration (Eq. 3)."""

@@ -1,0 +1,1 @@
+"""Serving users: track history and its log, and PTZ cameras shared among agents."""
