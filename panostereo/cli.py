@@ -23,7 +23,8 @@ COMMANDS: Final[dict[str, tuple[str, str]]] = {
     "agent": ("user_agent.cli", "user-agent tools: watch, tracks, history, record, replay, plot, evaluate"),
     "plan": ("panostereo.commands.plan", "best stereo configuration and error map for a target (Eqs. 4-6, Fig. 4)"),
     "render": ("panostereo.commands.render", "render one simulated camera frame and its panorama"),
-    "import": ("panostereo.commands.import_dataset", "convert a dataset (wildtrack) into a runnable site"),
+    "import": ("panostereo.commands.import_dataset", "convert a dataset (mot, wildtrack) into a runnable site"),
+    "evaluate-site": ("panostereo.commands.evaluate_site", "play a dataset site in dataset time and score it"),
 }
 
 
@@ -32,7 +33,7 @@ def _top_parser() -> argparse.ArgumentParser:
         prog="panostereo",
         description="Adaptive panoramic stereo: find and follow people in 3D with cooperating cameras.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="commands:\n" + "\n".join(f"  {name:<9} {text}" for name, (_, text) in COMMANDS.items()),
+        epilog="commands:\n" + "\n".join(f"  {name:<13} {text}" for name, (_, text) in COMMANDS.items()),
     )
     p.add_argument("command", nargs="?", help="one of: " + ", ".join(COMMANDS))
     return p

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
 from common.errors import ConfigError
 from common.scenario import site_with_seed_from_env
-from common.schema import Features, PanoramicModel, PinholeModel, Pose, SensorKind
+from common.schema import Features, PanoramicModel, PinholeModel, Pose, PoseSource, SensorInfo, SensorKind
 from common.site import load_site
 from sensor_node.config import (
     DetectionsSource,
@@ -42,7 +42,7 @@ from sensor_node.sources_sim import SimFrames
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import Unwarper
 
-__all__ = ["DetectionProcessor", "NodeParts", "Processor", "build_node"]
+__all__ = ["DetectionProcessor", "NodeParts", "Processor", "build_node", "sensor_info"]
 
 
 class Processor(Protocol):
@@ -114,6 +114,44 @@ class NodeParts:
     """PtzCamera at the head's position (PTZ nodes): its state gives the current model."""
     camera_height_m: float = 0.0
     """Height of the optical centre above the floor from the camera model (panoramic; 0: unknown)."""
+
+
+def sensor_info(
+    cfg: NodeConfig,
+    parts: NodeParts,
+    *,
+    seq: int,
+    stamp_ns: int,
+    clock_offset_ns: int = 0,
+    clock_uncertainty_ns: int = 0,
+    clock_source: Literal["ntp", "system"] = "system",
+) -> SensorInfo:
+    """What the node says about its sensor (SensorInfo): kind, camera model, pose and how it is known, accuracy.
+
+    A robot's x, y and yaw come from mutual calibration (the manager ignores them unless ``pose_source`` is
+    "surveyed"); its camera height is known from the camera model and is needed for head heights
+    (z = z_cam + D tan(top_elev)) and Eq. 7's height consistency, so it is sent as the pose's z.
+    """
+    pose_source: PoseSource = "surveyed" if parts.pose is not None else ("mutual" if cfg.node.mobile else "unknown")
+    pose = parts.pose
+    if pose is None and cfg.node.mobile and parts.camera_height_m > 0.0:
+        pose = Pose(x_m=0.0, y_m=0.0, z_m=parts.camera_height_m, yaw_rad=0.0)
+    return SensorInfo(
+        sensor_id=cfg.node.id,
+        seq=seq,
+        stamp_ns=stamp_ns,
+        kind=parts.kind,
+        model=parts.model,
+        pose=pose,
+        pose_source=pose_source,
+        mobile=cfg.node.mobile,
+        body_radius_m=cfg.node.body_radius_m,
+        fps=float(parts.fps),
+        clock_offset_ns=clock_offset_ns,
+        clock_uncertainty_ns=clock_uncertainty_ns,
+        clock_source=clock_source,
+        bearing_sigma_rad=cfg.node.bearing_sigma_rad,
+    )
 
 
 def _surveyed_pose(cfg: NodeConfig) -> Pose | None:

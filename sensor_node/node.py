@@ -28,10 +28,10 @@ import msgspec
 
 from common.clock import NtpClock
 from common.codec import encode
-from common.schema import NodeStatus, Pose, PoseSource, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
+from common.schema import NodeStatus, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import Inbox, TypedPublisher
-from sensor_node.build import NodeParts, build_node
+from sensor_node.build import NodeParts, build_node, sensor_info
 from sensor_node.config import NodeConfig
 from sensor_node.sources import Frame
 
@@ -131,31 +131,14 @@ class SensorNode:
     # -- SensorInfo ---------------------------------------------------------------------------------
     def _make_info(self) -> SensorInfo:
         st = self.clock.status()
-        p = self.parts
-        pose_source: PoseSource = (
-            "surveyed" if p.pose is not None else ("mutual" if self.cfg.node.mobile else "unknown")
-        )
-        pose = p.pose
-        if pose is None and self.cfg.node.mobile and p.camera_height_m > 0.0:
-            # A robot's x, y and yaw come from mutual calibration (the manager ignores them unless
-            # pose_source is "surveyed"); its camera height is known from the camera model and is
-            # needed for head heights (z = z_cam + D tan(top_elev)) and Eq. 7's height consistency.
-            pose = Pose(x_m=0.0, y_m=0.0, z_m=p.camera_height_m, yaw_rad=0.0)
-        return SensorInfo(
-            sensor_id=self.cfg.node.id,
+        return sensor_info(
+            self.cfg,
+            self.parts,
             seq=self._info_seq,
             stamp_ns=self.clock.now_ns(),
-            kind=p.kind,
-            model=p.model,
-            pose=pose,
-            pose_source=pose_source,
-            mobile=self.cfg.node.mobile,
-            body_radius_m=self.cfg.node.body_radius_m,
-            fps=float(p.fps),
             clock_offset_ns=int(st.offset_ns),
             clock_uncertainty_ns=int(st.uncertainty_ns),
             clock_source=st.source,
-            bearing_sigma_rad=self.cfg.node.bearing_sigma_rad,
         )
 
     def _refresh_info(self) -> None:

@@ -104,6 +104,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="score frames from this Unix ns on (default: the recording's score_from_ns, e.g. a demo's warm-up end)",
     )
+    p.add_argument(
+        "--tracks-csv", default=None, metavar="FILE", help="also write the scored tracks as frame,id,x_m,y_m"
+    )
 
 
 def _session_and_prefix(args: argparse.Namespace) -> tuple[SessionSettings, str, str | None]:
@@ -237,7 +240,7 @@ def _foxglove(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     from user_agent.groundtruth import read_gt_csv
     from user_agent.recording import load_recording
-    from user_agent.report import score_recording
+    from user_agent.report import score_recording, write_tracks_csv
 
     rec = load_recording(args.input)
     scored = score_recording(
@@ -250,6 +253,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     )
     out: dict[str, Any] = dict(scored.metrics.to_dict())
     out["tracks_published"] = scored.tracks_published
+    if args.tracks_csv:
+        out["tracks_csv_rows"] = write_tracks_csv(args.tracks_csv, scored.hypotheses)
     if args.json:
         print(json.dumps(out, indent=2))
     else:

@@ -315,10 +315,11 @@ def hypotheses_from_tracksets(
     Frame ``k`` is world time ``(k - 1) / fps`` after ``epoch_ns``. For each
     frame and each manager, the TrackSet nearest in time (within
     ``max_gap_s``) is taken and each track moved to the frame's instant by its
-    own velocity (a gap of at most half a fusion tick). Only frames inside the
-    recorded span are scored; a frame inside it with no TrackSet near enough
-    has no hypotheses (all its people count as misses). ``start_ns`` (e.g. the
-    end of a run's warm-up) skips the frames before it.
+    own velocity (a gap of at most half a fusion tick). Every frame from the
+    first one (or from ``start_ns``, e.g. the end of a run's warm-up) up to the
+    last TrackSet is scored: a frame with no TrackSet near enough, before the
+    first one included, has no hypotheses (all its people count as misses).
+    Frames after the last TrackSet (the run had ended) are not scored.
 
     Returns:
         (hypotheses by frame, the frames to score).
@@ -332,14 +333,13 @@ def hypotheses_from_tracksets(
         return {}, []
     stamps = {m: np.array([t.stamp_ns for t in sorted(v, key=lambda t: t.stamp_ns)]) for m, v in by_mgr.items()}
     ordered = {m: sorted(v, key=lambda t: t.stamp_ns) for m, v in by_mgr.items()}
-    first = min(int(s[0]) for s in stamps.values())
     last = max(int(s[-1]) for s in stamps.values())
     gap_ns = int(max_gap_s * 1e9)
     out: dict[int, list[HypPoint]] = {}
     scored: list[int] = []
     for k in sorted(frames):
         t_ns = epoch_ns + round((k - 1) / fps * 1e9)
-        if t_ns < first - gap_ns or t_ns > last + gap_ns or (start_ns is not None and t_ns < start_ns):
+        if t_ns > last + gap_ns or (start_ns is not None and t_ns < start_ns):
             continue
         scored.append(k)
         pts: list[HypPoint] = []

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from common.errors import ConfigError
-from user_agent.evaluate import MotMetrics, evaluate_positions, hypotheses_from_tracksets
+from common.schema import TrackSet
+from user_agent.evaluate import HypPoint, MotMetrics, evaluate_positions, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
 
-__all__ = ["Scored", "plot_recording", "room_of", "score_recording"]
+__all__ = ["Scored", "plot_recording", "room_of", "score_recording", "score_tracksets", "write_tracks_csv"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,6 +23,8 @@ class Scored:
     """Distinct confirmed/coasting track ids in the recording."""
     tracksets: int
     frames_scored: int
+    hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
+    """The tracks' positions at each scored ground-truth frame (what was scored; e.g. for a CSV export)."""
 
 
 def score_recording(
@@ -52,12 +55,40 @@ def score_recording(
     if rate <= 0:
         raise ConfigError("the recording has no fps metadata: pass --fps (the ground truth's frame rate)")
     start = start_ns if start_ns is not None else rec.meta_int("score_from_ns", -1)
+    return score_tracksets(
+        rec.tracksets,
+        gt,
+        epoch_ns=epoch,
+        fps=rate,
+        threshold_m=threshold_m,
+        max_gap_s=max_gap_s,
+        start_ns=start if start >= 0 else None,
+        on_events=on_events,
+    )
+
+
+def score_tracksets(
+    tracksets: Sequence[TrackSet],
+    gt: GroundTruth,
+    *,
+    epoch_ns: int,
+    fps: float,
+    threshold_m: float = 0.5,
+    max_gap_s: float = 0.25,
+    start_ns: int | None = None,
+    on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
+) -> Scored:
+    """Evaluate TrackSets against ground truth whose frame ``k`` is ``epoch_ns + (k - 1) / fps``.
+
+    Every ground-truth frame from the first one (or ``start_ns``) to the last TrackSet is scored
+    (:func:`~user_agent.evaluate.hypotheses_from_tracksets`).
+    """
     hyps, frames = hypotheses_from_tracksets(
-        rec.tracksets, epoch, rate, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start if start >= 0 else None
+        tracksets, epoch_ns, fps, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start_ns
     )
     metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events)
-    published = {t.track_id for ts in rec.tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
-    return Scored(metrics, len(published), len(rec.tracksets), len(frames))
+    published = {t.track_id for ts in tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
+    return Scored(metrics, len(published), len(tracksets), len(frames), hyps)
 
 
 def room_of(rec: Recording) -> tuple[float, float, float, float] | None:
@@ -102,3 +133,23 @@ def plot_recording(
         mutual_paths=r.mutual_paths,
     )
     return save_top_view(inp, out)
+
+
+def write_tracks_csv(path: str | Path, hypotheses: dict[int, list[HypPoint]]) -> int:
+    """Write scored track positions (:attr:`Scored.hypotheses`) as ``frame,id,x_m,y_m``, for other scorers.
+
+    The frames are the ground truth's (1-based at its fps), each track at the frame's instant.
+
+    Returns:
+        The number of rows written.
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    n = 0
+    with p.open("w", encoding="utf-8") as fh:
+        fh.write("frame,id,x_m,y_m\n")
+        for k in sorted(hypotheses):
+            for h in sorted(hypotheses[k], key=lambda h: h.track_id):
+                fh.write(f"{k},{h.track_id},{h.x_m:.4f},{h.y_m:.4f}\n")
+                n += 1
+    return n

@@ -1,10 +1,16 @@
-"""``panostereo import wildtrack PATH --out DIR [--noise-px N] [--drop-rate P]``.
+"""``panostereo import {mot,wildtrack} PATH --out DIR``: turn a dataset into a runnable site.
 
-Converts a Wildtrack-format dataset (Wildtrack; MultiviewX with ``--grid``
-options) into a runnable site: calibration JSON and MOT detection file per
-camera, ``gt.csv``, per-process configs and ``site.toml``, which
-``panostereo demo --site DIR/site.toml`` runs and scores. The dataset stays
-where it is: pass its path, never copy it into the repository.
+* ``mot``: any calibrated multi-view detection dataset laid out as ``calib/<cam>.json``,
+  ``detections/<cam>.txt`` (MOTChallenge) and an optional ``gt.csv``
+  (:mod:`panostereo.datasets.mot`); ``--fps`` is required, ``--room`` optional.
+* ``wildtrack``: a Wildtrack-format dataset (Wildtrack; MultiviewX with ``--grid``
+  options): annotations and calibrations, turned into the ``mot`` layout
+  (:mod:`panostereo.datasets.wildtrack`).
+
+Both write per-process configs and ``site.toml``, which ``panostereo demo
+--site DIR/site.toml`` runs and ``panostereo evaluate-site DIR/site.toml``
+plays in dataset time. The dataset stays where it is: pass its path, never copy
+it into the repository.
 """
 
 from __future__ import annotations
@@ -13,46 +19,83 @@ import argparse
 import json
 from dataclasses import asdict
 
+from common.errors import ConfigError
+from panostereo.datasets.mot import import_mot
 from panostereo.datasets.wildtrack import GridSpec, import_wildtrack
 
 __all__ = ["configure", "run"]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("format", choices=["wildtrack"], help="dataset format")
-    parser.add_argument("path", help="dataset folder (annotations_positions/, calibrations/)")
+    parser.add_argument("format", choices=["mot", "wildtrack"], help="dataset layout")
+    parser.add_argument("path", help="dataset folder")
     parser.add_argument("--out", required=True, metavar="DIR", help="where to write the site")
     parser.add_argument("--noise-px", type=float, default=0.0, help="Gaussian noise on box edges (pixels, 1 sigma)")
     parser.add_argument("--drop-rate", type=float, default=0.0, help="fraction of boxes dropped (missed detections)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise and drops")
-    parser.add_argument("--frames", type=int, default=0, help="keep only the first N annotated frames (0: all)")
-    parser.add_argument(
+    parser.add_argument("--name", default="", help="the site's name (default: the dataset folder's)")
+    mot = parser.add_argument_group("mot")
+    mot.add_argument("--fps", type=float, default=None, help="mot: the dataset's frame rate (frame k at (k-1)/fps)")
+    mot.add_argument(
+        "--room",
+        type=float,
+        nargs=4,
+        default=None,
+        metavar=("X0", "Y0", "X1", "Y1"),
+        help="mot: the floor area people can be in (m), if known",
+    )
+    mot.add_argument(
+        "--min-confidence",
+        type=float,
+        default=0.0,
+        help="mot: the nodes ignore boxes whose conf column is lower (the detector's operating point)",
+    )
+    wt = parser.add_argument_group("wildtrack")
+    wt.add_argument("--frames", type=int, default=0, help="wildtrack: keep only the first N annotated frames (0: all)")
+    wt.add_argument(
         "--grid",
         type=float,
         nargs=4,
         default=None,
         metavar=("X0", "Y0", "STEP", "WIDTH"),
-        help="positionID grid: origin (m), step (m), cells per row (Wildtrack: -3 -9 0.025 480)",
+        help="wildtrack: positionID grid: origin (m), step (m), cells per row (Wildtrack: -3 -9 0.025 480)",
     )
-    parser.add_argument("--extrinsic-unit-m", type=float, default=0.01, help="metres per tvec unit (cm: 0.01)")
-    parser.add_argument("--image-size", type=int, nargs=2, default=[1920, 1080], metavar=("W", "H"))
+    wt.add_argument("--extrinsic-unit-m", type=float, default=0.01, help="wildtrack: metres per tvec unit (cm: 0.01)")
+    wt.add_argument("--image-size", type=int, nargs=2, default=[1920, 1080], metavar=("W", "H"))
 
 
 def run(args: argparse.Namespace) -> int:
-    grid = GridSpec(extrinsic_unit_m=args.extrinsic_unit_m)
-    if args.grid is not None:
-        x0, y0, step, width = args.grid
-        grid = GridSpec(x0_m=x0, y0_m=y0, step_m=step, width=int(width), extrinsic_unit_m=args.extrinsic_unit_m)
-    res = import_wildtrack(
-        args.path,
-        args.out,
-        noise_px=args.noise_px,
-        drop_rate=args.drop_rate,
-        seed=args.seed,
-        grid=grid,
-        image_size=(args.image_size[0], args.image_size[1]),
-        max_frames=args.frames,
-    )
+    if args.format == "mot":
+        if args.fps is None:
+            raise ConfigError("import mot: --fps is required (the dataset's frame rate)")
+        res = import_mot(
+            args.path,
+            args.out,
+            fps=args.fps,
+            room=args.room,
+            min_confidence=args.min_confidence,
+            noise_px=args.noise_px,
+            drop_rate=args.drop_rate,
+            seed=args.seed,
+            name=args.name,
+        )
+    else:
+        grid = GridSpec(extrinsic_unit_m=args.extrinsic_unit_m)
+        if args.grid is not None:
+            x0, y0, step, width = args.grid
+            grid = GridSpec(x0_m=x0, y0_m=y0, step_m=step, width=int(width), extrinsic_unit_m=args.extrinsic_unit_m)
+        res = import_wildtrack(
+            args.path,
+            args.out,
+            noise_px=args.noise_px,
+            drop_rate=args.drop_rate,
+            seed=args.seed,
+            grid=grid,
+            image_size=(args.image_size[0], args.image_size[1]),
+            max_frames=args.frames,
+            site_name=args.name,
+        )
     print(json.dumps({k: str(v) if k == "site" else v for k, v in asdict(res).items()}, indent=2))
     print(f"run it: panostereo demo --site {res.site}")
+    print(f"play it in dataset time: panostereo evaluate-site {res.site}")
     return 0

@@ -12,15 +12,16 @@ xmax, ymax}]}`` (a box of -1 = not visible); the floor position is
 ``X = x0 + step * (positionID % width)``, ``Y = y0 + step * (positionID // width)``.
 ``viewNum`` i is the i-th camera in name order (CVLab1..4, IDIAP1..3).
 
-Output (``--out DIR``)::
+This is a front end to the generic importer (:mod:`panostereo.datasets.mot`): it writes the dataset in that
+importer's layout and lets it build the site::
 
-    site.toml                 [site] + [dataset] + one [[process]] per camera and the manager
     calib/<cam>.json          {"model": "pinhole", "image_size", "K", "dist" (zero), "R" (Rodrigues), "t" (metres)}
     detections/<cam>.txt      MOTChallenge det file from the annotated boxes: frame,-1,left,top,w,h,conf,-1,-1,-1
-                              (no identities: ground truth never reaches the pipeline), optional pixel noise
-                              and dropped boxes
-    nodes/<cam>.toml          sensor-node config (detections source), nodes/manager.toml
+                              (no identities: ground truth never reaches the pipeline)
     gt.csv                    frame,id,x_m,y_m (frames 1-based at 2 fps)
+
+then ``site.toml`` and ``nodes/*.toml`` as every imported site has them, with the importer's optional pixel noise
+and dropped boxes.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-import re
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,13 +38,12 @@ import cv2
 import numpy as np
 
 from common.errors import ConfigError
+from panostereo.datasets.mot import MIN_BOX_PX, ImportResult, camera_id, import_mot
 from user_agent.groundtruth import GtPoint, write_gt_rows
 
 __all__ = ["GridSpec", "ImportResult", "import_wildtrack"]
 
 logger = logging.getLogger(__name__)
-
-_ID_CLEAN = re.compile(r"[^a-z0-9-]+")
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,16 +59,6 @@ class GridSpec:
     video_fps: float = 10.0
     frame_step: int = 5
     """Annotated every ``frame_step``-th video frame: the site runs at video_fps / frame_step."""
-
-
-@dataclass(frozen=True, slots=True)
-class ImportResult:
-    site: Path
-    cameras: list[str]
-    frames: int
-    people: int
-    boxes: int
-    dropped: int
 
 
 def _read_fs(path: Path, node: str) -> np.ndarray:
@@ -95,14 +85,6 @@ def _cameras(root: Path) -> list[str]:
     if not names:
         raise ConfigError(f"{root}: expected calibrations/extrinsic/extr_<CAM>.xml files, found none")
     return names
-
-
-def camera_id(name: str) -> str:
-    """``CVLab1`` -> ``cvlab1`` (a valid sensor id)."""
-    cid = _ID_CLEAN.sub("-", name.lower()).strip("-")
-    if not cid:
-        raise ConfigError(f"camera name {name!r} gives an empty sensor id")
-    return cid
 
 
 def calibration(root: Path, name: str, grid: GridSpec, image_size: tuple[int, int]) -> dict[str, Any]:
@@ -139,85 +121,6 @@ def _annotations(root: Path) -> list[tuple[int, list[dict[str, Any]]]]:
     return out
 
 
-def _site_toml(cams: list[str], fps: float, frames: int) -> str:
-    lines = [
-        "# A dataset site made by `panostereo import wildtrack`: detection files + gt.csv, no simulation.",
-        "# Run: panostereo demo --site THIS_FILE",
-        "",
-        "[site]",
-        'name = "wildtrack"',
-        'prefix = "pano"',
-        f"fps = {fps}",
-        f"duration_s = {frames / fps:.1f}",
-        "seed = 1",
-        'router = "tcp/127.0.0.1:7447"',
-        "",
-        "[dataset]",
-        'ground_truth = "gt.csv"',
-        f"fps = {fps}",
-        f"frames = {frames}",
-    ]
-    for cid in cams:
-        lines += ["", "[[process]]", f'name = "{cid}"', 'command = "node"', f'config = "nodes/{cid}.toml"']
-    lines += ["", "[[process]]", 'name = "manager"', 'command = "manager"', 'config = "nodes/manager.toml"']
-    return "\n".join(lines) + "\n"
-
-
-def _node_toml(cid: str, fps: float) -> str:
-    return f"""# Detection-file camera {cid} (made by `panostereo import wildtrack`).
-
-[node]
-id = "{cid}"
-prefix = "pano"
-bearing_sigma_rad = 0.0035
-
-[zenoh]
-mode = "client"
-connect = ["tcp/127.0.0.1:7447"]
-
-[source]
-kind = "detections"
-file = "../detections/{cid}.txt"
-calibration = "../calib/{cid}.json"
-fps = {fps}
-max_lag_s = 1.0
-"""
-
-
-def _manager_toml(fps: float) -> str:
-    period_ms = 1000.0 / fps
-    return f"""# Resource manager of the imported dataset site: frames come every {period_ms:.0f} ms.
-
-[manager]
-id = "mgr1"
-prefix = "pano"
-rate_hz = {max(2.0, 2 * fps):g}
-latency_ms = {period_ms + 300:.0f}            # a frame period plus delivery
-max_gap_ms = {2.5 * period_ms:.0f}           # interpolate between consecutive annotated frames
-stale_ms = {3 * period_ms:.0f}
-max_extrapolation_ms = {0.6 * period_ms:.0f}
-state_dir = ""
-
-[zenoh]
-mode = "client"
-connect = ["tcp/127.0.0.1:7447"]
-
-[match]
-use_colour = false              # detection files carry no colour
-max_range_m = 50.0
-threshold = 0.1                 # without colour (r_is = 1) Eq. 7's product is larger-spread: accept lower
-
-[tracker]
-max_misses = 3                  # ticks: a person unseen for ~0.75 s at 2 fps has left (longer makes ghosts coast)
-
-[mutual]
-enabled = false                 # static, calibrated cameras
-
-[planner]
-enabled = false
-"""
-
-
 def import_wildtrack(
     root: str | Path,
     out: str | Path,
@@ -228,6 +131,7 @@ def import_wildtrack(
     grid: GridSpec | None = None,
     image_size: tuple[int, int] = (1920, 1080),
     max_frames: int = 0,
+    site_name: str = "",
 ) -> ImportResult:
     """Convert the dataset at ``root`` into a site under ``out``.
 
@@ -236,6 +140,7 @@ def import_wildtrack(
         drop_rate: probability that an annotated box is left out (a missed detection).
         seed: random seed of the noise and drops.
         max_frames: keep only the first N annotated frames (0: all).
+        site_name: the site's name (default ``wildtrack``).
 
     Raises:
         ConfigError: missing or malformed input, bad arguments.
@@ -258,11 +163,9 @@ def import_wildtrack(
     anns = _annotations(src)
     if max_frames > 0:
         anns = anns[:max_frames]
-    rng = np.random.default_rng(seed)
     w, h = image_size
     dets: dict[int, list[str]] = {i: [] for i in range(len(names))}
     gt: list[GtPoint] = []
-    boxes = dropped = 0
     for video_frame, people in anns:
         if video_frame % g.frame_step:
             raise ConfigError(f"{src}: annotation {video_frame:08d}.json is not a multiple of {g.frame_step}")
@@ -277,29 +180,20 @@ def import_wildtrack(
                 box = [float(view[k]) for k in ("xmin", "ymin", "xmax", "ymax")]
                 if v not in dets or box == [-1.0, -1.0, -1.0, -1.0]:
                     continue
-                boxes += 1
-                if drop_rate and rng.random() < drop_rate:
-                    dropped += 1
-                    continue
-                if noise_px:
-                    box = [b + float(rng.normal(0.0, noise_px)) for b in box]
                 x0, y0 = min(max(box[0], 0.0), w - 1.0), min(max(box[1], 0.0), h - 1.0)
                 x1, y1 = min(max(box[2], 0.0), w - 1.0), min(max(box[3], 0.0), h - 1.0)
-                if x1 - x0 < 2 or y1 - y0 < 2:
-                    dropped += 1
-                    continue
+                if x1 - x0 < MIN_BOX_PX or y1 - y0 < MIN_BOX_PX:
+                    continue  # a box outside the image (clipped to nothing)
                 dets[v].append(f"{frame},-1,{x0:.1f},{y0:.1f},{x1 - x0:.1f},{y1 - y0:.1f},1.0,-1,-1,-1")
-    frames = max(p.frame for p in gt) if gt else 0
-    for sub in ("calib", "detections", "nodes"):
-        (dst / sub).mkdir(parents=True, exist_ok=True)
-    for i, (name, cid) in enumerate(zip(names, ids, strict=True)):
-        calib = calibration(src, name, g, image_size)
-        (dst / "calib" / f"{cid}.json").write_text(json.dumps(calib, indent=1) + "\n", encoding="utf-8")
-        (dst / "detections" / f"{cid}.txt").write_text("\n".join(dets[i]) + "\n", encoding="utf-8")
-        (dst / "nodes" / f"{cid}.toml").write_text(_node_toml(cid, fps), encoding="utf-8")
-    (dst / "nodes" / "manager.toml").write_text(_manager_toml(fps), encoding="utf-8")
-    write_gt_rows(dst / "gt.csv", gt, with_z=False)
-    site = dst / "site.toml"
-    site.write_text(_site_toml(ids, fps, frames), encoding="utf-8")
-    logger.info("imported %d cameras, %d frames, %d boxes (%d dropped) into %s", len(ids), frames, boxes, dropped, dst)
-    return ImportResult(site, ids, frames, len({p.person_id for p in gt}), boxes, dropped)
+    with tempfile.TemporaryDirectory(prefix="wildtrack-") as tmp:
+        stage = Path(tmp)
+        for sub in ("calib", "detections"):
+            (stage / sub).mkdir()
+        for i, (name, cid) in enumerate(zip(names, ids, strict=True)):
+            calib = calibration(src, name, g, image_size)
+            (stage / "calib" / f"{cid}.json").write_text(json.dumps(calib, indent=1) + "\n", encoding="utf-8")
+            (stage / "detections" / f"{cid}.txt").write_text("\n".join(dets[i]) + "\n", encoding="utf-8")
+        write_gt_rows(stage / "gt.csv", gt, with_z=False)
+        return import_mot(
+            stage, dst, fps=fps, noise_px=noise_px, drop_rate=drop_rate, seed=seed, name=site_name or "wildtrack"
+        )

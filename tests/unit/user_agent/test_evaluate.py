@@ -125,12 +125,15 @@ def test_tracksets_are_aligned_to_frames_with_velocity_and_span() -> None:
         TrackSet(manager_id="m", seq=i, stamp_ns=epoch + int((0.5 + i * 0.1) * 1e9), tracks=[_track("m-1", i, 1.0)])
         for i in range(5)
     ] + [TrackSet(manager_id="m", seq=9, stamp_ns=epoch + int(0.9e9), tracks=[_track("m-2", 5.0, 0.0, "tentative")])]
-    # fps 10: frame k <-> (k-1)/10 s; the sets span 0.5..0.9 s -> frames 4..12 within the 0.25 s gap.
+    # fps 10: frame k <-> (k-1)/10 s; the sets span 0.5..0.9 s: frames 1..12 are scored (up to the last set
+    # plus the 0.25 s gap); frames 1..3, before the first set and beyond the gap, have no tracks: misses.
     hyps, scored = hypotheses_from_tracksets(sets, epoch, 10.0, range(1, 30), max_gap_s=0.25)
-    assert scored == list(range(4, 13))
+    assert scored == list(range(1, 13))
+    assert hyps[1] == hyps[2] == hyps[3] == []
+    assert hyps[4] == [HypPoint("m-1", -0.2, 0.0)]  # 0.3 s: the first set, 0.2 s back by its velocity
     assert hyps[6] == [HypPoint("m-1", 0.0, 0.0)]  # frame 6 = 0.5 s: first set, no extrapolation
     (p,) = hyps[7]  # 0.6 s: second set (x=1)
     assert p.x_m == pytest.approx(1.0)
     assert hyps[11] == []  # tentative tracks are not scored
     _, late = hypotheses_from_tracksets(sets, epoch, 10.0, range(1, 30), max_gap_s=0.25, start_ns=epoch + int(0.7e9))
-    assert late == list(range(8, 13))  # a warm-up end at 0.7 s drops frames 4..7
+    assert late == list(range(8, 13))  # a warm-up end at 0.7 s drops frames 1..7

@@ -102,10 +102,16 @@ def test_score_of_recording_with_constant_offset(recorded: tuple[Path, Path]) ->
     scored = score_recording(load_recording(mcap), read_gt_csv(gt_path), threshold_m=0.5)
     m = scored.metrics
     assert scored.tracks_published == 2
-    assert m.mota == 1.0 and m.idf1 == 1.0 and m.id_switches == 0
+    # Every frame from the first is scored, up to the last TrackSet (4.35 s) plus the 0.25 s gap: frames 1..47
+    # ((k - 1) / 10 s). Frames 1 and 2 come before the first TrackSet (0.4 s) by more than the gap: both people
+    # are missed there; from frame 3 on, both are tracked.
+    assert scored.frames_scored == 47
+    assert m.misses == 4 and m.false_positives == 0 and m.id_switches == 0
+    assert m.mota == pytest.approx(1 - 4 / 94)
     assert m.mean_error_m == pytest.approx(0.05, abs=0.01)
-    # The recorded span 0.4 .. 4.35 s, widened by the 0.25 s gap, covers frames 3..47 ((k - 1) / 10 s).
-    assert scored.frames_scored == 47 - 3 + 1
+    # The recording's warm-up end (its score_from_ns) is where scoring starts, when it has one.
+    late = score_recording(load_recording(mcap), read_gt_csv(gt_path), start_ns=EPOCH + int(0.2e9))
+    assert late.frames_scored == 47 - 3 + 1 and late.metrics.mota == 1.0 and late.metrics.idf1 == 1.0
 
 
 def test_plot_draws_tracks_and_ground_truth_side_by_side(recorded: tuple[Path, Path], tmp_path: Path) -> None:

@@ -1,0 +1,186 @@
+"""Dataset time: a dataset site played through the manager's own stages, with no wall clock and no zenoh.
+
+A dataset site (``panostereo import mot|wildtrack``) has detection-file sensor nodes and a manager. Played
+live (``panostereo demo --site``), every node turns frame ``k`` of its file into Features at world time
+``(k - 1) / fps`` and the manager fuses them over zenoh. Here the same code runs in one process, in dataset
+time:
+
+1. each node's config is built with :func:`sensor_node.build.build_node` and its frames turned into Features
+   by the node's own processor (the same 2D tracker, the same rays), and its SensorInfo by the same function the
+   node publishes;
+2. the manager's :class:`~resource_manager.fusion.Fusion` (the site's manager config, or another) is stepped at
+   every frame instant once every camera's frame of that instant is in (the watermark of a network whose frames
+   all arrived): the tick a live manager makes once nothing more can come for that instant;
+3. the TrackSets are scored against the site's ``gt.csv`` from its first frame
+   (:func:`user_agent.report.score_tracksets`).
+
+Nothing is random and nothing waits: two runs give identical tracks, and Wildtrack's 400 frames take seconds.
+Ground truth is read only by the scoring, after the tracks are made.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from common.errors import ConfigError
+from common.schema import Features, SensorInfo, TrackSet
+from common.site import SiteConfig, load_site
+from resource_manager.config import ManagerConfig, load_manager_config
+from resource_manager.fusion import Batch, Fusion
+from sensor_node.build import build_node, sensor_info
+from sensor_node.config import DetectionsSource, load_node_config
+from sensor_node.detections import DetectionFrames
+from sensor_node.sources import Frame
+from user_agent.evaluate import HypPoint
+from user_agent.groundtruth import read_gt_csv
+from user_agent.report import score_tracksets
+
+__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
+
+DATASET_EPOCH_NS = 1_700_000_000_000_000_000
+"""World time 0 of a dataset played in dataset time (any fixed instant: the result does not depend on it)."""
+
+
+@dataclass(frozen=True, slots=True)
+class DatasetCamera:
+    """One detection-file node of a site, its frames already turned into Features."""
+
+    sensor_id: str
+    info: SensorInfo
+    features: list[Features]
+    """One per frame of the file, stamped at the frame's world time."""
+
+
+@dataclass(slots=True)
+class DatasetRun:
+    """What one play produced."""
+
+    tracksets: list[TrackSet] = field(default_factory=list)
+    ticks: int = 0
+    tick_ms: list[float] = field(default_factory=list)
+    """Process time of each Fusion step (ms)."""
+    hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
+    """The tracks at every scored ground-truth frame (set by :func:`evaluate_site`)."""
+
+
+def load_cameras(site: SiteConfig, epoch_ns: int = DATASET_EPOCH_NS) -> list[DatasetCamera]:
+    """Every sensor node of a dataset site, read and turned into Features by the node's own code.
+
+    Raises:
+        ConfigError: a node whose source is not a detection file (dataset time plays recorded detections).
+    """
+    out: list[DatasetCamera] = []
+    for proc in site.process:
+        if proc.command != "node":
+            continue
+        cfg = load_node_config(site.resolve(proc.config))
+        if not isinstance(cfg.source, DetectionsSource):
+            kind = type(cfg.source).__name__
+            raise ConfigError(
+                f"{site.path}: process {proc.name!r} has a {kind} source; dataset time plays detection-file "
+                f'nodes ([source] kind = "detections") only: run this site live with `panostereo demo --site`'
+            )
+        cfg = _with_epoch(cfg, epoch_ns)
+        parts = build_node(cfg, lambda: epoch_ns)
+        frames = parts.source
+        assert isinstance(frames, DetectionFrames)
+        last = site.dataset.frames if site.dataset is not None and site.dataset.frames else frames.last_frame
+        period_ns = 1e9 / cfg.source.fps
+        feats = []
+        for k in range(1, last + 1):
+            stamp = epoch_ns + round((k - 1) * period_ns)
+            frame = Frame(index=k - 1, stamp_ns=stamp, payload=frames.by_frame.get(k, []))
+            feats.append(parts.processor.process_frame(frame, seq=k)[0])
+        info = sensor_info(cfg, parts, seq=0, stamp_ns=epoch_ns)
+        out.append(DatasetCamera(cfg.node.id, info, feats))
+    if not out:
+        raise ConfigError(f'{site.path}: no sensor node ([[process]] command = "node") to play')
+    return out
+
+
+def _with_epoch(cfg: Any, epoch_ns: int) -> Any:
+    import msgspec
+
+    return msgspec.structs.replace(cfg, source=msgspec.structs.replace(cfg.source, epoch_ns=epoch_ns))
+
+
+def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
+    """Step a fresh Fusion at every frame instant, each camera's frame of that instant in its batch."""
+    fusion = Fusion(config)
+    by_stamp: dict[int, list[Features]] = {}
+    for cam in cameras:
+        for f in cam.features:
+            by_stamp.setdefault(f.stamp_ns, []).append(f)
+    run = DatasetRun()
+    infos: list[SensorInfo] = [cam.info for cam in cameras]
+    presence = {cam.sensor_id: True for cam in cameras}
+    for stamp in sorted(by_stamp):
+        began = time.process_time()
+        result = fusion.step(Batch(features=by_stamp[stamp], infos=infos, presence=presence), stamp)
+        run.tick_ms.append((time.process_time() - began) * 1e3)
+        infos, presence = [], {}
+        run.ticks += 1
+        if not result.skipped:
+            run.tracksets.append(result.trackset)
+    return run
+
+
+def _manager_config(site: SiteConfig, given: str | Path | None) -> ManagerConfig:
+    if given:
+        return load_manager_config(given)
+    for proc in site.process:
+        if proc.command == "manager":
+            return load_manager_config(site.resolve(proc.config))
+    raise ConfigError(f"{site.path}: no manager process: pass --config MANAGER.toml")
+
+
+def evaluate_site(
+    site_path: str | Path,
+    *,
+    manager_config: str | Path | None = None,
+    thresholds_m: Sequence[float] = (0.5, 1.0),
+) -> tuple[dict[str, Any], DatasetRun]:
+    """Play a dataset site in dataset time and score it at each threshold.
+
+    Returns:
+        (a JSON-ready report, the run).
+
+    Raises:
+        ConfigError: not a dataset site, no ground truth, a node that is not a detection file, a bad config.
+    """
+    site = load_site(site_path)
+    if site.dataset is None:
+        raise ConfigError(f"{site.path}: not a dataset site (no [dataset] table): evaluate-site plays recorded data")
+    if not site.dataset.ground_truth:
+        raise ConfigError(f"{site.path}: the dataset has no ground truth (dataset.ground_truth) to score against")
+    gt_path = site.resolve(site.dataset.ground_truth)
+    if not gt_path.is_file():
+        raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({gt_path})")
+    config = _manager_config(site, manager_config)
+    began = time.perf_counter()
+    cameras = load_cameras(site)
+    loaded = time.perf_counter()
+    run = play(cameras, config)
+    played = time.perf_counter()
+    gt = read_gt_csv(gt_path)
+    scored = [
+        score_tracksets(run.tracksets, gt, epoch_ns=DATASET_EPOCH_NS, fps=site.dataset.fps, threshold_m=t)
+        for t in thresholds_m
+    ]
+    run.hypotheses = scored[0].hypotheses if scored else {}
+    scores = [s.metrics for s in scored]
+    report: dict[str, Any] = {
+        "site": site.site.name,
+        "cameras": [c.sensor_id for c in cameras],
+        "fps": site.dataset.fps,
+        "frames": max((len(c.features) for c in cameras), default=0),
+        "scores": [m.to_dict() for m in scores],
+        "tracks_published": len({t.track_id for ts in run.tracksets for t in ts.tracks}),
+        "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
+        "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
+    }
+    return report, run
