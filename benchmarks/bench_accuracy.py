@@ -340,7 +340,7 @@ def _first_fix(
     """Error of the first pair in ``order`` whose rays meet (the manager tries its ranked pairs in turn)."""
     import numpy as np
 
-    from resource_manager.localize import localize_best_pair
+    from resource_manager.stereo.localize import localize_best_pair
 
     for p, q in order:
         a, b = sorted((p, q))
@@ -359,13 +359,13 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     box's bottom centre), then into the manager's world-frame views (:func:`resource_manager.views.build_views`).
     The blobs of one person are grouped by that per-camera id. For every person-frame seen by >= 2 cameras:
 
-    * ``error_model``: the manager's ranking :func:`resource_manager.pairs.rank_pairs` (the error model's
-      predicted error, ``max_pair_cameras`` nearest cameras as in the manager) evaluated at the person's
+    * ``error_model``: the manager's ranking :func:`resource_manager.stereo.pairs.rank_pairs` (the error model's
+      predicted error, the ``MAX_PAIR_CAMERAS`` nearest cameras as in the manager) evaluated at the person's
       position estimated from the data (least squares over all its views, standing in for the track
       prediction); the first ranked pair that localises is used, as the manager tries ranked pairs in order;
     * ``random``: a uniformly random pair among all the cameras that see the person (the next random one if
       the rays do not meet);
-    * both localised by :func:`resource_manager.localize.localize_best_pair` (common.geometry.localize_pair:
+    * both localised by :func:`resource_manager.stereo.localize.localize_best_pair` (common.geometry.localize_pair:
       Eq. 1, or Eq. 2 near colinearity) -- the manager's own function.
 
     Also reported for context: the ranking evaluated at the true position (``error_model_at_truth``), the pair
@@ -381,10 +381,11 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     from panostereo.datasets.wildtrack import GridSpec, calibration, camera_id
     from resource_manager.config import MatchSection
     from resource_manager.ingest.align import AlignedBlob, AlignedView
-    from resource_manager.localize import localize_least_squares
-    from resource_manager.pairs import CameraGeom, rank_pairs
     from resource_manager.poses.solver import PoseEstimate
-    from resource_manager.views import build_views
+    from resource_manager.stereo.localize import localize_least_squares
+    from resource_manager.stereo.pairs import CameraGeom, rank_pairs
+    from resource_manager.track.tracker import MAX_PAIR_CAMERAS
+    from resource_manager.views.build import build_views
     from sensor_node.detections import features_from_detections, read_mot
 
     grid = GridSpec()
@@ -434,7 +435,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
         poses[cid] = PoseEstimate(cid, float(c[0]), float(c[1]), float(c[2]), 0.0, "surveyed")
     rng = np.random.default_rng(seed)
     noise = math.radians(noise_deg)
-    max_cams = MatchSection().max_pair_cameras
+    max_cams = MAX_PAIR_CAMERAS
     rel_w = MatchSection().width_rel_sigma
     errors: dict[str, list[float]] = {
         m: [] for m in ("error_model", "random", "error_model_at_truth", "best_angle", "all_views")
@@ -460,7 +461,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
                 for b in feats.blobs
             ]
             aligned[cid] = AlignedView(cid, feats.stamp_ns, blobs, [], "held")
-        views = build_views(aligned, poses, lambda _sid: sigma_rad)
+        views = build_views(aligned, poses, {}, lambda _sid: sigma_rad)
         for (kk, pid), gt in truth.items():
             if kk != k:
                 continue

@@ -258,6 +258,9 @@ class SensorInfo(_Msg, frozen=True, tag="pano.SensorInfo"):
     clock_source: Literal["ntp", "system"] = "system"
     bearing_sigma_rad: Annotated[float, msgspec.Meta(ge=0.0, le=1.0)] = 0.0035
     """1-sigma head-bearing error this sensor expects (feeds the error model)."""
+    point_sigma_m: Annotated[float, msgspec.Meta(ge=0.0, le=10.0)] = 0.0
+    """Spread (1 sigma, m) of the point this sensor measures around the person's floor position: a head sways
+    little, a box's bottom centre moves with the legs. 0: not stated (the manager assumes its default)."""
 
 
 SourceState = Literal["starting", "ok", "reconnecting", "failed", "ended"]

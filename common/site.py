@@ -183,6 +183,10 @@ class DatasetSpec(ConfigStruct, frozen=True):
     fps: Pos = 2.0
     frames: Annotated[int, msgspec.Meta(ge=0)] = 0
     """Number of frames (0: as many as the detection files hold)."""
+    scored_area: Literal["ground_truth", "everywhere"] = "ground_truth"
+    """Where tracks are scored: ``ground_truth``, only where the ground truth annotates people (the convex hull
+    of its positions, grown by the match distance: a dataset annotated in one camera's view or on a grid says
+    nothing about anyone elsewhere), or ``everywhere``."""
 
 
 class SiteConfig(ConfigStruct, frozen=True):

@@ -81,9 +81,7 @@ class ManagerSection(ConfigStruct, frozen=True):
     clock_step_ms: Pos = 1500.0
     """A frame this much older than the newest with a higher seq is a sender clock step: the buffer restarts."""
     matcher: Literal["greedy", "global"] = "greedy"
-    """Stereo matcher by registry name: ``greedy`` (the paper's, O(N^3/3)) or ``global`` (Hungarian)."""
-    fuse_all: bool = False
-    """False: localise each person with the best pair only (the paper). True: least squares over every view."""
+    """Stereo matcher of Eq. 7 by registry name: ``greedy`` (the paper's, O(N^3/3)) or ``global`` (Hungarian)."""
     publish_tentative: bool = False
     """Also publish tracks still waiting for birth confirmation."""
     state_dir: str = ""
@@ -112,119 +110,82 @@ class PoseOverride(ConfigStruct, frozen=True):
 
 
 class MatchSection(ConfigStruct, frozen=True):
-    """``[match]``: Eq. (7) measures and thresholds."""
+    """``[match]``: the paper's 3D blob match (Eq. 7), which pairs the blobs of new people across views, and the
+    error model's pair choice."""
 
-    threshold: Frac = 0.2
-    """tau: a pair is accepted only if its confidence exceeds this (raise: fewer, surer matches). With colour
-    the wrong pair of two people walking side by side scores ~0.1-0.2 (r_is); much higher and far people's
-    real pairs are refused (synthetic 4 cameras x 6 people: MOTA 0.84 at 0.1, 0.89 at 0.2; 16 x 20: 0.97 at
-    0.1, 0.99 at 0.2, 0.95 at 0.25). Without colour (detection files, r_is = 1) 0.1."""
-    temporal_weight: NonNeg = 1.0
-    """lambda in r' = (r + lambda c_t)/(1 + lambda); 0 disables the temporal term."""
-    temporal_gate_m: NonNeg = 0.6
-    """Distance from a track's prediction at which the positional temporal term has fallen to exp(-1/2): a
-    hypothesis near a track continues it even when the nodes' 2D ids changed. 0: ids only (measured: 16 cameras
-    x 20 people MOTA 0.99 vs 0.95 without; Wildtrack 0.645 vs 0.62; one demo recording 0.86 vs 0.90)."""
-    max_range_m: Pos = 30.0
-    """r_rc = 0 when a hypothesised target lies further than this from either camera."""
+    threshold: Frac = 0.1
+    """tau: two blobs are paired only when Eq. 7's confidence exceeds this (raise: fewer, surer pairs, and
+    people far from the cameras are found later)."""
+    max_range_m: Pos = 100.0
+    """Nobody is paired, or seen, farther than this from a camera."""
     width_sigma: Pos = 0.35
-    """Spread of ln(W1/W2) in r_wc (frontal vs side widths differ by ~0.6)."""
-    floor_sigma_m: NonNeg = 0.25
-    """Part of r_hc: where a blob's feet are visible, z_cam + D tan(bottom) must be the floor within this
-    (plus the bearing error times D); 0 disables. Ghosts of crossing rays stand above or below the floor."""
+    """Spread of ln(W1/W2) in r_wc (a person's frontal and side widths differ by ~0.6)."""
     width_floor: Frac = 0.0
     """Smallest r_wc: raise it (e.g. 0.3) when the nodes merge occluding people into one wide blob."""
     height_sigma: Pos = 0.12
     """Spread of ln(H1/H2) in r_hc."""
+    floor_sigma_m: NonNeg = 0.25
+    """Part of r_hc: where a blob's feet are visible, z_cam + D tan(bottom) must be the floor within this (plus
+    the bearing error times D); 0 disables. Ghosts of crossing rays stand above or below the floor."""
     use_colour: bool = True
-    """False: r_is = 1 (e.g. detection files without colour)."""
+    """False: r_is = 1 (colour is not compared when pairing)."""
     width_rel_sigma: Pos = 0.1
-    """Relative width error epsilon fed to the size-ratio crossover."""
-    look_weight: NonNeg = 0.0
-    """Per camera, a blob's colour dissimilarity (1 - Bhattacharyya) to a track's running look in that view
-    times this is added to the support assignment cost (gate units squared): people who meet keep their own
-    blobs. 0: position (and node ids) only."""
-    fix_look_min: Frac = 0.0
-    """A fix whose two blobs match the track's running looks in those views worse than this (mean Bhattacharyya
-    coefficient) is someone else's: two other people's rays, or the neighbour's blob after a merge (0: off;
-    needs ``look_weight`` > 0, which keeps the looks)."""
-    bearing_gate_sigmas: Pos = 4.0
-    """A blob supports a track when its bearing is within this many sigmas of the predicted bearing."""
-    link_gate_m: Pos = 1.0
-    """A measurement outside the motion gate is still taken when both blobs continue the track's node-side
-    2D tracks (same local ids) and it lies within this distance of the prediction (sharp turns)."""
-    bearing_updates: bool = False
-    """When no pair localises a track, the cameras that still follow it update it by bearing alone (EKF)."""
-    max_birth_pairs: PosInt = 12
-    """Most camera pairs matched per tick only to find new people (bounds the cost with many cameras)."""
+    """Relative width error epsilon of the size-ratio method (Eq. 2) and its crossover with Eq. 1."""
+    max_birth_pairs: PosInt = 28
+    """Most camera pairs matched per tick to find new people (round robin beyond; bounds the cost with many
+    cameras: 8 cameras have 28 pairs)."""
     pair_choice: Literal["error_model", "random"] = "error_model"
-    """How the localising pair is chosen: by the error model (the paper), or at random among the cameras that
-    see the person (a baseline to compare against)."""
-    pair_reuse_tolerance: Annotated[float, msgspec.Meta(ge=1.0, le=10.0)] = 1.5
-    """A camera pair already matched this tick is used when its predicted error is within this factor of the
-    best pair's (1.0: always the best pair; raising it saves Eq. 7 matrices with many cameras)."""
-    max_pair_cameras: Annotated[int, msgspec.Meta(ge=2, le=64)] = 5
-    """Only the cameras nearest a person are paired when ranking pairs (5 cameras: 10 pairs)."""
-    ghost_veto_views: PosInt = 1
-    mono_elev_sigma_deg: NonNeg = 0.1
-    """Feet-elevation error of fixed perspective cameras (SensorInfo kind ``pinhole``, e.g. detection files):
-    their blobs' feet give floor distances (resource_manager/mono.py) that gate support, veto ghosts and
-    keep tracks when no pair localises them. 0 disables; raise it for noisy box bottoms."""
-    mono_base_sigma_m: NonNeg = 0.1
-    """Added to every floor-distance sigma (the feet are not exactly below the head)."""
-    mono_gate_sigmas: Pos = 3.0
-    """A fix or a birth whose distance from a camera disagrees with that blob's feet by more than this many
-    sigmas is a ghost (lower: stricter)."""
-    mono_updates: bool = True
-    """When no pair localises a track, its views' floor points (fused) update it."""
-    shared_pairs: bool = False
-    """A track whose person is hidden behind a neighbour in some views (one blob there explains both) is
-    localised by pairing its own blobs with those shared blobs when no pair of its own does."""
-    room_margin_m: NonNeg = 0.5
-    """A fix or a new person further than this outside ``[planner] room`` (when given) is refused: nobody stands
-    outside the room (near-colinear cameras put fixes far along the ray)."""
-    group_coast_s: Annotated[float, msgspec.Meta(ge=0.0, le=30.0)] = 0.0
-    """A confirmed track with no stereo fix, one camera of its own and blobs it shares with neighbours elsewhere
-    (a merged group) is fixed from its own ray and those blobs' extents (resource_manager/group.py) for at most
-    this long after its last stereo fix (0: off; it coasts and may die while its group stays merged)."""
-    min_view_agreement: Frac = 0.8
-    """With 3+ cameras in range, a position (new or measured) needs a blob toward it in this fraction of them
-    (a person is seen by nearly all, or hidden behind someone who is; a ghost of crossing rays is not). A confirmed
-    track's fix that 3+ of its own cameras point at, none elsewhere, is taken whatever the others see."""
-    """A new person is refused when this many other cameras that should see the spot see nothing there."""
+    """How the pair that localises (``paper`` mode) and is reported is chosen: by the error model (the paper), or
+    at random among the cameras that see the person (a baseline to compare against)."""
+    feet_sigma_deg: NonNeg = 0.2
+    """1-sigma error of a perspective camera's box bottom (the feet) as an elevation: the feet give the floor
+    distance ``z / tan(-elev)``, a second measurement beside the bearing. 0: feet distances are not used."""
 
 
 class TrackerSection(ConfigStruct, frozen=True):
-    """``[tracker]``: the constant-velocity Kalman filter and the track life cycle."""
+    """``[tracker]``: the tracker's model of people and cameras (resource_manager/track/), all in physical units."""
 
-    accel_sigma_mps2: Pos = 3.0
-    """Process noise: raising it follows turns faster, lowering it smooths more."""
-    gate_chi2: Pos = 13.8
-    """Mahalanobis gate on the floor (chi-square, 2 dof; 13.8 ~ 99.9%)."""
-    gate_min_m: Pos = 0.3
-    """Measurements within this distance always pass the gate."""
-    min_meas_sigma_m: Pos = 0.03
-    birth_hits: PosInt = 3
-    """Consistent measurements needed before a track is confirmed."""
-    birth_window: PosInt = 5
-    """...within this many ticks."""
-    max_misses: PosInt = 15
-    """A confirmed track dies after this many ticks without a measurement."""
-    init_speed_sigma_mps: Pos = 1.0
-    height_alpha: Frac = 0.2
-    """Smoothing of the head height (EMA weight of a new measurement)."""
-    max_speed_mps: Pos = 3.0
-    """Velocity estimates are clamped to this: a walking person; a larger value is a jump between people."""
-    max_gate_m: Pos = 1e9
-    """Cap of the gate radius: a coasting track's covariance grows each tick it misses, and past about the
-    spacing of two people its gate reaches the neighbour's fixes."""
-    coast_damping_s: Pos = 1e9
-    """Time constant (s) of the velocity decay of a coasting track (1e9: constant velocity)."""
-    relink_s: Annotated[float, msgspec.Meta(ge=0.0, le=60.0)] = 0.0
-    """A track lost after ``max_misses`` is held (unpublished) this long; a new track confirmed near where it
-    was lost takes its id instead of a new one. 0: off (a lost track ends at once)."""
-    relink_m: Pos = 1.0
-    """...near: within this distance (plus 0.5 m per second since it was lost) and 0.15 m of head height."""
+    mode: Literal["model", "paper"] = "model"
+    """``model``: every view assigned to a person updates them, each with its own covariance. ``paper``: the pair
+    of those views the error model ranks best localises them (Eq. 1, or Eq. 2 near colinearity)."""
+    speed_sigma_mps: Pos = 0.8
+    """Spread of a walker's velocity along each axis. Raising it follows turns and starts faster, lowering it
+    smooths more."""
+    turn_time_s: Pos = 2.0
+    """How long a walker keeps a velocity; a person nobody sees is predicted to stop within about this."""
+    body_sigma_m: Pos = 0.1
+    """Spread of the point a camera sees (head, box bottom) around the person's floor position, for a sensor whose
+    SensorInfo does not state its own (``point_sigma_m``)."""
+    outlier_prob: Annotated[float, msgspec.Meta(gt=0.0, lt=0.5)] = 0.05
+    """Share of detections whose point is off by several sigmas (a badly drawn box, someone bending)."""
+    height_prior_m: Pos = 1.7
+    """Head-top height of a person before any view measured it."""
+    height_sigma_m: Pos = 0.15
+    """Spread of people's heights."""
+    p_detect: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.9
+    """Probability that a camera detects a person in its picture whom nobody hides."""
+    p_detect_hidden: Annotated[float, msgspec.Meta(ge=0.0, lt=1.0)] = 0.3
+    """...and a person wholly covered in the picture by people nearer to the camera (in between: by the share of
+    their silhouette that shows)."""
+    clutter_per_view: Pos = 1.0
+    """Expected false detections per view and frame. Raising it asks more evidence of people."""
+    evidence_time_s: Pos = 0.5
+    """One view's detections within this time are one piece of evidence: existence moves at most one view's
+    worth per this much time, whatever the frame rate. Raising it confirms and ends tracks more slowly."""
+    p_birth: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.1
+    """Prior probability that unexplained blobs that agree across views are a new person."""
+    p_confirm: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.9
+    """A track is published once its existence probability reaches this."""
+    p_delete: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.1
+    """A track ends when its existence probability falls below this."""
+    lost_sigma_m: Pos = 2.0
+    """A track whose position is this uncertain (1 sigma) has lost its person: it ends."""
+    colour_sigma: Pos = 0.15
+    """Spread of the Bhattacharyya distance between a person's blobs and their look in one view."""
+    link_odds: Annotated[float, msgspec.Meta(ge=1.0)] = 4.0
+    """How much likelier a blob that continues a node's 2D track is that track's person than anyone else."""
+    room_margin_m: NonNeg = 0.5
+    """How far outside ``[planner] room`` (when given) a new person may still be started."""
 
 
 class MutualSection(ConfigStruct, frozen=True):
@@ -332,10 +293,9 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     ids = [p.id for p in cfg.pose]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{source}: pose ids must be unique, got {ids!r}")
-    if cfg.tracker.birth_hits > cfg.tracker.birth_window:
+    if cfg.tracker.p_delete >= cfg.tracker.p_confirm:
         raise ConfigError(
-            f"{source}: tracker.birth_hits ({cfg.tracker.birth_hits}) must be <= tracker.birth_window "
-            f"({cfg.tracker.birth_window})"
+            f"{source}: tracker.p_delete ({cfg.tracker.p_delete}) must be < tracker.p_confirm ({cfg.tracker.p_confirm})"
         )
     return cfg
 

@@ -1,17 +1,16 @@
 """The manager's whole per-tick computation, pure: received messages in, tracks and commands out.
 
-``Fusion(config).step(batch, t_ns)`` runs, at the fusion instant ``t_ns``:
+``Fusion(config).step(batch, t_ns)`` runs, at the fusion instant ``t_ns``, in the paper's order:
 
-1. ingest (bounded buffers; late, duplicate, out-of-order counted) and align
-   every sensor's blobs to ``t_ns`` (:mod:`~resource_manager.ingest.align`);
-2. poses: surveyed ones plus mutual calibration (:mod:`~resource_manager.poses.solver`);
-3. for each predicted track, the cameras whose blobs support it, and every pair
-   of them ranked by the error model (:mod:`~resource_manager.pairs`);
-4. Eq. (7) stereo matching of the chosen pairs with the temporal term from the
-   current tracks (:mod:`~resource_manager.match`), then localisation by Eq. (1)
-   or Eq. (2) with the best pair, or least squares over all views (``fuse_all``);
-5. Kalman update, births from unexplained blobs, deaths (:mod:`~resource_manager.track`);
-6. view plans for mobile cameras and PTZ pointing.
+1. ingest (bounded buffers; late, duplicate, out-of-order counted) and align every sensor's blobs to ``t_ns``
+   by NTP stamps and interpolation (:mod:`~resource_manager.ingest`);
+2. poses: surveyed ones plus mutual calibration, Eq. (3) (:mod:`~resource_manager.poses`);
+3. views: every camera's blobs in world terms, and which cameras can see now (:mod:`~resource_manager.views`);
+4. track: per view, blobs assigned to the predicted tracks; each track updated with its views, new people
+   paired across views by Eq. (7) and the error model, existence and life cycle (:mod:`~resource_manager.track`,
+   which uses :mod:`~resource_manager.stereo` for Eqs. 1, 2, 7 and the pair ranking);
+5. view plans for mobile cameras (Eqs. 4-6, :mod:`~resource_manager.plan`) and PTZ pointing
+   (:mod:`~resource_manager.serve`).
 
 No zenoh, no disk: tests and benchmarks feed it recorded or synthetic messages;
 :mod:`resource_manager.node` is the thin shell around it.
@@ -41,15 +40,14 @@ from common.schema import (
     ViewPlan,
 )
 from resource_manager import wiring
-from resource_manager.association import Associator
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignedView, align_sensor
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve.ptz import PtzTarget
-from resource_manager.track import TrackRecord
-from resource_manager.views import mono_cameras, perspective_fovs
+from resource_manager.track.state import TrackRecord
+from resource_manager.views.build import build_views
 
 __all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
 
@@ -123,7 +121,7 @@ class Fusion:
         self.align_params = wiring.align_params(config)
         self.poses = wiring.pose_solver(config)
         self.tracker = wiring.tracker(config, new_id or _counter_ids(m.id))
-        self.associator = Associator(config, self.tracker)
+        self.feet = wiring.feet_model(config)
         self.planner = wiring.view_planner(config)
         self.trust = wiring.view_trust(config)
         self.ptz = wiring.ptz_allocator(config)
@@ -189,10 +187,8 @@ class Fusion:
                 aligned[sid] = view
         poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)
         self.last_poses = poses
-        self.tracker.predict(t_ns)
-        bodies = {sid: info.body_radius_m for sid, info in self.poses.infos.items() if info.body_radius_m > 0}
         # A robot that moves, or has stopped but not settled (node relearning its background, pose converging),
-        # gives no views: the tracks carry on with the other cameras (settling.py).
+        # gives no views: the tracks carry on with the other cameras (views/settling.py).
         positions = {sid: p.origin for sid, p in poses.items()}
         self.planner.note_arrivals(positions, t_ns)
         driving = self.planner.driving(positions, t_ns)
@@ -208,17 +204,15 @@ class Fusion:
             if self.trust.params.enabled
             else frozenset()
         )
-        outcome = self.associator.run(
-            {sid: v for sid, v in aligned.items() if sid not in unsettled} if unsettled else aligned,
-            poses,
-            self.poses.bearing_sigma,
+        seeing = {sid: v for sid, v in aligned.items() if sid not in unsettled}
+        views = build_views(seeing, poses, self.poses.infos, self.poses.bearing_sigma, feet=self.feet)
+        outcome = self.tracker.step(
+            views,
             t_ns,
-            bodies=bodies,
-            fovs=self._fovs(),
-            mono=self._mono(),
             blind=frozenset() if self.trust.params.enabled else driving,
+            pose_sigma={sid: p.sigma_xy_m for sid, p in poses.items()},
         )
-        ended = [tr.track_id for tr in self.tracker.prune() if tr.track_id]
+        ended = outcome.ended
         self.ingest.trim(t_ns - self.align_params.stale_ns)
         old_ns = t_ns - 2 * self.align_params.stale_ns
         for sid, buf in list(self.ingest.buffers.items()):
@@ -227,9 +221,7 @@ class Fusion:
                 self.ingest.forget(sid)  # a stale sensor that never said what it is: free its slot
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
-        return self._result(
-            outcome.pair_entries, plans, commands, ended, in_use=outcome.sensors_in_use, aligned=aligned
-        )
+        return self._result(outcome.pair_entries, plans, commands, ended, in_use=sorted(views), aligned=aligned)
 
     def _detector_states(self, t_ns: int) -> dict[str, DetectorState]:
         """Sensors whose frames around ``t_ns`` say their detector cannot see ("learning", "moving")."""
@@ -240,16 +232,10 @@ class Fusion:
                     out[sid] = f.state
         return out
 
-    def _fovs(self) -> dict[str, tuple[float, float]]:
-        return perspective_fovs(self.poses.infos)
-
-    def _mono(self) -> dict[str, tuple[float, float, float, float]]:
-        return mono_cameras(self.poses.infos, self.config.match)
-
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackRecord]:
         show_tentative = self.config.manager.publish_tentative
-        return [tr for tr in self.tracker.tracks if tr.confirmed or show_tentative]
+        return [tr for tr in self.tracker.tracks if tr.published or (show_tentative and not tr.confirmed)]
 
     def track_message(self, tr: TrackRecord) -> Track:
         tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"
@@ -273,8 +259,8 @@ class Fusion:
             sensors=list(tr.sensors)[:64],
             predicted_error_m=_clip(tr.predicted_error_m, 0.0, 1e5),
             age_s=max(0.0, (tr.t_ns - tr.born_ns) / 1e9),
-            hits=tr.hits,
-            misses=tr.misses,
+            hits=min(tr.hits, 2**31 - 1),
+            misses=min(tr.misses, 2**31 - 1),
         )
 
     def ptz_targets(self) -> dict[str, PtzTarget]:

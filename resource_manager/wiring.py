@@ -12,10 +12,24 @@ from resource_manager.ingest.align import AlignParams
 from resource_manager.plan.planner import PlannerParams, ViewPlanner
 from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.serve.ptz import PtzAllocator, PtzParams
-from resource_manager.settling import SettleParams, ViewTrust
-from resource_manager.track import Tracker, TrackParams
+from resource_manager.stereo.match import MatchParams, get_matcher
+from resource_manager.track.births import BirthParams
+from resource_manager.track.model import TrackModel
+from resource_manager.track.tracker import Tracker
+from resource_manager.views.build import FeetModel
+from resource_manager.views.settling import SettleParams, ViewTrust
 
-__all__ = ["align_params", "pose_solver", "ptz_allocator", "tracker", "view_planner", "view_trust"]
+__all__ = [
+    "align_params",
+    "feet_model",
+    "match_params",
+    "pose_solver",
+    "ptz_allocator",
+    "track_model",
+    "tracker",
+    "view_planner",
+    "view_trust",
+]
 
 
 def align_params(config: ManagerConfig) -> AlignParams:
@@ -48,27 +62,66 @@ def pose_solver(config: ManagerConfig) -> PoseSolver:
     return solver
 
 
-def tracker(config: ManagerConfig, new_id: Callable[[], str]) -> Tracker:
-    t = config.tracker
-    return Tracker(
-        TrackParams(
-            accel_sigma_mps2=t.accel_sigma_mps2,
-            gate_chi2=t.gate_chi2,
-            gate_min_m=t.gate_min_m,
-            min_meas_sigma_m=t.min_meas_sigma_m,
-            birth_hits=t.birth_hits,
-            birth_window=t.birth_window,
-            max_misses=t.max_misses,
-            init_speed_sigma_mps=t.init_speed_sigma_mps,
-            height_alpha=t.height_alpha,
-            max_speed_mps=t.max_speed_mps,
-            max_gate_m=t.max_gate_m,
-            coast_damping_s=t.coast_damping_s,
-            relink_s=t.relink_s,
-            relink_m=t.relink_m,
-        ),
-        new_id,
+def track_model(config: ManagerConfig) -> TrackModel:
+    """``[tracker]`` (and the room, the range) as the tracker's model."""
+    t, pl = config.tracker, config.planner
+    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == 4 else None
+    return TrackModel(
+        mode=t.mode,
+        speed_sigma_mps=t.speed_sigma_mps,
+        turn_time_s=t.turn_time_s,
+        body_sigma_m=t.body_sigma_m,
+        outlier_prob=t.outlier_prob,
+        height_prior_m=t.height_prior_m,
+        height_sigma_m=t.height_sigma_m,
+        p_detect=t.p_detect,
+        p_detect_hidden=t.p_detect_hidden,
+        clutter_per_view=t.clutter_per_view,
+        evidence_time_s=t.evidence_time_s,
+        p_birth=t.p_birth,
+        p_confirm=t.p_confirm,
+        p_delete=t.p_delete,
+        lost_sigma_m=t.lost_sigma_m,
+        colour_sigma=t.colour_sigma,
+        link_odds=t.link_odds,
+        room=room,
+        room_margin_m=t.room_margin_m,
+        max_range_m=config.match.max_range_m,
     )
+
+
+def match_params(config: ManagerConfig) -> MatchParams:
+    """``[match]`` as Eq. 7's measures."""
+    mc = config.match
+    return MatchParams(
+        max_range_m=mc.max_range_m,
+        width_sigma=mc.width_sigma,
+        height_sigma=mc.height_sigma,
+        use_colour=mc.use_colour,
+        temporal_weight=0.0,
+        floor_sigma_m=mc.floor_sigma_m,
+        width_floor=mc.width_floor,
+    )
+
+
+def feet_model(config: ManagerConfig) -> FeetModel | None:
+    """How perspective cameras' box bottoms give floor distances (None: ``feet_sigma_deg = 0``)."""
+    mc = config.match
+    if mc.feet_sigma_deg <= 0:
+        return None
+    return FeetModel(math.radians(mc.feet_sigma_deg), 0.0, mc.max_range_m)
+
+
+def tracker(config: ManagerConfig, new_id: Callable[[], str]) -> Tracker:
+    mc = config.match
+    births = BirthParams(
+        match=match_params(config),
+        threshold=mc.threshold,
+        matcher=get_matcher(config.manager.matcher),
+        max_pairs=mc.max_birth_pairs,
+        width_rel_sigma=mc.width_rel_sigma,
+    )
+    return Tracker(track_model(config), births, new_id, pair_choice=mc.pair_choice)
 
 
 def view_planner(config: ManagerConfig) -> ViewPlanner:

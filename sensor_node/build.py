@@ -42,7 +42,21 @@ from sensor_node.sources_sim import SimFrames
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import Unwarper
 
-__all__ = ["DetectionProcessor", "NodeParts", "Processor", "build_node", "sensor_info"]
+__all__ = [
+    "BOX_POINT_SIGMA_M",
+    "HEAD_POINT_SIGMA_M",
+    "DetectionProcessor",
+    "NodeParts",
+    "Processor",
+    "build_node",
+    "sensor_info",
+]
+
+HEAD_POINT_SIGMA_M = 0.05
+"""Spread of a blob's head bearing point around the person's floor position (m): the head stays within a few
+centimetres of the body's axis (the paper: the head's bearing is the most accurate part of a blob)."""
+BOX_POINT_SIGMA_M = 0.1
+"""...and of a detector box's bottom centre: the feet spread in stride, the box jitters."""
 
 
 class Processor(Protocol):
@@ -151,6 +165,7 @@ def sensor_info(
         clock_uncertainty_ns=clock_uncertainty_ns,
         clock_source=clock_source,
         bearing_sigma_rad=cfg.node.bearing_sigma_rad,
+        point_sigma_m=BOX_POINT_SIGMA_M if isinstance(cfg.source, DetectionsSource) else HEAD_POINT_SIGMA_M,
     )
 
 

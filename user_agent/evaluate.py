@@ -15,6 +15,9 @@ Pure (no zenoh, no mcap): values in, values out.
   ground-truth ids to track ids maximising the number of frames where they are
   within the threshold (IDTP); ``IDF1 = 2 IDTP / (GT + hypotheses)``.
 * **Error**: mean and 90th percentile of the matched distances.
+* **Scored area** (optional): where the ground truth annotates people at all (e.g. one camera's view, or a
+  dataset's annotated grid). A track farther than the threshold outside it is neither a match nor a false
+  positive: nobody can say whether someone is there. Every ground-truth object counts wherever it is.
 
 :class:`MotAccumulator` takes distance matrices (``nan`` = not allowed), like
 py-motmetrics' accumulator, so it can be checked against that library's
@@ -45,6 +48,7 @@ __all__ = [
     "evaluate_positions",
     "frame_distances",
     "hypotheses_from_tracksets",
+    "within_area",
 ]
 
 DEFAULT_STATES: tuple[str, ...] = ("confirmed", "coasting")
@@ -258,12 +262,29 @@ class MotAccumulator:
         )
 
 
+def within_area(area: npt.NDArray[np.float64], x_m: float, y_m: float, margin_m: float) -> bool:
+    """Whether a floor point lies inside a convex, counter-clockwise polygon grown by ``margin_m``."""
+    a = area
+    b = np.roll(a, -1, axis=0)
+    edge = b - a
+    length = np.maximum(np.hypot(edge[:, 0], edge[:, 1]), 1e-12)
+    # Signed distance of the point to the left of each edge; inside a CCW convex polygon all are >= 0.
+    side = (edge[:, 0] * (y_m - a[:, 1]) - edge[:, 1] * (x_m - a[:, 0])) / length
+    if bool(np.all(side >= 0)):
+        return True
+    t = np.clip(((x_m - a[:, 0]) * edge[:, 0] + (y_m - a[:, 1]) * edge[:, 1]) / length**2, 0.0, 1.0)
+    near = np.hypot(a[:, 0] + t * edge[:, 0] - x_m, a[:, 1] + t * edge[:, 1] - y_m)
+    return bool(np.min(near) <= margin_m)
+
+
 def evaluate_positions(
     gt: GroundTruth,
     hyps: dict[int, list[HypPoint]],
     threshold_m: float = 0.5,
     frames: Iterable[int] | None = None,
     on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
+    *,
+    area: npt.NDArray[np.float64] | None = None,
 ) -> MotMetrics:
     """Score floor positions against the ground truth.
 
@@ -274,6 +295,8 @@ def evaluate_positions(
         frames: which frames to score (default: every ground-truth frame).
         on_events: called with each scored frame's number and its events (:meth:`MotAccumulator.update`),
             for a scorer that also wants to know where frames were lost.
+        area: (k, 2) convex counter-clockwise polygon where the ground truth annotates people
+            (:meth:`GroundTruth.area`); tracks farther than ``threshold_m`` outside it are not scored.
     """
     if not threshold_m > 0:
         raise ConfigError(f"threshold must be > 0 m, got {threshold_m}")
@@ -281,6 +304,8 @@ def evaluate_positions(
     for k in sorted(gt.frames) if frames is None else sorted(frames):
         objs = gt.frames.get(k, [])
         hs = hyps.get(k, [])
+        if area is not None:
+            hs = [h for h in hs if within_area(area, h.x_m, h.y_m, threshold_m)]
         events = acc.update(
             [p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m)
         )

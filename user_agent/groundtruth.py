@@ -14,9 +14,15 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import ConvexHull, QhullError
+
 from common.errors import ConfigError
 
 __all__ = ["GT_HEADER", "GroundTruth", "GtPoint", "read_gt_csv", "write_gt_rows"]
+
+FloatArray = npt.NDArray[np.float64]
 
 GT_HEADER = ("frame", "id", "x_m", "y_m", "z_m")
 
@@ -48,6 +54,18 @@ class GroundTruth:
     @property
     def person_ids(self) -> list[str]:
         return sorted({p.person_id for pts in self.frames.values() for p in pts})
+
+    def area(self) -> FloatArray | None:
+        """(k, 2) the convex hull of every annotated floor position, counter-clockwise: where the ground truth
+        says who is there (None: fewer than three distinct points)."""
+        pts = np.unique(np.array([[p.x_m, p.y_m] for pts in self.frames.values() for p in pts]).reshape(-1, 2), axis=0)
+        if len(pts) < 3:
+            return None
+        try:
+            hull = ConvexHull(pts)
+        except QhullError:  # all points on a line
+            return None
+        return np.asarray(pts[hull.vertices], dtype=np.float64)
 
     def track_of(self, person_id: str) -> list[GtPoint]:
         """One person's points in frame order."""

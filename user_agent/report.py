@@ -6,12 +6,17 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from common.errors import ConfigError
 from common.schema import TrackSet
 from user_agent.evaluate import HypPoint, MotMetrics, evaluate_positions, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
+
+FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["Scored", "plot_recording", "room_of", "score_recording", "score_tracksets", "write_tracks_csv"]
 
@@ -37,8 +42,9 @@ def score_recording(
     max_gap_s: float = 0.25,
     start_ns: int | None = None,
     on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
+    area: FloatArray | None = None,
 ) -> Scored:
-    """Evaluate a recording's TrackSets against ground truth.
+    """Evaluate a recording's TrackSets against ground truth (``area``: see :func:`score_tracksets`).
 
     ``epoch_ns``, ``fps`` and ``start_ns`` (end of the run's warm-up) default
     to the recording's metadata (written by the recorder from the site,
@@ -64,6 +70,7 @@ def score_recording(
         max_gap_s=max_gap_s,
         start_ns=start if start >= 0 else None,
         on_events=on_events,
+        area=area,
     )
 
 
@@ -77,16 +84,18 @@ def score_tracksets(
     max_gap_s: float = 0.25,
     start_ns: int | None = None,
     on_events: Callable[[int, list[tuple[str, str, str, float]]], None] | None = None,
+    area: FloatArray | None = None,
 ) -> Scored:
     """Evaluate TrackSets against ground truth whose frame ``k`` is ``epoch_ns + (k - 1) / fps``.
 
     Every ground-truth frame from the first one (or ``start_ns``) to the last TrackSet is scored
-    (:func:`~user_agent.evaluate.hypotheses_from_tracksets`).
+    (:func:`~user_agent.evaluate.hypotheses_from_tracksets`). ``area``: where the ground truth annotates people
+    (:meth:`~user_agent.groundtruth.GroundTruth.area`); tracks outside it are not scored.
     """
     hyps, frames = hypotheses_from_tracksets(
         tracksets, epoch_ns, fps, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start_ns
     )
-    metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events)
+    metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events, area=area)
     published = {t.track_id for ts in tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
     return Scored(metrics, len(published), len(tracksets), len(frames), hyps)
 

@@ -40,14 +40,23 @@ def run(args: argparse.Namespace) -> int:
         f"{report['site']}: {len(report['cameras'])} cameras, {report['frames']} frames at {report['fps']:g} fps, "
         f"played in {report['seconds']['play']:.2f} s ({report['tick_ms_mean']} ms per tick)"
     )
+    where = report["scored_area"]
+    print(f"scored {'where the ground truth annotates people' if where == 'ground_truth' else 'everywhere'}:")
+    _table(report["scores"])
+    if "scores_everywhere" in report:
+        print("scored everywhere (tracks outside the annotated area count as false positives):")
+        _table(report["scores_everywhere"])
+    return 0
+
+
+def _table(scores: list[dict[str, float]]) -> None:
     head = ("threshold", "MOTA", "IDF1", "MOTP m", "FP", "miss", "IDsw", "mean m", "p90 m")
-    print("{:>9} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>7} {:>7}".format(*head))
-    for s in report["scores"]:
+    print("  {:>9} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>7} {:>7}".format(*head))
+    for s in scores:
         print(
-            f"{s['threshold_m']:>8g}m {_f(s['mota'])} {_f(s['idf1'])} {_f(s['motp_m'])} {s['false_positives']:>6} "
+            f"  {s['threshold_m']:>8g}m {_f(s['mota'])} {_f(s['idf1'])} {_f(s['motp_m'])} {s['false_positives']:>6} "
             f"{s['misses']:>6} {s['id_switches']:>5} {_f(s['mean_error_m'])} {_f(s['p90_error_m'])}"
         )
-    return 0
 
 
 def _f(v: float | None) -> str:

@@ -12,7 +12,8 @@ time:
    every frame instant once every camera's frame of that instant is in (the watermark of a network whose frames
    all arrived): the tick a live manager makes once nothing more can come for that instant;
 3. the TrackSets are scored against the site's ``gt.csv`` from its first frame
-   (:func:`user_agent.report.score_tracksets`).
+   (:func:`user_agent.report.score_tracksets`), where the ground truth annotates people
+   (``[dataset] scored_area``), and everywhere as well.
 
 Nothing is random and nothing waits: two runs give identical tracks, and Wildtrack's 400 frames take seconds.
 Ground truth is read only by the scoring, after the tracks are made.
@@ -26,6 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from common.errors import ConfigError
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
@@ -37,7 +41,9 @@ from sensor_node.detections import DetectionFrames
 from sensor_node.sources import Frame
 from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import read_gt_csv
-from user_agent.report import score_tracksets
+from user_agent.report import Scored, score_tracksets
+
+FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
 
@@ -167,20 +173,26 @@ def evaluate_site(
     run = play(cameras, config)
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
-    scored = [
-        score_tracksets(run.tracksets, gt, epoch_ns=DATASET_EPOCH_NS, fps=site.dataset.fps, threshold_m=t)
-        for t in thresholds_m
-    ]
+    area = gt.area() if site.dataset.scored_area == "ground_truth" else None
+    fps = site.dataset.fps
+
+    def score(t: float, where: FloatArray | None) -> Scored:
+        return score_tracksets(run.tracksets, gt, epoch_ns=DATASET_EPOCH_NS, fps=fps, threshold_m=t, area=where)
+
+    scored = [score(t, area) for t in thresholds_m]
     run.hypotheses = scored[0].hypotheses if scored else {}
-    scores = [s.metrics for s in scored]
     report: dict[str, Any] = {
         "site": site.site.name,
         "cameras": [c.sensor_id for c in cameras],
         "fps": site.dataset.fps,
         "frames": max((len(c.features) for c in cameras), default=0),
-        "scores": [m.to_dict() for m in scores],
+        "scored_area": site.dataset.scored_area if area is not None else "everywhere",
+        "scores": [s.metrics.to_dict() for s in scored],
         "tracks_published": len({t.track_id for ts in run.tracksets for t in ts.tracks}),
         "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
         "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
     }
+    if area is not None:
+        # The same tracks scored everywhere too: those outside the annotated area count as false positives.
+        report["scores_everywhere"] = [score(t, None).metrics.to_dict() for t in thresholds_m]
     return report, run

@@ -85,7 +85,7 @@ def move_payoff(
     """(found person-seconds gained, lost, seconds blind) if the mobile camera of ``sc`` drives to ``goal_xy``.
 
     While the robot drives and settles (``blind_s = drive / speed_mps + settle_cost_s``) its views count
-    for nothing (:mod:`resource_manager.settling`): each person it helps localise who has no other pair
+    for nothing (:mod:`resource_manager.views.settling`): each person it helps localise who has no other pair
     then (fewer than two other cameras) is lost, who is found now with probability :func:`found` of their
     predicted error (the target: ``found_here``). Then, for ``horizon_s``, the target is found with the
     goal's predicted error (Fig. 4's map, model M1) instead -- or the other cameras' best pair's

@@ -22,7 +22,7 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   the simulated world and :func:`common.scenario.goals_from_plans` ignore it),
   also while nobody is tracked, until the robot gets there.
 * **Cost of moving**: while the robot drives and settles, its views count for
-  nothing (:mod:`resource_manager.settling`); on a site where the people it
+  nothing (:mod:`resource_manager.views.settling`); on a site where the people it
   helps have no other pair then, a move is made only when the found
   person-seconds it gains over ``horizon_s`` exceed those lost on the way
   (:func:`~resource_manager.plan.checks.move_payoff`, ``found_m``).

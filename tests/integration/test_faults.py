@@ -181,7 +181,6 @@ class FaultSite:
             f'state_dir = "{state_dir or self.tmp / "state"}"\n'
             f'[zenoh]\nconnect = ["{self.endpoint}"]\nconnect_timeout_ms = 20000\n'
             f"[clock]\n{clock}"
-            "[tracker]\nbirth_hits = 2\n"
         )
         return path
 

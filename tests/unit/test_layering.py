@@ -128,7 +128,7 @@ def _write(root: Path, rel: str, text: str) -> None:
         ("common/geo.py", "from panostereo import cli\n", "common imports no tier"),
         ("common/geo.py", "def f():\n    import zenoh\n", "only shells"),
         ("common/geo.py", "import importlib\nimportlib.import_module('resource_manager.track')\n", "common imports"),
-        ("sensor_node/blobs.py", "from resource_manager.match import x\n", "tiers never import"),
+        ("sensor_node/blobs.py", "from resource_manager.stereo.match import x\n", "tiers never import"),
         ("sensor_node/blobs.py", "from mcap.writer import Writer\n", "only shells"),
         ("user_agent/views.py", "import zenoh.ext\n", "only shells"),
         ("user_agent/views.py", "from panostereo.launcher import x\n", "tiers never import"),

@@ -11,7 +11,7 @@ import msgspec
 import numpy as np
 
 from common.schema import Features
-from resource_manager.config import ManagerConfig, ManagerSection
+from resource_manager.config import ManagerConfig, ManagerSection, TrackerSection
 from resource_manager.fusion import Batch, Fusion, TickResult
 from tests.unit.resource_manager.synth import Cam, Person, features_for, info_for, mota
 
@@ -27,14 +27,22 @@ class RunResult:
     tick_cpu_ms: list[float] = field(default_factory=list)
     """Thread CPU time per tick (robust to other processes sharing the cores)."""
     results: list[TickResult] = field(default_factory=list)
+    gt: list[dict[int, tuple[float, float]]] = field(default_factory=list)
+    """Per scored tick: person index -> true position."""
+    hyp: list[dict[str, tuple[float, float]]] = field(default_factory=list)
+    """Per scored tick: track id -> published position."""
 
     @property
     def mean_error_m(self) -> float:
         return float(np.mean(self.errors_m)) if self.errors_m else math.inf
 
 
-def make_config(mid: str = "m1", **manager: object) -> ManagerConfig:
-    return ManagerConfig(manager=msgspec.convert({"id": mid, **manager}, ManagerSection))
+def make_config(mid: str = "m1", tracker: dict[str, object] | None = None, **manager: object) -> ManagerConfig:
+    """A manager config with these ``[manager]`` (and ``[tracker]``) keys, defaults elsewhere."""
+    return ManagerConfig(
+        manager=msgspec.convert({"id": mid, **manager}, ManagerSection),
+        tracker=msgspec.convert(tracker or {}, TrackerSection),
+    )
 
 
 def run_scenario(
@@ -106,4 +114,4 @@ def run_scenario(
         ids.update(h)
         for x, y in h.values():
             errors.append(min(math.hypot(x - p.x, y - p.y) for p in truth) if truth else math.inf)
-    return RunResult(mota(gt, hyp), errors, tick_ms, ids, tick_cpu_ms=cpu_ms, results=results)
+    return RunResult(mota(gt, hyp), errors, tick_ms, ids, tick_cpu_ms=cpu_ms, results=results, gt=gt, hyp=hyp)

@@ -127,12 +127,20 @@ def test_robot_located_by_resection_from_two_known_bodies() -> None:
     assert "r1" in last.trackset.sensors_used
 
 
-def test_fuse_all_uses_every_view() -> None:
+@pytest.mark.parametrize(
+    ("mode", "methods"), [("model", {"least_squares"}), ("paper", {"triangulation", "size_ratio"})]
+)
+def test_model_mode_uses_every_view_and_paper_mode_the_best_pair(mode: str, methods: set[str]) -> None:
+    """``model``: each person is updated with all four views; ``paper``: with the best pair by the error model
+    (Eq. 1 or Eq. 2). Both localise the person within a few centimetres and report the pair."""
     cams = [Cam("p1", 0.5, 0.5), Cam("p2", 4.5, 0.5), Cam("p3", 4.5, 6.0), Cam("p4", 0.5, 6.0)]
-    run = run_scenario(cams, one_person, duration_s=8.0, seed=8, config=make_config(fuse_all=True), keep_results=True)
-    methods = [t.method for r in run.results for t in r.trackset.tracks]
-    assert methods.count("least_squares") > len(methods) // 2
+    config = make_config(tracker={"mode": mode})
+    run = run_scenario(cams, one_person, duration_s=8.0, seed=8, config=config, keep_results=True)
+    got = [t.method for r in run.results for t in r.trackset.tracks if t.state == "confirmed"]
+    assert got and sum(m in methods for m in got) > 0.9 * len(got), sorted(set(got))
     assert run.mean_error_m <= 0.05
+    entries = [e for r in run.results for e in r.pair_choice.choices]
+    assert entries and entries[-1].candidates == 6  # four cameras see the person: six pairs ranked
 
 
 def test_pair_choice_published_with_predicted_error() -> None:

@@ -145,7 +145,7 @@ def test_trim_keeps_a_lower_bracket() -> None:
     assert before == [(BASE_MS + 400) * MS, (BASE_MS + 500) * MS]  # the bracket and one more for extrapolation
 
 
-# -- world views of the aligned blobs (resource_manager/views.py) --------------------------------------------
+# -- world views of the aligned blobs (resource_manager/views/build.py) --------------------------------------------
 
 
 def test_world_views_drop_known_bodies_keep_people() -> None:
@@ -154,9 +154,10 @@ def test_world_views_drop_known_bodies_keep_people() -> None:
     view keeps its own histograms (none for a sensor that sends none)."""
     import numpy as np
 
+    from common.schema import PanoramicModel, SensorInfo
     from resource_manager.ingest.align import AlignedBlob, AlignedView
     from resource_manager.poses.solver import PoseEstimate
-    from resource_manager.views import build_views
+    from resource_manager.views.build import build_views
 
     poses = {
         "a": PoseEstimate("a", 0.0, 0.0, 1.1, 0.3, "surveyed"),
@@ -186,7 +187,13 @@ def test_world_views_drop_known_bodies_keep_people() -> None:
         "c": [seen("c", 4, 2.0, 3.0, 1.7, 0.45, []), seen("c", 5, 4.0, 0.0, 1.0, 0.4, [])],
     }  # fmt: skip
     aligned = {sid: AlignedView(sid, 0, bl, [], "interpolated") for sid, bl in blobs.items()}
-    views = build_views(aligned, poses, lambda sid: 0.002, bodies={"b": radius, "c": radius})
+    model = PanoramicModel(width_px=1080, height_px=162, f_v_px=256.0, v0_px=93.0)
+
+    def info(sid: str, body_m: float) -> SensorInfo:
+        return SensorInfo(sensor_id=sid, seq=0, stamp_ns=1, kind="panoramic", model=model, body_radius_m=body_m)
+
+    infos = {"a": info("a", 0.0), "b": info("b", radius), "c": info("c", radius)}
+    views = build_views(aligned, poses, infos, lambda sid: 0.002)
     assert list(views) == ["a", "b", "c"]
     assert views["a"].local_id.tolist() == [2, 3]  # b's body dropped, the person behind it kept
     assert views["b"].local_id.tolist() == [8]  # c's body dropped, camera a has no body
@@ -204,78 +211,5 @@ def test_world_views_drop_known_bodies_keep_people() -> None:
             assert v.hist.tolist() == [b.hist for b in kept]
             assert np.allclose(v.hist_sqrt**2, v.hist)
     # Without bodies nothing is dropped.
-    views = build_views(aligned, poses, lambda sid: 0.002)
+    views = build_views(aligned, poses, {}, lambda sid: 0.002)
     assert [v.n for v in views.values()] == [3, 2, 2]
-
-
-def test_view_agreement_counts_match_a_per_blob_evaluation() -> None:
-    """AllBlobs.agreement (per-view distances gathered to blobs, precomputed feet bounds, no field-of-view test
-    for panoramic views) counts what a plain per-blob evaluation counts: fields of view, feet ranges (unknown
-    feet agree), a view that just went blank, with and without occluders."""
-    import dataclasses
-
-    import numpy as np
-
-    from resource_manager.match import ViewBlobs
-    from resource_manager.views import AllBlobs
-
-    def wrap(a: np.ndarray) -> np.ndarray:
-        return (a + math.pi) % (2 * math.pi) - math.pi
-
-    def reference(views: list[ViewBlobs], blank: set[str], xy: np.ndarray, k: float, mono_k: float, occ: bool):
-        total = agree = 0
-        for v in views:
-            d = math.hypot(*(xy - v.origin_xy))
-            az = math.atan2(xy[1] - v.origin_xy[1], xy[0] - v.origin_xy[0])
-            fov = v.fov if v.fov is not None else (0.0, math.pi)
-            if not (0.3 < d <= 20.0 and abs(wrap(np.array(az - fov[0]))) <= fov[1]) or v.sensor_id in blank:
-                continue
-            total += 1
-            dist = max(d, 0.3)
-            ok = np.abs(wrap(v.bearing_rad - az)) - 0.5 * v.width_rad < k * v.sigma_rad + 0.25 / dist
-            if v.mono_range_m is not None and v.mono_sigma_m is not None:
-                with np.errstate(invalid="ignore"):
-                    ok &= ~(v.mono_range_m - mono_k * v.mono_sigma_m > dist)
-                    if not occ:
-                        ok &= ~(v.mono_range_m + mono_k * v.mono_sigma_m < dist)
-            agree += bool(ok.any())
-        return agree, total
-
-    rng = np.random.default_rng(4)
-    people = rng.uniform(0, 10, (8, 2))
-    views = []
-    for k in range(6):
-        o = rng.uniform(0, 10, 2)
-        rel = people - o
-        bearing = np.arctan2(rel[:, 1], rel[:, 0]) + rng.normal(0, 0.01, 8)
-        dist = np.hypot(rel[:, 0], rel[:, 1])
-        keep = rng.random(8) < 0.7
-        v = ViewBlobs(
-            sensor_id=f"c{k}",
-            origin_xy=o,
-            z_m=1.2,
-            sigma_rad=0.005,
-            bearing_rad=bearing[keep],
-            width_rad=(0.45 / dist)[keep],
-            top_elev_rad=np.zeros(int(keep.sum())),
-            hist=None,
-            local_id=np.arange(int(keep.sum())),
-            fov=(float(rng.uniform(-3, 3)), 0.6) if k % 3 == 0 else None,
-        )
-        if k % 2 == 0:
-            ranges = np.where(rng.random(8) < 0.3, np.nan, dist + rng.normal(0, 0.3, 8))[keep]
-            v = dataclasses.replace(v, mono_range_m=ranges, mono_sigma_m=np.full(ranges.size, 0.2))
-        views.append(v)
-    views.append(dataclasses.replace(views[1], sensor_id="empty", bearing_rad=np.zeros(0), width_rad=np.zeros(0),
-                                     top_elev_rad=np.zeros(0), local_id=np.zeros(0, dtype=np.int64)))  # fmt: skip
-    for subset in (views, [v for v in views if v.fov is None and v.mono_range_m is None]):
-        by_id = {v.sensor_id: v for v in subset}
-        blank = {"empty"} if "empty" in by_id else set()
-        all_blobs = AllBlobs.of(by_id, 3.0, 2.5, excused=frozenset(blank))
-        seen_some = 0
-        for xy in rng.uniform(-1, 11, (300, 2)):
-            for occ in (True, False):
-                got = all_blobs.agreement(xy, 20.0, occluders=occ)
-                assert got == reference(subset, blank, xy, 3.0, 2.5, occ)
-                seen_some += got[0] > 0
-        assert seen_some > 20

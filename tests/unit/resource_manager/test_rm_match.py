@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from resource_manager.match import (
+from resource_manager.stereo.match import (
     MATCHERS,
     GlobalMatcher,
     GreedyMatcher,
@@ -120,7 +120,7 @@ def test_colinear_target_uses_size_ratio() -> None:
 
 
 def test_batched_matrices_equal_single_ones() -> None:
-    from resource_manager.match import match_matrices
+    from resource_manager.stereo.match import match_matrices
 
     rng = np.random.default_rng(3)
     people = [(float(rng.uniform(0, 8)), float(rng.uniform(0, 6)), 1.7, k) for k in range(6)]
@@ -272,7 +272,7 @@ def test_batched_eq7_equals_dense_reference(seed: int) -> None:
     Cameras on one line (colinear targets: Eq. 2), targets out of range, cut heads, hidden feet, a view
     without histograms, link-based and positional temporal terms.
     """
-    from resource_manager.match import match_matrices
+    from resource_manager.stereo.match import match_matrices
 
     rng = np.random.default_rng(seed)
     people = np.column_stack([rng.uniform(-2, 10, 12), rng.uniform(-1, 7, 12), rng.uniform(1.5, 1.9, 12)])

@@ -9,7 +9,7 @@ import pytest
 
 from resource_manager.ingest.align import AlignedSighting
 from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
-from resource_manager.settling import SettleParams, ViewTrust
+from resource_manager.views.settling import SettleParams, ViewTrust
 from tests.unit.resource_manager.synth import Cam, features_for, info_for
 
 PX = math.radians(0.2)

@@ -11,13 +11,12 @@ import pytest
 
 from common.error_model import pair_position_error
 from common.errors import ConfigError
-from common.schema import PinholeModel, Pose, SensorInfo, Track
+from common.schema import PanoramicModel, PinholeModel, Pose, SensorInfo, Track
 from resource_manager.config import load_manager_config
-from resource_manager.localize import Measurement, localize_best_pair, localize_least_squares
-from resource_manager.pairs import CameraGeom, rank_pairs
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.serve.ptz import PtzAllocator, PtzTarget
-from resource_manager.track import Tracker, TrackParams
+from resource_manager.stereo.localize import Measurement, localize_best_pair, localize_least_squares
+from resource_manager.stereo.pairs import CameraGeom, rank_pairs
 from tests.support import REPO
 from tests.unit.resource_manager.test_rm_match import view
 
@@ -83,32 +82,6 @@ def test_localize_least_squares_all_views() -> None:
 # -- tracker --------------------------------------------------------------------------------------
 def _meas(x: float, y: float) -> Measurement:
     return Measurement(np.array([x, y]), np.eye(2) * 0.02**2, 1.7, "triangulation", ("a", "b"), 0.02, ())
-
-
-def test_tracker_birth_velocity_death_and_ids() -> None:
-    n = iter(range(1, 100))
-    tr = Tracker(TrackParams(birth_hits=3, birth_window=5, max_misses=4), lambda: f"m-{next(n)}")
-    t = tr.spawn(_meas(0.0, 0.0), 0, {"a": 1})
-    assert t.state == "tentative" and not t.track_id
-    for k in range(1, 20):
-        tr.predict(k * 100_000_000)
-        tr.update(t, _meas(0.1 * k, 0.0), {"a": 1})
-        tr.prune()
-    assert t.track_id == "m-1" and t.state == "confirmed"
-    assert t.x[2] == pytest.approx(1.0, abs=0.1) and abs(t.x[3]) < 0.1  # 1 m/s along x
-    ended = []
-    for k in range(20, 26):
-        tr.predict(k * 100_000_000)
-        tr.miss(t)
-        ended += tr.prune()
-    assert t.state == "coasting" and [e.track_id for e in ended] == ["m-1"] and not tr.tracks
-
-
-def test_tracker_gate() -> None:
-    tr = Tracker(TrackParams(), lambda: "x")
-    t = tr.spawn(_meas(1.0, 1.0), 0, {})
-    assert math.isfinite(tr.gate_distance(t, _meas(1.05, 1.0)))
-    assert math.isinf(tr.gate_distance(t, _meas(3.0, 1.0)))
 
 
 # -- PTZ allocation -------------------------------------------------------------------------------
@@ -244,7 +217,7 @@ def test_config_is_frozen() -> None:
 def test_known_bodies_are_not_people() -> None:
     from resource_manager.ingest.align import AlignedBlob, AlignedView
     from resource_manager.poses.solver import PoseEstimate
-    from resource_manager.views import build_views
+    from resource_manager.views.build import build_views
 
     def b(lid: int, bearing: float, width: float) -> AlignedBlob:
         return AlignedBlob(lid, bearing, width, 0.0 if lid == 1 else 0.15, -0.3, [], True)
@@ -257,14 +230,17 @@ def test_known_bodies_are_not_people() -> None:
     # 0.5 rad, people merged in front of it (wide), and a person right behind it (taller top)
     blobs = [b(1, 0.002, 0.12), b(2, 0.5, 0.1), b(3, 0.01, 0.8), b(4, 0.003, 0.1)]
     av = AlignedView("p1", 1, blobs, [], "interpolated")
-    views = build_views({"p1": av}, poses, lambda s: SIG, {"r1": 0.18})
+    model = PanoramicModel(width_px=1080, height_px=162, f_v_px=256.0, v0_px=93.0)
+    robot = SensorInfo(sensor_id="r1", seq=0, stamp_ns=1, kind="panoramic", model=model, body_radius_m=0.18)
+    views = build_views({"p1": av}, poses, {"r1": robot}, lambda s: SIG)
     assert list(views["p1"].local_id) == [2, 3, 4]  # only the body is gone
-    assert list(build_views({"p1": av}, poses, lambda s: SIG)["p1"].local_id) == [1, 2, 3, 4]
+    bodiless = msgspec.structs.replace(robot, body_radius_m=0.0)
+    assert list(build_views({"p1": av}, poses, {"r1": bodiless}, lambda s: SIG)["p1"].local_id) == [1, 2, 3, 4]
 
 
 def test_pinhole_field_of_view() -> None:
-    from resource_manager.match import ViewBlobs
-    from resource_manager.views import pinhole_fov
+    from resource_manager.views.blobs import ViewBlobs
+    from resource_manager.views.build import pinhole_fov
 
     # camera looking along world +y, level: R rows are the camera axes in world coordinates
     model = PinholeModel(

@@ -11,10 +11,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from resource_manager.viewblobs import ViewBlobs
+from resource_manager.views.blobs import ViewBlobs
 
 if TYPE_CHECKING:
-    from resource_manager.match import MatchParams
+    from resource_manager.stereo.match import MatchParams
 
 __all__ = ["Tables", "colour_table"]
 

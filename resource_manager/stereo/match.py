@@ -37,9 +37,9 @@ from scipy.special import ndtr
 
 from common.errors import GeometryError
 from common.geometry import size_ratio
-from resource_manager.match_tables import Tables, colour_table
-from resource_manager.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
-from resource_manager.viewblobs import ViewBlobs
+from resource_manager.stereo.match_tables import Tables, colour_table
+from resource_manager.stereo.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
+from resource_manager.views.blobs import ViewBlobs
 
 __all__ = [
     "MATCHERS",

@@ -8,9 +8,39 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ViewBlobs"]
+__all__ = ["ImageBounds", "ViewBlobs"]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class ImageBounds:
+    """Where a perspective camera's picture is: its ideal (distortion-free) projection and image size.
+
+    Distortion is left out on purpose: a strong lens model folds far-off points back into the image, and the
+    ideal projection of a point in view lies within a few pixels of the image rectangle anyway.
+    """
+
+    k: FloatArray
+    """(3, 3) intrinsics."""
+    r: FloatArray
+    """(3, 3) world -> camera rotation."""
+    t: FloatArray
+    """(3,) world -> camera translation (m)."""
+    width_px: int
+    height_px: int
+
+    def inside(self, xyz: FloatArray, margin_px: float = 0.0) -> npt.NDArray[np.bool_]:
+        """(n,) whether world points (n, 3) project into the picture (in front of the camera)."""
+        c = np.asarray(xyz, dtype=np.float64).reshape(-1, 3) @ self.r.T + self.t
+        front = c[:, 2] > 1e-6
+        z = np.where(front, c[:, 2], 1.0)
+        u = self.k[0, 0] * c[:, 0] / z + self.k[0, 1] * c[:, 1] / z + self.k[0, 2]
+        v = self.k[1, 1] * c[:, 1] / z + self.k[1, 2]
+        m = margin_px
+        return np.asarray(
+            front & (u >= -m) & (u <= self.width_px + m) & (v >= -m) & (v <= self.height_px + m), dtype=bool
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,13 +71,21 @@ class ViewBlobs:
     fov: tuple[float, float] | None = None
     """(world azimuth of the optical axis, half width) of a perspective camera; None: 360 deg (panoramic)."""
     mono_range_m: FloatArray | None = None
-    """(n,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.mono`), NaN where
+    """(n,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.views.mono`), NaN where
     not observable; None: the camera gives none."""
     mono_sigma_m: FloatArray | None = None
     """(n,) 1-sigma of ``mono_range_m``."""
     top_cut: npt.NDArray[np.bool_] | None = None
     """(n,) blobs whose top touches the image's upper border (a person close to the camera): their head-top
     height is only a lower bound. None: none are."""
+    sigma_xy_m: float = 0.0
+    """1-sigma error of the camera's own floor position (mutual calibration; 0: surveyed)."""
+    point_sigma_m: float = 0.0
+    """Spread of the sensor's measured point around a person's floor position (0: not stated)."""
+    period_s: float = 0.0
+    """Frame period of the sensor (0: unknown): successive ticks between two frames see the same evidence."""
+    image: ImageBounds | None = None
+    """A perspective camera's projection, to tell whether a floor position is in its picture (None: panoramic)."""
 
     def sees(self, azimuth_rad: float) -> bool:
         """Whether a world azimuth is inside this camera's horizontal field of view."""

@@ -17,14 +17,12 @@ import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
-    from resource_manager.match import ViewBlobs
-    from resource_manager.track import TrackRecord
+    from resource_manager.track.state import TrackRecord
+    from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["LOOK_ALPHA", "bhattacharyya", "learn_look", "mean_similarity"]
+__all__ = ["bhattacharyya", "learn_look", "mean_similarity"]
 
 FloatArray = npt.NDArray[np.float64]
-LOOK_ALPHA = 0.1
-"""Weight of a new blob in a track's running per-view colour look."""
 
 
 def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> FloatArray:
@@ -53,8 +51,9 @@ def mean_similarity(pairs: Iterable[tuple[FloatArray | None, FloatArray | None]]
     return sum(sims) / len(sims) if sims else None
 
 
-def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs]) -> None:
-    """Fold the colours of the blobs that localised ``tr`` into its per-view looks (running mean, renormalised)."""
+def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs], alpha: float) -> None:
+    """Fold the colours of the blobs assigned to ``tr`` into its per-view looks (running mean of weight
+    ``alpha``, renormalised)."""
     for sid, i in used_blobs.items():
         hs = views[sid].hist_sqrt
         if hs is None:
@@ -64,5 +63,5 @@ def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, Vie
         if old is None or old.shape != h.shape:
             tr.looks[sid] = h.copy()
         else:
-            mixed = (1.0 - LOOK_ALPHA) * old + LOOK_ALPHA * h
+            mixed = (1.0 - alpha) * old + alpha * h
             tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)

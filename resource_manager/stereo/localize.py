@@ -29,7 +29,7 @@ import numpy.typing as npt
 from common.error_model import pair_error_f
 from common.geometry import intersect_rays, localize_pair
 from common.schema import Method
-from resource_manager.match import ViewBlobs
+from resource_manager.views.blobs import ViewBlobs
 
 __all__ = [
     "MAX_PERSON_WIDTH_M",

@@ -1,0 +1,191 @@
+"""New people: blobs that no track explains, paired across views by Eq. (7) and judged by every view.
+
+1. The unexplained blobs of every two views are scored by the paper's 3D blob match (Eq. 7: colour, ray
+   convergence, width and height consistency, feet on the floor) and paired by the configured matcher; each
+   pair's rays give a hypothesised person (Eq. 1, or Eq. 2 near colinearity).
+2. Each hypothesis is put to every view as a provisional track (:mod:`.observe`): a view whose unexplained
+   blob fits it supports it, a view that should see it and has nothing there counts against it. The sum is
+   the log likelihood ratio of "a new person" against "false detections that happen to agree".
+3. Hypotheses are taken best first; each takes its supporting blobs, so the other hypotheses built on those
+   blobs (the same person from other pairs, or ghosts of crossing rays) lose them. A hypothesis is started
+   only if the prior ``p_birth`` times that evidence leaves it above ``p_delete``, and nobody stands within two
+   person radii of a track.
+4. Its first position comes, in ``paper`` mode, from the pair of its supporting views the error model ranks best
+   (Eq. 1 or Eq. 2); in ``model`` mode from all its views at once. The error model's best pair is reported.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from resource_manager.stereo.localize import Measurement, localize_best_pair
+from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
+from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
+from resource_manager.track.observe import Spread, TrackTable, score_view, visibility
+from resource_manager.track.state import TrackRecord
+from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.build import subset_view
+
+__all__ = ["BirthParams", "Hypothesis", "find_births"]
+
+FloatArray = npt.NDArray[np.float64]
+PRIOR_SIGMA_M = 1.0
+"""Position spread of the prior a new person's first fix starts from (the pair's point, loosely)."""
+
+
+@dataclass(frozen=True, slots=True)
+class BirthParams:
+    match: MatchParams
+    """Eq. 7's measures."""
+    threshold: float
+    """tau: a pair of blobs is matched only above this confidence."""
+    matcher: Matcher
+    max_pairs: int
+    """Most camera pairs matched per tick (round robin over ticks beyond that)."""
+    width_rel_sigma: float
+
+
+@dataclass(frozen=True, slots=True)
+class Hypothesis:
+    """A new person the views agree on."""
+
+    fix: Measurement
+    """Where the defining pair puts them (Eq. 1 or Eq. 2)."""
+    blobs: dict[str, int]
+    """sensor id -> index (in the full view) of the blob each supporting view gives."""
+    evidence: float
+    """Log likelihood ratio of "a person" over "false detections", all views."""
+
+
+def _hypotheses(
+    views: dict[str, ViewBlobs], free: dict[str, list[int]], params: BirthParams, tick: int
+) -> list[tuple[Measurement, str, int, str, int]]:
+    """(fix, view a, blob, view b, blob) of every Eq. 7 match of unexplained blobs, blob indices in full views."""
+    sids = sorted(s for s, idx in free.items() if idx)
+    sub = {s: subset_view(views[s], free[s]) for s in sids}
+    pairs = list(itertools.combinations(sids, 2))
+    if len(pairs) > params.max_pairs:
+        start = (tick * params.max_pairs) % len(pairs)
+        pairs = (pairs[start:] + pairs[:start])[: params.max_pairs]
+    if not pairs:
+        return []
+    mats = match_matrices([(sub[a], sub[b]) for a, b in pairs], params.match, threshold=params.threshold)
+    out = []
+    for (a, b), mm in zip(pairs, mats, strict=True):
+        for i, j in params.matcher.match(mm.r, params.threshold):
+            fix = localize_best_pair(sub[a], i, sub[b], j, width_rel_sigma=params.width_rel_sigma)
+            if fix is not None:
+                out.append((fix, a, free[a][i], b, free[b][j]))
+    return out
+
+
+def _provisional(fix: Measurement, model: TrackModel) -> TrackRecord:
+    """A hypothesis as a track to score the views against."""
+    p = np.zeros((4, 4))
+    p[:2, :2] = fix.cov + model.body_sigma_m**2 * np.eye(2)  # the prior spread: the pair's points scatter too
+    p[2, 2] = p[3, 3] = model.speed_sigma_mps**2
+    height = fix.height_m if fix.height_m > 0 else model.height_prior_m
+    return TrackRecord(
+        serial=0,
+        x=np.array([fix.xy[0], fix.xy[1], 0.0, 0.0]),
+        p=p,
+        t_ns=0,
+        born_ns=0,
+        logodds=0.0,
+        height_m=height,
+        height_var=model.height_sigma_m**2,
+    )
+
+
+def _in_room(xy: FloatArray, model: TrackModel) -> bool:
+    if model.room is None:
+        return True
+    x0, y0, x1, y1 = model.room
+    m = model.room_margin_m
+    return x0 - m <= float(xy[0]) <= x1 + m and y0 - m <= float(xy[1]) <= y1 + m
+
+
+def find_births(
+    views: dict[str, ViewBlobs],
+    free: dict[str, list[int]],
+    tracks: list[TrackRecord],
+    model: TrackModel,
+    params: BirthParams,
+    *,
+    spread: Callable[[str], Spread],
+    tick: int,
+    min_evidence: float,
+) -> list[Hypothesis]:
+    """The new people among the unexplained blobs ``free`` (sensor id -> blob indices), best first.
+
+    ``min_evidence``: the log likelihood ratio a hypothesis needs (the prior and the deletion threshold).
+    """
+    found = _hypotheses(views, free, params, tick)
+    found = [h for h in found if _in_room(h[0].xy, model)]
+    if not found:
+        return []
+    cands = [_provisional(fix, model) for fix, *_ in found]
+    for tr, (_, a, ia, b, ib) in zip(cands, found, strict=True):
+        # The pair's colours: the other views' blobs are compared with them (Eq. 7's r_is across views).
+        for sid, j in ((a, ia), (b, ib)):
+            hs = views[sid].hist_sqrt
+            if hs is not None:
+                tr.looks[sid] = hs[j].copy()
+                tr.look_s[sid] = model.look_min_s
+    n_old = len(tracks)
+    table = TrackTable.of(tracks + cands)
+    occluders = np.arange(n_old + len(cands)) < n_old
+    sids = sorted(views)
+    # Per view: each hypothesis' gain for each unexplained blob, and its miss term.
+    gains: dict[str, FloatArray] = {}
+    misses = np.zeros(len(cands))
+    for sid in sids:
+        v = views[sid]
+        pd = visibility(v, table, model, occluders)[n_old:]
+        idx = free.get(sid, [])
+        cand_table = TrackTable.of(cands)
+        sc = score_view(subset_view(v, idx), cands, cand_table, pd, model=model, spread=spread(sid)) if idx else None
+        misses += np.log1p(-np.minimum(pd, 1.0 - 1e-9))
+        if sc is not None:
+            gains[sid] = sc.gain
+    taken: dict[str, set[int]] = {s: set() for s in sids}
+    alive = np.ones(len(cands), dtype=bool)
+    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
+    out: list[Hypothesis] = []
+    while alive.any():
+        evidence = misses.copy()
+        best_blob: dict[str, npt.NDArray[np.int64]] = {}
+        for sid, g in gains.items():
+            cols = [c for c, j in enumerate(free[sid]) if j not in taken[sid]]
+            if not cols:
+                continue
+            sub = g[:, cols]
+            k = np.argmax(sub, axis=1)
+            best = sub[np.arange(len(cands)), k]
+            evidence += np.maximum(best, 0.0)
+            best_blob[sid] = np.where(best > 0, np.asarray(cols)[k], -1)
+        evidence = np.where(alive, evidence, -np.inf)
+        c = int(np.argmax(evidence))
+        if evidence[c] < min_evidence:
+            break
+        fix, a, ia, b, ib = found[c]
+        blobs = {sid: free[sid][int(col[c])] for sid, col in best_blob.items() if int(col[c]) >= 0}
+        alive[c] = False
+        if blobs.get(a) != ia or blobs.get(b) != ib:
+            continue  # its own pair no longer fits it best: another hypothesis of those blobs will say
+        near = track_xy.size and np.min(np.hypot(*(track_xy - fix.xy).T)) < 2.0 * PERSON_RADIUS_M
+        if near:
+            continue
+        out.append(Hypothesis(fix, blobs, float(evidence[c])))
+        track_xy = np.vstack([track_xy, fix.xy[None, :]])
+        for sid, j in blobs.items():
+            taken[sid].add(j)
+        for k2, (_, a2, i2, b2, j2) in enumerate(found):
+            if alive[k2] and (i2 in taken[a2] or j2 in taken[b2]):
+                alive[k2] = False
+    return out

@@ -1,0 +1,205 @@
+"""The motion model and the filter: where a person will be, and what the views say about where they are.
+
+**Motion.** Each floor axis is an integrated Ornstein-Uhlenbeck process: the velocity decays towards 0 with
+time constant τ (``turn_time_s``) and is driven by white noise that keeps its stationary spread at σ_v
+(``speed_sigma_mps``). A person seen walking is predicted to keep walking for about τ; a person nobody sees is
+predicted to stop near where they were last seen, with an uncertainty that grows like √t rather than t³ (the
+constant-velocity model's). With a = e^{-Δt/τ} and q = 2σ_v²/τ, per axis::
+
+    x' = x + τ(1 - a) v          v' = a v
+    Q_vv = σ_v² (1 - a²)
+    Q_xv = q τ² [(1 - a) - (1 - a²)/2]
+    Q_xx = q τ² [Δt - 2τ(1 - a) + τ(1 - a²)/2]
+
+**Update.** A view contributes its bearing θ = atan2(y - c_y, x - c_x) and, where it sees the feet, the floor
+distance D = |p - c|, each with its own variance. All views assigned to a track update it at once, by
+Gauss-Newton iterations of the extended Kalman filter (an iterated EKF): bearings are non-linear in the
+position, and one wide prior (a new or long-hidden person) is pulled far by the first linearisation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["LineObservation", "MotionModel", "Observation", "predict", "update"]
+
+FloatArray = npt.NDArray[np.float64]
+IEKF_ITERATIONS = 4
+"""Gauss-Newton steps of the update (each re-linearises the bearings at the new estimate)."""
+MIN_RANGE_M = 0.3
+"""Closer to a camera than this a bearing says nothing (the person stands on the lens)."""
+
+
+@dataclass(frozen=True, slots=True)
+class MotionModel:
+    speed_sigma_mps: float
+    turn_time_s: float
+
+    def transition(self, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """(F, Q) for the state (x, y, vx, vy) over ``dt_s``."""
+        tau = self.turn_time_s
+        a = math.exp(-dt_s / tau)
+        q = 2.0 * self.speed_sigma_mps**2 / tau
+        qvv = self.speed_sigma_mps**2 * (1.0 - a * a)
+        qxv = q * tau * tau * ((1.0 - a) - 0.5 * (1.0 - a * a))
+        qxx = q * tau * tau * (dt_s - 2.0 * tau * (1.0 - a) + 0.5 * tau * (1.0 - a * a))
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = tau * (1.0 - a)
+        f[2, 2] = f[3, 3] = a
+        qm = np.zeros((4, 4))
+        qm[0, 0] = qm[1, 1] = max(qxx, 0.0)
+        qm[0, 2] = qm[2, 0] = qm[1, 3] = qm[3, 1] = qxv
+        qm[2, 2] = qm[3, 3] = qvv
+        return f, qm
+
+
+def predict(x: FloatArray, p: FloatArray, dt_s: float, model: MotionModel) -> tuple[FloatArray, FloatArray]:
+    """State and covariance ``dt_s`` later (unchanged for dt_s <= 0)."""
+    if dt_s <= 0:
+        return x, p
+    f, q = model.transition(dt_s)
+    return f @ x, f @ p @ f.T + q
+
+
+@dataclass(frozen=True, slots=True)
+class Observation:
+    """What one view says about one person: a bearing and, optionally, a floor distance."""
+
+    origin_xy: tuple[float, float]
+    bearing_rad: float
+    bearing_var: float
+    """Variance of the bearing (rad²), everything included (sensor, pose, body)."""
+    range_m: float = math.nan
+    """Floor distance from the feet (NaN: none)."""
+    range_var: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class LineObservation:
+    """A position measured along one floor direction only: ``direction · p = value`` (the size-ratio method's
+    fix along a baseline, Eq. 2)."""
+
+    direction: tuple[float, float]
+    """Unit vector."""
+    value: float
+    var: float
+
+
+def _predicted(
+    x: FloatArray, obs: list[Observation], lines: list[LineObservation] | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(h(x), H, R) of the stacked observations at state ``x`` (bearings, distances, then lines)."""
+    rows_h: list[float] = []
+    rows_j: list[list[float]] = []
+    var: list[float] = []
+    px, py = float(x[0]), float(x[1])
+    for ln in lines or []:
+        ux, uy = ln.direction
+        rows_h.append(ux * px + uy * py)
+        rows_j.append([ux, uy, 0.0, 0.0])
+        var.append(ln.var)
+    for o in obs:
+        dx, dy = px - o.origin_xy[0], py - o.origin_xy[1]
+        r2 = max(dx * dx + dy * dy, MIN_RANGE_M**2)
+        r = math.sqrt(r2)
+        rows_h.append(math.atan2(dy, dx))
+        rows_j.append([-dy / r2, dx / r2, 0.0, 0.0])
+        var.append(o.bearing_var)
+        if math.isfinite(o.range_m):
+            rows_h.append(r)
+            rows_j.append([dx / r, dy / r, 0.0, 0.0])
+            var.append(o.range_var)
+    return np.array(rows_h), np.array(rows_j), np.diag(var)
+
+
+def _measured(obs: list[Observation], lines: list[LineObservation]) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    z: list[float] = [ln.value for ln in lines]
+    angle: list[bool] = [False] * len(lines)
+    for o in obs:
+        z.append(o.bearing_rad)
+        angle.append(True)
+        if math.isfinite(o.range_m):
+            z.append(o.range_m)
+            angle.append(False)
+    return np.array(z), np.array(angle, dtype=bool)
+
+
+def update(
+    x: FloatArray,
+    p: FloatArray,
+    obs: list[Observation],
+    outlier: tuple[float, float] | None = None,
+    lines: list[LineObservation] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The state and covariance after all ``obs`` (iterated EKF), and each observation's weight.
+
+    ``outlier``: (probability, scale) of the observations' outlier component (a badly drawn box, another person's
+    blob assigned in a crowd). Each Gauss-Newton step then weighs each observation by the posterior probability
+    that it is not an outlier, given its residual and its variance at the current estimate (first the prediction):
+    an iteratively reweighted update, so one wrong view does not drag a person seen well by the others.
+
+    ``lines``: measurements along one direction each (taken as they are, not reweighed).
+
+    Returns:
+        (x, P, weight of each observation in [0, 1]; 1 without ``outlier``).
+    """
+    if not obs:
+        return x, p, np.ones(0)
+    lines = lines or []
+    z, angle = _measured(obs, lines)
+    rows = np.array([i for i, o in enumerate(obs) for _ in range(1 + int(math.isfinite(o.range_m)))], dtype=np.int64)
+    nl = len(lines)
+    resp = np.ones(len(obs))
+    if outlier is not None:  # first judged against the prediction, with its uncertainty
+        resp = _responsibilities(x, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p)
+    xi = x.copy()
+    k: FloatArray = np.zeros((4, 0))
+    h: FloatArray = np.zeros((0, 4))
+    for _ in range(IEKF_ITERATIONS):
+        hx, h, r = _predicted(xi, obs, lines)
+        if outlier is not None:
+            # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
+            r = r / np.concatenate([np.ones(nl), np.maximum(resp, 1e-6)[rows]])[:, None]
+        s = h @ p @ h.T + r
+        k = np.asarray(np.linalg.solve(s, h @ p).T, dtype=np.float64)  # P Hᵀ S⁻¹ (S symmetric)
+        nu = z - hx - h @ (x - xi)
+        nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
+        step = x + k @ nu
+        moved = float(np.hypot(step[0] - xi[0], step[1] - xi[1]))
+        xi = step
+        if outlier is not None:
+            p_now = (np.eye(4) - k @ h) @ p
+            resp = _responsibilities(xi, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p_now)
+        if moved < 1e-4:
+            break
+    p_new = (np.eye(4) - k @ h) @ p
+    return xi, 0.5 * (p_new + p_new.T), resp
+
+
+def _responsibilities(
+    x: FloatArray,
+    obs: list[Observation],
+    *,
+    z: FloatArray,
+    angle: npt.NDArray[np.bool_],
+    rows: npt.NDArray[np.int64],
+    outlier: tuple[float, float],
+    p: FloatArray,
+) -> FloatArray:
+    """Posterior probability of each observation's core (not outlier) component, from its residual at ``x`` and
+    its variance there (the measurement's plus the estimate's, ``p``)."""
+    eps, scale = outlier
+    hx, h, r = _predicted(x, obs)
+    nu = z - hx
+    nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
+    var = np.diag(r) + np.einsum("ij,jk,ik->i", h, p, h)
+    d2 = np.zeros(len(obs))
+    np.add.at(d2, rows, nu**2 / var)
+    dims = np.bincount(rows, minlength=len(obs)).astype(np.float64)
+    core = (1.0 - eps) * np.exp(-0.5 * d2)
+    wide = eps * np.exp(-0.5 * d2 / scale**2) / scale**dims
+    return np.asarray(core / np.maximum(core + wide, 1e-300), dtype=np.float64)

@@ -1,0 +1,455 @@
+"""The tracker: every track predicted, every view's blobs assigned, every track updated, people born and ended.
+
+Each tick, at the fusion instant:
+
+1. **Predict** every track to the instant (:mod:`.motion`).
+2. **Assign, per view**: what the camera should see of each track (in its picture, not hidden) and how well each
+   of its blobs fits each track (:mod:`.observe`) give one cost; the blobs are assigned one to one to tracks, or
+   left to clutter and new people (Hungarian, scipy's ``linear_sum_assignment``).
+3. **Update** each track with every view assigned to it, each with its own covariance (``model`` mode), or with
+   the pair of them the error model ranks best, by Eq. (1) or Eq. (2) (``paper`` mode). Head height, colour
+   looks and the nodes' 2D track ids follow.
+4. **Existence**: each view that should see a track raises its existence probability when it detects the person
+   and lowers it when it does not, by the likelihood ratio of step 2, tempered so that a view's frames within
+   ``evidence_time_s`` count once.
+5. **Births** from the blobs no track explains (:mod:`.births`).
+6. **Life cycle**: a track is confirmed (published, given an id) once its existence reaches ``p_confirm``, and ends
+   when it falls below ``p_delete`` or its position is lost (``lost_sigma_m``).
+
+Only this package changes a track's state; :meth:`Tracker.step` returns what the other stages need.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import linear_sum_assignment
+
+from common.schema import Method, PairEntry
+from resource_manager.stereo.localize import Measurement, localize_best_pair
+from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
+from resource_manager.track.births import BirthParams, Hypothesis, find_births
+from resource_manager.track.looks import learn_look
+from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
+from resource_manager.track.motion import LineObservation, MotionModel, Observation, predict, update
+from resource_manager.track.observe import Spread, TrackTable, ViewScores, observation, score_view, visibility
+from resource_manager.track.state import TrackRecord
+from resource_manager.views.blobs import ViewBlobs
+
+__all__ = ["Tracker", "TrackerOutcome"]
+
+FloatArray = npt.NDArray[np.float64]
+MAX_PAIR_CAMERAS = 5
+"""Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
+
+
+@dataclass(slots=True)
+class TrackerOutcome:
+    """What one tick did, for the other stages."""
+
+    pair_entries: list[PairEntry] = field(default_factory=list)
+    """The best pair (error model) of each detected, confirmed track."""
+    ended: list[str] = field(default_factory=list)
+    """Ids of the confirmed tracks that ended."""
+    births: int = 0
+    detected: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class _Tick:
+    """What every stage of one tick reads: the views, their evidence weights, the cameras' position errors."""
+
+    views: dict[str, ViewBlobs]
+    weights: dict[str, tuple[float, float]]
+    """sensor id -> (position, existence) weight of its evidence at this tick (:meth:`Tracker._weights`)."""
+    pose_sigma: dict[str, float]
+
+
+@dataclass(frozen=True, slots=True)
+class _Assigned:
+    """One view's blob assigned to a track."""
+
+    sensor_id: str
+    blob: int
+    ln_lr: float
+
+
+class Tracker:
+    """All tracks of one manager.
+
+    Args:
+        model: the tracker's model (:class:`~resource_manager.track.model.TrackModel`).
+        births: how new people are found (Eq. 7).
+        new_id: returns the next unique track id (called once per confirmed track).
+        pair_choice: ``error_model`` (the paper), or ``random``: a baseline the error model is measured against.
+    """
+
+    def __init__(
+        self,
+        model: TrackModel,
+        births: BirthParams,
+        new_id: Callable[[], str],
+        *,
+        pair_choice: str = "error_model",
+        seed: int = 0,
+    ) -> None:
+        self.model = model
+        self.birth_params = births
+        self.new_id = new_id
+        self.pair_choice = pair_choice
+        self.motion = MotionModel(model.speed_sigma_mps, model.turn_time_s)
+        self.tracks: list[TrackRecord] = []
+        self._serial = 0
+        self._t_ns = 0
+        self._tick = 0
+        self._rng = np.random.default_rng(seed)
+
+    # -- the tick -------------------------------------------------------------------------------------
+    def step(
+        self,
+        views: dict[str, ViewBlobs],
+        t_ns: int,
+        *,
+        blind: frozenset[str] = frozenset(),
+        pose_sigma: dict[str, float] | None = None,
+    ) -> TrackerOutcome:
+        """One tick at instant ``t_ns`` with the views of every camera that can tell something.
+
+        ``blind``: cameras that cannot detect anyone now (a robot driving): their blobs are used, their empty
+        places are no evidence that nobody is there.
+        """
+        dt_s = (t_ns - self._t_ns) / 1e9 if self._t_ns else 0.0
+        if t_ns <= self._t_ns:
+            return TrackerOutcome()
+        self._t_ns = t_ns
+        self._tick += 1
+        out = TrackerOutcome()
+        for tr in self.tracks:
+            gap_s = (t_ns - tr.t_ns) / 1e9
+            tr.x, tr.p = predict(tr.x, tr.p, gap_s, self.motion)
+            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
+            tr.t_ns = t_ns
+        table = TrackTable.of(self.tracks)
+        assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
+        free: dict[str, list[int]] = {}
+        tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
+        scored: dict[str, ViewScores] = {}
+        for sid in sorted(views):
+            v = views[sid]
+            pd = visibility(v, table, self.model)
+            if sid in blind:
+                pd = np.zeros_like(pd)
+            scores = score_view(v, self.tracks, table, pd, model=self.model, spread=self._spread(v))
+            scored[sid] = scores
+            for i, j in _assign(scores):
+                assigned[i].append(_Assigned(sid, j, float(scores.ln_lr[i, j])))
+        hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
+        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
+            for a in self._update(tr, got, tick, out):
+                hits[a.sensor_id][i] = a.blob
+        for sid, scores in scored.items():
+            self._existence(scores, hits[sid], tick.weights[sid][1])
+            taken = set(hits[sid].values())
+            free[sid] = [j for j in range(views[sid].n) if j not in taken]
+        out.births = self._births(tick, free, t_ns)
+        out.ended = self._prune()
+        return out
+
+    def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
+        """(position, existence) weight of a view's evidence at this tick.
+
+        A tick between two frames sees an interpolation of frames already used: it carries ``dt / period`` of a
+        frame's information. Existence moves at most one view's worth per ``evidence_time_s``.
+        """
+        period = v.period_s if v.period_s > 0 else dt_s
+        if dt_s <= 0:  # the first tick: one frame's worth
+            dt_s = period if period > 0 else self.model.evidence_time_s
+        w_pos = min(1.0, dt_s / period) if period > 0 else 1.0
+        w_exist = min(w_pos, dt_s / self.model.evidence_time_s, 1.0)
+        return max(w_pos, 1e-3), w_exist
+
+    def _existence(self, scores: ViewScores, hit: dict[int, int], weight: float) -> None:
+        """Raise the existence of the tracks this view detects (track -> blob), lower that of those it should see
+        but misses."""
+        for i, tr in enumerate(self.tracks):
+            pd = float(scores.p_detect[i])
+            if pd <= 0:
+                continue
+            if i in hit:
+                lr = math.exp(min(float(scores.ln_lr[i, hit[i]]), 50.0))
+                delta = math.log(1.0 - pd + lr)
+            else:
+                delta = float(scores.ln_miss[i])
+            tr.logodds = min(tr.logodds + weight * delta, logit(self.model.p_max))
+
+    def _update(self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome) -> list[_Assigned]:
+        """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
+        someone else's, in ``model`` mode, goes back to the unexplained ones)."""
+        views = tick.views
+        ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if got and self.model.mode == "paper" else []
+        fix: Measurement | None = None
+        if got and self.model.mode == "paper" and ranked:
+            fix = self._pair_fix(ranked[0], {a.sensor_id: a.blob for a in got}, tick)
+        method: Method = "predicted"
+        if fix is not None:
+            tr.x, tr.p = _position_update(tr.x, tr.p, fix)
+            method = fix.method
+        elif got:
+            m = self.model
+            obs = [self._observe(a.sensor_id, a.blob, tr.x[:2], tick) for a in got]
+            lines = self._size_ratio_lines(got, tick)
+            tr.x, tr.p, weight = update(tr.x, tr.p, obs, (m.outlier_prob, m.outlier_scale), lines)
+            got = [a for a, w in zip(got, weight.tolist(), strict=True) if w >= OUTLIER_RELEASE]
+            method = "least_squares"
+        tr.detected = bool(got)
+        if not got:
+            tr.misses += 1
+            tr.method, tr.sensors = "predicted", ()
+            return []
+        tr.hits += 1
+        tr.misses = 0
+        out.detected += 1
+        by_sid = {a.sensor_id: a.blob for a in got}
+        if fix is None:
+            ranked = self._rank(tr.x[:2], sorted(by_sid), tick)
+        self._height(tr, got, views)
+        self._learn(tr, by_sid, views, min(tick.weights[a.sensor_id][0] for a in got))
+        tr.method = method
+        self._report(tr, ranked, by_sid, tick, out)
+        return got
+
+    def _size_ratio_lines(self, got: list[_Assigned], tick: _Tick) -> list[LineObservation]:
+        """Where two of the views and the person are nearly colinear, bearings say nothing about where along the
+        baseline the person is; the size-ratio method (Eq. 2) does, from the two blob widths (the crossover rule
+        of :func:`common.geometry.localize_pair` decides). Each such pair gives a measurement along its baseline."""
+        out: list[LineObservation] = []
+        by_sid = {a.sensor_id: a.blob for a in got}
+        for sa, sb in itertools.combinations(sorted(by_sid), 2):
+            fix = self._pair_fix(PairCandidate(sa, sb, 0.0), by_sid, tick)
+            if fix is None or fix.method != "size_ratio":
+                continue
+            base = tick.views[sb].origin_xy - tick.views[sa].origin_xy
+            norm = float(np.hypot(*base))
+            if norm <= 0:
+                continue
+            u = base / norm
+            out.append(LineObservation((float(u[0]), float(u[1])), float(u @ fix.xy), float(u @ fix.cov @ u)))
+        return out
+
+    def _observe(self, sid: str, blob: int, xy: FloatArray, tick: _Tick) -> Observation:
+        """A view's blob as an observation of a person near ``xy`` (its spread, this tick's weight)."""
+        v = tick.views[sid]
+        return observation(v, blob, xy, self._spread(v), tick.weights[sid][0])
+
+    def _spread(self, v: ViewBlobs) -> Spread:
+        """The spread of a view's points around a person: what its sensor states, else the model's default."""
+        sigma = v.point_sigma_m if v.point_sigma_m > 0 else self.model.body_sigma_m
+        return Spread(sigma * sigma, sigma * sigma)
+
+    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> list[PairCandidate]:
+        """The pairs of cameras ``sids``, best first by the error model (or shuffled: ``pair_choice = random``)."""
+        v, ps = tick.views, tick.pose_sigma
+        cams = [CameraGeom(s, v[s].origin_xy, v[s].sigma_rad, ps.get(s, 0.0)) for s in sids]
+        ranked = rank_pairs(xy, cams, len(cams) if self.pair_choice == "random" else MAX_PAIR_CAMERAS)
+        if self.pair_choice == "random" and ranked:
+            order = self._rng.permutation(len(ranked))
+            ranked = [ranked[int(k)] for k in order]
+        return ranked
+
+    def _pair_fix(self, pair: PairCandidate, by_sid: dict[str, int], tick: _Tick) -> Measurement | None:
+        """The paper's localisation: Eq. (1) or, near colinearity, Eq. (2) with one pair of views."""
+        return localize_best_pair(
+            tick.views[pair.a],
+            by_sid[pair.a],
+            tick.views[pair.b],
+            by_sid[pair.b],
+            sigma_xy_a=tick.pose_sigma.get(pair.a, 0.0),
+            sigma_xy_b=tick.pose_sigma.get(pair.b, 0.0),
+            width_rel_sigma=self.birth_params.width_rel_sigma,
+        )
+
+    def _report(
+        self, tr: TrackRecord, ranked: list[PairCandidate], by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
+    ) -> None:
+        """Which pair the error model ranks best for the track, with its predicted error (the ``pairs`` key)."""
+        if not ranked:
+            tr.sensors = tuple(by_sid)
+            tr.predicted_error_m = tr.position_sigma_m
+            return
+        best = ranked[0]
+        tr.sensors = (best.a, best.b)
+        fix = self._pair_fix(best, by_sid, tick)
+        # The error of the method the crossover rule picks for this pair: Eq. 1's, or Eq. 2's near colinearity.
+        err = fix.predicted_error_m if fix is not None else best.error_m
+        tr.predicted_error_m = err if math.isfinite(err) else tr.position_sigma_m
+        if tr.track_id and fix is not None:
+            out.pair_entries.append(
+                PairEntry(
+                    track_id=tr.track_id,
+                    sensor_a=best.a,
+                    sensor_b=best.b,
+                    predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
+                    method=fix.method,
+                    candidates=len(ranked),
+                )
+            )
+
+    def _height(self, tr: TrackRecord, got: list[_Assigned], views: dict[str, ViewBlobs]) -> None:
+        """Fuse the head-top heights the views imply at the updated distance (scalar Kalman updates)."""
+        for a in got:
+            v = views[a.sensor_id]
+            if v.top_cut is not None and bool(v.top_cut[a.blob]):
+                continue
+            d = math.hypot(float(tr.x[0] - v.origin_xy[0]), float(tr.x[1] - v.origin_xy[1]))
+            tan_top = math.tan(float(v.top_elev_rad[a.blob]))
+            z = v.z_m + d * tan_top
+            var = (d * v.sigma_rad * (1.0 + tan_top * tan_top)) ** 2 + self._spread(v).cross_var
+            k = tr.height_var / (tr.height_var + var)
+            tr.height_m += k * (z - tr.height_m)
+            tr.height_var *= 1.0 - k
+
+    def _learn(self, tr: TrackRecord, by_sid: dict[str, int], views: dict[str, ViewBlobs], weight: float) -> None:
+        """Links to the nodes' 2D tracks and the per-view colour looks of the assigned blobs."""
+        for sid, j in by_sid.items():
+            tr.links[sid] = int(views[sid].local_id[j])
+        dt = weight * self.model.evidence_time_s
+        alpha = 1.0 - math.exp(-dt / self.model.look_time_s)
+        learn_look(tr, by_sid, views, alpha)
+        for sid in by_sid:
+            if views[sid].hist_sqrt is not None:
+                tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
+
+    # -- births and deaths ----------------------------------------------------------------------------
+    def _births(self, tick: _Tick, free: dict[str, list[int]], t_ns: int) -> int:
+        m = self.model
+        w = min((we for _, we in tick.weights.values()), default=1.0)
+        if w <= 0:
+            return 0
+        prior = logit(m.p_birth)
+        # Started only where the evidence, tempered like every update, lifts it above the deletion threshold.
+        need = (logit(m.p_delete) - prior) / w
+        hyps = find_births(
+            tick.views,
+            free,
+            self.tracks,
+            m,
+            self.birth_params,
+            spread=lambda sid: self._spread(tick.views[sid]),
+            tick=self._tick,
+            min_evidence=need,
+        )
+        for h in hyps:
+            self._spawn(h, tick, t_ns, prior + w * h.evidence)
+        return len(hyps)
+
+    def _spawn(self, h: Hypothesis, tick: _Tick, t_ns: int, logodds: float) -> None:
+        m, views, weights = self.model, tick.views, tick.weights
+        self._serial += 1
+        p = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
+        x = np.array([h.fix.xy[0], h.fix.xy[1], 0.0, 0.0])
+        ranked = self._rank(x[:2], sorted(h.blobs), tick)
+        fix = self._pair_fix(ranked[0], h.blobs, tick) if m.mode == "paper" and ranked else None
+        if fix is not None:
+            p[:2, :2] = fix.cov
+            x[:2] = fix.xy
+        else:
+            obs: list[Observation] = [
+                observation(views[s], j, x[:2], self._spread(views[s]), weights[s][0])
+                for s, j in sorted(h.blobs.items())
+            ]
+            x, p, _ = update(x, p, obs, (m.outlier_prob, m.outlier_scale))
+        tr = TrackRecord(
+            serial=self._serial,
+            x=x,
+            p=p,
+            t_ns=t_ns,
+            born_ns=t_ns,
+            logodds=min(logodds, logit(m.p_max)),
+            height_m=m.height_prior_m,
+            height_var=m.height_sigma_m**2,
+            detected=True,
+            hits=1,
+            method=fix.method if fix is not None else "least_squares",
+        )
+        got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
+        self._height(tr, got, views)
+        self._learn(tr, h.blobs, views, min(weights[s][0] for s in h.blobs))
+        if ranked:
+            tr.sensors = (ranked[0].a, ranked[0].b)
+            tr.predicted_error_m = ranked[0].error_m
+        self.tracks.append(tr)
+
+    def _prune(self) -> list[str]:
+        """Confirm tracks whose existence reached ``p_confirm``; end those below ``p_delete``, lost, or on the same
+        person as a surer track."""
+        m = self.model
+        confirm, delete = logit(m.p_confirm), logit(m.p_delete)
+        keep: list[TrackRecord] = []
+        ended: list[str] = []
+        # Surest first: a confirmed track before a tentative one, then the longest seen.
+        for tr in sorted(self.tracks, key=lambda t: (not t.confirmed, -t.hits, t.serial)):
+            if tr.logodds < delete or tr.position_sigma_m > m.lost_sigma_m or any(_same_person(tr, o) for o in keep):
+                if tr.track_id:
+                    ended.append(tr.track_id)
+                continue
+            if not tr.confirmed and tr.logodds >= confirm:
+                tr.confirmed = True
+                tr.track_id = self.new_id()
+            keep.append(tr)
+        self.tracks = sorted(keep, key=lambda t: t.serial)
+        return ended
+
+
+SAME_PERSON_CHI2 = 9.21
+"""Two tracks whose positions differ by less than this (Mahalanobis², 2 dof: 99 %) and by less than a person's width
+are one person followed twice (a detector's double box, two views' calibrations that disagree)."""
+
+
+def _same_person(a: TrackRecord, b: TrackRecord) -> bool:
+    """Whether two tracks stand where only one person fits and their estimates agree that they are one."""
+    dx, dy = float(a.x[0] - b.x[0]), float(a.x[1] - b.x[1])
+    if math.hypot(dx, dy) >= 2.0 * PERSON_RADIUS_M:
+        return False
+    s = a.p[:2, :2] + b.p[:2, :2]
+    det = float(s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0])
+    if det <= 0:
+        return True
+    d2 = (float(s[1, 1]) * dx * dx - 2.0 * float(s[0, 1]) * dx * dy + float(s[0, 0]) * dy * dy) / det
+    return d2 < SAME_PERSON_CHI2
+
+
+OUTLIER_RELEASE = 0.5
+"""An assigned blob that the track's other views make more likely an outlier than not is released."""
+PRIOR_SIGMA = 1.0
+"""Position spread (m) of the prior a new person's first multi-view fix starts from, around the pair's point."""
+
+
+def _assign(scores: ViewScores) -> list[tuple[int, int]]:
+    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian)."""
+    gain = scores.gain
+    if gain.size == 0:
+        return []
+    ok = np.isfinite(gain) & (gain > 0)
+    if not ok.any():
+        return []
+    rows = np.flatnonzero(ok.any(axis=1))
+    cols = np.flatnonzero(ok.any(axis=0))
+    sub = np.where(ok[np.ix_(rows, cols)], gain[np.ix_(rows, cols)], 0.0)
+    r, c = linear_sum_assignment(sub, maximize=True)
+    return [(int(rows[i]), int(cols[j])) for i, j in zip(r, c, strict=True) if ok[rows[i], cols[j]]]
+
+
+def _position_update(x: FloatArray, p: FloatArray, fix: Measurement) -> tuple[FloatArray, FloatArray]:
+    """Linear Kalman update with a floor position (the paper mode's pair fix)."""
+    h = np.zeros((2, 4))
+    h[0, 0] = h[1, 1] = 1.0
+    s = h @ p @ h.T + fix.cov
+    k = np.linalg.solve(s, h @ p).T
+    x_new = x + k @ (fix.xy - x[:2])
+    p_new = (np.eye(4) - k @ h) @ p
+    return x_new, 0.5 * (p_new + p_new.T)
