@@ -138,8 +138,9 @@ def find_births(
                 tr.looks[sid] = hs[j].copy()
                 tr.look_s[sid] = model.look_min_s
     n_old = len(tracks)
-    table = TrackTable.of(tracks + cands)
+    table = TrackTable.of(tracks + cands, model.look_min_s)
     occluders = np.arange(n_old + len(cands)) < n_old
+    cand_table = TrackTable.of(cands, model.look_min_s)
     sids = sorted(views)
     # Per view: each hypothesis' gain for each unexplained blob, and its miss term.
     gains: dict[str, FloatArray] = {}
@@ -148,7 +149,6 @@ def find_births(
         v = views[sid]
         pd = visibility(v, table, model, occluders)[n_old:]
         idx = free.get(sid, [])
-        cand_table = TrackTable.of(cands)
         sc = score_view(subset_view(v, idx), cands, cand_table, pd, model=model, spread=spread(sid)) if idx else None
         misses += np.log1p(-np.minimum(pd, 1.0 - 1e-9))
         if sc is not None:

@@ -141,8 +141,10 @@ def update(
     blob assigned in a crowd). Each Gauss-Newton step then weighs each observation by the posterior probability
     that it is not an outlier, given its residual and its variance at the current estimate (first the prediction):
     an iteratively reweighted update, so one wrong view does not drag a person seen well by the others.
-
     ``lines``: measurements along one direction each (taken as they are, not reweighed).
+
+    The steps are taken in information form (the measurement noise is diagonal and the state has four
+    dimensions): each is a 4x4 solve whatever the number of views.
 
     Returns:
         (x, P, weight of each observation in [0, 1]; 1 without ``outlier``).
@@ -153,30 +155,29 @@ def update(
     z, angle = _measured(obs, lines)
     rows = np.array([i for i, o in enumerate(obs) for _ in range(1 + int(math.isfinite(o.range_m)))], dtype=np.int64)
     nl = len(lines)
+    info_prior = np.linalg.inv(p)
     resp = np.ones(len(obs))
     if outlier is not None:  # first judged against the prediction, with its uncertainty
         resp = _responsibilities(x, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p)
     xi = x.copy()
-    k: FloatArray = np.zeros((4, 0))
-    h: FloatArray = np.zeros((0, 4))
+    p_new = p
     for _ in range(IEKF_ITERATIONS):
         hx, h, r = _predicted(xi, obs, lines)
+        w = 1.0 / np.diag(r)
         if outlier is not None:
             # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
-            r = r / np.concatenate([np.ones(nl), np.maximum(resp, 1e-6)[rows]])[:, None]
-        s = h @ p @ h.T + r
-        k = np.asarray(np.linalg.solve(s, h @ p).T, dtype=np.float64)  # P Hᵀ S⁻¹ (S symmetric)
+            w = w * np.concatenate([np.ones(nl), resp[rows]])
+        hw = h.T * w  # Hᵀ W
+        p_new = np.asarray(np.linalg.inv(info_prior + hw @ h), dtype=np.float64)
         nu = z - hx - h @ (x - xi)
         nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
-        step = x + k @ nu
+        step = x + p_new @ (hw @ nu)
         moved = float(np.hypot(step[0] - xi[0], step[1] - xi[1]))
         xi = step
         if outlier is not None:
-            p_now = (np.eye(4) - k @ h) @ p
-            resp = _responsibilities(xi, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p_now)
+            resp = _responsibilities(xi, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p_new)
         if moved < 1e-4:
             break
-    p_new = (np.eye(4) - k @ h) @ p
     return xi, 0.5 * (p_new + p_new.T), resp
 
 

@@ -60,17 +60,20 @@ class TrackTable:
     height: FloatArray
     """(n,) head-top heights."""
     height_var: FloatArray
+    overall_looks: list[FloatArray | None]
+    """Each track's colour look across the views where it has learnt one (None: none yet)."""
 
     @staticmethod
-    def of(tracks: list[TrackRecord]) -> TrackTable:
+    def of(tracks: list[TrackRecord], look_min_s: float = 0.0) -> TrackTable:
         n = len(tracks)
         if n == 0:
-            return TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0))
+            return TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0), [])
         return TrackTable(
             xy=np.array([tr.x[:2] for tr in tracks], dtype=np.float64),
             pos_cov=np.array([tr.p[:2, :2] for tr in tracks], dtype=np.float64),
             height=np.array([tr.height_m for tr in tracks], dtype=np.float64),
             height_var=np.array([tr.height_var for tr in tracks], dtype=np.float64),
+            overall_looks=[overall_look(tr, look_min_s) for tr in tracks],
         )
 
 
@@ -165,7 +168,7 @@ def score_view(
     spread: Spread,
 ) -> ViewScores:
     """Every blob of ``v`` against every track (see the module docstring); ``spread``: the camera's own spread of
-    points around a person (:mod:`.noise`)."""
+    points around a person."""
     n, m = table.xy.shape[0], v.n
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
@@ -210,7 +213,7 @@ def score_view(
     ln_lr = np.log(np.maximum(p_detect, 1e-300))[:, None] + ln_g - ln_alt
     ln_lr = ln_lr + _height_term(v, table, dist, s_dd_track, model=model, spread=spread)
     if v.hist_sqrt is not None:
-        ln_lr = ln_lr + _colour_term(v, tracks, model)
+        ln_lr = ln_lr + _colour_term(v, tracks, table, model)
     ln_lr = ln_lr + _link_term(v, tracks, model)
     ln_lr = np.where(gate & (p_detect > 0)[:, None], ln_lr, -np.inf)
     return ViewScores(ln_lr, ln_miss, p_detect)
@@ -243,7 +246,7 @@ def _height_term(
     return np.asarray(np.where(cut[None, :], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64)
 
 
-def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], model: TrackModel) -> FloatArray:
+def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], table: TrackTable, model: TrackModel) -> FloatArray:
     """(n, m) ln [p(colour distance | same person) / p(... | anyone else)] (the paper's intensity similarity).
 
     A track is compared with its own look in this view once it has one (a shirt looks different from another
@@ -256,8 +259,12 @@ def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], model: TrackModel) -> 
     rows: list[int] = []
     looks: list[FloatArray] = []
     for i, tr in enumerate(tracks):
-        look = own_or_overall_look(tr, v.sensor_id, k, model.look_min_s)
-        if look is not None:
+        own = tr.looks.get(v.sensor_id)
+        if own is not None and own.shape == (k,) and tr.look_s.get(v.sensor_id, 0.0) >= model.look_min_s:
+            look: FloatArray | None = own
+        else:
+            look = table.overall_looks[i] if i < len(table.overall_looks) else None
+        if look is not None and look.shape == (k,):
             rows.append(i)
             looks.append(look)
     if not rows:
@@ -269,15 +276,12 @@ def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], model: TrackModel) -> 
     return out
 
 
-def own_or_overall_look(tr: TrackRecord, sensor_id: str, bins: int, min_s: float) -> FloatArray | None:
-    """The track's learnt look in this view, else the mean of its learnt looks in the others (None: none)."""
-    own = tr.looks.get(sensor_id)
-    if own is not None and own.shape == (bins,) and tr.look_s.get(sensor_id, 0.0) >= min_s:
-        return own
-    others = [look for sid, look in tr.looks.items() if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s]
-    if not others:
+def overall_look(tr: TrackRecord, min_s: float) -> FloatArray | None:
+    """The mean of a track's learnt per-view looks, renormalised (None: none learnt yet)."""
+    learnt = [look for sid, look in tr.looks.items() if tr.look_s.get(sid, 0.0) >= min_s]
+    if not learnt or len({look.shape for look in learnt}) != 1:
         return None
-    mean = np.mean(others, axis=0)
+    mean = np.sum(learnt, axis=0)
     return np.asarray(mean / max(float(np.linalg.norm(mean)), 1e-12), dtype=np.float64)
 
 

@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
+from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
 from common.schema import Method, PairEntry
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
@@ -134,7 +135,7 @@ class Tracker:
             tr.x, tr.p = predict(tr.x, tr.p, gap_s, self.motion)
             tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
             tr.t_ns = t_ns
-        table = TrackTable.of(self.tracks)
+        table = TrackTable.of(self.tracks, self.model.look_min_s)
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         free: dict[str, list[int]] = {}
         tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
@@ -226,14 +227,24 @@ class Tracker:
     def _size_ratio_lines(self, got: list[_Assigned], tick: _Tick) -> list[LineObservation]:
         """Where two of the views and the person are nearly colinear, bearings say nothing about where along the
         baseline the person is; the size-ratio method (Eq. 2) does, from the two blob widths (the crossover rule
-        of :func:`common.geometry.localize_pair` decides). Each such pair gives a measurement along its baseline."""
+        of :func:`common.geometry.localize_pair` decides). Each such pair gives a measurement along its baseline.
+
+        Only pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their
+        baseline's line can be such a pair: the others are skipped before any geometry (and with many cameras,
+        only pairs among ``2 * MAX_PAIR_CAMERAS`` of them are tried).
+        """
         out: list[LineObservation] = []
         by_sid = {a.sensor_id: a.blob for a in got}
-        for sa, sb in itertools.combinations(sorted(by_sid), 2):
+        rays = {s: (tick.views[s].origin_xy, float(tick.views[s].bearing_rad[j])) for s, j in by_sid.items()}
+        for sa, sb in itertools.combinations(sorted(by_sid)[: 2 * MAX_PAIR_CAMERAS], 2):
+            (oa, ta), (ob, tb) = rays[sa], rays[sb]
+            psi = math.atan2(float(ob[1] - oa[1]), float(ob[0] - oa[0]))
+            if max(_off_line(ta - psi), _off_line(tb - psi)) >= MAX_SIZE_RATIO_OFFSET_RAD:
+                continue
             fix = self._pair_fix(PairCandidate(sa, sb, 0.0), by_sid, tick)
             if fix is None or fix.method != "size_ratio":
                 continue
-            base = tick.views[sb].origin_xy - tick.views[sa].origin_xy
+            base = ob - oa
             norm = float(np.hypot(*base))
             if norm <= 0:
                 continue
@@ -421,6 +432,12 @@ def _same_person(a: TrackRecord, b: TrackRecord) -> bool:
         return True
     d2 = (float(s[1, 1]) * dx * dx - 2.0 * float(s[0, 1]) * dx * dy + float(s[0, 0]) * dy * dy) / det
     return d2 < SAME_PERSON_CHI2
+
+
+def _off_line(angle_rad: float) -> float:
+    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
+    a = abs(math.remainder(angle_rad, math.pi))
+    return min(a, math.pi - a)
 
 
 OUTLIER_RELEASE = 0.5
