@@ -31,6 +31,7 @@ from common.site import ProcessSpec, SiteConfig
 __all__ = [
     "EPOCH_ENV",
     "SEED_ENV",
+    "START_ENV",
     "STATE_ENV",
     "ProcessPlan",
     "Supervisor",
@@ -43,6 +44,8 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
+START_ENV = "PANOSTEREO_START_FILE"
+"""A file a launcher writes once every process is up; recorded sources play frame 1 at the epoch it holds."""
 SEED_ENV = "PANOSTEREO_SEED"
 STATE_ENV = "PANOSTEREO_STATE_DIR"
 

@@ -8,7 +8,6 @@ Example (``deploy/nodes/examples/manager.toml`` is the annotated full version)::
     rate_hz = 10.0
     latency_ms = 200.0
     matcher = "greedy"          # or "global"
-    fuse_all = false
     state_dir = "state/mgr1"
 
     [zenoh]
@@ -66,16 +65,21 @@ class ManagerSection(ConfigStruct, frozen=True):
     """Manager id; track ids are ``{id}-{n}``."""
     prefix: str = DEFAULT_PREFIX
     rate_hz: Annotated[float, msgspec.Meta(gt=0.0, le=200.0)] = 10.0
-    """Fusion ticks per second."""
+    """Most fusion ticks per second: the manager fuses each instant every sensor has reached (the watermark of
+    their frames, resource_manager/ingest/schedule.py), at the sensors' pace up to this rate."""
     latency_ms: Annotated[float, msgspec.Meta(ge=0.0, le=10_000.0)] = 200.0
-    """The fusion instant is ``now - latency``: larger than a frame period plus the network delay, so that
-    two frames of every sensor bracket it. Raising it adds delay; lowering it forces extrapolation."""
+    """How long past its expected next frame (its newest plus one frame period) a sensor is waited for before
+    the others are fused without it. Raising it waits longer for a slow network; lowering it leaves late sensors
+    out sooner."""
     max_extrapolation_ms: NonNeg = 100.0
-    """Furthest a blob is extrapolated (or held) past its nearest frame; beyond it the sensor sits out the tick."""
+    """Furthest a blob is extrapolated (or held) past its nearest frame (at least 0.6 of the sensor's frame
+    period); beyond it the sensor sits out the tick."""
     stale_ms: Pos = 1000.0
-    """A sensor whose newest frame is older than this before the fusion instant is left out."""
+    """A sensor whose newest frame is older than this (at least 3 frame periods) before the fusion instant is
+    left out."""
     max_gap_ms: Pos = 500.0
-    """Two frames further apart than this are not interpolated between (the nearer one is held instead)."""
+    """Two frames further apart than this (at least 2.5 frame periods) are not interpolated between (the nearer
+    one is held instead)."""
     buffer_frames: PosInt = 64
     """Most frames kept per sensor (bounded memory)."""
     clock_step_ms: Pos = 1500.0

@@ -41,7 +41,7 @@ from common.schema import (
 )
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig
-from resource_manager.ingest.align import AlignedView, align_sensor
+from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
@@ -50,6 +50,13 @@ from resource_manager.track.state import TrackRecord
 from resource_manager.views.build import build_views
 
 __all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
+
+HOLD_PERIODS = 0.6
+"""A sensor's blobs are held or extrapolated at most this many of its frame periods past its nearest frame."""
+GAP_PERIODS = 2.5
+"""Two frames up to this many periods apart are interpolated between (one missing frame between them is fine)."""
+STALE_PERIODS = 3.0
+"""A sensor whose newest frame is older than this many periods sits out the tick."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,6 +126,7 @@ class Fusion:
         self.manager_id = m.id
         self.ingest = Ingest(m.buffer_frames, int(m.clock_step_ms * 1e6))
         self.align_params = wiring.align_params(config)
+        self.schedule = wiring.schedule(config)
         self.poses = wiring.pose_solver(config)
         self.tracker = wiring.tracker(config, new_id or _counter_ids(m.id))
         self.feet = wiring.feet_model(config)
@@ -182,7 +190,7 @@ class Fusion:
         for sid, buf in self.ingest.buffers.items():
             if not self.present.get(sid, True):
                 continue
-            view = align_sensor(buf, sid, t_ns, self.align_params, sightings=need_sightings)
+            view = align_sensor(buf, sid, t_ns, self._align_params(sid), sightings=need_sightings)
             if view is not None:
                 aligned[sid] = view
         poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)
@@ -222,6 +230,34 @@ class Fusion:
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
         return self._result(outcome.pair_entries, plans, commands, ended, in_use=sorted(views), aligned=aligned)
+
+    def _align_params(self, sid: str) -> AlignParams:
+        """The alignment limits for one sensor: the config's, widened to its frame period (a 2 fps camera's
+        frames are 500 ms apart: they are interpolated between, and a frame missing between two is tolerated)."""
+        info = self.poses.infos.get(sid)
+        p = self.align_params
+        if info is None or info.fps <= 0:
+            return p
+        period = 1e9 / info.fps
+        return AlignParams(
+            max_extrapolation_ns=max(p.max_extrapolation_ns, int(HOLD_PERIODS * period)),
+            stale_ns=max(p.stale_ns, int(STALE_PERIODS * period)),
+            max_gap_ns=max(p.max_gap_ns, int(GAP_PERIODS * period)),
+        )
+
+    def next_instant(self, now_ns: int) -> int | None:
+        """The instant to fuse now by the watermark rule (:mod:`resource_manager.ingest.schedule`), or None while
+        nothing new can be fused. Call after :meth:`absorb` has filed what arrived."""
+        newest: dict[str, int] = {}
+        periods: dict[str, int] = {}
+        for sid, buf in self.ingest.buffers.items():
+            stamp = buf.newest_stamp()
+            if stamp is None or not self.present.get(sid, True):
+                continue
+            newest[sid] = stamp
+            info = self.poses.infos.get(sid)
+            periods[sid] = int(1e9 / info.fps) if info is not None and info.fps > 0 else 0
+        return self.schedule.instant(newest, periods, now_ns, self.last_t_ns)
 
     def _detector_states(self, t_ns: int) -> dict[str, DetectorState]:
         """Sensors whose frames around ``t_ns`` say their detector cannot see ("learning", "moving")."""

@@ -39,6 +39,9 @@ from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, re
 
 __all__ = ["ManagerNode", "run"]
 
+POLL_S = 0.005
+"""How often the manager looks whether the sensors' watermark allows a new fusion."""
+
 logger = logging.getLogger(__name__)
 
 
@@ -203,12 +206,17 @@ class ManagerNode:
             presence=presence,
         )
 
-    def tick(self) -> TickResult:
+    def tick(self) -> TickResult | None:
+        """File what arrived; fuse the instant the sensors' watermark allows, if any (None: nothing new yet)."""
         batch = self._batch()
-        t_ns = self.clock.now_ns() - int(self.cfg.manager.latency_ms * 1e6)
+        with self.lock:
+            self.fusion.absorb(batch)
+            t_ns = self.fusion.next_instant(self.clock.now_ns())
+        if t_ns is None:
+            return None
         t0 = time.perf_counter()
         with self.lock:
-            result = self.fusion.step(batch, t_ns)
+            result = self.fusion.step(Batch(), t_ns)
             self.tick_ms.append((time.perf_counter() - t0) * 1e3)
             kept = [tr for tr in result.trackset.tracks if self.store.add(tr)]
             self.live_ids = {tr.track_id for tr in result.trackset.tracks}
@@ -272,21 +280,20 @@ class ManagerNode:
         self.tick_ms.clear()
 
     def loop(self) -> None:
-        period = 1.0 / self.cfg.manager.rate_hz
         status_every = self.cfg.manager.status_period_s
-        next_tick = time.monotonic()
-        next_status = next_tick + status_every
+        next_status = time.monotonic() + status_every
         last: TickResult | None = None
-        logger.info("manager %s running at %.1f Hz on prefix %s", self.mid, self.cfg.manager.rate_hz, self.keys.root)
+        logger.info(
+            "manager %s fusing at up to %.1f Hz on prefix %s", self.mid, self.cfg.manager.rate_hz, self.keys.root
+        )
         while not self.shutdown.is_set():
-            last = self.tick()
+            last = self.tick() or last
             now = time.monotonic()
             if now >= next_status:
                 self.status(last, status_every)
                 next_status = now + status_every
-            next_tick += period
-            next_tick = max(next_tick, now)  # fell behind: skip, do not burst
-            if self.shutdown.sleep(next_tick - time.monotonic()):
+            # Frames arrive at the cameras' pace: look again soon (a fusion waits for the watermark, not a timer).
+            if self.shutdown.sleep(POLL_S):
                 break
 
     def close(self) -> None:

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from common.geometry import wrap_angle
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignParams
+from resource_manager.ingest.schedule import Watermark
 from resource_manager.plan.planner import PlannerParams, ViewPlanner
 from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.serve.ptz import PtzAllocator, PtzParams
@@ -25,6 +26,7 @@ __all__ = [
     "match_params",
     "pose_solver",
     "ptz_allocator",
+    "schedule",
     "track_model",
     "tracker",
     "view_planner",
@@ -39,6 +41,12 @@ def align_params(config: ManagerConfig) -> AlignParams:
         stale_ns=int(m.stale_ms * 1e6),
         max_gap_ns=int(m.max_gap_ms * 1e6),
     )
+
+
+def schedule(config: ManagerConfig) -> Watermark:
+    """When to fuse: the sensors' watermark, a late sensor waited for ``latency_ms``, at most ``rate_hz``."""
+    m = config.manager
+    return Watermark(allowance_ns=int(m.latency_ms * 1e6), min_interval_ns=int(1e9 / m.rate_hz))
 
 
 def pose_solver(config: ManagerConfig) -> PoseSolver:

@@ -32,6 +32,7 @@ from sensor_node.config import (
     OpenCvSource,
     SimSource,
     epoch_from,
+    start_file_from_env,
 )
 from sensor_node.detections import DetectionFrames, camera_pose, features_from_detections, load_calibration
 from sensor_node.features import PanoramicGeometry, PinholeGeometry
@@ -218,6 +219,8 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
         return NodeParts(sim, ImageProcessor(pipe, base), "ptz", geo.camera.to_model(), ptz_pose, fps, ptz, sim, base)
     if isinstance(src, DetectionsSource):
         camera = load_calibration(cfg.resolve(src.calibration))
+        # A recorded site started by a launcher plays from frame 1 once every process is up (its start file).
+        start = start_file_from_env() if src.epoch_ns == 0 else None
         frames = DetectionFrames(
             cfg.resolve(src.file),
             src.fps,
@@ -226,6 +229,7 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
             min_confidence=src.min_confidence,
             max_lag_s=src.max_lag_s,
             loop=src.loop,
+            start_file=start,
         )
         proc_d = DetectionProcessor(cfg.node.id, camera)
         return NodeParts(frames, proc_d, "pinhole", camera.to_model(), camera_pose(camera), src.fps)

@@ -54,6 +54,7 @@ from common.session import SessionSettings
 
 __all__ = [
     "EPOCH_ENV",
+    "START_ENV",
     "BodySpec",
     "CameraSettings",
     "DetectionsSource",
@@ -67,11 +68,16 @@ __all__ = [
     "SourceSettings",
     "epoch_from",
     "load_node_config",
+    "read_start_file",
     "source_kind",
+    "start_file_from_env",
 ]
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
 """Environment variable with the site's common world epoch (Unix ns), set by the launcher."""
+START_ENV = "PANOSTEREO_START_FILE"
+"""Environment variable naming a file the launcher writes once every process of a site is up: recorded sources
+(detection files) wait for it and play their frame 1 at the Unix ns it holds (the world epoch)."""
 
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
@@ -332,6 +338,33 @@ class NodeConfig(ConfigStruct, frozen=True):
 def source_kind(source: SourceSettings) -> str:
     """The ``kind`` tag of a ``[source]`` table."""
     return str(type(source).__struct_config__.tag)
+
+
+def start_file_from_env() -> Path | None:
+    """The start file of ``PANOSTEREO_START_FILE``, if the launcher set one."""
+    env = os.environ.get(START_ENV, "").strip()
+    return Path(env) if env else None
+
+
+def read_start_file(path: Path) -> int | None:
+    """The epoch (Unix ns) a start file holds, or None while it is not written yet.
+
+    Raises:
+        ConfigError: a start file that is not one non-negative integer.
+    """
+    try:
+        text = path.read_text(encoding="utf-8").strip()
+    except FileNotFoundError:
+        return None
+    except OSError as err:
+        raise ConfigError(f"start file {str(path)!r}: {err.strerror}") from err
+    try:
+        epoch = int(text)
+    except ValueError as err:
+        raise ConfigError(f"start file {str(path)!r}: expected integer Unix ns, got {text[:40]!r}") from err
+    if epoch < 0:
+        raise ConfigError(f"start file {str(path)!r}: expected >= 0, got {epoch}")
+    return epoch
 
 
 def epoch_from(value_ns: int, fallback_ns: int) -> int:

@@ -32,6 +32,7 @@ import numpy as np
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
 from common.schema import Blob, Features, Pose, SourceState
+from sensor_node.config import read_start_file
 from sensor_node.sources import Clock, Frame, Pacer
 from sensor_node.tracks2d import Tracker2D
 
@@ -180,9 +181,10 @@ def features_from_detections(
 class DetectionFrames:
     """Plays a detection file in real time: file frame k at ``epoch + (k - 1) / fps``.
 
-    Frames due more than ``max_lag_s`` ago when the node gets to them (it
-    started late) are skipped and counted; frames without boxes still yield
-    an (empty) frame so the manager knows the camera saw nobody.
+    Frames due more than ``max_lag_s`` ago when the node gets to them (it started late) are skipped and counted;
+    frames without boxes still yield an (empty) frame so the manager knows the camera saw nobody. With a
+    ``start_file`` instead of an epoch, playing waits (state "starting") until the launcher writes the epoch
+    there, once every process of the site is up: frame 1 is then played whatever the start-up took.
     """
 
     def __init__(
@@ -195,6 +197,7 @@ class DetectionFrames:
         min_confidence: float = 0.0,
         max_lag_s: float = 1.0,
         loop: bool = False,
+        start_file: Path | None = None,
     ) -> None:
         self.path = path
         self.by_frame = read_mot(path, min_confidence)
@@ -206,14 +209,30 @@ class DetectionFrames:
         self.epoch_ns = epoch_ns
         self.max_lag_ns = int(max_lag_s * 1e9)
         self.loop = loop
-        self._pacer = Pacer(fps, clock, epoch_ns, max_late_ns=self.max_lag_ns)
+        self.start_file = start_file
+        self._pacer: Pacer | None = None if start_file is not None else Pacer(fps, clock, epoch_ns, self.max_lag_ns)
         self.state: SourceState = "starting"
-        self.message = ""
+        self.message = "waiting for the site to start" if start_file is not None else ""
+
+    def _started(self, stop: threading.Event) -> Pacer | None:
+        """The pacer, once the epoch is known (waits for the start file; None if stopped first)."""
+        while self._pacer is None:
+            assert self.start_file is not None
+            epoch = read_start_file(self.start_file)
+            if epoch is not None:
+                self.epoch_ns = epoch
+                self._pacer = Pacer(self.fps, self.clock, epoch, self.max_lag_ns)
+            elif stop.wait(START_POLL_S):
+                return None
+        return self._pacer
 
     def read(self, stop: threading.Event) -> Frame | None:
+        pacer = self._started(stop)
+        if pacer is None:
+            return None
         skipped = 0
         while not stop.is_set():
-            slot = self._pacer.wait(stop)
+            slot = pacer.wait(stop)
             if slot is None:
                 return None
             k, stamp, missed = slot
@@ -230,3 +249,7 @@ class DetectionFrames:
 
     def close(self) -> None:
         """Nothing is held open."""
+
+
+START_POLL_S = 0.05
+"""How often a source waiting for the site's start looks at the start file."""

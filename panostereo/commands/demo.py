@@ -35,6 +35,7 @@ from common.site import SiteConfig, load_site
 from panostereo.launcher import (
     EPOCH_ENV,
     SEED_ENV,
+    START_ENV,
     STATE_ENV,
     Supervisor,
     client_endpoint,
@@ -48,6 +49,10 @@ __all__ = ["DEFAULT_LISTEN", "configure", "default_site", "run"]
 logger = logging.getLogger(__name__)
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+DEFAULT_WARMUP_S = 5.0
+"""Unscored seconds at the start of a simulated site (background models learning, first tracks)."""
+START_LEAD_NS = 500_000_000
+"""A dataset site's frame 1 is played this long after the start file is written (every node polls it)."""
 
 
 def default_site() -> Path:
@@ -66,8 +71,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--warmup",
         type=float,
-        default=5.0,
-        help="seconds after every process is up that are not scored (background models, track confirmation)",
+        default=None,
+        help="seconds after every process is up that are not scored (background models, track confirmation); "
+        "default 5, and 0 on a dataset site, which plays from its frame 1 once every process is up",
     )
     parser.add_argument("--no-view", action="store_true", help="no live view (progress lines only)")
 
@@ -97,6 +103,19 @@ def _wait_router(router: Supervisor, endpoint: str, log: Path, timeout_s: float 
     raise SessionError(f"the demo's router did not report listening on {endpoint} within {timeout_s:g} s")
 
 
+def _start_dataset(path: Path) -> int:
+    """Write the start file recorded sources wait for: frame 1 a moment from now (every node reads it first).
+
+    Returns:
+        The epoch written (Unix ns of frame 1).
+    """
+    epoch_ns = time.time_ns() + START_LEAD_NS
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(str(epoch_ns), encoding="utf-8")
+    tmp.replace(path)  # atomic: a node never reads half a number
+    return epoch_ns
+
+
 def _progress(elapsed: float, duration: float, client: Any) -> str:
     tracks = client.tracks(timeout_s=0)
     return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
@@ -120,14 +139,20 @@ def run(args: argparse.Namespace) -> int:
         duration = site.site.duration_s
     if not duration > 0:
         raise ConfigError(f"--duration must be > 0 s, got {duration}")
-    if not 0 <= args.warmup < duration:
-        raise ConfigError(f"--warmup must be in [0, duration={duration:g}) s, got {args.warmup}")
+    warmup = args.warmup if args.warmup is not None else (0.0 if dataset is not None else DEFAULT_WARMUP_S)
+    if not 0 <= warmup < duration:
+        raise ConfigError(f"--warmup must be in [0, duration={duration:g}) s, got {warmup}")
     out = Path(args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ids = process_ids(site)
     endpoint = client_endpoint(args.listen)
     epoch_ns = time.time_ns()
     env = {EPOCH_ENV: str(epoch_ns), SEED_ENV: str(site.site.seed), STATE_ENV: str(out / "state")}
+    start_file = out / "start_ns"
+    if dataset is not None:
+        # Recorded sources wait for this file and play their frame 1 at the epoch it holds (written below).
+        start_file.unlink(missing_ok=True)
+        env[START_ENV] = str(start_file)
     plans = site_plans(site, connect=endpoint, env=env, log_dir=out / "logs")
     if not plans:
         raise ConfigError(f"{site.path}: no [[process]] to run on localhost")
@@ -176,9 +201,12 @@ def run(args: argparse.Namespace) -> int:
                 for view in client.sensors(timeout_s=1.0):  # make sure the poses are in the file
                     if view.info is not None:
                         recorder.sink.write(keys.sensor_info(view.sensor_id), encode(view.info), time.time_ns())
-                score_from_ns = time.time_ns() + int(args.warmup * 1e9)
+                if dataset is not None:
+                    epoch_ns = _start_dataset(start_file)
+                    recorder.sink.add_metadata("panostereo.dataset", {"epoch_ns": str(epoch_ns)})
+                score_from_ns = max(time.time_ns(), epoch_ns) + int(warmup * 1e9)
                 recorder.sink.add_metadata(
-                    "panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(args.warmup)}
+                    "panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(warmup)}
                 )
                 start = time.monotonic()
                 last_view = 0.0
@@ -284,7 +312,8 @@ def _finish(
     _write_truth_scene(sink, gt, epoch_ns, fps)
     sink.close()
     rec = load_recording(recording)
-    scored = score_recording(rec, gt, threshold_m=threshold_m)
+    area = gt.area() if site.dataset is not None and site.dataset.scored_area == "ground_truth" else None
+    scored = score_recording(rec, gt, threshold_m=threshold_m, area=area)
     m = scored.metrics
     plot = plot_recording(
         rec,

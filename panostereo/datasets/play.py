@@ -8,9 +8,9 @@ time:
 1. each node's config is built with :func:`sensor_node.build.build_node` and its frames turned into Features
    by the node's own processor (the same 2D tracker, the same rays), and its SensorInfo by the same function the
    node publishes;
-2. the manager's :class:`~resource_manager.fusion.Fusion` (the site's manager config, or another) is stepped at
-   every frame instant once every camera's frame of that instant is in (the watermark of a network whose frames
-   all arrived): the tick a live manager makes once nothing more can come for that instant;
+2. the manager's :class:`~resource_manager.fusion.Fusion` (the site's manager config, or another) is fed every
+   frame at its own stamp and fuses the instants the live manager's watermark rule allows
+   (:mod:`resource_manager.ingest.schedule`): every frame instant, once each camera's frame of it is in;
 3. the TrackSets are scored against the site's ``gt.csv`` from its first frame
    (:func:`user_agent.report.score_tracksets`), where the ground truth annotates people
    (``[dataset] scored_area``), and everywhere as well.
@@ -115,20 +115,23 @@ def _with_epoch(cfg: Any, epoch_ns: int) -> Any:
 
 
 def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
-    """Step a fresh Fusion at every frame instant, each camera's frame of that instant in its batch."""
+    """Feed a fresh Fusion every frame as it would arrive (at its own stamp) and fuse the instants the live
+    manager's watermark rule allows (:mod:`resource_manager.ingest.schedule`): here, every frame instant."""
     fusion = Fusion(config)
     by_stamp: dict[int, list[Features]] = {}
     for cam in cameras:
         for f in cam.features:
             by_stamp.setdefault(f.stamp_ns, []).append(f)
     run = DatasetRun()
-    infos: list[SensorInfo] = [cam.info for cam in cameras]
-    presence = {cam.sensor_id: True for cam in cameras}
+    fusion.absorb(Batch(infos=[cam.info for cam in cameras], presence={cam.sensor_id: True for cam in cameras}))
     for stamp in sorted(by_stamp):
+        fusion.absorb(Batch(features=by_stamp[stamp]))
+        t_ns = fusion.next_instant(stamp)
+        if t_ns is None:
+            continue
         began = time.process_time()
-        result = fusion.step(Batch(features=by_stamp[stamp], infos=infos, presence=presence), stamp)
+        result = fusion.step(Batch(), t_ns)
         run.tick_ms.append((time.process_time() - began) * 1e3)
-        infos, presence = [], {}
         run.ticks += 1
         if not result.skipped:
             run.tracksets.append(result.trackset)
