@@ -43,7 +43,7 @@ from resource_manager import wiring
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
 from resource_manager.ingest.buffers import Ingest
-from resource_manager.plan.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
+from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve.ptz import PtzTarget
 from resource_manager.track.state import TrackRecord

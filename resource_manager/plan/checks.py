@@ -30,7 +30,7 @@ import numpy.typing as npt
 from common.error_model import normalised_error_xy, pair_position_error
 
 if TYPE_CHECKING:
-    from resource_manager.plan.planner import PlanCamera, PlannerParams, Scene
+    from resource_manager.plan.scene import PlanCamera, PlannerParams, Scene
 
 __all__ = [
     "feasible",

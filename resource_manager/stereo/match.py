@@ -283,7 +283,7 @@ def match_matrices(
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
     # -- colour and the temporal term ------------------------------------------------------------------------
-    r_is = colour_table(pairs, params, shape, tabs=tabs, ia=ia, ib=ib)
+    r_is = colour_table(pairs, params.use_colour, shape, tabs=tabs, ia=ia, ib=ib)
     r = r_is * r_all
     cos1, sin1 = np.cos(th1), np.sin(th1)
     hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb) hypothesised positions along camera 1's ray

@@ -6,15 +6,10 @@ The colour factor r_is (Bhattacharyya coefficients of the histograms) is compute
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import numpy.typing as npt
 
 from resource_manager.views.blobs import ViewBlobs
-
-if TYPE_CHECKING:
-    from resource_manager.stereo.match import MatchParams
 
 __all__ = ["Tables", "colour_table"]
 
@@ -60,7 +55,7 @@ class Tables:
 
 def colour_table(
     pairs: list[tuple[ViewBlobs, ViewBlobs]],
-    params: MatchParams,
+    use_colour: bool,
     shape: tuple[int, int, int],
     *,
     tabs: Tables,
@@ -68,7 +63,7 @@ def colour_table(
     ib: npt.NDArray[np.int64],
 ) -> FloatArray:
     """r_is (p, na, nb): the Bhattacharyya coefficients of the histograms (1 where a view has none)."""
-    if not params.use_colour:
+    if not use_colour:
         return np.ones(shape)
     roots = [
         None if v.hist is None else (v.hist_sqrt if v.hist_sqrt is not None else np.sqrt(np.clip(v.hist, 0.0, None)))

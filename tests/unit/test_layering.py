@@ -162,3 +162,92 @@ def test_checker_allows_shells_and_own_package(tmp_path: Path, rel: str, source:
     _write(tmp_path, rel, source)
     violations, _ = check_tree(tmp_path)
     assert violations == []
+
+
+# -- the manager's stages (resource_manager/): no import circles, one owner of a track's state ---------------
+
+TRACK_FIELDS = frozenset({"logodds", "height_var", "confirmed", "detected", "links", "looks", "look_s", "misses"})
+"""Fields of :class:`resource_manager.track.state.TrackRecord` no other record has: assigning one outside
+``resource_manager/track/`` means another stage reaches into a track."""
+
+
+def manager_import_graph(root: Path) -> dict[str, set[str]]:
+    """resource_manager module -> the resource_manager modules it imports (module level and inside functions)."""
+    graph: dict[str, set[str]] = {}
+    base = root / "resource_manager"
+    for path in sorted(base.rglob("*.py")):
+        rel = path.relative_to(root).with_suffix("")
+        name = ".".join(rel.parts)
+        package = ".".join(rel.parts[:-1])
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        deps: set[str] = set()
+        for imported, _ in imported_modules(tree, package):
+            if imported.startswith("resource_manager"):
+                deps.add(imported)
+        for node in ast.walk(tree):  # "from resource_manager import wiring" imports the module wiring
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("resource_manager"):
+                deps.update(f"{node.module}.{alias.name}" for alias in node.names)
+        graph[name] = deps
+    # Keep the names that are modules; a name inside a module (a class) counts as that module.
+    return {m: {d if d in graph else d.rsplit(".", 1)[0] for d in ds} - {m} for m, ds in graph.items()}
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import circle of the graph, or []."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str]:
+        state[node] = 1
+        stack.append(node)
+        for dep in sorted(graph.get(node, ())):
+            if state.get(dep) == 1:
+                return [*stack[stack.index(dep) :], dep]
+            if dep in graph and dep not in state and (found := visit(dep)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return []
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return []
+
+
+def track_state_writes(root: Path) -> list[str]:
+    """``file:line`` of every assignment to a track-only field outside resource_manager/track/."""
+    out = []
+    for path in sorted((root / "resource_manager").rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        if rel.startswith("resource_manager/track/"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
+                node, ast.AugAssign | ast.AnnAssign) else []  # fmt: skip
+            for target in targets:
+                t = target
+                while isinstance(t, ast.Subscript):
+                    t = t.value
+                if isinstance(t, ast.Attribute) and t.attr in TRACK_FIELDS:
+                    out.append(f"{rel}:{node.lineno}")
+    return out
+
+
+def test_manager_stages_have_no_import_circles_and_one_owner_of_track_state() -> None:
+    graph = manager_import_graph(REPO)
+    assert {"resource_manager.track.tracker", "resource_manager.ingest.schedule"} <= set(graph)
+    assert find_cycle(graph) == []
+    assert track_state_writes(REPO) == []
+
+
+def test_the_manager_checks_catch_circles_and_outside_writes(tmp_path: Path) -> None:
+    _write(tmp_path, "resource_manager/a.py", "from resource_manager.b import x\n")
+    _write(tmp_path, "resource_manager/b.py", "def f():\n    from resource_manager import a\n")
+    _write(tmp_path, "resource_manager/plan/p.py", "def f(tr):\n    tr.logodds = 0.0\n    tr.looks['c'] += 1\n")
+    _write(tmp_path, "resource_manager/track/t.py", "def f(tr):\n    tr.logodds = 0.0\n")
+    assert find_cycle(manager_import_graph(tmp_path)) in (
+        ["resource_manager.a", "resource_manager.b", "resource_manager.a"],
+        ["resource_manager.b", "resource_manager.a", "resource_manager.b"],
+    )
+    assert track_state_writes(tmp_path) == ["resource_manager/plan/p.py:2", "resource_manager/plan/p.py:3"]
