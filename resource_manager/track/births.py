@@ -138,9 +138,9 @@ def find_births(
                 tr.looks[sid] = hs[j].copy()
                 tr.look_s[sid] = model.look_min_s
     n_old = len(tracks)
-    table = TrackTable.of(tracks + cands, model.look_min_s)
+    table = TrackTable.of(tracks + cands)
     occluders = np.arange(n_old + len(cands)) < n_old
-    cand_table = TrackTable.of(cands, model.look_min_s)
+    cand_table = TrackTable.of(cands)
     sids = sorted(views)
     # Per view: each hypothesis' gain for each unexplained blob, and its miss term.
     gains: dict[str, FloatArray] = {}

@@ -60,20 +60,17 @@ class TrackTable:
     height: FloatArray
     """(n,) head-top heights."""
     height_var: FloatArray
-    overall_looks: list[FloatArray | None]
-    """Each track's colour look across the views where it has learnt one (None: none yet)."""
 
     @staticmethod
-    def of(tracks: list[TrackRecord], look_min_s: float = 0.0) -> TrackTable:
+    def of(tracks: list[TrackRecord]) -> TrackTable:
         n = len(tracks)
         if n == 0:
-            return TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0), [])
+            return TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0))
         return TrackTable(
             xy=np.array([tr.x[:2] for tr in tracks], dtype=np.float64),
             pos_cov=np.array([tr.p[:2, :2] for tr in tracks], dtype=np.float64),
             height=np.array([tr.height_m for tr in tracks], dtype=np.float64),
             height_var=np.array([tr.height_var for tr in tracks], dtype=np.float64),
-            overall_looks=[overall_look(tr, look_min_s) for tr in tracks],
         )
 
 
@@ -247,39 +244,44 @@ def _height_term(
 
 
 def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], table: TrackTable, model: TrackModel) -> FloatArray:
-    """(n, m) ln [p(colour distance | same person) / p(... | anyone else)] (the paper's intensity similarity).
+    """(n, m) ln [p(colour | this person) / p(colour | anyone else)], the paper's intensity similarity, twice:
 
-    A track is compared with its own look in this view once it has one (a shirt looks different from another
-    side), else with its look across the views that have one (the paper's r_is compares two views' blobs);
-    0 where it has no look at all.
+    * against the track's own look in this view, once it has one (the same shirt, from this side, over time);
+    * against its look in the *other* views (the paper's r_is compares the blobs of two views): a track whose
+      views show different people (a ghost where two people's rays cross) matches neither well.
+
+    0 where the track has no look to compare.
     """
     assert v.hist_sqrt is not None
     out = np.zeros((len(tracks), v.n))
     k = v.hist_sqrt.shape[1]
-    rows: list[int] = []
-    looks: list[FloatArray] = []
     for i, tr in enumerate(tracks):
         own = tr.looks.get(v.sensor_id)
         if own is not None and own.shape == (k,) and tr.look_s.get(v.sensor_id, 0.0) >= model.look_min_s:
-            look: FloatArray | None = own
-        else:
-            look = table.overall_looks[i] if i < len(table.overall_looks) else None
-        if look is not None and look.shape == (k,):
-            rows.append(i)
-            looks.append(look)
-    if not rows:
-        return out
-    dist = 1.0 - np.clip(np.array(looks) @ v.hist_sqrt.T, 0.0, 1.0)
-    sig, eps = model.colour_sigma, model.outlier_prob
-    same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
-    out[rows] = np.log((1.0 - eps) * same + eps)
+            out[i] += _colour_ln_lr(own, v.hist_sqrt, model)
+        others = other_views_look(tr, v.sensor_id, k, model.look_min_s)
+        if others is not None:
+            out[i] += _colour_ln_lr(others, v.hist_sqrt, model)
     return out
 
 
-def overall_look(tr: TrackRecord, min_s: float) -> FloatArray | None:
-    """The mean of a track's learnt per-view looks, renormalised (None: none learnt yet)."""
-    learnt = [look for sid, look in tr.looks.items() if tr.look_s.get(sid, 0.0) >= min_s]
-    if not learnt or len({look.shape for look in learnt}) != 1:
+def _colour_ln_lr(look: FloatArray, hist_sqrt: FloatArray, model: TrackModel) -> FloatArray:
+    """(m,) ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an outlier
+    floor, against a uniform distance for anyone else."""
+    dist = 1.0 - np.clip(hist_sqrt @ look, 0.0, 1.0)
+    sig, eps = model.colour_sigma, model.outlier_prob
+    same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
+    return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)
+
+
+def other_views_look(tr: TrackRecord, sensor_id: str, bins: int, min_s: float) -> FloatArray | None:
+    """The mean of a track's learnt looks in the views other than ``sensor_id``, renormalised (None: none)."""
+    learnt = [
+        look
+        for sid, look in tr.looks.items()
+        if sid != sensor_id and look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
+    ]
+    if not learnt:
         return None
     mean = np.sum(learnt, axis=0)
     return np.asarray(mean / max(float(np.linalg.norm(mean)), 1e-12), dtype=np.float64)

@@ -135,7 +135,7 @@ class Tracker:
             tr.x, tr.p = predict(tr.x, tr.p, gap_s, self.motion)
             tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
             tr.t_ns = t_ns
-        table = TrackTable.of(self.tracks, self.model.look_min_s)
+        table = TrackTable.of(self.tracks)
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         free: dict[str, list[int]] = {}
         tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
