@@ -268,6 +268,16 @@ ROWS: list[Row] = [
         ("import", "wildtrack", "{tmp}/empty-dataset", "--out", "{tmp}/imp4", "--drop-rate", "2"),
         r"drop",
     ),
+    Row("import-mot-without-fps", ("import", "mot", "{tmp}/empty-dataset", "--out", "{tmp}/imp5"), r"--fps"),
+    Row(
+        "import-mot-empty-dataset",
+        ("import", "mot", "{tmp}/empty-dataset", "--out", "{tmp}/imp6", "--fps", "7"),
+        r"calib/<cam>\.json",
+    ),
+    # -- evaluate-site ----------------------------------------------------------------------
+    Row("evaluate-site-missing-site", ("evaluate-site", "{tmp}/absent.toml"), r"absent\.toml"),
+    Row("evaluate-site-not-a-dataset", ("evaluate-site", "{repo}/deploy/sites/demo.toml"), r"not a dataset site"),
+    Row("evaluate-site-unknown-key", ("evaluate-site", "{tmp}/site-unknown-key.toml"), r"bogus_key"),
     # -- up ---------------------------------------------------------------------------------
     Row("up-missing-site", ("up", "{tmp}/absent.toml"), r"absent\.toml"),
     Row("up-site-syntax", ("up", "{tmp}/syntax.toml"), r"syntax\.toml"),
