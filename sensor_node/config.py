@@ -213,8 +213,16 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """``[pipeline]``: image-pipeline knobs. Each says what raising or lowering it does."""
 
     fg_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 16
-    """Grey-level difference from the background that counts as changed. Lower: fainter people found,
+    """Least grey-level difference from the background that counts as changed. Lower: fainter people found,
     more noise specks; higher: fewer false pixels, low-contrast clothing breaks up."""
+    fg_sigmas: Annotated[float, msgspec.Meta(ge=0.0)] = 4.0
+    """A pixel is changed when it departs from the background by more than this many sigmas of its own
+    swing (what moves in place: a flapping tape, leaves) or of the image's noise, and by at least
+    ``fg_threshold``. Both are measured by the model (the warm-up's spread, then outside people), so
+    a noisy or compressed camera needs no retuning. Higher: fewer false pixels, faint people break up."""
+    shadows: bool = True
+    """Changed pixels that are the background dimmed or brightened with its hue kept (cast shadows,
+    highlights) are not objects (:mod:`sensor_node.shadows`). Off: grey levels only."""
     diff_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 22
     """Grey-level frame-to-frame difference that counts as motion (frame differencing)."""
     learning_rate: Frac = 0.05
@@ -230,11 +238,13 @@ class PipelineSettings(ConfigStruct, frozen=True):
     moves (a robot driving): nothing is reported and the background is learnt afresh once it stops.
     Lower: detects slow driving sooner, a crowd close around the camera may pass for it; 1: off."""
     warmup_frames: PosInt = 12
-    """Frames whose median initialises the background; nothing is reported meanwhile. Higher: cleaner
-    start with people present, longer blind start."""
-    warmup_stride: PosInt = 3
-    """Take every N-th frame for the warm-up median, so it spans ``warmup_frames * warmup_stride`` frames.
-    Higher: people who stand still for a while at start leave no ghost; longer blind start."""
+    """Frames whose median initialises the background, spread over ``warmup_s``; nothing is reported
+    meanwhile. Higher: cleaner start with people present, more work at start."""
+    warmup_s: Pos = 1.5
+    """Seconds (of frame stamps) the warm-up samples span: the blind start. Higher: people who stand
+    still for a while at start leave no ghost; longer blind start."""
+    warmup_stride: Annotated[int, msgspec.Meta(ge=0)] = 0
+    """Take every N-th frame for the warm-up instead (0: spread over ``warmup_s`` by the stamps)."""
     ghost_frames: PosInt = 10
     """Frames a changed region must stay still before it is tested for being a ghost (something that
     left the background). Lower: ghosts vanish sooner, more tests; higher: the opposite."""
