@@ -118,6 +118,9 @@ class OpenCvSource(ConfigStruct, frozen=True, tag_field="kind", tag="opencv"):
     """Pace file playback at this rate (0: the file's own rate; live sources are never paced)."""
     loop: bool = False
     """Files: start again at the end instead of ending."""
+    at_end: Literal["stay", "exit"] = "stay"
+    """Files, when they end (not looping): "stay" up, the status saying "ended", until stopped; "exit"
+    the process (exit code 0) once the last frame's Features are out."""
     reconnect_min_s: Pos = 0.5
     """First wait before reopening a failed source; doubles up to ``reconnect_max_s``."""
     reconnect_max_s: Pos = 10.0
@@ -130,6 +133,8 @@ class FolderSource(ConfigStruct, frozen=True, tag_field="kind", tag="folder"):
     glob: str = "*.png"
     fps: Pos = 10.0
     loop: bool = False
+    at_end: Literal["stay", "exit"] = "stay"
+    """When the last image is read (not looping): "stay" up, or "exit" the process (exit code 0)."""
 
 
 class DetectionsSource(ConfigStruct, frozen=True, tag_field="kind", tag="detections"):
@@ -396,6 +401,17 @@ def validate(cfg: NodeConfig) -> NodeConfig:
             )
         if cfg.camera.model == "pinhole" and not cfg.camera.calibration:
             raise ConfigError(f"{src}: camera.calibration: expected a calibration JSON path for model 'pinhole'")
+    calibrated = isinstance(cfg.source, DetectionsSource) or (
+        isinstance(cfg.source, OpenCvSource | FolderSource) and cfg.camera is not None and cfg.camera.model == "pinhole"
+    )
+    if calibrated and cfg.pose is not None:
+        # The calibration's R and t place a pinhole camera (its bearings are world azimuths); a [pose]
+        # beside it would be a second, silently ignored answer.
+        raise ConfigError(
+            f"{src}: [pose]: a calibrated pinhole camera takes its pose from its calibration (R, t); "
+            "expected no [pose] table, got one (remove it, or convert a calibration that places the camera: "
+            "`panostereo calib convert`)"
+        )
     if isinstance(cfg.source, OpenCvSource) and cfg.source.reconnect_max_s < cfg.source.reconnect_min_s:
         raise ConfigError(
             f"{src}: source.reconnect_max_s: expected >= reconnect_min_s ({cfg.source.reconnect_min_s}), "

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.errors import SourceError
 from common.schema import DetectorState, Features
 from sensor_node.background import BackgroundModel, Motion, MotionState
 from sensor_node.blobs import find_blobs
@@ -155,6 +156,14 @@ class ImagePipeline:
     def process(self, frame: Image, stamp_ns: int, frame_index: int) -> FrameResult:
         """Run every stage on one frame and build its Features (``processing_ms`` left 0)."""
         s = self.settings
+        if self.unwarper is None and isinstance(self.geometry, PinholeGeometry):
+            cam = self.geometry.camera
+            h, w = frame.shape[:2]
+            if (w, h) != (cam.width_px, cam.height_px):
+                raise SourceError(
+                    f"frame is {w}x{h} px but the camera calibration is for {cam.width_px}x{cam.height_px} "
+                    "(calibration image_size)"
+                )
         pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
         grey = pf.grey
         motion = self.background.apply(grey, stamp_ns, pf.small if s.shadows else None)
