@@ -12,7 +12,8 @@ chromatic residual ``|I - a B|``: within the image's own noise
 (``CHROMA_SIGMAS`` sigmas of it, measured by the background model) plus
 ``CHROMA_TOLERANCE`` of the brightness (skylight in a shadow is bluer than
 sunlight). A person's clothing differs in hue, or is far darker than any
-shadow.
+shadow; cloth that matches the floor's hue (grey trousers on a grey floor)
+lacks the floor's texture, which a shadow keeps, dimmed (``TEXTURE_KEPT``).
 
 Runs on the frame's reduced colour image (half resolution: the cheap colour
 view every camera type has), on the changed pixels only.
@@ -32,10 +33,11 @@ __all__ = ["CHROMA_SIGMAS", "CHROMA_TOLERANCE", "HIGHLIGHT_MAX_RATIO", "SHADOW_M
 
 Mask = npt.NDArray[Any]
 
-SHADOW_MIN_RATIO = 0.4
-"""Darkest shadow, as a fraction of the lit surface's brightness (diffuse light that still reaches a cast
-shadow outdoors or under ceiling lights). Lower: deep shadows go too, dark grey clothing on a grey floor
-may be taken for one."""
+SHADOW_MIN_RATIO = 0.6
+"""Darkest shadow, as a fraction of the lit surface's brightness: the soft cast shadows of diffuse light
+(overcast daylight, ceiling lights) take away at most about 40 %. Lower: deep shadows of direct sun go
+too, but so do legs in trousers a little darker than the floor (their blobs lose their feet: 0.4 cut the
+rendered paper2 site's MOTA from 0.99 to 0.47 through wrong bottoms, benchmarks/NOTES.md)."""
 
 HIGHLIGHT_MAX_RATIO = 1.6
 """Brightest highlight (sunlight patch, reflection) relative to the background."""
@@ -49,6 +51,26 @@ in a shadow differs a little from the direct light's)."""
 
 MIN_BRIGHTNESS_SIGMAS = 4.0
 """Background pixels darker than this many noise sigmas carry no usable hue: never shadow."""
+
+
+TEXTURE_WINDOW = 5
+"""Side of the window (reduced pixels) whose grey-level spread is the local texture."""
+
+TEXTURE_SIGMAS = 2.0
+"""A background whose local spread is under this many noise sigmas is flat: no texture to keep or lose."""
+
+TEXTURE_KEPT = 0.5
+"""A shadow keeps at least this fraction of the background's texture (spread, scaled by the brightness
+ratio); cloth of the floor's colour shows little of it."""
+
+
+def _local_spread(small: Mask, colour_bg: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], ...]:
+    """Per pixel: grey-level variance of the frame and of the background over ``TEXTURE_WINDOW`` pixels."""
+    f = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    b = cv2.cvtColor(colour_bg, cv2.COLOR_BGR2GRAY)
+    k = (TEXTURE_WINDOW, TEXTURE_WINDOW)
+    mf, mb = cv2.blur(f, k), cv2.blur(b, k)
+    return cv2.blur(f * f, k) - mf * mf, cv2.blur(b * b, k) - mb * mb
 
 
 def shadow_mask(
@@ -92,6 +114,15 @@ def shadow_mask(
     lit = (ratio >= SHADOW_MIN_RATIO) & (ratio <= HIGHLIGHT_MAX_RATIO) & (norm_bg >= MIN_BRIGHTNESS_SIGMAS * sigma)
     tol = CHROMA_SIGMAS * sigma * np.sqrt(3.0) + CHROMA_TOLERANCE * ratio * norm_bg
     is_shadow = lit & (resid <= tol)
+    if not is_shadow.any():
+        return None
+    # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
+    # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell.
+    var_f, var_b = _local_spread(small, colour_bg)
+    vf, vb = var_f[ys, xs], var_b[ys, xs]
+    textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
+    lost = vf < (TEXTURE_KEPT * ratio) ** 2 * vb
+    is_shadow &= ~(textured & lost)
     if not is_shadow.any():
         return None
     out_small = np.zeros((sh, sw), np.uint8)

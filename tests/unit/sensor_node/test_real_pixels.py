@@ -47,8 +47,8 @@ def _frame(base: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def _person(img: np.ndarray, u: int, v_top: int, shadow: bool) -> None:
     img[v_top : v_top + 60, u : u + 16] = (40, 40, 160)  # red coat, 16 x 60 px
     img[v_top - 10 : v_top, u + 4 : u + 12] = (60, 90, 140)  # head
-    if shadow:  # cast to the right along the ground: the asphalt dimmed to 55 %, hue kept
-        img[v_top + 45 : v_top + 60, u + 16 : u + 56] *= 0.55
+    if shadow:  # cast to the right along the ground: the asphalt dimmed to 70 %, hue and texture kept
+        img[v_top + 45 : v_top + 60, u + 16 : u + 56] *= 0.7
 
 
 def _run(frames: list[np.ndarray], settings: PipelineSettings | None = None) -> list:
