@@ -13,8 +13,8 @@ Each detector's boxes are scored by :func:`user_agent.evaluate2d.score_detection
 * **mog2** -- ``cv2.createBackgroundSubtractorMOG2()`` (defaults, shadows marked and dropped), 3x3 opening and
   5x5 closing (ellipses), connected components of at least ``MIN_AREA_PX``;
 * **hog** -- ``cv2.HOGDescriptor`` with the default people detector on frames scaled x2 (winStride 8, padding 8,
-  scale 1.05). OpenCV 5 has no HOG in its main modules: reported as unavailable there (run this benchmark with
-  an OpenCV 4.x python for it).
+  scale 1.05), each window trimmed by ``HOG_PAD`` (the person inside it). OpenCV 5 has no HOG in its main
+  modules: reported as unavailable there (run this benchmark with an OpenCV 4.x python for it).
 
 Baselines' bearings are the azimuth of their box's bottom centre (they find no head). Prints one JSON object.
 """
@@ -41,6 +41,10 @@ PETS = REPO.parent / "shared" / "datasets" / "pets2009_s2l1"
 
 MIN_AREA_PX = 150
 """Least component area of the MOG2 baseline (the figure ABOUT.md quotes its reference run with)."""
+
+
+HOG_PAD = (0.15, 0.05)
+"""Fractions of a HOG window's width and height trimmed off each side (OpenCV's samples/python/peopledetect.py)."""
 
 
 def _frames(video: Path) -> list[Any]:
@@ -76,7 +80,12 @@ def _hog(frames: list[Any]) -> dict[int, list[Detection2D]] | None:
     out = {}
     for k, f in enumerate(frames):
         rects, _ = hog.detectMultiScale(cv2.resize(f, None, fx=2, fy=2), winStride=(8, 8), padding=(8, 8), scale=1.05)
-        out[k + 1] = [Detection2D(Box(x / 2, y / 2, w / 2, h / 2)) for (x, y, w, h) in rects]
+        # The detection window pads the person: trimmed as OpenCV's peopledetect sample draws it.
+        out[k + 1] = [
+            Detection2D(Box((x + HOG_PAD[0] * w) / 2, (y + HOG_PAD[1] * h) / 2, w * (1 - 2 * HOG_PAD[0]) / 2,
+                            h * (1 - 2 * HOG_PAD[1]) / 2))
+            for (x, y, w, h) in rects
+        ]  # fmt: skip
     return out
 
 

@@ -118,11 +118,18 @@ def shadow_mask(
         return None
     # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
     # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell.
-    var_f, var_b = _local_spread(small, colour_bg)
-    vf, vb = var_f[ys, xs], var_b[ys, xs]
+    # Only around the candidates (the window's reach beyond their bounding box).
+    cy, cx = ys[is_shadow], xs[is_shadow]
+    m = TEXTURE_WINDOW // 2
+    r0, r1 = max(int(cy.min()) - m, 0), min(int(cy.max()) + m + 1, sh)
+    c0, c1 = max(int(cx.min()) - m, 0), min(int(cx.max()) + m + 1, sw)
+    box = (slice(r0, r1), slice(c0, c1))
+    var_f, var_b = _local_spread(np.ascontiguousarray(small[box]), np.ascontiguousarray(colour_bg[box]))
+    ys, xs, ratio = cy, cx, ratio[is_shadow]
+    vf, vb = var_f[ys - r0, xs - c0], var_b[ys - r0, xs - c0]
     textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
     lost = vf < (TEXTURE_KEPT * ratio) ** 2 * vb
-    is_shadow &= ~(textured & lost)
+    is_shadow = ~(textured & lost)
     if not is_shadow.any():
         return None
     out_small = np.zeros((sh, sw), np.uint8)
