@@ -371,6 +371,16 @@ def run_camera(
     return sc, cyl.f_h_px, {"pipeline_ms_per_frame": round(t_proc / n * 1e3, 3)}
 
 
+def _with_extras(site: SiteConfig, shadow_gain: float | None, sway_m: float | None) -> SiteConfig:
+    """The site with its lighting's cast shadows and swaying distractor set (None: the site's own)."""
+    lit = site.world.lighting
+    if shadow_gain is not None:
+        lit = msgspec.structs.replace(lit, shadow_gain=shadow_gain)
+    if sway_m is not None:
+        lit = msgspec.structs.replace(lit, sway_m=sway_m)
+    return msgspec.structs.replace(site, world=msgspec.structs.replace(site.world, lighting=lit))
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--site", action="append", help="site file (repeatable; default: six, paper1, demo)")
@@ -389,6 +399,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--set", action="append", default=[], metavar="KEY=TOML", help="[pipeline] override, e.g. split_dip_px=6"
     )
+    p.add_argument("--shadow-gain", type=float, default=None, help="[world.lighting] shadow_gain for every site")
+    p.add_argument("--sway-m", type=float, default=None, help="[world.lighting] sway_m for every site")
     p.add_argument("-v", "--verbose", action="store_true", help="log merges, extra and false blobs, misses (stderr)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(message)s")
@@ -401,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict[str, Any] = {"benchmark": "sensor_node.quality", "settings": vars(args) | {"site": sites}}
     t_start = time.perf_counter()
     for path in sites:
-        site = site_with_seed(load_site(Path(path)), args.world_seed)
+        site = _with_extras(site_with_seed(load_site(Path(path)), args.world_seed), args.shadow_gain, args.sway_m)
         pooled = _Scores()
         per_cam: dict[str, Any] = {}
         f_h = 1.0

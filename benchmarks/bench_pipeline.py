@@ -55,6 +55,9 @@ from sensor_node.unwarp import Unwarper
 
 REPO = Path(__file__).resolve().parent.parent
 
+STAMP_FPS = 15.0
+"""Frame k is stamped k / STAMP_FPS s (the pipeline's warm-up spans seconds of stamps)."""
+
 
 def _frames(site_path: Path, camera: str, n: int, t0_s: float) -> tuple[list[Any], Any, Any, list[BodySpec]]:
     site = load_site(site_path)
@@ -93,7 +96,7 @@ def _floor_pass(frames: list[Any], unwarper: Unwarper, bg: Any, grey_first: bool
 def _pipeline_pass(pipe: ImagePipeline, frames: list[Any], stats: dict[str, list[int]]) -> tuple[float, float]:
     t0, w0 = time.thread_time(), time.perf_counter()
     for k, f in enumerate(frames):
-        out = pipe.process(f, k, k)
+        out = pipe.process(f, round(k * 1e9 / STAMP_FPS), k)
         data = encode(out.features)
         stats["blobs"].append(len(out.features.blobs))
         stats["sightings"].append(len(out.features.sightings))
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     unwarper = Unwarper(annular)
     pipe = ImagePipeline(args.camera, PanoramicGeometry(cyl), PipelineSettings(), unwarper, bodies)
     for k, f in enumerate(frames):  # warm pass: the background model learns the scene
-        pipe.process(f, k, k)
+        pipe.process(f, round(k * 1e9 / STAMP_FPS), k)
     bg = cv2.cvtColor(cv2.remap(frames[0], unwarper._m1, unwarper._m2, cv2.INTER_LINEAR), cv2.COLOR_BGR2GRAY)
     stats: dict[str, list[int]] = {"blobs": [], "sightings": [], "bytes": []}
     # Interleaved passes, best of each: the machine may be shared, and the least-disturbed pass is the

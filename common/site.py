@@ -93,6 +93,12 @@ class LightingSpec(ConfigStruct, frozen=True):
     """World times at which the light level jumps."""
     sudden_change_gain: Pos = 1.35
     """Brightness factor applied at each sudden change (alternating up/down)."""
+    shadow_gain: Annotated[float, msgspec.Meta(gt=0.0, le=1.0)] = 1.0
+    """Brightness of the floor in each person's soft cast shadow, relative to the lit floor (1: no shadows;
+    real rooms and squares: 0.5-0.8)."""
+    sway_m: NonNeg = 0.0
+    """Amplitude of a tall plant by a wall that sways in a draught, a distractor that moves in place like a
+    flapping tape or leaves outdoors (0: none)."""
 
 
 class WorldSpec(ConfigStruct, frozen=True):

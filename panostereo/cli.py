@@ -25,6 +25,11 @@ COMMANDS: Final[dict[str, tuple[str, str]]] = {
     "render": ("panostereo.commands.render", "render one simulated camera frame and its panorama"),
     "import": ("panostereo.commands.import_dataset", "convert a dataset (mot, wildtrack) into a runnable site"),
     "evaluate-site": ("panostereo.commands.evaluate_site", "play a dataset site in dataset time and score it"),
+    "evaluate-detections": (
+        "panostereo.commands.evaluate_detections",
+        "score a camera's blobs in the image against ground-truth boxes (a video offline, or a recording)",
+    ),
+    "calib": ("panostereo.commands.calib", "calibration tools: convert Tsai, OpenCV YAML or a P matrix to our JSON"),
 }
 
 
@@ -33,7 +38,7 @@ def _top_parser() -> argparse.ArgumentParser:
         prog="panostereo",
         description="Adaptive panoramic stereo: find and follow people in 3D with cooperating cameras.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="commands:\n" + "\n".join(f"  {name:<13} {text}" for name, (_, text) in COMMANDS.items()),
+        epilog="commands:\n" + "\n".join(f"  {name:<19} {text}" for name, (_, text) in COMMANDS.items()),
     )
     p.add_argument("command", nargs="?", help="one of: " + ", ".join(COMMANDS))
     return p

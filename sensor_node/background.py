@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
+from sensor_node.shadows import shadow_mask
 from sensor_node.still import StillRegions
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
@@ -90,10 +91,23 @@ class BackgroundModel:
         self._bg_u8: Mask | None = None
         self._prev: Mask | None = None
         self._warm: list[Mask] = []
+        self._warm_colour: list[Mask] = []
         self._warm_seen = 0
-        self._stride = 1 if fast_start else settings.warmup_stride
-        """Warm-up stride now: 1 when relearning after the camera moved (it must see again soon;
-        the ghost checks clean up after anyone who stood still), else ``warmup_stride``."""
+        self._warm_due_ns: int | None = None
+        """Stamp at which the next warm-up sample is due (``warmup_s`` / ``warmup_frames`` apart)."""
+        self._fast = fast_start
+        """Warm up from consecutive frames: relearning after the camera moved (it must see again soon;
+        the ghost checks clean up after anyone who stood still)."""
+        self._dev: npt.NDArray[np.float32] | None = None
+        """Per-pixel typical |frame - background| outside people (grey levels): noise, and the swing of
+        what moves in place (a flapping tape, leaves, a screen)."""
+        self._thr: Mask | None = None
+        """Per-pixel changed threshold (8-bit): ``fg_threshold``, or more where the image is noisy or swings."""
+        self._colour_bg: npt.NDArray[np.float32] | None = None
+        """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
+        self._colour_now: Mask | None = None
+        self.noise_sigma = 0.0
+        """The image's own noise: robust sigma of |frame - background| over the background (grey levels)."""
         self.still = StillRegions(settings)
         """Changed-but-still regions: ghosts absorbed, people who pause kept (:mod:`sensor_node.still`)."""
         self._last_fg: Mask | None = None
@@ -120,10 +134,75 @@ class BackgroundModel:
         self._bg = bg
         self._bg_u8 = cv2.convertScaleAbs(bg)
 
-    def apply(self, grey: Mask) -> Motion:
-        """Classify the pixels of one grey frame (H, W) uint8 against the model."""
+    def _take_warm(self, stamp_ns: int | None) -> bool:
+        """Whether this still frame is a warm-up sample: ``warmup_frames`` samples over ``warmup_s``."""
+        s = self.settings
+        if self._fast:
+            return True
+        if stamp_ns is None or s.warmup_stride > 0:
+            take = self._warm_seen % max(1, s.warmup_stride) == 0
+            self._warm_seen += 1
+            return take
+        if self._warm_due_ns is not None and stamp_ns < self._warm_due_ns:
+            return False
+        # Next sample one interval after this one's stamp (or its due time, if the frame was late).
+        base = stamp_ns if self._warm_due_ns is None else max(self._warm_due_ns, stamp_ns - WARM_SLACK_NS)
+        self._warm_due_ns = base + round(s.warmup_s * 1e9 / max(1, s.warmup_frames - 1)) - WARM_SLACK_NS
+        return True
+
+    def _learn_warm(self) -> None:
+        """The model from the warm-up samples: their per-pixel median, and how far each pixel swings about it."""
+        stack = np.stack(self._warm)
+        bg = np.median(stack, axis=0).astype(np.float32)
+        self._set_background(bg)
+        # A pixel's typical deviation over the samples (their median: people walking through are a minority
+        # of the samples, a tape flapping in the wind is not).
+        dev = np.median(np.abs(stack.astype(np.float32) - bg[None]), axis=0).astype(np.float32)
+        self._dev = dev
+        self._refresh_threshold()
+        if self._warm_colour and len(self._warm_colour) == len(self._warm):
+            self._colour_bg = np.median(np.stack(self._warm_colour), axis=0).astype(np.float32)
+        self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
+        logger.debug("background initialised from %d frames (noise sigma %.1f)", stack.shape[0], self.noise_sigma)
+
+    def _refresh_threshold(self) -> None:
+        """Per-pixel changed threshold from the deviation map: ``fg_sigmas`` of the pixel's own swing or of the
+        image's noise, whichever is larger, and never below ``fg_threshold``."""
+        assert self._dev is not None
+        s = self.settings
+        self.noise_sigma = MAD_TO_SIGMA * float(np.median(self._dev[::4, ::4]))
+        floor = max(float(s.fg_threshold), s.fg_sigmas * self.noise_sigma)
+        thr = np.maximum(self._dev * np.float32(s.fg_sigmas * MAD_TO_SIGMA), np.float32(floor))
+        self._thr = cv2.convertScaleAbs(np.minimum(thr, 254.0))
+
+    def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
+        """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
+        found, or no colour): the frame there is the background dimmed or brightened, hue kept.
+
+        Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
+        scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
+        :func:`sensor_node.shadows.shadow_mask`.
+        """
+        if self._colour_bg is None or self._colour_now is None or self._bg is None:
+            return None
+        small = self._colour_now
+        if small.shape[:2] != self._colour_bg.shape[:2]:
+            return None
+        return shadow_mask(small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor)
+
+    def apply(self, grey: Mask, stamp_ns: int | None = None, colour: Mask | None = None) -> Motion:
+        """Classify the pixels of one grey frame (H, W) uint8 against the model.
+
+        Args:
+            grey: the frame.
+            stamp_ns: its capture time: the warm-up spans ``warmup_s`` of it (None: frames are counted,
+                every ``warmup_stride``-th taken).
+            colour: the frame's reduced colour image (:attr:`PanoFrame.small`), for the colour
+                background that tells shadows from objects (:meth:`shadows`); None: grey only.
+        """
         s = self.settings
         self._frames += 1
+        self._colour_now = colour
         prev = self._prev
         self._prev = grey
         moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
@@ -134,18 +213,15 @@ class BackgroundModel:
         if self._bg is None:
             if ego or (prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size):
                 # The camera is moving (or the light flickers): learn only from a still view.
-                self._warm, self._warm_seen = [], 0
+                self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
                 if ego:
                     return Motion(empty, moving, "moving", 0.0)
-            else:
-                if self._warm_seen % self._stride == 0:
-                    self._warm.append(grey.copy())
-                self._warm_seen += 1
+            elif self._take_warm(stamp_ns):
+                self._warm.append(grey.copy())
+                if colour is not None:
+                    self._warm_colour.append(colour.copy())
             if len(self._warm) >= s.warmup_frames:
-                stack = np.stack(self._warm)
-                self._set_background(np.median(stack, axis=0).astype(np.float32))
-                self._warm, self._warm_seen = [], 0
-                logger.debug("background initialised from %d frames", s.warmup_frames)
+                self._learn_warm()
             return Motion(empty, moving, "warmup", 0.0)
         if ego:
             # Known ego-motion is not available: the background no longer fits the view. Forget it
@@ -153,8 +229,8 @@ class BackgroundModel:
             self._restart(1.0, 1.0, "the camera moves")
             return Motion(empty, moving, "moving", 1.0)
         bg_u8 = self._bg_u8
-        assert bg_u8 is not None
-        fg = _threshold(cv2.absdiff(grey, bg_u8), s.fg_threshold)
+        assert bg_u8 is not None and self._thr is not None
+        fg = cv2.compare(cv2.absdiff(grey, bg_u8), self._thr, cv2.CMP_GT)
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
@@ -176,6 +252,10 @@ class BackgroundModel:
         near = (new_bg > 230.0) & (grey > 230)
         new_bg[near] = grey[near]
         np.minimum(new_bg, 255.0, out=new_bg)
+        if self._colour_bg is not None:
+            ch, cw = self._colour_bg.shape[:2]
+            small_gain = cv2.resize(new_bg / np.maximum(self._bg, 1.0), (cw, ch), interpolation=cv2.INTER_AREA)
+            self._colour_bg = np.minimum(self._colour_bg * small_gain[..., None], 255.0).astype(np.float32)
         fg2 = _threshold(cv2.absdiff(grey, cv2.convertScaleAbs(new_bg)), s.fg_threshold)
         frac2 = cv2.countNonZero(fg2) / n
         if frac2 <= s.abnormal_frac:
@@ -216,8 +296,9 @@ class BackgroundModel:
         """
         self._bg = None
         self._bg_u8 = None
-        self._warm, self._warm_seen = [], 0
-        self._stride = 1
+        self._dev = self._thr = self._colour_bg = None
+        self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
+        self._fast = True
         self.still.reset()
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
@@ -236,6 +317,12 @@ class BackgroundModel:
         non-object regions), but they follow the global light drift measured
         outside them: otherwise a region that held a person for a while would
         keep the old brightness and later show as a false object.
+
+        The deviation map (how far each pixel swings about the model) learns
+        everywhere but the blob boxes: changed pixels that make no person -- a
+        flapping tape, leaves -- raise their own threshold until they stop
+        changing. One sample moves it at most ``DEV_STEP`` times its value, so a
+        person missed for a frame or two barely marks the pixels they crossed.
         """
         if self._bg is None:
             return
@@ -244,7 +331,9 @@ class BackgroundModel:
         if self._updates % k:
             return
         alpha = min(1.0, self.settings.learning_rate * k)
+        self._update_dev(grey, boxes or [], alpha)
         objects = _object_mask(grey.shape, fg, boxes or [])
+        self._update_colour(objects, alpha)
         if objects is None:
             cv2.accumulateWeighted(grey, self._bg, alpha)
         else:
@@ -257,6 +346,36 @@ class BackgroundModel:
                 cv2.copyTo(drift, objects, self._bg)
         self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
+    def _update_dev(self, grey: Mask, boxes: list[tuple[int, int, int, int]], alpha: float) -> None:
+        if self._dev is None or self._bg_u8 is None:
+            return
+        diff = cv2.absdiff(grey, self._bg_u8).astype(np.float32)
+        cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
+        sample = np.minimum(diff, cap)
+        people = _object_mask(grey.shape, None, boxes)
+        cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
+        self._refresh_threshold()
+
+    def _update_colour(self, objects: Mask | None, alpha: float) -> None:
+        colour = self._colour_now
+        if self._colour_bg is None or colour is None or colour.shape[:2] != self._colour_bg.shape[:2]:
+            return
+        if objects is None:
+            cv2.accumulateWeighted(colour, self._colour_bg, alpha)
+            return
+        h, w = self._colour_bg.shape[:2]
+        small_objects = cv2.resize(cv2.dilate(objects, _K5), (w, h), interpolation=cv2.INTER_NEAREST)
+        cv2.accumulateWeighted(colour, self._colour_bg, alpha, mask=cv2.bitwise_not(small_objects))
+
+
+WARM_SLACK_NS = 2_000_000
+"""Warm-up samples fall due this early (2 ms): a frame stamped with jitter just before its slot still counts."""
+
+MAD_TO_SIGMA = 1.4826
+"""Median absolute deviation -> standard deviation of Gaussian noise."""
+
+DEV_STEP = 1.0
+"""Largest relative rise of a pixel's deviation from one update sample (1: it may double)."""
 
 EGO_SECTORS = 36
 """Column sectors (10 degrees each on a panorama) of the camera-motion test."""

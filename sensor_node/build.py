@@ -129,6 +129,8 @@ class NodeParts:
     """PtzCamera at the head's position (PTZ nodes): its state gives the current model."""
     camera_height_m: float = 0.0
     """Height of the optical centre above the floor from the camera model (panoramic; 0: unknown)."""
+    exit_at_end: bool = False
+    """The process exits once the source has ended (``[source] at_end = "exit"``)."""
 
 
 def sensor_info(
@@ -250,10 +252,13 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
     else:
         source = FolderFrames(cfg.resolve(src.path), src.glob, src.fps, clock, loop=src.loop)
         fps = src.fps
+    at_exit = src.at_end == "exit"
     if cam.model == "pinhole":
         camera = load_calibration(cfg.resolve(cam.calibration))
         pipe = ImagePipeline(cfg.node.id, PinholeGeometry(camera), cfg.pipeline)
-        return NodeParts(source, ImageProcessor(pipe), "pinhole", camera.to_model(), camera_pose(camera), fps)
+        return NodeParts(
+            source, ImageProcessor(pipe), "pinhole", camera.to_model(), camera_pose(camera), fps, exit_at_end=at_exit
+        )
     (iw, ih), (pw, ph) = cam.image_size, cam.pano_size
     a0, a1, a2 = cam.radial_poly
     annular = AnnularModel(
@@ -261,4 +266,6 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
     )
     cyl = CylindricalCamera(pw, ph, cam.f_v_px, cam.v0_px, pose.z_m if pose else cam.height_m, cam.direction)
     proc_p = ImageProcessor(_panoramic(cfg, annular, cyl))
-    return NodeParts(source, proc_p, "panoramic", cyl.to_model(), pose, fps, camera_height_m=cyl.height_m)
+    return NodeParts(
+        source, proc_p, "panoramic", cyl.to_model(), pose, fps, camera_height_m=cyl.height_m, exit_at_end=at_exit
+    )

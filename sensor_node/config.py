@@ -124,6 +124,9 @@ class OpenCvSource(ConfigStruct, frozen=True, tag_field="kind", tag="opencv"):
     """Pace file playback at this rate (0: the file's own rate; live sources are never paced)."""
     loop: bool = False
     """Files: start again at the end instead of ending."""
+    at_end: Literal["stay", "exit"] = "stay"
+    """Files, when they end (not looping): "stay" up, the status saying "ended", until stopped; "exit"
+    the process (exit code 0) once the last frame's Features are out."""
     reconnect_min_s: Pos = 0.5
     """First wait before reopening a failed source; doubles up to ``reconnect_max_s``."""
     reconnect_max_s: Pos = 10.0
@@ -136,6 +139,8 @@ class FolderSource(ConfigStruct, frozen=True, tag_field="kind", tag="folder"):
     glob: str = "*.png"
     fps: Pos = 10.0
     loop: bool = False
+    at_end: Literal["stay", "exit"] = "stay"
+    """When the last image is read (not looping): "stay" up, or "exit" the process (exit code 0)."""
 
 
 class DetectionsSource(ConfigStruct, frozen=True, tag_field="kind", tag="detections"):
@@ -219,8 +224,16 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """``[pipeline]``: image-pipeline knobs. Each says what raising or lowering it does."""
 
     fg_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 16
-    """Grey-level difference from the background that counts as changed. Lower: fainter people found,
+    """Least grey-level difference from the background that counts as changed. Lower: fainter people found,
     more noise specks; higher: fewer false pixels, low-contrast clothing breaks up."""
+    fg_sigmas: Annotated[float, msgspec.Meta(ge=0.0)] = 4.0
+    """A pixel is changed when it departs from the background by more than this many sigmas of its own
+    swing (what moves in place: a flapping tape, leaves) or of the image's noise, and by at least
+    ``fg_threshold``. Both are measured by the model (the warm-up's spread, then outside people), so
+    a noisy or compressed camera needs no retuning. Higher: fewer false pixels, faint people break up."""
+    shadows: bool = True
+    """Changed pixels that are the background dimmed or brightened with its hue kept (cast shadows,
+    highlights) are not objects (:mod:`sensor_node.shadows`). Off: grey levels only."""
     diff_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 22
     """Grey-level frame-to-frame difference that counts as motion (frame differencing)."""
     learning_rate: Frac = 0.05
@@ -236,11 +249,13 @@ class PipelineSettings(ConfigStruct, frozen=True):
     moves (a robot driving): nothing is reported and the background is learnt afresh once it stops.
     Lower: detects slow driving sooner, a crowd close around the camera may pass for it; 1: off."""
     warmup_frames: PosInt = 12
-    """Frames whose median initialises the background; nothing is reported meanwhile. Higher: cleaner
-    start with people present, longer blind start."""
-    warmup_stride: PosInt = 3
-    """Take every N-th frame for the warm-up median, so it spans ``warmup_frames * warmup_stride`` frames.
-    Higher: people who stand still for a while at start leave no ghost; longer blind start."""
+    """Frames whose median initialises the background, spread over ``warmup_s``; nothing is reported
+    meanwhile. Higher: cleaner start with people present, more work at start."""
+    warmup_s: Pos = 1.5
+    """Seconds (of frame stamps) the warm-up samples span: the blind start. Higher: people who stand
+    still for a while at start leave no ghost; longer blind start."""
+    warmup_stride: Annotated[int, msgspec.Meta(ge=0)] = 0
+    """Take every N-th frame for the warm-up instead (0: spread over ``warmup_s`` by the stamps)."""
     ghost_frames: PosInt = 10
     """Frames a changed region must stay still before it is tested for being a ghost (something that
     left the background). Lower: ghosts vanish sooner, more tests; higher: the opposite."""
@@ -419,6 +434,17 @@ def validate(cfg: NodeConfig) -> NodeConfig:
             )
         if cfg.camera.model == "pinhole" and not cfg.camera.calibration:
             raise ConfigError(f"{src}: camera.calibration: expected a calibration JSON path for model 'pinhole'")
+    calibrated = isinstance(cfg.source, DetectionsSource) or (
+        isinstance(cfg.source, OpenCvSource | FolderSource) and cfg.camera is not None and cfg.camera.model == "pinhole"
+    )
+    if calibrated and cfg.pose is not None:
+        # The calibration's R and t place a pinhole camera (its bearings are world azimuths); a [pose]
+        # beside it would be a second, silently ignored answer.
+        raise ConfigError(
+            f"{src}: [pose]: a calibrated pinhole camera takes its pose from its calibration (R, t); "
+            "expected no [pose] table, got one (remove it, or convert a calibration that places the camera: "
+            "`panostereo calib convert`)"
+        )
     if isinstance(cfg.source, OpenCvSource) and cfg.source.reconnect_max_s < cfg.source.reconnect_min_s:
         raise ConfigError(
             f"{src}: source.reconnect_max_s: expected >= reconnect_min_s ({cfg.source.reconnect_min_s}), "

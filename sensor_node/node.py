@@ -274,8 +274,11 @@ class SensorNode:
                     if self.slot.closed and not self._capture.is_alive():
                         if self.capture_error:
                             return 1
-                        # The source ended: stay up (status says "ended") until asked to stop.
+                        # The source ended: stay up (status says "ended") until asked to stop, or exit.
                         self._publish_status(max(now - last_status, 1e-3))
+                        if self.parts.exit_at_end:
+                            logger.info("source ended after %d frames: exiting ([source] at_end = exit)", self.frames)
+                            break
                         while not self.shutdown.sleep(STATUS_PERIOD_S):
                             self._publish_status(STATUS_PERIOD_S)
                         break

@@ -18,13 +18,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
+import numpy as np
 import numpy.typing as npt
 
+from common.errors import SourceError
 from common.schema import DetectorState, Features
-from sensor_node.background import BackgroundModel, MotionState
+from sensor_node.background import BackgroundModel, Motion, MotionState
 from sensor_node.blobs import find_blobs
 from sensor_node.config import BodySpec, PipelineSettings
-from sensor_node.features import ImageGeometry, PanoramicGeometry, annotate, to_wire
+from sensor_node.features import ImageGeometry, PanoramicGeometry, PinholeGeometry, annotate, to_wire
 from sensor_node.groups import split_by_tracks
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
 from sensor_node.split import split_at_heads
@@ -34,6 +37,7 @@ from sensor_node.unwarp import PanoFrame, Unwarper
 __all__ = ["FrameResult", "ImagePipeline"]
 
 Image = npt.NDArray[Any]
+Mask = npt.NDArray[Any]
 
 DETECTOR_STATE: dict[MotionState, DetectorState] = {
     "ok": "ok",
@@ -64,6 +68,29 @@ class FrameResult:
     """Motion blobs recognised as robot bodies (not reported as people)."""
     frame: PanoFrame
     """The processed frame (grey panorama, reduced colour)."""
+
+
+def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None = None) -> Mask:
+    """The changed pixels that may be objects: shadows and highlights removed (:mod:`sensor_node.shadows`),
+    then a 3 x 3 majority vote, so isolated pixels (compression noise, a frame-difference trail, the edge
+    of something swinging) neither chain blobs together nor stretch their boxes, and one-pixel holes close."""
+    fg = motion.fg
+    shade = background.shadows(fg, floor)
+    if shade is not None:
+        fg = cv2.subtract(fg, shade)
+    return cv2.medianBlur(fg, 3)
+
+
+def below_horizon(geometry: ImageGeometry, width: int, height: int, scale: int) -> Mask:
+    """255 on the pixels of a ``scale``-times reduced image whose ray points below the horizon."""
+    if isinstance(geometry, PinholeGeometry):
+        vv, uu = np.mgrid[0:height, 0:width].astype(np.float64) * scale
+        _, elev = geometry.camera.bearing_elevation(np.column_stack([uu.ravel(), vv.ravel()]))
+        below = np.asarray(elev).reshape(height, width) < 0.0
+    else:
+        rows = np.asarray([geometry.elevation(0.0, float(r * scale)) for r in range(height)]) < 0.0
+        below = np.repeat(rows[:, None], width, axis=1)
+    return np.where(below, 255, 0).astype(np.uint8)
 
 
 class ImagePipeline:
@@ -103,6 +130,19 @@ class ImagePipeline:
         self._last_sightings: list[BodySighting] = []
         self._frames = 0
         self.seq = 0
+        self._floor_key: tuple[int, int, int] | None = None
+        self._floor_mask: Mask | None = None
+
+    def _floor(self, pf: PanoFrame) -> Mask | None:
+        """255 on the reduced colour image's pixels whose ray points below the horizon (cached per geometry)."""
+        if not self.settings.shadows:
+            return None
+        small = pf.small
+        key = (small.shape[0], small.shape[1], id(self.geometry))
+        if self._floor_key != key:
+            self._floor_mask = below_horizon(self.geometry, small.shape[1], small.shape[0], pf.scale)
+            self._floor_key = key
+        return self._floor_mask
 
     def reset(self) -> None:
         """Forget the background and tracks (the camera moved: a PTZ head slewed)."""
@@ -116,18 +156,25 @@ class ImagePipeline:
     def process(self, frame: Image, stamp_ns: int, frame_index: int) -> FrameResult:
         """Run every stage on one frame and build its Features (``processing_ms`` left 0)."""
         s = self.settings
+        if self.unwarper is None and isinstance(self.geometry, PinholeGeometry):
+            cam = self.geometry.camera
+            h, w = frame.shape[:2]
+            if (w, h) != (cam.width_px, cam.height_px):
+                raise SourceError(
+                    f"frame is {w}x{h} px but the camera calibration is for {cam.width_px}x{cam.height_px} "
+                    "(calibration image_size)"
+                )
         pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
         grey = pf.grey
-        motion = self.background.apply(grey)
+        motion = self.background.apply(grey, stamp_ns, pf.small if s.shadows else None)
         width = grey.shape[1]
+        fg = objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else motion.fg
         if self.bands is not None and self._frames % s.sighting_every == 0:
             self._last_sightings = self.bands.find(pf)
         self._frames += 1
         sightings = self._last_sightings
         raws_found = (
-            find_blobs(motion.fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False)
-            if motion.reportable
-            else []
+            find_blobs(fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False) if motion.reportable else []
         )
         if self._tracker is None:
             self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)

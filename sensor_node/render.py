@@ -12,6 +12,9 @@ distortion. The camera's own body is not in its own view.
 :class:`PtzRenderer` produces the perspective image of a PTZ camera for its
 current pan, tilt and zoom by per-pixel ray casting.
 
+Optionally (``[world.lighting] shadow_gain``, ``sway_m``) soft cast shadows under the people and a plant
+that sways in place (:mod:`sensor_node.render_extras`).
+
 Then the light: a slow sinusoidal illumination drift, sudden light changes at
 the configured world times (alternately brighter by ``sudden_change_gain`` and
 back), a fixed lens vignette and per-pixel Gaussian sensor noise, each set in
@@ -34,6 +37,7 @@ from common.errors import ConfigError
 from common.scenario import World
 from common.site import CameraSpec, LightingSpec
 from sensor_node.render_bodies import Primitive, person_primitives, platform_primitives
+from sensor_node.render_extras import FloorMap, paint_plant, paint_shadows
 from sensor_node.render_pano import PanoView, paint_primitives
 from sensor_node.render_ptz import RayGrid, paint_primitives_rays
 from sensor_node.render_scene import RoomTextures, cast_room, make_textures
@@ -161,6 +165,7 @@ class PanoramicRenderer:
         self._row_gain = (1.0 - 0.12 * rel * rel).astype(np.float32)[:, None, None]
         self._bg_pose: tuple[float, float, float] | None = None
         self._bg: U8Image | None = None
+        self._floor: FloorMap | None = None
         self._noise = _NoiseBank((ih, iw, 3), self.lighting.noise_sigma, _camera_seed(world, camera))
 
     @property
@@ -172,10 +177,11 @@ class PanoramicRenderer:
         pose = (x_m, y_m, yaw_rad)
         if self._bg is None or pose != self._bg_pose:
             bearing = self._theta + yaw_rad
-            img, _ = cast_room(
-                self._tex, (x_m, y_m, self.camera.height_m), np.cos(bearing), np.sin(bearing), self._slope
-            )
+            origin = (x_m, y_m, self.camera.height_m)
+            img, depth = cast_room(self._tex, origin, np.cos(bearing), np.sin(bearing), self._slope)
             self._bg, self._bg_pose = img, pose
+            if self.lighting.shadow_gain < 1.0:
+                self._floor = FloorMap.for_view(origin, bearing, self._slope, depth)
         return self._bg
 
     def render_panorama(self, t_s: float, with_labels: bool = False) -> tuple[U8Image, npt.NDArray[np.int32] | None]:
@@ -189,6 +195,12 @@ class PanoramicRenderer:
         pano = self._background(me.x_m, me.y_m, me.yaw_rad).copy()
         labels = np.zeros(pano.shape[:2], np.int32) if with_labels else None
         view = PanoView(x_m=me.x_m, y_m=me.y_m, z_m=me.z_m, yaw_rad=me.yaw_rad)
+        lit = self.lighting
+        if self._floor is not None:
+            feet = [(p.x_m, p.y_m) for p in self.world.people_at(t_s) if p.present]
+            paint_shadows(pano, self._floor, feet, lit.shadow_gain)
+        cam_view = (me.x_m, me.y_m, me.z_m, me.yaw_rad)
+        paint_plant(pano, self._render_cam, cam_view, self.world.room_y_m, sway_m=lit.sway_m, t_s=t_s)
         paint_primitives(pano, self._render_cam, view, _scene_primitives(self.world, t_s, self.camera.id), labels)
         return pano, labels
 

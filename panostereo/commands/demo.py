@@ -116,6 +116,12 @@ def _start_dataset(path: Path) -> int:
     return epoch_ns
 
 
+def _sources_ended(views: Iterable[Any], sensors: set[str]) -> bool:
+    """Every sensor node of the site says its source ended (videos, image folders, detection files)."""
+    ended = {v.sensor_id for v in views if v.status is not None and v.status.source_state == "ended"}
+    return bool(sensors) and sensors <= ended
+
+
 def _progress(elapsed: float, duration: float, client: Any) -> str:
     tracks = client.tracks(timeout_s=0)
     return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
@@ -209,13 +215,18 @@ def run(args: argparse.Namespace) -> int:
                     "panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(warmup)}
                 )
                 start = time.monotonic()
-                last_view = 0.0
+                last_view = last_ended = 0.0
                 sensor_views = client.sensors(timeout_s=0.5)
                 while not shutdown.is_set():
                     procs.poll()
                     elapsed = time.monotonic() - start
                     if elapsed >= duration:
                         break
+                    if time.monotonic() - last_ended >= 1.0:
+                        last_ended = time.monotonic()
+                        if _sources_ended(client.sensors(timeout_s=0.3), sensors):
+                            print("every sensor's source has ended (end of its file): stopping", flush=True)
+                            break
                     if time.monotonic() - last_view >= (1.0 if tty else 5.0):
                         last_view = time.monotonic()
                         if tty:

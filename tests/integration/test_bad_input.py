@@ -191,6 +191,32 @@ ROWS: list[Row] = [
         ("manager", "--config", "{tmp}/manager-unreachable.toml"),
         r"127\.0\.0\.1:{closed}",
     ),
+    # -- calib, evaluate-detections -----------------------------------------------------------
+    Row(
+        "calib-missing-input",
+        ("calib", "convert", "--from", "tsai", "{tmp}/absent.xml", "--out", "{tmp}/c.json"),
+        r"absent\.xml",
+    ),
+    Row(
+        "calib-tsai-not-xml",
+        ("calib", "convert", "--from", "tsai", "{tmp}/syntax.toml", "--out", "{tmp}/c.json"),
+        r"XML",
+    ),
+    Row(
+        "calib-p-matrix-without-size",
+        ("calib", "convert", "--from", "p-matrix", "{tmp}/empty.toml", "--out", "{tmp}/c.json"),
+        r"--image-size",
+    ),
+    Row(
+        "evaluate-detections-missing-video",
+        ("evaluate-detections", "{tmp}/absent.avi", "--ground-truth", "{tmp}/empty.toml"),
+        r"absent\.avi",
+    ),
+    Row(
+        "evaluate-detections-binary-boxes",
+        ("evaluate-detections", "{tmp}/empty.toml", "--ground-truth", "{tmp}/binary.toml"),
+        r"binary\.toml",
+    ),
     # -- render -----------------------------------------------------------------------------
     Row(
         "render-missing-site",

@@ -68,7 +68,7 @@ def _documented_keys(paths: list[Path]) -> set[str]:
     ("config", "examples"),
     [
         (ManagerConfig, ["manager.toml"]),
-        (NodeConfig, ["sim.toml", "opencv.toml", "folder.toml", "ptz.toml", "detections.toml"]),
+        (NodeConfig, ["sim.toml", "opencv.toml", "folder.toml", "ptz.toml", "detections.toml", "static.toml"]),
     ],
     ids=["manager", "node"],
 )

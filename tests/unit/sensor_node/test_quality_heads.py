@@ -89,7 +89,7 @@ def _run(tmp_path: Path, people: int, place: object, frames: int) -> list[tuple[
     for k in range(WARMUP + frames):
         staged.frame = k
         t = k / 15.0
-        res = pipe.process(renderer.render(t, rng), stamp_ns=k, frame_index=k)
+        res = pipe.process(renderer.render(t, rng), stamp_ns=round(k * 1e9 / 15), frame_index=k)
         if k < WARMUP + 3:
             continue
         truth = [sensor_bearing(me, p.x_m, p.y_m) for p in world.people_at(t) if p.present]

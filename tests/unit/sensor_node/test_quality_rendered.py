@@ -101,7 +101,7 @@ def test_people_detected_and_head_bearings_accurate(tmp_path: Path) -> None:
     seen, total, errors = 0, 0, []
     for k in range(220):
         t = k / site.site.fps
-        res = pipe.process(renderer.render(t, rng), stamp_ns=k, frame_index=k)
+        res = pipe.process(renderer.render(t, rng), stamp_ns=round(k * 1e9 / 15), frame_index=k)
         if res.state != "ok":
             continue
         me = world.platform_at("cam-a", t)
@@ -137,7 +137,7 @@ def test_no_person_through_a_sudden_light_change(tmp_path: Path) -> None:
     rng = np.random.default_rng(12)
     states = []
     for k in range(75):
-        res = pipe.process(renderer.render(k / 15.0, rng), stamp_ns=k, frame_index=k)
+        res = pipe.process(renderer.render(k / 15.0, rng), stamp_ns=round(k * 1e9 / 15), frame_index=k)
         states.append(res.state)
         assert res.features.blobs == [], f"frame {k} ({res.state}): {len(res.features.blobs)} blobs in an empty room"
     assert "relit" in states or "reinit" in states  # the change at 3 s was noticed, not reported
@@ -152,7 +152,7 @@ def test_mutual_calibration_baseline_and_bodies_not_people(tmp_path: Path, mobil
     checked = 0
     for k in range(60):
         t = k / 15.0
-        res = pipe.process(renderer.render(t, rng), stamp_ns=k, frame_index=k)
+        res = pipe.process(renderer.render(t, rng), stamp_ns=round(k * 1e9 / 15), frame_index=k)
         me, other = world.platform_at("cam-a", t), world.platform_at("cam-b", t)
         true_b = math.dist((me.x_m, me.y_m), (other.x_m, other.y_m))
         (s,) = res.features.sightings

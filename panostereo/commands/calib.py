@@ -1,0 +1,66 @@
+"""``panostereo calib convert``: a calibration in a common format -> the project's pinhole JSON.
+
+Usage::
+
+    panostereo calib convert --from tsai View_001.xml --out view001.json
+    panostereo calib convert --from opencv-yaml cam.yml --out cam.json [--units mm] [--image-size W H]
+    panostereo calib convert --from p-matrix P.txt --image-size 768 576 --out cam.json [--units mm]
+
+The JSON (``{"model": "pinhole", "image_size", "K", "dist", "R", "t"}``, metres,
+world -> camera) is what ``[camera] calibration`` and ``[source] calibration``
+read; see :mod:`common.calib_formats` for each format's conventions (Tsai:
+millimetres, R = Rz Ry Rx, its radial distortion mapping the other way).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from common.calib_formats import from_opencv_file, from_p_matrix, from_tsai_xml
+from common.errors import ConfigError
+
+__all__ = ["configure", "run"]
+
+UNITS = {"m": 1.0, "mm": 0.001, "cm": 0.01}
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the command's flags."""
+    sub = parser.add_subparsers(dest="action", required=True)
+    conv = sub.add_parser("convert", help="convert a calibration to the project's pinhole JSON")
+    conv.add_argument("input", help="the calibration file")
+    conv.add_argument("--from", dest="fmt", required=True, choices=["tsai", "opencv-yaml", "p-matrix"])
+    conv.add_argument("--out", required=True, help="output JSON")
+    conv.add_argument("--image-size", type=int, nargs=2, metavar=("W", "H"), default=None)
+    conv.add_argument("--units", choices=sorted(UNITS), default=None, help="translation units (tsai: always mm)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Convert and write; prints where the camera is."""
+    src = Path(args.input)
+    try:
+        text = src.read_text()
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f"cannot read calibration {str(src)!r}: {err}") from err
+    size = tuple(args.image_size) if args.image_size else None
+    if size is not None and min(size) < 1:
+        raise ConfigError(f"--image-size: expected two positive integers, got {list(size)}")
+    if args.fmt == "tsai":
+        if args.units not in (None, "mm"):
+            raise ConfigError(f"--units: Tsai calibrations are in mm, got {args.units!r}")
+        cal = from_tsai_xml(text, str(src))
+    elif args.fmt == "opencv-yaml":
+        cal = from_opencv_file(src, units_m=UNITS[args.units or "m"], image_size=size)
+    else:
+        if size is None:
+            raise ConfigError("--from p-matrix needs --image-size W H")
+        cal = from_p_matrix(text, size, units_m=UNITS[args.units or "m"], source=str(src))
+    out = Path(args.out)
+    out.write_text(json.dumps(cal, indent=1) + "\n")
+    from common.pinhole import PinholeCamera
+
+    c = PinholeCamera.from_calibration(cal, str(out)).center_world
+    print(f"{out}: {cal['image_size'][0]}x{cal['image_size'][1]} px, camera at ({c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}) m")
+    return 0

@@ -1,0 +1,138 @@
+"""Stage 2c: cast shadows and highlights are the background, dimmed or brightened; people are not.
+
+A person's shadow on the ground (or a patch of sunlight, a reflection)
+changes the pixels as much as the person does in grey levels, and joined to
+their feet it makes the blob wider and its bottom lower (``bottom_elev_rad``
+then says the person is nearer than they are). In colour it is told apart
+(Horprasert et al. 1999; Cucchiara et al. 2003): the surface keeps its hue,
+only the light on it changes, so the frame's colour vector is the
+background's scaled by a brightness ratio ``a`` (shadow: ``SHADOW_MIN_RATIO``
+<= a < 1; highlight: 1 < a <= ``HIGHLIGHT_MAX_RATIO``), with a small
+chromatic residual ``|I - a B|``: within the image's own noise
+(``CHROMA_SIGMAS`` sigmas of it, measured by the background model) plus
+``CHROMA_TOLERANCE`` of the brightness (skylight in a shadow is bluer than
+sunlight). A person's clothing differs in hue, or is far darker than any
+shadow; cloth that matches the floor's hue (grey trousers on a grey floor)
+lacks the floor's texture, which a shadow keeps, dimmed (``TEXTURE_KEPT``).
+
+Runs on the frame's reduced colour image (half resolution: the cheap colour
+view every camera type has), on the changed pixels only.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from sensor_node.config import PipelineSettings
+
+__all__ = ["CHROMA_SIGMAS", "CHROMA_TOLERANCE", "HIGHLIGHT_MAX_RATIO", "SHADOW_MIN_RATIO", "shadow_mask"]
+
+Mask = npt.NDArray[Any]
+
+SHADOW_MIN_RATIO = 0.6
+"""Darkest shadow, as a fraction of the lit surface's brightness: the soft cast shadows of diffuse light
+(overcast daylight, ceiling lights) take away at most about 40 %. Lower: deep shadows of direct sun go
+too, but so do legs in trousers a little darker than the floor (their blobs lose their feet: 0.4 cut the
+rendered paper2 site's MOTA from 0.99 to 0.47 through wrong bottoms, benchmarks/NOTES.md)."""
+
+HIGHLIGHT_MAX_RATIO = 1.6
+"""Brightest highlight (sunlight patch, reflection) relative to the background."""
+
+CHROMA_SIGMAS = 3.0
+"""Chromatic residual allowed, in sigmas of the image's own noise (per channel)."""
+
+CHROMA_TOLERANCE = 0.08
+"""Chromatic residual allowed besides noise, as a fraction of the pixel's brightness (the colour of the light
+in a shadow differs a little from the direct light's)."""
+
+MIN_BRIGHTNESS_SIGMAS = 4.0
+"""Background pixels darker than this many noise sigmas carry no usable hue: never shadow."""
+
+
+TEXTURE_WINDOW = 5
+"""Side of the window (reduced pixels) whose grey-level spread is the local texture."""
+
+TEXTURE_SIGMAS = 2.0
+"""A background whose local spread is under this many noise sigmas is flat: no texture to keep or lose."""
+
+TEXTURE_KEPT = 0.5
+"""A shadow keeps at least this fraction of the background's texture (spread, scaled by the brightness
+ratio); cloth of the floor's colour shows little of it."""
+
+
+def _local_spread(small: Mask, colour_bg: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], ...]:
+    """Per pixel: grey-level variance of the frame and of the background over ``TEXTURE_WINDOW`` pixels."""
+    f = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    b = cv2.cvtColor(colour_bg, cv2.COLOR_BGR2GRAY)
+    k = (TEXTURE_WINDOW, TEXTURE_WINDOW)
+    mf, mb = cv2.blur(f, k), cv2.blur(b, k)
+    return cv2.blur(f * f, k) - mf * mf, cv2.blur(b * b, k) - mb * mb
+
+
+def shadow_mask(
+    small: Mask,
+    colour_bg: npt.NDArray[np.float32],
+    fg: Mask,
+    noise_sigma: float,
+    settings: PipelineSettings,
+    *,
+    floor: Mask | None = None,
+) -> Mask | None:
+    """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
+
+    Args:
+        small: the frame's reduced BGR image.
+        colour_bg: the background in the same reduced BGR (float).
+        fg: (H, W) changed pixels (255) at full resolution.
+        noise_sigma: the image's noise (grey levels, per channel).
+        settings: ``shadows`` (False: no test).
+        floor: 255 on the reduced pixels whose ray points below the horizon (where a person's cast
+            shadow falls: the floor); None: everywhere. Above it are heads, which dark hair against a
+            pale wall of the same hue would otherwise pass for a shadow of.
+    """
+    if not settings.shadows:
+        return None
+    sh, sw = small.shape[:2]
+    h, w = fg.shape
+    fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    if floor is not None and floor.shape == fg_small.shape:
+        fg_small = cv2.bitwise_and(fg_small, floor)
+    ys, xs = np.nonzero(fg_small)
+    if ys.size == 0:
+        return None
+    frame_px = small[ys, xs].astype(np.float32)
+    bg_px = colour_bg[ys, xs]
+    bb = np.einsum("ij,ij->i", bg_px, bg_px)
+    ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
+    resid = np.linalg.norm(frame_px - ratio[:, None] * bg_px, axis=1)
+    sigma = max(noise_sigma, 1.0)
+    norm_bg = np.sqrt(bb)
+    lit = (ratio >= SHADOW_MIN_RATIO) & (ratio <= HIGHLIGHT_MAX_RATIO) & (norm_bg >= MIN_BRIGHTNESS_SIGMAS * sigma)
+    tol = CHROMA_SIGMAS * sigma * np.sqrt(3.0) + CHROMA_TOLERANCE * ratio * norm_bg
+    is_shadow = lit & (resid <= tol)
+    if not is_shadow.any():
+        return None
+    # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
+    # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell.
+    # Only around the candidates (the window's reach beyond their bounding box).
+    cy, cx = ys[is_shadow], xs[is_shadow]
+    m = TEXTURE_WINDOW // 2
+    r0, r1 = max(int(cy.min()) - m, 0), min(int(cy.max()) + m + 1, sh)
+    c0, c1 = max(int(cx.min()) - m, 0), min(int(cx.max()) + m + 1, sw)
+    box = (slice(r0, r1), slice(c0, c1))
+    var_f, var_b = _local_spread(np.ascontiguousarray(small[box]), np.ascontiguousarray(colour_bg[box]))
+    ys, xs, ratio = cy, cx, ratio[is_shadow]
+    vf, vb = var_f[ys - r0, xs - c0], var_b[ys - r0, xs - c0]
+    textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
+    lost = vf < (TEXTURE_KEPT * ratio) ** 2 * vb
+    is_shadow = ~(textured & lost)
+    if not is_shadow.any():
+        return None
+    out_small = np.zeros((sh, sw), np.uint8)
+    out_small[ys[is_shadow], xs[is_shadow]] = 255
+    full = cv2.resize(out_small, (w, h), interpolation=cv2.INTER_NEAREST)
+    return cv2.bitwise_and(full, fg)
