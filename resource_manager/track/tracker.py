@@ -30,9 +30,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
+from common.errors import GeometryError
+from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, size_ratio
 from common.schema import Method, PairEntry
-from resource_manager.stereo.localize import Measurement, localize_best_pair
+from resource_manager.stereo.localize import Measurement, localize_best_pair, wide_blob
 from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.looks import learn_look
@@ -225,31 +226,42 @@ class Tracker:
         return got
 
     def _size_ratio_lines(self, got: list[_Assigned], tick: _Tick) -> list[LineObservation]:
-        """Where two of the views and the person are nearly colinear, bearings say nothing about where along the
-        baseline the person is; the size-ratio method (Eq. 2) does, from the two blob widths (the crossover rule
-        of :func:`common.geometry.localize_pair` decides). Each such pair gives a measurement along its baseline.
+        """Where two of the views and the person are nearly colinear, bearings say little about where along the
+        baseline the person is; the size-ratio method (Eq. 2) says it from the two blob widths: each such pair
+        gives a measurement along its baseline, fused with the bearings (its error, 2 eps D1 D2 / B with eps the
+        relative width error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is then the
+        point where each counts as much as the other, not a switch).
 
-        Only pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their
-        baseline's line can be such a pair: the others are skipped before any geometry (and with many cameras,
-        only pairs among ``2 * MAX_PAIR_CAMERAS`` of them are tried).
+        Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's
+        line qualify (with many cameras, pairs among ``2 * MAX_PAIR_CAMERAS`` of them); a blob wider than one
+        person (a merged group) gives no width to use.
         """
         out: list[LineObservation] = []
+        eps = self.birth_params.width_rel_sigma
         by_sid = {a.sensor_id: a.blob for a in got}
-        rays = {s: (tick.views[s].origin_xy, float(tick.views[s].bearing_rad[j])) for s, j in by_sid.items()}
         for sa, sb in itertools.combinations(sorted(by_sid)[: 2 * MAX_PAIR_CAMERAS], 2):
-            (oa, ta), (ob, tb) = rays[sa], rays[sb]
-            psi = math.atan2(float(ob[1] - oa[1]), float(ob[0] - oa[0]))
+            va, vb = tick.views[sa], tick.views[sb]
+            ia, ib = by_sid[sa], by_sid[sb]
+            ta, tb = float(va.bearing_rad[ia]), float(vb.bearing_rad[ib])
+            base = vb.origin_xy - va.origin_xy
+            length = float(np.hypot(*base))
+            if length <= 0:
+                continue
+            psi = math.atan2(float(base[1]), float(base[0]))
             if max(_off_line(ta - psi), _off_line(tb - psi)) >= MAX_SIZE_RATIO_OFFSET_RAD:
                 continue
-            fix = self._pair_fix(PairCandidate(sa, sb, 0.0), by_sid, tick)
-            if fix is None or fix.method != "size_ratio":
+            c1 = 1.0 if abs(math.remainder(ta - psi, 2 * math.pi)) < math.pi / 2 else -1.0
+            c2 = 1.0 if abs(math.remainder(tb - psi - math.pi, 2 * math.pi)) < math.pi / 2 else -1.0
+            wa, wb = float(va.width_rad[ia]), float(vb.width_rad[ib])
+            try:
+                d1, d2 = size_ratio(length, math.sin(wa / 2), math.sin(wb / 2), c1, c2)
+            except GeometryError:
                 continue
-            base = ob - oa
-            norm = float(np.hypot(*base))
-            if norm <= 0:
+            if wide_blob(va, ia, d1) or wide_blob(vb, ib, d2):
                 continue
-            u = base / norm
-            out.append(LineObservation((float(u[0]), float(u[1])), float(u @ fix.xy), float(u @ fix.cov @ u)))
+            u = base / length
+            sigma = 2.0 * eps * d1 * d2 / length
+            out.append(LineObservation((float(u[0]), float(u[1])), float(u @ va.origin_xy) + c1 * d1, sigma * sigma))
         return out
 
     def _observe(self, sid: str, blob: int, xy: FloatArray, tick: _Tick) -> Observation:
@@ -404,7 +416,12 @@ class Tracker:
         ended: list[str] = []
         # Surest first: a confirmed track before a tentative one, then the longest seen.
         for tr in sorted(self.tracks, key=lambda t: (not t.confirmed, -t.hits, t.serial)):
-            if tr.logodds < delete or tr.position_sigma_m > m.lost_sigma_m or any(_same_person(tr, o) for o in keep):
+            if (
+                tr.logodds < delete
+                or tr.position_sigma_m > m.lost_sigma_m
+                or _implausible_height(tr, m)
+                or any(_same_person(tr, o) for o in keep)
+            ):
                 if tr.track_id:
                     ended.append(tr.track_id)
                 continue
@@ -414,6 +431,17 @@ class Tracker:
             keep.append(tr)
         self.tracks = sorted(keep, key=lambda t: t.serial)
         return ended
+
+
+HEIGHT_SIGMAS = 4.0
+"""A track whose head height is surely this many of the population's sigmas from its mean is no person (a false
+blob's ray crossing someone's, a robot's body): 1.1-2.3 m with the default 1.7 +- 0.15 m."""
+
+
+def _implausible_height(tr: TrackRecord, model: TrackModel) -> bool:
+    """Whether the track's measured head height rules out a person (the height prior, Eq. 7's r_hc in absolute)."""
+    spread = math.sqrt(model.height_sigma_m**2 + tr.height_var)
+    return abs(tr.height_m - model.height_prior_m) > HEIGHT_SIGMAS * spread
 
 
 SAME_PERSON_CHI2 = 9.21
