@@ -99,6 +99,19 @@ class ManagerSection(ConfigStruct, frozen=True):
     status_period_s: Pos = 1.0
     default_bearing_sigma_deg: Pos = 0.2
     """Bearing error of a sensor whose SensorInfo has not arrived."""
+    sensors: list[str] = []
+    """The sensor ids this manager fuses; every other sensor's messages are refused by key, before decoding,
+    and counted (ManagerStatus.refused). Empty: the sensors of its site (``--site FILE``, which ``panostereo up``
+    and ``demo`` pass); a manager with neither refuses to start. ``["*"]``: any sensor (a lab bench only: any
+    client, or a stray camera sharing the router, then feeds the tracks)."""
+    max_skew_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 5.0
+    """Features stamped further than this from the manager's NTP-corrected clock are refused and never buffered
+    (a frame from the future would become the sensor's newest). Raise it for nodes whose clocks are known to be
+    off; below ``latency_ms`` plus the network delay it refuses real frames."""
+    info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
+    """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
+    comes back): anything put under its id by another client is replaced within this long. A put that changes
+    a SensorInfo is never taken as such, only a reason to read it again."""
 
 
 class PoseOverride(ConfigStruct, frozen=True):
@@ -293,6 +306,10 @@ class PtzSection(ConfigStruct, frozen=True):
     max_zoom: Annotated[float, msgspec.Meta(ge=1.0, le=1000.0)] = 10.0
     min_tilt_deg: float = -80.0
     max_tilt_deg: float = 60.0
+    lease_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 30.0
+    """A PTZ hold ends this long after the agent's last request for it unless renewed (an agent that keeps a
+    view asks again every third of it), and at once when the agent's liveliness token goes. A request may ask
+    for a shorter lease, never a longer one."""
 
 
 class ManagerConfig(ConfigStruct, frozen=True):
@@ -322,6 +339,9 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     try:
         validate_id(cfg.manager.id, "manager.id")
         Keys(cfg.manager.prefix)
+        for i, sid in enumerate(cfg.manager.sensors):
+            if sid != "*":
+                validate_id(sid, f"manager.sensors[{i}]")
         for i, p in enumerate(cfg.pose):
             validate_id(p.id, f"pose[{i}].id")
     except ConfigError as err:
@@ -329,6 +349,10 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     room = cfg.planner.room
     if room and (len(room) != 4 or room[0] >= room[2] or room[1] >= room[3]):
         raise ConfigError(f"{source}: planner.room must be [x_min, y_min, x_max, y_max], got {cfg.planner.room!r}")
+    if "*" in cfg.manager.sensors and len(cfg.manager.sensors) > 1:
+        raise ConfigError(
+            f'{source}: manager.sensors is either ["*"] (any sensor) or a list of ids, got {cfg.manager.sensors!r}'
+        )
     ids = [p.id for p in cfg.pose]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{source}: pose ids must be unique, got {ids!r}")

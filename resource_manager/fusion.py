@@ -47,7 +47,7 @@ from resource_manager.ingest.align import AlignedView, align_sensor
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.planner import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
-from resource_manager.serve.ptz import PtzTarget
+from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track import TrackRecord
 from resource_manager.views import mono_cameras, perspective_fovs
 
@@ -63,6 +63,10 @@ class Batch:
     ptz_states: Sequence[PtzState] = ()
     presence: Mapping[str, bool] = field(default_factory=dict)
     """Liveliness changes: sensor id -> alive."""
+    ptz_requests: Sequence[PtzAsk] = ()
+    """PTZ requests, answered in the tick (``Fusion.ptz_answers``): the allocation changes on one thread."""
+    agents: Mapping[str, bool] = field(default_factory=dict)
+    """Liveliness changes of user agents: agent id -> alive (a gone agent's PTZ holds end)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,6 +139,8 @@ class Fusion:
         self.skipped_ticks = 0
         self.last_poses: dict[str, PoseEstimate] = {}
         self.last_result: TickResult | None = None
+        self.ptz_answers: list[PtzAnswer] = []
+        """Answers to the batches' PTZ requests, for the shell to reply and clear."""
 
     # -- inputs ---------------------------------------------------------------
     def absorb(self, batch: Batch) -> None:
@@ -165,6 +171,13 @@ class Fusion:
                 self.ingest.counters.dropped += 1
                 continue
             self.ingest.add(f)
+        for aid, alive in batch.agents.items():
+            if not alive:
+                self.ptz.agent_gone(aid)
+        if batch.ptz_requests:
+            targets = self.ptz_targets()
+            for ask in batch.ptz_requests:
+                self.ptz_answers.append(self.ptz.answer(ask, targets.get(ask.request.track_id)))
 
     # -- the tick -------------------------------------------------------------
     def step(self, batch: Batch, t_ns: int) -> TickResult:
@@ -329,7 +342,7 @@ class Fusion:
 
     def _ptz_commands(self, t_ns: int) -> list[PtzCommand]:
         out = []
-        for aim in self.ptz.tick(self.ptz_targets()):
+        for aim in self.ptz.tick(self.ptz_targets(), t_ns):
             self.ptz_seq += 1
             out.append(
                 PtzCommand(

@@ -59,11 +59,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true")
     _net(p)
 
-    p = sub.add_parser("view", help="ask the manager for a PTZ view of a track (or --release it)")
+    p = sub.add_parser(
+        "view", help="hold a PTZ view of a track while this runs (renewed; released on exit), or --release one"
+    )
     p.add_argument("track_id")
-    p.add_argument("--release", action="store_true")
+    p.add_argument(
+        "--release", action="store_true", help="release the view held under --agent-id (a running `view` elsewhere)"
+    )
     p.add_argument("--priority", type=int, default=0)
     p.add_argument("--manager", default=None, help="manager id (default: from the track id)")
+    p.add_argument("--duration", type=float, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)")
     _net(p)
 
     p = sub.add_parser("record", help="record everything under {prefix}/@v1/** into MCAP")
@@ -312,13 +317,42 @@ def run(args: argparse.Namespace) -> int:
 
                 print(watch_screen([], sensors, []), end="")
         elif action == "view":
-            reply = (
-                agent.release_view(args.track_id, args.manager)
-                if args.release
-                else agent.request_view(args.track_id, args.priority, args.manager)
+            return _view(args, agent)
+    return 0
+
+
+def _view(args: argparse.Namespace, agent: Any) -> int:
+    """Hold a view until Ctrl-C or ``--duration``, renewing its lease; release it on the way out."""
+    if args.release:
+        if not args.agent_id:
+            raise ConfigError(
+                "--release needs --agent-id: the id of the agent holding the view (a view also ends by itself when "
+                "its agent exits)"
             )
-            _dump(reply)
-            return 0 if reply.ok else 1
+        reply = agent.release_view(args.track_id, args.manager)
+        _dump(reply)
+        return 0 if reply.ok else 1
+    shutdown = install_signal_handlers()
+    reply = agent.request_view(args.track_id, args.priority, args.manager)
+    _dump(reply)
+    if not reply.ok:
+        return 1
+    print(
+        f"holding {reply.sensor_id} on {args.track_id} as {agent.agent_id} (lease {reply.lease_s:g} s, renewed); "
+        "Ctrl-C releases it",
+        file=sys.stderr,
+        flush=True,
+    )
+    end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+    try:
+        while time.monotonic() < end and not shutdown.sleep(min(0.5, max(0.0, end - time.monotonic()))):
+            for renewed in agent.keep_views():
+                if not renewed.ok:
+                    _dump(renewed)
+                    print(f"lost the view of {args.track_id}: {renewed.reason}", file=sys.stderr)
+                    return 1
+    finally:
+        agent.release_all()
     return 0
 
 

@@ -129,10 +129,13 @@ class PoseSolver:
     filters: dict[str, _Filter] = field(default_factory=dict)
 
     def update_info(self, info: SensorInfo) -> bool:
-        """Take a SensorInfo (newest stamp wins); return True if it changed anything."""
+        """Take a SensorInfo; return True if it changed anything.
+
+        Whichever arrives last wins: the manager's shell passes only what the sensor's own queryable
+        confirmed (resource_manager/ingest/infos.py). Its stamp is not compared: a forged one from 2262
+        would otherwise shadow every real SensorInfo after it.
+        """
         old = self.infos.get(info.sensor_id)
-        if old is not None and old.stamp_ns > info.stamp_ns:
-            return False
         self.infos[info.sensor_id] = info
         return old != info
 

@@ -173,12 +173,16 @@ class FaultSite:
         )
         return path
 
-    def manager_config(self, *, ntp_port: int | None = None, state_dir: Path | None = None) -> Path:
+    def manager_config(
+        self, *, ntp_port: int | None = None, state_dir: Path | None = None, extra_sensors: tuple[str, ...] = ()
+    ) -> Path:
+        """The manager fuses the site's cameras (and ``extra_sensors``); any other sensor id is refused."""
         clock = f'ntp_server = "127.0.0.1"\nntp_port = {ntp_port}\nresync_s = 2.0\n' if ntp_port else ""
         path = self.tmp / "manager.toml"
+        sensors = ", ".join(f'"{sid}"' for sid in [*self.ids, *extra_sensors])
         path.write_text(
             f'[manager]\nid = "{MANAGER_ID}"\nprefix = "{self.prefix}"\nrate_hz = 10.0\n'
-            f'state_dir = "{state_dir or self.tmp / "state"}"\n'
+            f'state_dir = "{state_dir or self.tmp / "state"}"\nsensors = [{sensors}]\n'
             f'[zenoh]\nconnect = ["{self.endpoint}"]\nconnect_timeout_ms = 20000\n'
             f"[clock]\n{clock}"
             "[tracker]\nbirth_hits = 2\n"
@@ -481,7 +485,7 @@ def test_late_and_out_of_order_frames_are_counted_and_tracking_holds(site: Fault
     cameras, and its tracks stay on the people."""
     site.start_router()
     with observing(site) as obs:
-        site.start_manager()
+        site.start_manager(site.manager_config(extra_sensors=(f"s{SENSORS:02d}", f"s{SENSORS + 1:02d}")))
         for sid in site.ids:
             site.start_node(sid)
         fleet = site._spawn(
