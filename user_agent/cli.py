@@ -71,8 +71,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)")
     _net(p)
 
-    p = sub.add_parser("record", help="record everything under {prefix}/@v1/** into MCAP")
+    p = sub.add_parser("record", help="record everything under {prefix}/@v1/** (or --keys) into MCAP")
     p.add_argument("out", metavar="OUT.mcap")
+    p.add_argument(
+        "--keys",
+        action="append",
+        default=None,
+        metavar="PATTERN",
+        help="record only these key expressions under {prefix}/@v1/ (e.g. tracks, 'track/*', 'manager/*/status'); "
+        "repeatable (default: everything)",
+    )
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     p.add_argument("--site", default=None, metavar="FILE", help="site file: stores prefix, fps and room for evaluate")
     p.add_argument("--epoch-ns", type=int, default=None, help=f"world epoch (default: env {EPOCH_ENV})")
@@ -190,20 +198,47 @@ def _record(args: argparse.Namespace) -> int:
             raise ConfigError(f"environment {EPOCH_ENV}: expected integer Unix ns, got {epoch!r}") from err
     if fps:
         meta["fps"] = str(fps)
+    exprs = _record_keys(Keys(prefix), args.keys)
+    meta["keys"] = " ".join(exprs)
     shutdown = install_signal_handlers()
     with open_session(settings) as session:
-        rec = Recorder(session, Keys(prefix).all, McapSink(args.out, meta))
+        rec = Recorder(session, exprs, McapSink(args.out, meta))
         # Announce ourselves once subscribed, so a caller can wait for the recorder to be ready.
         token = session.liveliness().declare_token(Keys(prefix).agent(agent_id or f"recorder-{os.getpid()}"))
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+        next_note = time.monotonic() + 5.0
         try:
             while time.monotonic() < end and not shutdown.sleep(min(0.2, max(0.0, end - time.monotonic()))):
-                pass
+                if time.monotonic() >= next_note:
+                    next_note += 5.0
+                    print(_recorder_note(rec.status()), file=sys.stderr, flush=True)
         finally:
             token.undeclare()
             rec.stop()
-    print(f"recorded {rec.messages} samples into {args.out}", file=sys.stderr)
+    st = rec.status()
+    print(f"recorded {st.written} samples into {args.out}; {_recorder_note(st)}", file=sys.stderr)
     return 0
+
+
+def _record_keys(keys: Keys, patterns: list[str] | None) -> list[str]:
+    """Full key expressions for ``--keys`` patterns (relative to ``{prefix}/@v1/`` unless they start with it)."""
+    import zenoh
+
+    if not patterns:
+        return [keys.all]
+    out = []
+    for pat in patterns:
+        full = pat if pat.startswith(keys.root + "/") else f"{keys.root}/{pat.strip('/')}"
+        try:
+            out.append(str(zenoh.KeyExpr(full)))
+        except Exception as err:  # ZError: not a key expression
+            raise ConfigError(f"--keys {pat!r}: not a key expression ({full}): {err}") from err
+    return out
+
+
+def _recorder_note(st: Any) -> str:
+    lost = f"dropped {st.dropped} ({st.dropped_features} raw features)" if st.dropped else "nothing dropped"
+    return f"recorder: {st.written} written, {lost}, {st.lag_s:.1f} s behind live (worst {st.max_lag_s:.1f} s)"
 
 
 def _replay(args: argparse.Namespace) -> int:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from common.errors import ConfigError
-from user_agent.evaluate import MotMetrics, evaluate_positions, hypotheses_from_tracksets
+from user_agent.evaluate import MotMetrics, evaluate_positions, hypotheses_from_tracksets, unseen_spans
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
@@ -22,6 +22,8 @@ class Scored:
     """Distinct confirmed/coasting track ids in the recording."""
     tracksets: int
     frames_scored: int
+    unseen_s: float = 0.0
+    """Seconds of the run whose TrackSets the recording lost (not scored; see evaluate.unseen_spans)."""
 
 
 def score_recording(
@@ -41,6 +43,8 @@ def score_recording(
     to the recording's metadata (written by the recorder from the site,
     ``PANOSTEREO_EPOCH_NS`` and, for a demo run, its warm-up). ``on_events`` is called with each scored
     frame's events (see :func:`~user_agent.evaluate.evaluate_positions`), to see where frames are lost.
+    Frames whose TrackSets the recording lost (gaps in a manager's TrackSet numbers) are not scored:
+    ``Scored.unseen_s`` says how much of the run that was.
 
     Raises:
         ConfigError: if the epoch or fps is neither given nor in the recording.
@@ -52,12 +56,20 @@ def score_recording(
     if rate <= 0:
         raise ConfigError("the recording has no fps metadata: pass --fps (the ground truth's frame rate)")
     start = start_ns if start_ns is not None else rec.meta_int("score_from_ns", -1)
+    unseen = unseen_spans(rec.tracksets, max_gap_s)
     hyps, frames = hypotheses_from_tracksets(
-        rec.tracksets, epoch, rate, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start if start >= 0 else None
+        rec.tracksets,
+        epoch,
+        rate,
+        gt.frame_numbers,
+        max_gap_s=max_gap_s,
+        start_ns=start if start >= 0 else None,
+        skip=unseen,
     )
     metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events)
     published = {t.track_id for ts in rec.tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
-    return Scored(metrics, len(published), len(rec.tracksets), len(frames))
+    unseen_s = sum(b - a for a, b in unseen) / 1e9
+    return Scored(metrics, len(published), len(rec.tracksets), len(frames), unseen_s)
 
 
 def room_of(rec: Recording) -> tuple[float, float, float, float] | None:
