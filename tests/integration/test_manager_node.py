@@ -203,3 +203,37 @@ def test_manager_end_to_end(router: Any, spawn: Any, sessions: Any, tmp_path: Pa
     finally:
         for s in subs:
             s.undeclare()
+
+
+def test_a_killed_agents_ptz_hold_goes_to_the_next_agent_within_3_s(
+    router: Any, spawn: Any, sessions: Any, tmp_path: Path
+) -> None:
+    """`agent view` holds the PTZ camera while it runs; kill -9 it, and another agent at the same priority gets
+    the camera within 3 s (its liveliness token went, so its hold did)."""
+    from user_agent.client import AgentClient
+
+    keys = Keys(PREFIX)
+    _start(spawn, _config(tmp_path), router)
+    wait_for_liveliness(sessions, keys.manager(MID), timeout_s=20)
+    tracksets: list[TrackSet] = []
+    sub = sessions.declare_subscriber(keys.tracks(), lambda s: tracksets.append(decode(s.payload.to_bytes(), TrackSet)))
+    try:
+        with FakeSensors(sessions, keys), AgentClient(sessions, prefix=PREFIX, agent_id="second") as other:
+            ts = wait_for(lambda: next((t for t in reversed(tracksets) if t.tracks), None), 20, "a track")
+            tid = ts.tracks[0].track_id
+            holder = spawn(
+                [sys.executable, "-m", "panostereo", "agent", "view", tid, "--prefix", PREFIX,
+                 "--connect", router.endpoint, "--agent-id", "holder"],
+                name="holder",
+            )  # fmt: skip
+            holder.wait_for_output(r"holding zz1", 20)
+            refused = other.request_view(tid)
+            assert not refused.ok and "holder" in refused.reason, refused
+            t_kill = time.monotonic()
+            holder.signal(signal.SIGKILL)
+            reply = wait_for(lambda: (r := other.request_view(tid)).ok and r, 10, "the camera for the second agent")
+            taken_s = time.monotonic() - t_kill
+            assert reply.sensor_id == "zz1"
+            assert taken_s <= 3.0, f"the second agent got the camera {taken_s:.2f} s after the holder was killed"
+    finally:
+        sub.undeclare()
