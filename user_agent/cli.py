@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import time
@@ -22,6 +23,8 @@ from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
 
 __all__ = ["configure", "main", "run"]
+
+logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
 
@@ -137,7 +140,14 @@ def _client(args: argparse.Namespace) -> Any:
     from user_agent.client import AgentClient
 
     settings, prefix, agent_id = _session_and_prefix(args)
-    return AgentClient(settings=settings, prefix=prefix, agent_id=agent_id)
+    agent = AgentClient(settings=settings, prefix=prefix, agent_id=agent_id)
+    if settings.config_file and not agent.token_accepted():
+        logger.warning(
+            "the router did not take this agent's liveliness token %s: on a secure site an agent may speak only "
+            "as its certificate's id (agent-ID.json5: --agent-id ID); PTZ requests under this id are refused too",
+            agent.keys.agent(agent.agent_id),
+        )
+    return agent
 
 
 def _dump(obj: Any) -> None:

@@ -159,6 +159,21 @@ class AgentClient:
         self._thread = threading.Thread(target=self._pump, name="agent-pump", daemon=True)
         self._thread.start()
 
+    def token_accepted(self, timeout_s: float = 1.0) -> bool:
+        """Whether the router took this agent's liveliness token (a secure site's rules allow only the id of the
+        agent's certificate; a denied token is dropped silently, and so are this agent's PTZ requests).
+
+        The agent's own session answers a liveliness query for its token locally; the router answers too only
+        when it has the token. So two answers: accepted; one: refused (or no router to ask).
+        """
+        key = self.keys.agent(self.agent_id)
+        try:
+            replies = [r for r in self.session.liveliness().get(key, timeout=timeout_s) if r.ok is not None]
+        except Exception as err:  # session closing
+            logger.debug("liveliness query %s: %s", key, err)
+            return True
+        return len(replies) >= 2
+
     # -- lifecycle ----------------------------------------------------------
     def close(self) -> None:
         """Stop the pump, undeclare everything, close the session if we opened it."""
