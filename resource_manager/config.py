@@ -104,10 +104,13 @@ class ManagerSection(ConfigStruct, frozen=True):
     and counted (ManagerStatus.refused). Empty: the sensors of its site (``--site FILE``, which ``panostereo up``
     and ``demo`` pass); a manager with neither refuses to start. ``["*"]``: any sensor (a lab bench only: any
     client, or a stray camera sharing the router, then feeds the tracks)."""
-    max_skew_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 5.0
-    """Features stamped further than this from the manager's NTP-corrected clock are refused and never buffered
-    (a frame from the future would become the sensor's newest). Raise it for nodes whose clocks are known to be
-    off; below ``latency_ms`` plus the network delay it refuses real frames."""
+    max_skew_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 1.5
+    """Features stamped further than this from the manager's NTP-corrected clock are refused (counted per sensor
+    as clock skew) and never buffered: a frame from the future would become the sensor's newest, one from long
+    ago restart its buffer. An honest frame is at most ``latency_ms`` plus its node's processing and network delay
+    old (older than ``latency_ms + stale_ms`` it is useless anyway) and never ahead by more than the hosts' NTP
+    error. Raise it only for a node known to lag more; below ``latency_ms`` plus the delays it refuses real
+    frames."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes

@@ -14,8 +14,8 @@ Three checks, in the order a message meets them:
    buffer.
 
 Every refusal is counted per sender id for ManagerStatus. The counts are kept
-for at most ``max_senders`` ids (a flood of fresh ids cannot grow memory); the
-rest are summed under :attr:`RefusalCounter.others`.
+for at most ``max_senders`` ids (a flood of fresh ids cannot grow memory), the
+listed sensors' always; the rest are summed under :attr:`RefusalCounter.others`.
 """
 
 from __future__ import annotations
@@ -54,6 +54,8 @@ class RefusalCounter:
     """Refused messages per sender id, bounded in the number of ids it remembers."""
 
     max_senders: int = 1024
+    reserved: frozenset[str] = frozenset()
+    """Ids always counted by name (the listed sensors): a flood of fresh ids cannot crowd them out."""
     counts: dict[str, list[int]] = field(default_factory=dict)
     """Sender id -> [unlisted, wrong_id, skewed]."""
     others: int = 0
@@ -64,7 +66,7 @@ class RefusalCounter:
         self.total += n
         row = self.counts.get(sender_id)
         if row is None:
-            if len(self.counts) >= self.max_senders or not _ID_RE.match(sender_id):
+            if sender_id not in self.reserved and (len(self.counts) >= self.max_senders or not _ID_RE.match(sender_id)):
                 self.others += n
                 return
             row = self.counts[sender_id] = [0, 0, 0]
@@ -94,7 +96,8 @@ class SenderGate:
 
     @classmethod
     def of(cls, sensors: Iterable[str], max_skew_ns: int) -> SenderGate:
-        return cls(frozenset(sensors), max_skew_ns)
+        listed = frozenset(sensors)
+        return cls(listed, max_skew_ns, RefusalCounter(reserved=listed))
 
     @property
     def any_sensor(self) -> bool:

@@ -439,8 +439,9 @@ def test_node_clock_two_seconds_off_is_corrected_by_ntp(site: FaultSite) -> None
     """Everyone's reference (the NTP server) is 2 s ahead of this host's clock.
 
     The manager and three nodes synchronise to it. The fourth node first runs on its system
-    clock, 2 s behind everyone: its frames are too old to bracket any fusion instant and it
-    is never used. Restarted with the same NTP server it is corrected and used.
+    clock, 2 s behind everyone: its frames are further from the manager's clock than
+    ``max_skew_s`` (1.5 s), refused and counted as clock skew against it, and it is never used.
+    Restarted with the same NTP server it is corrected and used.
     """
     with FakeNtpServer(skew_s=2.0) as ntp:
         site.start_router()
@@ -455,8 +456,8 @@ def test_node_clock_two_seconds_off_is_corrected_by_ntp(site: FaultSite) -> None
             t0 = time.monotonic()
             wait_for(lambda: len(obs.status_since(t0)) >= 3, 10.0, "three manager status messages")
             assert not [s for s in obs.sets_since(t0) if off in s.sensors_used], "frames 2 s old were fused"
-            late = [s.late_msgs for s in obs.status_since(t0)]
-            assert late[-1] > late[0], f"the manager does not count {off}'s 2 s old frames as late: {late}"
+            counted = [next((r.skewed for r in s.refused if r.sender_id == off), 0) for s in obs.status_since(t0)]
+            assert counted[-1] > counted[0], f"the manager does not count {off}'s 2 s old frames as skewed: {counted}"
             skewed.stop()
             t1 = time.monotonic()
             site.start_node(off, site.node_config(off, ntp_port=ntp.port))

@@ -58,12 +58,14 @@ def test_any_sensor_is_explicit() -> None:
     assert gate.any_sensor and gate.allows("whoever") and gate.expected == []
 
 
-def test_refusal_counter_is_bounded() -> None:
-    c = RefusalCounter(max_senders=3)
+def test_refusal_counter_is_bounded_but_always_counts_the_listed_sensors() -> None:
+    c = RefusalCounter(max_senders=3, reserved=frozenset({"pano1"}))
     for i in range(1000):
         c.add(f"fresh{i}", "unlisted")
     c.add("NOT_AN_ID", "unlisted")
-    assert len(c.counts) == 3 and c.others == 998 and c.total == 1001
+    c.add("pano1", "skewed", 7)  # after the flood of fresh ids filled every slot
+    assert len(c.counts) == 4 and c.others == 998 and c.total == 1008
+    assert c.top(1)[0].sender_id == "pano1" and c.top(1)[0].skewed == 7
 
 
 def _pose(info: object, x: float) -> object:
