@@ -215,7 +215,8 @@ class Recorder:
     The zenoh callback copies and queues only. The queue is bounded: raw
     Features (``sensor/*/features``, the bulk of a site's traffic) wait in a
     part of their own and go first when the writer falls behind: a feature
-    that waited ``max_lag_s`` is dropped rather than written late, and features
+    that waited ``max_lag_s`` (half a second: written samples stay within a
+    second of live) is dropped rather than written late, and features
     are dropped before anything else is. Everything else (tracks, statuses,
     infos, plans) is dropped only when the whole queue is full. Every drop is
     counted per key (:attr:`drops`, at most ``max_keys`` keys, the rest under
@@ -240,7 +241,7 @@ class Recorder:
         capacity: int = 20_000,
         *,
         feature_capacity: int = 2_000,
-        max_lag_s: float = 1.0,
+        max_lag_s: float = 0.5,
         max_keys: int = 2_048,
     ) -> None:
         self.sink = sink

@@ -102,6 +102,22 @@ def _progress(elapsed: float, duration: float, client: Any) -> str:
     return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
 
 
+def recorded_keys(keys: Keys, sensors: list[str]) -> list[str]:
+    """What the demo records: everything of its own sensors, managers, tracks and plans.
+
+    Not ``{root}/**``: whatever another client publishes under other sensor ids (a stray camera, a flood of
+    fresh ids) is then never routed to the recorder at all; the manager counts it (``ManagerStatus.refused``)
+    and the summary names those senders.
+    """
+    return [
+        keys.tracks(),
+        keys.all_tracks,
+        keys.all_plans,
+        f"{keys.root}/manager/**",
+        *(f"{keys.sensor(sid)}/**" for sid in sensors),
+    ]
+
+
 def _recorder_line(recorder: Any) -> str:
     st = recorder.status()
     lost = f"LOST {st.dropped} ({st.dropped_features} raw features)" if st.dropped else "nothing lost"
@@ -147,6 +163,7 @@ def run(args: argparse.Namespace) -> int:
     router_log = out / "logs" / "router.log"
     recorder: Any = None
     last_status: dict[str, Any] = {}
+    seen_sensors: set[str] = set()
     router = Supervisor([router_plan([args.listen], log_path=router_log)], restart=False, grace_s=3.0)
     procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
     tty = sys.stdout.isatty() and not args.no_view
@@ -158,7 +175,8 @@ def run(args: argparse.Namespace) -> int:
         _wait_router(router, endpoint, router_log)
         settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
-            recorder = Recorder(session, keys.all, McapSink(recording, meta))
+            sensors_started = sorted(i for c, i in ids.values() if c == "node")
+            recorder = Recorder(session, recorded_keys(keys, sensors_started), McapSink(recording, meta))
             sink = recorder.sink
             client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo")
             try:
@@ -214,6 +232,7 @@ def run(args: argparse.Namespace) -> int:
                     shutdown.sleep(0.2)
                 t_stop_ns = time.time_ns()
                 last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
+                seen_sensors = {v.sensor_id for v in client.sensors(timeout_s=0.5)}
             finally:
                 recorder.stop(close=False)  # the ground-truth scene is added before the file is finished
                 client.close()
@@ -238,6 +257,7 @@ def run(args: argparse.Namespace) -> int:
             started={i for c, i in ids.values() if c == "node"},
             recorder=recorder.status() if recorder is not None else None,
             refused=_refusals(last_status),
+            seen_sensors=seen_sensors,
         )
     finally:
         sink.close()
@@ -281,6 +301,7 @@ def _finish(
     started: set[str],
     recorder: Any,
     refused: dict[str, int],
+    seen_sensors: set[str],
 ) -> int:
     from user_agent.groundtruth import read_gt_csv
     from user_agent.recording import load_recording
@@ -314,7 +335,7 @@ def _finish(
         title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}",
         gt_cameras=gt_cameras,
     )
-    seen = set(rec.sensor_infos) | set(rec.node_status)
+    seen = set(rec.sensor_infos) | set(rec.node_status) | seen_sensors
     strays = sorted((seen | set(refused)) - started)
     metrics = m.to_dict()
     lost = {
