@@ -74,11 +74,6 @@ class ManagerNode:
         self.shutdown = shutdown
         self.keys = Keys(cfg.manager.prefix)
         self.mid = cfg.manager.id
-        if not cfg.manager.sensors:
-            raise ConfigError(
-                f"manager {self.mid}: no sensors to fuse: run it from its site (--site FILE), list them in "
-                '[manager] sensors, or set sensors = ["*"] to accept any sensor'
-            )
         self.gate = SenderGate.of(cfg.manager.sensors, int(cfg.manager.max_skew_s * 1e9))
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
@@ -449,6 +444,11 @@ def _id_order(tid: str) -> tuple[str, int]:
 
 def run(cfg: ManagerConfig) -> int:
     """Run a manager until SIGINT/SIGTERM; returns the exit code."""
+    if not cfg.manager.sensors:
+        raise ConfigError(
+            f"manager {cfg.manager.id}: no sensors to fuse: run it from its site (--site FILE), list them in "
+            '[manager] sensors, or set sensors = ["*"] to accept any sensor'
+        )
     shutdown = install_signal_handlers()
     clock = NtpClock.from_settings(cfg.clock)
     clock.start()
