@@ -247,7 +247,7 @@ def _record_keys(keys: Keys, patterns: list[str] | None) -> list[str]:
 
 
 def _recorder_note(st: Any) -> str:
-    lost = f"dropped {st.dropped} ({st.dropped_features} raw features)" if st.dropped else "nothing dropped"
+    lost = f"dropped {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing dropped"
     return f"recorder: {st.written} written, {lost}, {st.lag_s:.1f} s behind live (worst {st.max_lag_s:.1f} s)"
 
 

@@ -15,7 +15,8 @@ Per zenoh key the file holds (notes/zenoh.md §7.1):
 Log time is the local arrival time; publish time is the message's own
 ``stamp_ns``. Zenoh's callback only enqueues bytes; a writer thread decodes
 and writes (never block a transport thread). When the writer cannot keep up
-(a flood), raw features are dropped first and never written more than
+(a flood), raw sensor messages (features, SensorInfo, statuses, PTZ states)
+are dropped first and never written more than
 ``max_lag_s`` late; every drop is counted per key in the file's metadata.
 """
 
@@ -201,8 +202,8 @@ class RecorderStatus:
     written: int
     dropped: int
     """Samples lost, every reason."""
-    dropped_features: int
-    """...of which raw Features (dropped first)."""
+    dropped_raw: int
+    """...of which raw sensor messages (``sensor/**``: features, SensorInfo, statuses; dropped first)."""
     lag_s: float
     """Age of the oldest sample waiting to be written (0: keeping up)."""
     max_lag_s: float
@@ -212,13 +213,14 @@ class RecorderStatus:
 class Recorder:
     """Subscribes to key expressions and feeds an :class:`McapSink` from a writer thread.
 
-    The zenoh callback copies and queues only. The queue is bounded: raw
-    Features (``sensor/*/features``, the bulk of a site's traffic) wait in a
-    part of their own and go first when the writer falls behind: a feature
-    that waited ``max_lag_s`` (half a second: written samples stay within a
-    second of live) is dropped rather than written late, and features
-    are dropped before anything else is. Everything else (tracks, statuses,
-    infos, plans) is dropped only when the whole queue is full. Every drop is
+    The zenoh callback copies and queues only. The queue is bounded: what
+    sensors publish (``sensor/**``: features, the bulk of a site's traffic,
+    SensorInfo, statuses, PTZ states) waits in a part of its own and goes
+    first when the writer falls behind: a raw message that waited
+    ``max_lag_s`` (half a second: written samples stay within a second of
+    live) is dropped rather than written late, and raw messages are dropped
+    before anything else is. The derived data (tracks, manager statuses,
+    pairs, plans) is dropped only when the whole queue is full. Every drop is
     counted per key (:attr:`drops`, at most ``max_keys`` keys, the rest under
     ""), and :meth:`stop` writes the counts into the file (metadata record
     ``panostereo.recorder``). At most ``max_keys`` distinct keys are recorded:
@@ -229,7 +231,7 @@ class Recorder:
         key_expr: what to record (``Keys(prefix).all``), or several expressions.
         sink: where to write.
         capacity: most samples waiting, features and the rest together.
-        feature_capacity: most raw Features waiting.
+        raw_capacity: most raw sensor messages waiting.
         max_lag_s: a raw Feature that waited this long is dropped, not written.
     """
 
@@ -240,21 +242,22 @@ class Recorder:
         sink: McapSink,
         capacity: int = 20_000,
         *,
-        feature_capacity: int = 2_000,
+        raw_capacity: int = 2_000,
         max_lag_s: float = 0.5,
         max_keys: int = 2_048,
     ) -> None:
         self.sink = sink
         self.drops: dict[str, int] = {}
         self.dropped = 0
-        self.dropped_features = 0
+        self.dropped_raw = 0
         self.max_lag_ns = 0
         self._keys: set[str] = set()
         self._max_keys = max_keys
         self._high: deque[tuple[str, bytes, int]] = deque()
         self._low: deque[tuple[str, bytes, int]] = deque()
         self._capacity = capacity
-        self._feature_capacity = min(feature_capacity, capacity)
+        self._raw_capacity = min(raw_capacity, capacity)
+        self._raw_marker = "/sensor/"
         self._lag_limit_ns = int(max_lag_s * 1e9)
         self._cond = threading.Condition()
         self._stop = False
@@ -263,26 +266,26 @@ class Recorder:
         exprs = [key_expr] if isinstance(key_expr, str) else list(key_expr)
         self._subs = [session.declare_subscriber(ke, self._on_sample) for ke in exprs]
 
-    def _drop(self, key: str, feature: bool) -> None:
+    def _drop(self, key: str, raw: bool) -> None:
         """Count one lost sample (the caller holds the lock)."""
         self.dropped += 1
-        if feature:
-            self.dropped_features += 1
+        if raw:
+            self.dropped_raw += 1
         k = key if key in self.drops or len(self.drops) < self._max_keys else ""
         self.drops[k] = self.drops.get(k, 0) + 1
 
     def _on_sample(self, sample: Any) -> None:
         # zenoh's callback thread: decide, copy, queue; nothing else.
         key = str(sample.key_expr)
-        feature = key.endswith("/features")
+        raw = self._raw_marker in key
         with self._cond:
             if key not in self._keys:
                 if len(self._keys) >= self._max_keys:
-                    self._drop(key, feature)
+                    self._drop(key, raw)
                     return
                 self._keys.add(key)
             full = len(self._high) + len(self._low) >= self._capacity
-            if feature and (full or len(self._low) >= self._feature_capacity):
+            if raw and (full or len(self._low) >= self._raw_capacity):
                 self._drop(key, True)  # the newest, uncopied: the writer drops the stale ones
                 return
             if full:
@@ -294,11 +297,11 @@ class Recorder:
                     self._drop(old[0], False)
         item = (key, sample.payload.to_bytes(), time.time_ns())
         with self._cond:
-            (self._low if feature else self._high).append(item)
+            (self._low if raw else self._high).append(item)
             self._cond.notify()
 
     def _next(self) -> tuple[str, bytes, int] | None:
-        """The next sample to write, everything else before features; features too old are dropped here."""
+        """The next sample to write, derived data before raw sensor messages; raw ones too old are dropped here."""
         with self._cond:
             while not self._high and not self._low and not self._stop:
                 self._cond.wait(0.2)
@@ -335,7 +338,7 @@ class Recorder:
         with self._cond:
             oldest = min((q[0][2] for q in (self._high, self._low) if q), default=now)
             return RecorderStatus(
-                self.sink.messages, self.dropped, self.dropped_features, (now - oldest) / 1e9, self.max_lag_ns / 1e9
+                self.sink.messages, self.dropped, self.dropped_raw, (now - oldest) / 1e9, self.max_lag_ns / 1e9
             )
 
     def stop(self, close: bool = True) -> None:
@@ -350,7 +353,7 @@ class Recorder:
             self._cond.notify()
         self._thread.join(timeout=30)
         st = self.status()
-        meta = {"dropped": str(st.dropped), "dropped_features": str(st.dropped_features),
+        meta = {"dropped": str(st.dropped), "dropped_raw": str(st.dropped_raw),
                 "max_lag_s": f"{st.max_lag_s:.3f}", "written": str(st.written)}  # fmt: skip
         with self._cond:
             meta |= {f"dropped:{k or '(other keys)'}": str(n) for k, n in sorted(self.drops.items())}
@@ -359,8 +362,8 @@ class Recorder:
             self.sink.close()
         if st.dropped:
             logger.warning(
-                "recorder dropped %d samples (%d raw features) to stay within %.1f s of live",
+                "recorder dropped %d samples (%d raw sensor messages) to stay within %.1f s of live",
                 st.dropped,
-                st.dropped_features,
+                st.dropped_raw,
                 self._lag_limit_ns / 1e9,
             )

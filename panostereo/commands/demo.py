@@ -120,7 +120,7 @@ def recorded_keys(keys: Keys, sensors: list[str]) -> list[str]:
 
 def _recorder_line(recorder: Any) -> str:
     st = recorder.status()
-    lost = f"LOST {st.dropped} ({st.dropped_features} raw features)" if st.dropped else "nothing lost"
+    lost = f"LOST {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing lost"
     return f"recording: {st.written} samples, {lost}, {st.lag_s:.1f} s behind (worst {st.max_lag_s:.1f} s)"
 
 
@@ -340,7 +340,7 @@ def _finish(
     metrics = m.to_dict()
     lost = {
         "dropped": recorder.dropped if recorder else 0,
-        "dropped_features": recorder.dropped_features if recorder else 0,
+        "dropped_raw": recorder.dropped_raw if recorder else 0,
         "max_lag_s": round(recorder.max_lag_s, 2) if recorder else 0.0,
         "unscored_s": round(scored.unseen_s, 2),
     }
@@ -386,7 +386,7 @@ def _warnings(lost: dict[str, Any], strays: list[str], refused: dict[str, int], 
     out = []
     if lost["dropped"]:
         out.append(
-            f"the recording lost {lost['dropped']} samples ({lost['dropped_features']} raw features) to stay near "
+            f"the recording lost {lost['dropped']} samples ({lost['dropped_raw']} raw sensor messages) to stay near "
             f"live; {lost['unscored_s']} s whose tracks it lost were not scored"
         )
     elif lost["unscored_s"]:

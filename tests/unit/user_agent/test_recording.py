@@ -244,7 +244,7 @@ def test_recorder_drops_features_first_counts_every_drop_per_key_and_writes_the_
         write(key, data, t)
 
     sink.write = slow_write  # type: ignore[method-assign]
-    rec = Recorder(session, [K.all], sink, capacity=50, feature_capacity=10, max_lag_s=0.2)
+    rec = Recorder(session, [K.all], sink, capacity=50, raw_capacity=10, max_lag_s=0.2)
     (deliver,) = session.callbacks
     feat = encode(Features(sensor_id="pano1", seq=0, stamp_ns=EPOCH, frame_index=0))
     for i in range(40):
@@ -254,7 +254,7 @@ def test_recorder_drops_features_first_counts_every_drop_per_key_and_writes_the_
     for i in range(40, 60):  # the queue is full: the queued features go before any track
         deliver(_sample(K.tracks(), encode(TrackSet(manager_id="mgr1", seq=i, stamp_ns=EPOCH + i))))
     st = rec.status()
-    assert st.dropped == 100 + 10 and st.dropped_features == 100  # 90 refused at the door, 10 pushed out; 10 tracks
+    assert st.dropped == 100 + 10 and st.dropped_raw == 100  # 90 refused at the door, 10 pushed out; 10 tracks
     assert rec.drops == {K.sensor_features("pano1"): 100, K.tracks(): 10}
     time.sleep(0.3)
     gate.set()
@@ -274,7 +274,7 @@ def test_recorder_drops_features_that_waited_too_long_and_caps_its_keys(tmp_path
     gate = threading.Event()
     write = sink.write
     sink.write = lambda k, d, t: (gate.wait(), write(k, d, t))  # type: ignore[method-assign, func-returns-value]
-    rec = Recorder(session, K.all, sink, capacity=1000, feature_capacity=500, max_lag_s=0.1, max_keys=5)
+    rec = Recorder(session, K.all, sink, capacity=1000, raw_capacity=500, max_lag_s=0.1, max_keys=5)
     (deliver,) = session.callbacks
     deliver(_sample(K.tracks(), b"\xc1"))  # the writer takes it and waits on the gate
     for i in range(20):
@@ -284,4 +284,4 @@ def test_recorder_drops_features_that_waited_too_long_and_caps_its_keys(tmp_path
     gate.set()
     rec.stop()
     st = rec.status()
-    assert st.dropped == 20 and st.dropped_features == 20 and st.written == 1  # the 4 stale features too
+    assert st.dropped == 20 and st.dropped_raw == 20 and st.written == 1  # the 4 stale features too
