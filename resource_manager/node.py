@@ -32,15 +32,11 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from common.clock import NtpClock
 from common.codec import decode, encode
 from common.errors import ConfigError, SchemaError
-from common.geometry import wrap_angle
 from common.keys import Keys
-from common.schema import MAX_SENSORS, Features, ManagerStatus, Pose, PtzReply, PtzRequest, PtzState, SensorInfo, Track
-from common.schema import PoseEstimate as WirePoseEstimate
+from common.schema import MAX_SENSORS, Features, PtzReply, PtzRequest, PtzState, SensorInfo, Track
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
@@ -49,6 +45,7 @@ from resource_manager.ingest.gate import SenderGate, sender_in_key
 from resource_manager.ingest.infos import InfoGate
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.serve.ptz import PtzAnswer, PtzAsk
+from resource_manager.serve.status import InboxCounts, manager_status
 
 __all__ = ["ManagerNode", "run"]
 
@@ -354,40 +351,21 @@ class ManagerNode:
         return result
 
     def status(self, result: TickResult | None, period_s: float) -> None:
-        ms = np.asarray(self.tick_ms or [0.0])
-        c = result.counters if result is not None else None
         inboxes = (self.features, self.infos, self.ptz_states)
-        refusals = self.gate.refusals
-        self.status_seq += 1
-        msg = ManagerStatus(
-            manager_id=self.mid,
-            seq=self.status_seq,
-            stamp_ns=self.clock.now_ns(),
-            tick_ms=float(ms.mean()),
-            tick_p99_ms=float(np.percentile(ms, 99)),
-            tick_rate_hz=len(self.tick_ms) / period_s,
-            sensors_in_use=(c.sensors_in_use if c else [])[:64],
-            sensors_known=(c.sensors_known if c else [])[:64],
-            sensors_without_pose=(c.sensors_without_pose if c else [])[:64],
-            tracks=len(result.trackset.tracks) if result else 0,
+        counts = InboxCounts(
             decode_errors=sum(i.counters.decode_errors for i in inboxes) + self.query_errors,
-            late_msgs=c.late if c else 0,
-            duplicate_msgs=c.duplicate if c else 0,
-            out_of_order_msgs=c.out_of_order if c else 0,
-            dropped_msgs=sum(i.counters.dropped for i in inboxes) + (c.dropped if c else 0),
-            sensors_absent=(c.sensors_absent if c else [])[:64],
-            poses=[
-                WirePoseEstimate(
-                    sensor_id=p.sensor_id,
-                    pose=Pose(x_m=p.x_m, y_m=p.y_m, z_m=p.z_m, yaw_rad=wrap_angle(p.yaw_rad)),
-                    source=p.source,
-                    sigma_m=p.sigma_xy_m,
-                )
-                for p in (c.poses if c else ())[:64]
-            ],
-            sensors_expected=self.gate.expected[:MAX_SENSORS],
-            refused_msgs=refusals.total,
-            refused=refusals.top(MAX_SENSORS),
+            dropped=sum(i.counters.dropped for i in inboxes),
+        )
+        self.status_seq += 1
+        msg = manager_status(
+            self.mid,
+            self.status_seq,
+            self.clock.now_ns(),
+            tick_ms=self.tick_ms,
+            period_s=period_s,
+            result=result,
+            inboxes=counts,
+            gate=self.gate,
             refused_partial=self.census is not None and self.census.partial,
         )
         self.pub_status.put(msg)
