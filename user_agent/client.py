@@ -84,6 +84,19 @@ class ManagerView:
     status: ManagerStatus | None
 
 
+MAX_KEPT = 256
+"""Most senders an agent keeps the latest message of, per kind: a flood of fresh ids cannot grow its memory (the
+least recently heard one goes)."""
+
+
+def _keep(table: dict[str, Any], key: str, value: Any) -> None:
+    """``table[key] = value``, most recent last; beyond MAX_KEPT keys the least recently heard goes."""
+    table.pop(key, None)
+    if len(table) >= MAX_KEPT:
+        del table[next(iter(table))]
+    table[key] = value
+
+
 class Subscription:
     """A TrackSet callback; :meth:`close` stops it."""
 
@@ -204,20 +217,22 @@ class AgentClient:
                 for r in sets:
                     old = self._tracksets.get(r.msg.manager_id)
                     if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
-                        self._tracksets[r.msg.manager_id] = r.msg
-                    self._heard[r.msg.manager_id] = time.monotonic()
+                        _keep(self._tracksets, r.msg.manager_id, r.msg)
+                    _keep(self._heard, r.msg.manager_id, time.monotonic())
                 for s in self._in_status.drain():
-                    self._node_status[s.msg.sensor_id] = s.msg
+                    if s.key == self.keys.sensor_status(s.msg.sensor_id):
+                        _keep(self._node_status, s.msg.sensor_id, s.msg)
                 for m in self._in_mgr.drain():
-                    self._mgr_status[m.msg.manager_id] = m.msg
+                    if m.key == self.keys.manager_status(m.msg.manager_id):
+                        _keep(self._mgr_status, m.msg.manager_id, m.msg)
                 for p in self._in_plans.drain():
-                    self._plans[p.msg.sensor_id] = p.msg
+                    _keep(self._plans, p.msg.sensor_id, p.msg)
                 for c in self._in_pairs.drain():
-                    self._pairs[c.msg.manager_id] = c.msg
+                    _keep(self._pairs, c.msg.manager_id, c.msg)
                 for key, data in self._in_infos.drain_raw():
                     info = self._in_infos.decode(key, data)
                     if info is not None and key == self.keys.sensor_info(info.sensor_id):
-                        self._infos[info.sensor_id] = info
+                        _keep(self._infos, info.sensor_id, info)
                 subs = list(self._subs)
                 self._changed.notify_all()
             for r in sets:
