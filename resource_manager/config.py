@@ -111,6 +111,10 @@ class ManagerSection(ConfigStruct, frozen=True):
     old (older than ``latency_ms + stale_ms`` it is useless anyway) and never ahead by more than the hosts' NTP
     error. Raise it only for a node known to lag more; below ``latency_ms`` plus the delays it refuses real
     frames."""
+    max_lead_s: Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)] = 0.25
+    """...and those stamped more than this *ahead* of it: nothing is captured in the future, so this is only the
+    hosts' NTP error (ms on a LAN). Forged frames stamped just ahead would stand in for the real ones in
+    alignment for that long after a flood stops."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes

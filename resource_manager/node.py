@@ -71,7 +71,8 @@ class ManagerNode:
         self.shutdown = shutdown
         self.keys = Keys(cfg.manager.prefix)
         self.mid = cfg.manager.id
-        self.gate = SenderGate.of(cfg.manager.sensors, int(cfg.manager.max_skew_s * 1e9))
+        m = cfg.manager
+        self.gate = SenderGate.of(m.sensors, int(m.max_skew_s * 1e9), int(m.max_lead_s * 1e9))
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)

@@ -9,9 +9,11 @@ Three checks, in the order a message meets them:
    that speaks for another sender is refused, so a certificate that may only
    publish its own keys cannot file data under another sensor's id;
 3. *clock*: Features stamped further than ``max_skew_ns`` from the manager's
-   own NTP-corrected clock are refused and never buffered, so a frame from 2262
-   cannot become a sensor's "newest frame" and one from 1970 cannot restart its
-   buffer.
+   own NTP-corrected clock, or more than ``max_lead_ns`` ahead of it (nothing is
+   captured in the future: only the hosts' NTP error), are refused and never
+   buffered, so a frame from 2262 cannot become a sensor's "newest frame", one
+   from 1970 cannot restart its buffer, and forged frames stamped just ahead
+   cannot stand in for the real ones after a flood.
 
 Every refusal is counted per sender id for ManagerStatus. The counts are kept
 for at most ``max_senders`` ids (a flood of fresh ids cannot grow memory), the
@@ -88,16 +90,19 @@ class SenderGate:
     Args:
         sensors: the sensor ids to fuse; one entry ``"*"`` accepts any sensor.
         max_skew_ns: Features stamped further than this from the manager's clock are refused.
+        max_lead_ns: ...and those stamped more than this ahead of it.
     """
 
     sensors: frozenset[str]
     max_skew_ns: int
+    max_lead_ns: int
     refusals: RefusalCounter = field(default_factory=RefusalCounter)
 
     @classmethod
-    def of(cls, sensors: Iterable[str], max_skew_ns: int) -> SenderGate:
+    def of(cls, sensors: Iterable[str], max_skew_ns: int, max_lead_ns: int | None = None) -> SenderGate:
         listed = frozenset(sensors)
-        return cls(listed, max_skew_ns, RefusalCounter(reserved=listed))
+        lead = max_skew_ns if max_lead_ns is None else min(max_lead_ns, max_skew_ns)
+        return cls(listed, max_skew_ns, lead, RefusalCounter(reserved=listed))
 
     @property
     def any_sensor(self) -> bool:
@@ -120,7 +125,8 @@ class SenderGate:
         if msg.sensor_id != key_id:
             self.refusals.add(key_id, "wrong_id")
             return False
-        if abs(msg.stamp_ns - now_ns) > self.max_skew_ns:
+        ahead = msg.stamp_ns - now_ns
+        if ahead > self.max_lead_ns or -ahead > self.max_skew_ns:
             self.refusals.add(key_id, "skewed")
             return False
         return True

@@ -15,6 +15,7 @@ from tests.unit.resource_manager.synth import Cam, info_for
 
 NOW = 1_800_000_000_000_000_000
 SKEW = 5_000_000_000
+LEAD = 250_000_000
 
 
 def feat(sid: str, stamp_ns: int = NOW) -> Features:
@@ -36,14 +37,15 @@ def test_sender_in_key(key: str, sid: str) -> None:
 
 
 def test_gate_lists_refuses_and_counts_by_reason() -> None:
-    gate = SenderGate.of(["pano1", "pano2"], SKEW)
+    gate = SenderGate.of(["pano1", "pano2"], SKEW, LEAD)
     assert gate.allows("pano1") and not gate.allows("evil") and gate.expected == ["pano1", "pano2"]
     gate.refuse_unlisted("evil", 40)
     assert gate.features("pano1", feat("pano1"), NOW)
     assert not gate.features("pano2", feat("pano1"), NOW)  # pano1's frame on pano2's key
-    for stamp in (0, 2**63 - 1, NOW + SKEW + 1, NOW - SKEW - 1):  # 1970, 2262, just outside the skew
+    for stamp in (0, 2**63 - 1, NOW + LEAD + 1, NOW - SKEW - 1):  # 1970, 2262, just ahead, just too old
         assert not gate.features("pano1", feat("pano1", stamp), NOW)
     assert gate.features("pano1", feat("pano1", NOW - SKEW), NOW)
+    assert gate.features("pano1", feat("pano1", NOW + LEAD), NOW)
     state = PtzState(sensor_id="pano1", seq=0, stamp_ns=0, pan_rad=0.0, tilt_rad=0.0, zoom=1.0)
     assert gate.same_sender("pano1", state) and not gate.same_sender("pano2", state)
     assert gate.same_agent("a1", "a1") and not gate.same_agent("a2", "a1")
