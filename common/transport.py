@@ -278,9 +278,10 @@ class KeyCensus:
     """Counts samples on a wildcard whose key chunk after ``head`` is not in ``known``, by that chunk.
 
     It only counts (no copy, no decode). A sender that floods faster than
-    ``max_rate_hz`` would cost the process a core: the census then stops
-    listening for ``pause_s`` (the caller's :meth:`tick` undeclares it) and
-    :attr:`partial` says its counts are lower bounds from then on.
+    ``max_rate_hz`` (over ``window_s``) would cost the process a core: the
+    census then stops listening for ``pause_s`` (the caller's :meth:`tick`
+    undeclares it) and :attr:`partial` says its counts are lower bounds from
+    then on.
     """
 
     def __init__(
@@ -293,6 +294,7 @@ class KeyCensus:
         max_rate_hz: float = 2000.0,
         pause_s: float = 5.0,
         max_ids: int = 1024,
+        window_s: float = 0.25,
     ) -> None:
         self._session = session
         self._key_expr = key_expr
@@ -301,6 +303,7 @@ class KeyCensus:
         self._max_rate_hz = max_rate_hz
         self._pause_s = pause_s
         self._max_ids = max_ids
+        self._window_s = window_s
         self._lock = threading.Lock()
         self._new: dict[str, int] = {}
         self._window = 0
@@ -347,7 +350,7 @@ class KeyCensus:
                 self._declare()
             return
         elapsed = now - self._window_t
-        if elapsed < 1.0:
+        if elapsed < self._window_s:
             return
         with self._lock:
             rate = self._window / elapsed

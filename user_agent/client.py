@@ -31,7 +31,7 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -125,6 +125,8 @@ class AgentClient:
         prefix: the site's key prefix.
         agent_id: announced as a liveliness token ``{root}/agent/{id}`` and sent
             with PTZ requests (default ``agent-<pid>``).
+        sensors: follow only these sensors' statuses and SensorInfo (None: every sensor). An agent that knows
+            its site's sensors (the demo) then receives nothing of what others publish under other ids.
     """
 
     def __init__(
@@ -135,6 +137,7 @@ class AgentClient:
         connect: list[str] | None = None,
         prefix: str = DEFAULT_PREFIX,
         agent_id: str | None = None,
+        sensors: Sequence[str] | None = None,
     ) -> None:
         self.keys = Keys(prefix)
         self.agent_id = validate_id(agent_id or f"agent-{os.getpid()}", "agent id")
@@ -161,11 +164,14 @@ class AgentClient:
         try:
             self._token = session.liveliness().declare_token(self.keys.agent(self.agent_id))
             self._in_tracks = Inbox(session, self.keys.tracks(), TrackSet, capacity=256)
-            self._in_status = Inbox(session, self.keys.all_sensor_status, NodeStatus, capacity=256)
+            k = self.keys
+            status_keys = [k.all_sensor_status] if sensors is None else [k.sensor_status(s) for s in sensors]
+            info_keys = [k.all_sensor_info] if sensors is None else [k.sensor_info(s) for s in sensors]
+            self._in_status = KeyedInbox(session, status_keys, NodeStatus, capacity=4)
             self._in_mgr = Inbox(session, self.keys.all_manager_status, ManagerStatus, capacity=64)
             self._in_plans = Inbox(session, self.keys.all_plans, ViewPlan, capacity=64)
             self._in_pairs = Inbox(session, self.keys.all_pairs, PairChoice, capacity=64)
-            self._in_infos = KeyedInbox(session, [self.keys.all_sensor_info], SensorInfo, capacity=2, advanced=True)
+            self._in_infos = KeyedInbox(session, info_keys, SensorInfo, capacity=2, advanced=True)
         except Exception:
             self._stack.close()
             raise
@@ -219,9 +225,10 @@ class AgentClient:
                     if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
                         _keep(self._tracksets, r.msg.manager_id, r.msg)
                     _keep(self._heard, r.msg.manager_id, time.monotonic())
-                for s in self._in_status.drain():
-                    if s.key == self.keys.sensor_status(s.msg.sensor_id):
-                        _keep(self._node_status, s.msg.sensor_id, s.msg)
+                for key, data in self._in_status.drain_raw():
+                    st = self._in_status.decode(key, data)
+                    if st is not None and key == self.keys.sensor_status(st.sensor_id):
+                        _keep(self._node_status, st.sensor_id, st)
                 for m in self._in_mgr.drain():
                     if m.key == self.keys.manager_status(m.msg.manager_id):
                         _keep(self._mgr_status, m.msg.manager_id, m.msg)

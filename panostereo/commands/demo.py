@@ -178,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
             sensors_started = sorted(i for c, i in ids.values() if c == "node")
             recorder = Recorder(session, recorded_keys(keys, sensors_started), McapSink(recording, meta))
             sink = recorder.sink
-            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo")
+            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo", sensors=sensors_started)
             try:
                 procs.start()
                 sensors = {i for c, i in ids.values() if c == "node"}
