@@ -392,8 +392,9 @@ def _warnings(lost: dict[str, Any], strays: list[str], refused: dict[str, int], 
     elif lost["unscored_s"]:
         out.append(f"{lost['unscored_s']} s of the run's tracks never reached the recording and were not scored")
     if strays:
+        shown = ", ".join(strays[:10]) + (f" and {len(strays) - 10} more" if len(strays) > 10 else "")
         out.append(
-            f"sensors this demo did not start were on its network: {', '.join(strays)} "
+            f"sensors this demo did not start were on its network: {shown} "
             f"(the manager fuses only {', '.join(sorted(started))})"
         )
     mine = {sid: n for sid, n in refused.items() if sid in started}
