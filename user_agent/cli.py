@@ -221,12 +221,12 @@ def _record(args: argparse.Namespace) -> int:
             while time.monotonic() < end and not shutdown.sleep(min(0.2, max(0.0, end - time.monotonic()))):
                 if time.monotonic() >= next_note:
                     next_note += 5.0
-                    print(_recorder_note(rec.status()), file=sys.stderr, flush=True)
+                    print(_recorder_note(rec.status(), rec.top_drops()), file=sys.stderr, flush=True)
         finally:
             token.undeclare()
             rec.stop()
     st = rec.status()
-    print(f"recorded {st.written} samples into {args.out}; {_recorder_note(st)}", file=sys.stderr)
+    print(f"recorded {st.written} samples into {args.out}; {_recorder_note(st, rec.top_drops())}", file=sys.stderr)
     return 0
 
 
@@ -246,9 +246,10 @@ def _record_keys(keys: Keys, patterns: list[str] | None) -> list[str]:
     return out
 
 
-def _recorder_note(st: Any) -> str:
+def _recorder_note(st: Any, top: list[tuple[str, int]]) -> str:
     lost = f"dropped {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing dropped"
-    return f"recorder: {st.written} written, {lost}, {st.lag_s:.1f} s behind live (worst {st.max_lag_s:.1f} s)"
+    most = "; most on " + ", ".join(f"{k or '(other keys)'} {n}" for k, n in top) if top else ""
+    return f"recorder: {st.written} written, {lost}, {st.lag_s:.1f} s behind live (worst {st.max_lag_s:.1f} s){most}"
 
 
 def _replay(args: argparse.Namespace) -> int:

@@ -332,6 +332,11 @@ class Recorder:
     def messages(self) -> int:
         return self.sink.messages
 
+    def top_drops(self, n: int = 3) -> list[tuple[str, int]]:
+        """The keys that lost the most samples so far ("" for keys beyond ``max_keys``), most first."""
+        with self._cond:
+            return sorted(self.drops.items(), key=lambda kv: (-kv[1], kv[0]))[:n]
+
     def status(self) -> RecorderStatus:
         """What it wrote and lost so far, and how far behind live it is now."""
         now = time.time_ns()

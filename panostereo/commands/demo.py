@@ -121,7 +121,9 @@ def recorded_keys(keys: Keys, sensors: list[str]) -> list[str]:
 def _recorder_line(recorder: Any) -> str:
     st = recorder.status()
     lost = f"LOST {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing lost"
-    return f"recording: {st.written} samples, {lost}, {st.lag_s:.1f} s behind (worst {st.max_lag_s:.1f} s)"
+    top = recorder.top_drops()
+    most = "; most on " + ", ".join(f"{k or '(other keys)'} {n}" for k, n in top) if top else ""
+    return f"recording: {st.written} samples, {lost}, {st.lag_s:.1f} s behind (worst {st.max_lag_s:.1f} s){most}"
 
 
 def run(args: argparse.Namespace) -> int:

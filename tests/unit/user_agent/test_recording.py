@@ -256,6 +256,7 @@ def test_recorder_drops_features_first_counts_every_drop_per_key_and_writes_the_
     st = rec.status()
     assert st.dropped == 100 + 10 and st.dropped_raw == 100  # 90 refused at the door, 10 pushed out; 10 tracks
     assert rec.drops == {K.sensor_features("pano1"): 100, K.tracks(): 10}
+    assert rec.top_drops(1) == [(K.sensor_features("pano1"), 100)]  # what the record/demo screens name
     time.sleep(0.3)
     gate.set()
     rec.stop()
