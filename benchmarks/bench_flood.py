@@ -148,7 +148,7 @@ def run(
     schedule: Schedule | None = None,
     clean: bool = False,
     record: bool = True,
-    start_world_s: float = 30.0,
+    start_world_s: float | None = 30.0,
     block: bool = False,
 ) -> dict[str, Any]:
     """Run the schedule against a fresh site; return the figures (see the module docstring)."""
@@ -185,8 +185,9 @@ def run(
                 time.sleep(1.0)
             # The schedule starts at a fixed world time (modulo the people's loop), so a clean run of the same
             # seed watches the same people at the same instants.
+            # None: a second from now (a run compared only with its own "before").
             t_world = (time.time_ns() - site.epoch_ns) / 1e9
-            start_world = start_world_s
+            start_world = t_world + 1.0 if start_world_s is None else start_world_s
             while start_world < t_world + 1.0:
                 start_world += LOOP_S
             time.sleep(max(0.0, start_world - t_world))
