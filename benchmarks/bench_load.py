@@ -436,9 +436,12 @@ def _wait_port(port: int, timeout_s: float) -> None:
     raise SystemExit(f"bench_load: router on port {port} did not come up within {timeout_s} s")
 
 
-def manager_config(path: Path, prefix: str, endpoint: str, rate_hz: float, state_dir: Path) -> float:
-    """Write the manager's config; return its alignment wait (ms)."""
+def manager_config(
+    path: Path, prefix: str, endpoint: str, rate_hz: float, state_dir: Path, sensors: list[str]
+) -> float:
+    """Write the manager's config (it fuses ``sensors``); return its alignment wait (ms)."""
     latency_ms = 200.0
+    listed = ", ".join(f'"{sid}"' for sid in sensors)
     path.write_text(
         "[manager]\n"
         'id = "bench"\n'
@@ -446,6 +449,7 @@ def manager_config(path: Path, prefix: str, endpoint: str, rate_hz: float, state
         f"rate_hz = {rate_hz}\n"
         f"latency_ms = {latency_ms}\n"
         f'state_dir = "{state_dir}"\n'
+        f"sensors = [{listed}]\n"
         "[zenoh]\n"
         'mode = "client"\n'
         f'connect = ["{endpoint}"]\n'
@@ -494,7 +498,8 @@ def run_bench(args: argparse.Namespace) -> dict[str, Any]:
         start("router", [py, "-m", "panostereo", "router", "--listen", endpoint])
         _wait_port(port, 20.0)
         mgr_cfg = tmp / "manager.toml"
-        wait_ms = manager_config(mgr_cfg, prefix, endpoint, args.rate_hz, tmp / "state")
+        cams, _ = make_room(args.sensors, args.people, args.seed)
+        wait_ms = manager_config(mgr_cfg, prefix, endpoint, args.rate_hz, tmp / "state", [c.sensor_id for c in cams])
         mgr = start("manager", [py, "-m", "panostereo", "manager", "--config", str(mgr_cfg), "--log-level", "WARNING"])
         with open_session(SessionSettings(mode="client", connect=[endpoint])) as s:
 

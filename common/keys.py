@@ -16,7 +16,8 @@ key                                    kind                         payload
 ``{root}/track/{track_id}``            put per update + queryable   Track
 ``{root}/plan/{sensor_id}``            put                          ViewPlan
 ``{root}/manager/{id}/pairs``          put per tick                 PairChoice
-``{root}/manager/{id}/ptz``            queryable                    PtzRequest -> PtzReply
+``{root}/manager/{id}/ptz/{agent}``    queryable                    PtzRequest -> PtzReply
+``{root}/manager/{id}/ptz``            queryable (superseded)       an error naming the key above
 ``{root}/manager/{id}/status``         put 1 Hz                     ManagerStatus
 ``{root}/agent/{id}``                  liveliness token             presence
 =====================================  ===========================  ==============
@@ -24,6 +25,10 @@ key                                    kind                         payload
 ``get {root}/track/{track_id}`` answers the latest Track;
 ``get {root}/track/{track_id}?history=SECONDS`` answers the path as one Track
 reply per state, oldest first.
+
+A PTZ request names its agent twice, in the key and in ``PtzRequest.agent_id``:
+the manager refuses one where they differ, and a secure site's access rules
+let each agent's certificate query only its own ``ptz/{agent}`` key.
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ KeyKind = Literal[
     "manager",
     "manager_pairs",
     "manager_ptz",
+    "ptz_request",
     "manager_status",
     "tracks",
     "track",
@@ -80,7 +86,10 @@ class ParsedKey:
 
     kind: KeyKind
     ident: str = ""
-    """The sensor, manager, agent or track id the key is about ("" for ``tracks``)."""
+    """The sensor, manager, agent or track id the key is about ("" for ``tracks``); for ``ptz_request``, the
+    agent that speaks."""
+    parent: str = ""
+    """The manager a ``ptz_request`` key is addressed to ("" for every other kind)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,6 +136,15 @@ class Keys:
 
     def manager_ptz(self, manager_id: str) -> str:
         return f"{self.manager(manager_id)}/ptz"
+
+    def ptz_request(self, manager_id: str, agent_id: str) -> str:
+        """Where agent ``agent_id`` asks manager ``manager_id`` for PTZ views: the agent is in the key, so
+        the access rules can let each agent speak only for itself."""
+        return f"{self.manager_ptz(manager_id)}/{validate_id(agent_id, 'agent id')}"
+
+    def ptz_requests(self, manager_id: str) -> str:
+        """Every agent's PTZ requests to one manager (the manager's queryable)."""
+        return f"{self.manager_ptz(manager_id)}/*"
 
     def manager_status(self, manager_id: str) -> str:
         return f"{self.manager(manager_id)}/status"
@@ -189,6 +207,10 @@ class Keys:
         return f"{self.root}/manager/*/ptz"
 
     @property
+    def all_ptz_requests(self) -> str:
+        return f"{self.root}/manager/*/ptz/*"
+
+    @property
     def all_tracks(self) -> str:
         """Every single-track key (put per update, and the queryable)."""
         return f"{self.root}/track/*"
@@ -241,6 +263,9 @@ class Keys:
                 kind, ident = "manager_pairs", mid
             case ["manager", mid, "ptz"]:
                 kind, ident = "manager_ptz", mid
+            case ["manager", mid, "ptz", aid]:
+                validate_id(mid, f"manager id in key {key!r}")
+                return ParsedKey(kind="ptz_request", ident=validate_id(aid, f"id in key {key!r}"), parent=mid)
             case ["manager", mid, "status"]:
                 kind, ident = "manager_status", mid
         if kind is None:

@@ -53,6 +53,7 @@ __all__ = [
     "PtzReply",
     "PtzRequest",
     "PtzState",
+    "Refusal",
     "SensorInfo",
     "Sighting",
     "Track",
@@ -415,6 +416,19 @@ class PoseEstimate(_Msg, frozen=True, tag="pano.PoseEstimate"):
     """1-sigma position uncertainty (0 for surveyed poses)."""
 
 
+class Refusal(_Msg, frozen=True, tag="pano.Refusal"):
+    """Messages a manager refused from one sender id (the id in their key), by reason."""
+
+    sender_id: Id
+    """The sensor (or agent) id the refused messages' keys named."""
+    unlisted: Count = 0
+    """Not a sensor this manager fuses: refused by key, before decoding."""
+    wrong_id: Count = 0
+    """The payload named another sender than its key."""
+    skewed: Count = 0
+    """Features stamped further from the manager's clock than its ``max_skew_s``: never buffered."""
+
+
 class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """The resource manager's health, published at 1 Hz."""
 
@@ -438,6 +452,14 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """Known sensors whose liveliness token is gone."""
     poses: Annotated[list[PoseEstimate], msgspec.Meta(max_length=MAX_SENSORS)] = []
     """The pose of every sensor the manager currently knows where it is."""
+    sensors_expected: IdList = []
+    """The sensors this manager fuses (its site's, or ``[manager] sensors``); empty when it accepts any."""
+    refused_msgs: Count = 0
+    """Every message refused so far (unlisted sender, payload id unlike its key, stamp off the clock)."""
+    refused: Annotated[list[Refusal], msgspec.Meta(max_length=MAX_SENSORS)] = []
+    """Refused messages per sender id, the most refused first."""
+    refused_partial: bool = False
+    """True when unlisted senders flooded faster than the manager counts them: their counts are lower bounds."""
 
 
 # ---------------------------------------------------------------------------
@@ -455,6 +477,8 @@ class PtzRequest(_Msg, frozen=True, tag="pano.PtzRequest"):
     track_id: Id
     priority: Priority = 0
     """Higher wins when several agents want the same camera."""
+    lease_s: Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)] = 0.0
+    """How long the hold lasts unless renewed (an ``acquire`` again); 0: the manager's ``[ptz] lease_s``."""
 
 
 class PtzReply(_Msg, frozen=True, tag="pano.PtzReply"):
@@ -467,6 +491,9 @@ class PtzReply(_Msg, frozen=True, tag="pano.PtzReply"):
     track_id: Id
     sensor_id: OptId = ""
     reason: Text = ""
+    lease_s: Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)] = 0.0
+    """An acquired hold ends this long after the request unless renewed, or when the agent's liveliness
+    token goes; 0 when nothing is held."""
 
 
 MESSAGE_TYPES: Final[tuple[type[_Msg], ...]] = (

@@ -97,17 +97,26 @@ def add_session_args(parser: argparse.ArgumentParser) -> None:
 
 
 def settings_from_args(args: argparse.Namespace, base: SessionSettings | None = None) -> SessionSettings:
-    """Overlay command-line flags on ``base`` (from the process config)."""
+    """Overlay command-line flags on ``base`` (from the process config).
+
+    Precedence: flags, then a ``--zenoh-config`` file given on the command line, then the process config's
+    ``[zenoh]`` table. So ``--zenoh-config`` replaces the table's ``connect``/``listen`` (a TLS client file
+    names its router's ``tls/`` endpoint; the table's ``tcp/`` one would override it and time out) unless
+    ``--connect``/``--listen`` are given too.
+    """
     s = base or SessionSettings()
     changes: dict[str, Any] = {}
+    if getattr(args, "zenoh_config", None):
+        changes["config_file"] = args.zenoh_config
+        if s.config_file != args.zenoh_config:
+            changes["connect"] = []
+            changes["listen"] = []
     if getattr(args, "mode", None):
         changes["mode"] = args.mode
     if getattr(args, "connect", None):
         changes["connect"] = list(args.connect)
     if getattr(args, "listen", None):
         changes["listen"] = list(args.listen)
-    if getattr(args, "zenoh_config", None):
-        changes["config_file"] = args.zenoh_config
     if getattr(args, "multicast_scouting", None):
         changes["multicast_scouting"] = True
     return msgspec.structs.replace(s, **changes) if changes else s

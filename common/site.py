@@ -40,6 +40,7 @@ Example (abridged)::
 from __future__ import annotations
 
 import math
+import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -58,6 +59,8 @@ __all__ = [
     "SiteSection",
     "WorldSpec",
     "load_site",
+    "process_ids",
+    "site_sensor_ids",
 ]
 
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
@@ -249,3 +252,29 @@ def load_site(path: str | Path) -> SiteConfig:
     if not 0.5 <= lo <= hi <= 2.5:
         raise ConfigError(f"{path}: world.person_height_m must be [low, high] within 0.5-2.5 m, got {[lo, hi]}")
     return msgspec.structs.replace(site, path=str(Path(path)))
+
+
+def process_ids(site: SiteConfig) -> dict[str, tuple[str, str]]:
+    """Process name -> (command, the sensor/manager/agent id its config declares; the name if none).
+
+    Raises:
+        ConfigError: a process config is missing or not TOML.
+    """
+    out: dict[str, tuple[str, str]] = {}
+    for proc in site.process:
+        path = site.resolve(proc.config)
+        try:
+            raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError) as err:
+            raise ConfigError(f"{path}: cannot read process config: {err}") from err
+        ident = str(raw.get(proc.command, {}).get("id", proc.name))
+        out[proc.name] = (proc.command, ident)
+    return out
+
+
+def site_sensor_ids(site: SiteConfig) -> list[str]:
+    """The ids of the sensor nodes the site runs (its ``[[process]]`` with ``command = "node"``), sorted.
+
+    These are the sensors a site's manager fuses; whatever else publishes under the site's prefix is refused.
+    """
+    return sorted({ident for command, ident in process_ids(site).values() if command == "node"})

@@ -28,7 +28,7 @@ from common.codec import MAX_PAYLOAD_BYTES, decode, encode
 from common.errors import SchemaError
 from common.session import MSGPACK
 
-__all__ = ["Counters", "Inbox", "Received", "TypedPublisher"]
+__all__ = ["Counters", "Inbox", "KeyCensus", "KeyedInbox", "Received", "TypedPublisher"]
 
 logger = logging.getLogger(__name__)
 
@@ -171,6 +171,210 @@ class Inbox(Generic[T]):
             logger.debug("undeclare %s: %s", self.key_expr, err)
 
 
+class KeyedInbox(Generic[T]):
+    """Subscribers on several key expressions feeding one bounded buffer *per concrete key*.
+
+    As :class:`Inbox`, the zenoh callback only copies bytes, and decoding is the
+    consumer's (:meth:`drain_raw` then :meth:`decode`), so a consumer can refuse
+    a sample by its key before paying for its decoding. Each concrete key has its
+    own ``capacity`` (oldest dropped, counted): a sender flooding one key pushes
+    out only that key's samples. At most ``max_keys`` concrete keys are held
+    (a wildcard flooded with fresh keys cannot grow memory); samples of further
+    keys are dropped and counted. ``advanced`` makes each subscriber a zenoh.ext
+    AdvancedSubscriber that also fetches the publishers' cached samples
+    (history) when it starts and when a publisher appears.
+    """
+
+    def __init__(
+        self,
+        session: Any,
+        key_exprs: list[str],
+        msg_type: type[T],
+        *,
+        capacity: int = 16,
+        max_keys: int = 256,
+        advanced: bool = False,
+        log_every_s: float = 5.0,
+    ) -> None:
+        self.msg_type = msg_type
+        self.counters = Counters()
+        self._capacity = capacity
+        self._max_keys = max_keys
+        self._bufs: dict[str, deque[bytes]] = {}
+        self._lock = threading.Lock()
+        self._log_every_s = log_every_s
+        self._last_log = -math.inf
+        self._subs: list[Any] = []
+        try:
+            for ke in key_exprs:
+                if advanced:
+                    from zenoh.ext import HistoryConfig, declare_advanced_subscriber
+
+                    history = HistoryConfig(detect_late_publishers=True, max_samples=1)
+                    self._subs.append(declare_advanced_subscriber(session, ke, self._on_sample, history=history))
+                else:
+                    self._subs.append(session.declare_subscriber(ke, self._on_sample))
+        except Exception:
+            self.close()
+            raise
+
+    def _on_sample(self, sample: Any) -> None:
+        # zenoh's callback thread: copy and enqueue only.
+        if sample.kind == zenoh.SampleKind.DELETE:
+            with self._lock:
+                self.counters.deletes += 1
+            return
+        big = len(sample.payload) > MAX_PAYLOAD_BYTES
+        key = str(sample.key_expr)
+        data = b"" if big else sample.payload.to_bytes()
+        with self._lock:
+            self.counters.received += 1
+            if big:  # refused before copying: oversize payloads must not grow memory
+                self.counters.decode_errors += 1
+                return
+            buf = self._bufs.get(key)
+            if buf is None:
+                if len(self._bufs) >= self._max_keys:
+                    self.counters.dropped += 1
+                    return
+                buf = self._bufs[key] = deque()
+            if len(buf) >= self._capacity:
+                buf.popleft()
+                self.counters.dropped += 1
+            buf.append(data)
+
+    def drain_raw(self) -> list[tuple[str, bytes]]:
+        """(key, payload) of everything buffered, each key's in arrival order (never blocks)."""
+        with self._lock:
+            bufs, self._bufs = self._bufs, {}
+        return [(key, data) for key, buf in bufs.items() for data in buf]
+
+    def decode(self, key: str, data: bytes) -> T | None:
+        """Decode one payload; a bad one is counted, logged (rate-limited) and None."""
+        try:
+            msg = decode(data, self.msg_type)
+        except SchemaError as err:
+            with self._lock:
+                self.counters.decode_errors += 1
+            now = time.monotonic()
+            if now - self._last_log >= self._log_every_s:
+                self._last_log = now
+                logger.warning("dropped bad payload on %s: %s", key, err)
+            return None
+        with self._lock:
+            self.counters.decoded += 1
+        return msg
+
+    def close(self) -> None:
+        for sub in self._subs:
+            try:
+                sub.undeclare()
+            except Exception as err:  # already closed with the session
+                logger.debug("undeclare: %s", err)
+        self._subs.clear()
+
+
+class KeyCensus:
+    """Counts samples on a wildcard whose key chunk after ``head`` is not in ``known``, by that chunk.
+
+    It only counts (no copy, no decode). A sender that floods faster than
+    ``max_rate_hz`` (over ``window_s``) would cost the process a core: the
+    census then stops listening for ``pause_s`` (the caller's :meth:`tick`
+    undeclares it) and :attr:`partial` says its counts are lower bounds from
+    then on.
+    """
+
+    def __init__(
+        self,
+        session: Any,
+        key_expr: str,
+        head: str,
+        known: frozenset[str],
+        *,
+        max_rate_hz: float = 2000.0,
+        pause_s: float = 5.0,
+        max_ids: int = 1024,
+        window_s: float = 0.25,
+    ) -> None:
+        self._session = session
+        self._key_expr = key_expr
+        self._head = head
+        self._known = known
+        self._max_rate_hz = max_rate_hz
+        self._pause_s = pause_s
+        self._max_ids = max_ids
+        self._window_s = window_s
+        self._lock = threading.Lock()
+        self._new: dict[str, int] = {}
+        self._window = 0
+        self._window_t = time.monotonic()
+        self._resume_t = 0.0
+        self.partial = False
+        self._sub: Any = None
+        self._declare()
+
+    def _declare(self) -> None:
+        self._sub = self._session.declare_subscriber(
+            self._key_expr, self._on_sample, allowed_origin=zenoh.Locality.REMOTE
+        )
+
+    def _on_sample(self, sample: Any) -> None:
+        # zenoh's callback thread: a string split and a dict increment.
+        key = str(sample.key_expr)
+        if not key.startswith(self._head):
+            return
+        rest = key[len(self._head) :]
+        cut = rest.find("/")
+        sid = rest if cut < 0 else rest[:cut]
+        if sid in self._known:
+            return
+        with self._lock:
+            self._window += 1
+            if sid in self._new or len(self._new) < self._max_ids:
+                self._new[sid] = self._new.get(sid, 0) + 1
+            else:
+                self._new[""] = self._new.get("", 0) + 1
+
+    def take(self) -> dict[str, int]:
+        """Counts since the last call, by sender chunk ("" for senders beyond ``max_ids``)."""
+        with self._lock:
+            out, self._new = self._new, {}
+        return out
+
+    def tick(self) -> None:
+        """Pause when flooded, resume after ``pause_s``; call it from the owner's loop (not zenoh's thread)."""
+        now = time.monotonic()
+        if self._sub is None:
+            if now >= self._resume_t:
+                self._window, self._window_t = 0, now
+                self._declare()
+            return
+        elapsed = now - self._window_t
+        if elapsed < self._window_s:
+            return
+        with self._lock:
+            rate = self._window / elapsed
+            self._window, self._window_t = 0, now
+        if rate > self._max_rate_hz:
+            logger.warning(
+                "unlisted senders on %s at %.0f msg/s: counting paused for %.0f s (counts are lower bounds)",
+                self._key_expr,
+                rate,
+                self._pause_s,
+            )
+            self.partial = True
+            self.close()
+            self._resume_t = now + self._pause_s
+
+    def close(self) -> None:
+        if self._sub is not None:
+            try:
+                self._sub.undeclare()
+            except Exception as err:
+                logger.debug("undeclare census: %s", err)
+            self._sub = None
+
+
 class TypedPublisher:
     """A zenoh publisher of one message type, with the msgpack encoding set.
 
@@ -185,6 +389,9 @@ class TypedPublisher:
             DROP (high-rate features, where freshness beats completeness).
         validate: check each message against its schema before sending
             (a decode of the encoded bytes: a few µs per message).
+        cache_samples: > 0 makes it a zenoh.ext AdvancedPublisher that keeps its last
+            samples for late joiners (AdvancedSubscriber history) and announces itself
+            (publisher detection); the session needs ``timestamping/enabled``.
     """
 
     def __init__(
@@ -196,6 +403,7 @@ class TypedPublisher:
         express: bool = True,
         validate: bool = True,
         log_every_s: float = 5.0,
+        cache_samples: int = 0,
     ) -> None:
         self.key = key
         self.sent = 0
@@ -204,12 +412,21 @@ class TypedPublisher:
         self._validate = validate
         self._log_every_s = log_every_s
         self._last_log = -math.inf
-        self._pub = session.declare_publisher(
-            key,
-            encoding=MSGPACK,
-            congestion_control=zenoh.CongestionControl.BLOCK if reliable_block else zenoh.CongestionControl.DROP,
-            express=express,
-        )
+        cc = zenoh.CongestionControl.BLOCK if reliable_block else zenoh.CongestionControl.DROP
+        if cache_samples > 0:
+            from zenoh.ext import CacheConfig, declare_advanced_publisher
+
+            self._pub = declare_advanced_publisher(
+                session,
+                key,
+                encoding=MSGPACK,
+                congestion_control=cc,
+                express=express,
+                cache=CacheConfig(max_samples=cache_samples),
+                publisher_detection=True,
+            )
+        else:
+            self._pub = session.declare_publisher(key, encoding=MSGPACK, congestion_control=cc, express=express)
 
     def put(self, msg: msgspec.Struct) -> bool:
         """Send ``msg``; returns False (and sends nothing) if it breaks its schema."""

@@ -19,7 +19,6 @@ import signal
 import subprocess
 import sys
 import time
-import tomllib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import IO, Any
 
 from common.errors import ConfigError
 from common.site import ProcessSpec, SiteConfig
+from common.site import process_ids as site_process_ids
 
 __all__ = [
     "EPOCH_ENV",
@@ -250,12 +250,15 @@ def router_plan(listen: list[str], python: str = sys.executable, log_path: Path 
     return ProcessPlan("router", argv, log_path=log_path)
 
 
-def _argv(proc: ProcessSpec, config: Path, python: str, connect: str | None) -> list[str]:
+def _argv(proc: ProcessSpec, config: Path, python: str, connect: str | None, site_path: str) -> list[str]:
     net = ["--connect", connect] if connect else []
     base = [python, "-m", "panostereo", proc.command]
     if proc.command == "agent":
         # agent ACTION [ACTION ARGS] --config FILE: the subcommand comes first.
         return [*base, *proc.args, "--config", str(config), *net]
+    if proc.command == "manager" and site_path:
+        # The site says which sensors its manager fuses: anything else under the prefix is refused.
+        net = [*net, "--site", str(Path(site_path).resolve())]
     return [*base, "--config", str(config), *net, *proc.args]
 
 
@@ -290,20 +293,10 @@ def site_plans(
         if not cfg.is_file():
             raise ConfigError(f"{site.path}: process {proc.name!r}: config {proc.config!r} not found ({cfg})")
         log = log_dir / f"{proc.name}.log" if log_dir is not None else None
-        plans.append(ProcessPlan(proc.name, _argv(proc, cfg, python, connect), dict(env or {}), log))
+        plans.append(ProcessPlan(proc.name, _argv(proc, cfg, python, connect, site.path), dict(env or {}), log))
     return plans
 
 
 def process_ids(site: SiteConfig) -> dict[str, tuple[str, str]]:
     """Process name -> (command, the sensor/manager/agent id its config declares)."""
-    table = {"node": "node", "manager": "manager", "agent": "agent"}
-    out: dict[str, tuple[str, str]] = {}
-    for proc in site.process:
-        path = site.resolve(proc.config)
-        try:
-            raw = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as err:
-            raise ConfigError(f"{path}: cannot read process config: {err}") from err
-        ident = str(raw.get(table[proc.command], {}).get("id", proc.name))
-        out[proc.name] = (proc.command, ident)
-    return out
+    return site_process_ids(site)

@@ -14,6 +14,7 @@ from pathlib import Path
 import msgspec
 
 from common.cli import add_logging_args, run_main, setup_logging
+from common.errors import ConfigError
 from common.session import add_session_args, settings_from_args
 
 __all__ = ["configure", "main", "run"]
@@ -28,6 +29,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="override [manager] state_dir (track log and id counter); else $PANOSTEREO_STATE_DIR/{id} if set",
     )
+    parser.add_argument(
+        "--site",
+        default=None,
+        metavar="FILE",
+        help="the site file: the manager fuses exactly its sensor nodes (replaces [manager] sensors)",
+    )
     add_session_args(parser)
 
 
@@ -38,6 +45,13 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = load_manager_config(args.config)
     manager = cfg.manager
+    if args.site:
+        from common.site import load_site, site_sensor_ids
+
+        sensors = site_sensor_ids(load_site(args.site))
+        if not sensors:
+            raise ConfigError(f"{args.site}: the site runs no sensor node, so its manager would fuse nothing")
+        manager = msgspec.structs.replace(manager, sensors=sensors)
     env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))

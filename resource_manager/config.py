@@ -101,6 +101,26 @@ class ManagerSection(ConfigStruct, frozen=True):
     status_period_s: Pos = 1.0
     default_bearing_sigma_deg: Pos = 0.2
     """Bearing error of a sensor whose SensorInfo has not arrived."""
+    sensors: list[str] = []
+    """The sensor ids this manager fuses; every other sensor's messages are refused by key, before decoding,
+    and counted (ManagerStatus.refused). Empty: the sensors of its site (``--site FILE``, which ``panostereo up``
+    and ``demo`` pass); a manager with neither refuses to start. ``["*"]``: any sensor (a lab bench only: any
+    client, or a stray camera sharing the router, then feeds the tracks)."""
+    max_skew_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 1.5
+    """Features stamped further than this from the manager's NTP-corrected clock are refused (counted per sensor
+    as clock skew) and never buffered: a frame from the future would become the sensor's newest, one from long
+    ago restart its buffer. An honest frame is at most ``latency_ms`` plus its node's processing and network delay
+    old (older than ``latency_ms + stale_ms`` it is useless anyway) and never ahead by more than the hosts' NTP
+    error. Raise it only for a node known to lag more; below ``latency_ms`` plus the delays it refuses real
+    frames."""
+    max_lead_s: Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)] = 0.25
+    """...and those stamped more than this *ahead* of it: nothing is captured in the future, so this is only the
+    hosts' NTP error (ms on a LAN). Forged frames stamped just ahead would stand in for the real ones in
+    alignment for that long after a flood stops."""
+    info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
+    """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
+    comes back): anything put under its id by another client is replaced within this long. A put that changes
+    a SensorInfo is never taken as such, only a reason to read it again."""
 
 
 class PoseOverride(ConfigStruct, frozen=True):
@@ -258,6 +278,10 @@ class PtzSection(ConfigStruct, frozen=True):
     max_zoom: Annotated[float, msgspec.Meta(ge=1.0, le=1000.0)] = 10.0
     min_tilt_deg: float = -80.0
     max_tilt_deg: float = 60.0
+    lease_s: Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)] = 30.0
+    """A PTZ hold ends this long after the agent's last request for it unless renewed (an agent that keeps a
+    view asks again every third of it), and at once when the agent's liveliness token goes. A request may ask
+    for a shorter lease, never a longer one."""
 
 
 class ManagerConfig(ConfigStruct, frozen=True):
@@ -287,6 +311,9 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     try:
         validate_id(cfg.manager.id, "manager.id")
         Keys(cfg.manager.prefix)
+        for i, sid in enumerate(cfg.manager.sensors):
+            if sid != "*":
+                validate_id(sid, f"manager.sensors[{i}]")
         for i, p in enumerate(cfg.pose):
             validate_id(p.id, f"pose[{i}].id")
     except ConfigError as err:
@@ -294,6 +321,10 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     room = cfg.planner.room
     if room and (len(room) != 4 or room[0] >= room[2] or room[1] >= room[3]):
         raise ConfigError(f"{source}: planner.room must be [x_min, y_min, x_max, y_max], got {cfg.planner.room!r}")
+    if "*" in cfg.manager.sensors and len(cfg.manager.sensors) > 1:
+        raise ConfigError(
+            f'{source}: manager.sensors is either ["*"] (any sensor) or a list of ids, got {cfg.manager.sensors!r}'
+        )
     ids = [p.id for p in cfg.pose]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{source}: pose ids must be unique, got {ids!r}")

@@ -45,7 +45,7 @@ from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
-from resource_manager.serve.ptz import PtzTarget
+from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.build import build_views
 
@@ -68,6 +68,10 @@ class Batch:
     ptz_states: Sequence[PtzState] = ()
     presence: Mapping[str, bool] = field(default_factory=dict)
     """Liveliness changes: sensor id -> alive."""
+    ptz_requests: Sequence[PtzAsk] = ()
+    """PTZ requests, answered in the tick (``Fusion.ptz_answers``): the allocation changes on one thread."""
+    agents: Mapping[str, bool] = field(default_factory=dict)
+    """Liveliness changes of user agents: agent id -> alive (a gone agent's PTZ holds end)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,6 +145,8 @@ class Fusion:
         self.skipped_ticks = 0
         self.last_poses: dict[str, PoseEstimate] = {}
         self.last_result: TickResult | None = None
+        self.ptz_answers: list[PtzAnswer] = []
+        """Answers to the batches' PTZ requests, for the shell to reply and clear."""
 
     # -- inputs ---------------------------------------------------------------
     def absorb(self, batch: Batch) -> None:
@@ -171,6 +177,13 @@ class Fusion:
                 self.ingest.counters.dropped += 1
                 continue
             self.ingest.add(f)
+        for aid, alive in batch.agents.items():
+            if not alive:
+                self.ptz.agent_gone(aid)
+        if batch.ptz_requests:
+            targets = self.ptz_targets()
+            for ask in batch.ptz_requests:
+                self.ptz_answers.append(self.ptz.answer(ask, targets.get(ask.request.track_id)))
 
     # -- the tick -------------------------------------------------------------
     def step(self, batch: Batch, t_ns: int) -> TickResult:
@@ -351,7 +364,7 @@ class Fusion:
 
     def _ptz_commands(self, t_ns: int) -> list[PtzCommand]:
         out = []
-        for aim in self.ptz.tick(self.ptz_targets()):
+        for aim in self.ptz.tick(self.ptz_targets(), t_ns):
             self.ptz_seq += 1
             out.append(
                 PtzCommand(

@@ -1,19 +1,29 @@
 """The resource manager process: zenoh in, :class:`~resource_manager.fusion.Fusion` per tick, zenoh out.
 
-Subscriptions (decoded on the tick thread, never on zenoh's): every sensor's
-Features, SensorInfo and PTZ state; the sensors' liveliness tokens (presence;
-a sensor that appears is asked for its SensorInfo). Each tick at ``rate_hz``:
-fuse at ``now - latency`` on the NTP-corrected clock, then publish the
-TrackSet on ``tracks``, each track on ``track/{id}``, the pair choices on
-``manager/{id}/pairs``, view plans on ``plan/{sensor}``, PTZ commands on
-``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
-(latest state, or the path with ``?history=SECONDS``) and PTZ allocation
-requests on ``manager/{id}/ptz``. The track history is logged to disk and
-reloaded at start (:mod:`resource_manager.serve.history`).
+Subscriptions are made per listed sensor (``[manager] sensors``, or its
+site's): the router forwards nothing else, so a flood under other ids costs
+this process nothing but a count (a census on ``sensor/**`` that pauses itself
+when flooded). Each listed sensor's Features, SensorInfo (an AdvancedSubscriber:
+the publisher's cache for late joiners) and PTZ state wait in a bounded buffer
+of their own and are decoded on the tick thread, never on zenoh's; a payload that names
+another sensor than its key, and Features stamped off the clock by more than
+``max_skew_s``, are refused and counted (:mod:`resource_manager.ingest.gate`).
+SensorInfo is re-read from each sensor's queryable on a period and when its
+liveliness token comes back (:mod:`resource_manager.ingest.infos`).
+
+Each tick at ``rate_hz``: fuse at ``now - latency`` on the NTP-corrected clock,
+then publish the TrackSet on ``tracks``, each track on ``track/{id}``, the pair
+choices on ``manager/{id}/pairs``, view plans on ``plan/{sensor}``, PTZ commands
+on ``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
+(latest state, or the path with ``?history=SECONDS``) and PTZ requests on
+``manager/{id}/ptz/{agent}``: queued, applied and answered in the tick. Agents'
+liveliness tokens end their PTZ holds when they go. The track history is
+logged to disk and reloaded at start (:mod:`resource_manager.serve.history`).
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 import queue
 import threading
@@ -22,20 +32,20 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from common.clock import NtpClock
 from common.codec import decode, encode
 from common.errors import ConfigError, SchemaError
-from common.geometry import wrap_angle
 from common.keys import Keys
-from common.schema import Features, ManagerStatus, Pose, PtzReply, PtzRequest, PtzState, SensorInfo, Track
-from common.schema import PoseEstimate as WirePoseEstimate
+from common.schema import MAX_SENSORS, Features, PtzReply, PtzRequest, PtzState, SensorInfo, Track
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
-from common.transport import Inbox, TypedPublisher
+from common.transport import KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
 from resource_manager.fusion import Batch, Fusion, TickResult
+from resource_manager.ingest.gate import SenderGate, sender_in_key
+from resource_manager.ingest.infos import InfoGate
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
+from resource_manager.serve.ptz import PtzAnswer, PtzAsk
+from resource_manager.serve.status import InboxCounts, manager_status
 
 __all__ = ["ManagerNode", "run"]
 
@@ -43,6 +53,12 @@ POLL_S = 0.005
 """How often the manager looks whether the sensors' watermark allows a new fusion."""
 
 logger = logging.getLogger(__name__)
+
+FRAMES_PER_SENSOR = 16
+"""Features waiting per sensor between ticks (1.6 ticks' worth at 100 Hz frames); a flood on one sensor's key
+pushes out (and counts) only that sensor's frames."""
+MAX_PENDING_PTZ = 256
+"""PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
 
 
 class ManagerNode:
@@ -58,6 +74,9 @@ class ManagerNode:
         self.shutdown = shutdown
         self.keys = Keys(cfg.manager.prefix)
         self.mid = cfg.manager.id
+        m = cfg.manager
+        self.gate = SenderGate.of(m.sensors, int(m.max_skew_s * 1e9), int(m.max_lead_s * 1e9))
+        self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)
         self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz)
@@ -72,26 +91,48 @@ class ManagerNode:
         self.lock = threading.Lock()
         self.live_ids: set[str] = set()
         self.presence: deque[tuple[str, bool]] = deque()
-        self.fetched_infos: deque[SensorInfo] = deque()
+        self.agent_presence: deque[tuple[str, bool]] = deque()
+        self.alive_sensors: set[str] = set()
+        self.fetched_infos: deque[tuple[str, SensorInfo]] = deque()
         self.fetch_queue: queue.Queue[str | None] = queue.Queue()
+        self.ptz_asks: deque[PtzAsk] = deque()
+        self.ptz_queries: dict[int, Any] = {}
+        self.ptz_tokens = itertools.count(1)
         self.query_errors = 0
         k = self.keys
-        self.features = Inbox(session, k.all_features, Features, capacity=8192)
-        self.infos = Inbox(session, k.all_sensor_info, SensorInfo, capacity=256)
-        self.ptz_states = Inbox(session, k.all_ptz_state, PtzState, capacity=256)
+        self.sensor_head = f"{k.root}/sensor/"
+        listed = self.gate.expected
+        self.census: KeyCensus | None = None
+        if self.gate.any_sensor:
+            logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
+            self.features = KeyedInbox(
+                session, [k.all_features], Features, capacity=FRAMES_PER_SENSOR, max_keys=4 * MAX_SENSORS
+            )
+            self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
+            self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
+        else:
+            logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
+            self.features = KeyedInbox(
+                session, [k.sensor_features(s) for s in listed], Features, capacity=FRAMES_PER_SENSOR
+            )
+            self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
+            self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
+            self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
         self.pub_tracks = TypedPublisher(session, k.tracks(), reliable_block=True)
         self.pub_pairs = TypedPublisher(session, k.manager_pairs(self.mid))
         self.pub_status = TypedPublisher(session, k.manager_status(self.mid), reliable_block=True)
-        self.token = session.liveliness().declare_token(k.manager(self.mid))
         self.live_sub = session.liveliness().declare_subscriber(k.all_sensors, self._on_liveliness, history=True)
+        self.agent_sub = session.liveliness().declare_subscriber(k.all_agents, self._on_agent_liveliness)
         self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
-        self.q_ptz = session.declare_queryable(k.manager_ptz(self.mid), self._on_ptz_query)
+        self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
+        self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
         self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
         self.fetcher.start()
-        self.fetch_queue.put("*")
         self.tick_ms: list[float] = []
         self.status_seq = 0
         self.ticks = 0
+        # Last: the token says the manager is ready (its queryables answer).
+        self.token = session.liveliness().declare_token(k.manager(self.mid))
 
     # -- zenoh callbacks (enqueue only, or answer from locked state) -----------
     def _on_liveliness(self, sample: Any) -> None:
@@ -99,15 +140,20 @@ class ManagerNode:
             parsed = self.keys.parse(str(sample.key_expr))
         except ConfigError:
             return
-        if parsed.kind != "sensor":
+        if parsed.kind != "sensor" or not self.gate.allows(parsed.ident):
             return
-        alive = sample.kind == self._zenoh.SampleKind.PUT
-        self.presence.append((parsed.ident, alive))
-        if alive:
-            self.fetch_queue.put(parsed.ident)
+        self.presence.append((parsed.ident, sample.kind == self._zenoh.SampleKind.PUT))
+
+    def _on_agent_liveliness(self, sample: Any) -> None:
+        try:
+            parsed = self.keys.parse(str(sample.key_expr))
+        except ConfigError:
+            return
+        if parsed.kind == "agent" and len(self.agent_presence) < 4 * MAX_SENSORS:
+            self.agent_presence.append((parsed.ident, sample.kind == self._zenoh.SampleKind.PUT))
 
     def _fetch_loop(self) -> None:
-        """Ask sensors that appear for their SensorInfo (off the tick and zenoh threads)."""
+        """Read the SensorInfo of sensors the tick names, from their own queryables (off the tick and zenoh threads)."""
         while not self.shutdown.is_set():
             try:
                 sid = self.fetch_queue.get(timeout=0.5)
@@ -115,16 +161,18 @@ class ManagerNode:
                 continue
             if sid is None:
                 return
-            key = self.keys.all_sensor_info if sid == "*" else self.keys.sensor_info(sid)
+            key = self.keys.sensor_info(sid)
             try:
                 for reply in self.session.get(key, timeout=2.0):
                     if reply.ok is None:
                         continue
                     try:
-                        self.fetched_infos.append(decode(reply.ok.payload.to_bytes(), SensorInfo))
+                        info = decode(reply.ok.payload.to_bytes(), SensorInfo)
                     except SchemaError as err:
                         logger.warning("bad SensorInfo reply on %s: %s", reply.ok.key_expr, err)
-            except Exception as err:  # session closing, router gone: try again on the next appearance
+                        continue
+                    self.fetched_infos.append((sid, info))
+            except Exception as err:  # session closing, router gone: read again on the next period
                 logger.debug("SensorInfo query %s failed: %s", key, err)
 
     def _on_track_query(self, query: Any) -> None:
@@ -160,50 +208,115 @@ class ManagerNode:
                 query.reply(self.keys.track(tr.track_id), encode(tr), encoding=MSGPACK)
 
     def _on_ptz_query(self, query: Any) -> None:
-        with query:
+        """Check and queue a PTZ request; the tick applies it and answers (:meth:`_answer_ptz`)."""
+        try:
+            parsed = self.keys.parse(str(query.key_expr))
             payload = query.payload
-            try:
-                if payload is None:
-                    raise SchemaError("a PtzRequest payload is required", "$")
-                req = decode(payload.to_bytes(), PtzRequest)
-            except SchemaError as err:
-                self.query_errors += 1
-                query.reply_err(f"expected a PtzRequest: {err}".encode())
+            if payload is None:
+                raise SchemaError("a PtzRequest payload is required", "$")
+            req = decode(payload.to_bytes(), PtzRequest)
+        except (SchemaError, ConfigError) as err:
+            self._reject(query, f"expected a PtzRequest on {self.keys.ptz_requests(self.mid)}: {err}")
+            return
+        if not self.gate.same_agent(parsed.ident, req.agent_id):
+            self._reject(query, f"the request speaks for agent {req.agent_id!r} on agent {parsed.ident!r}'s key")
+            return
+        with self.lock:
+            if len(self.ptz_asks) >= MAX_PENDING_PTZ:
+                self._reject(query, "busy: too many PTZ requests waiting, ask again")
                 return
-            now = self.clock.now_ns()
+            token = next(self.ptz_tokens)
+            self.ptz_queries[token] = query
+            self.ptz_asks.append(PtzAsk(req, parsed.ident, self.clock.now_ns(), token))
+
+    def _reject(self, query: Any, why: str) -> None:
+        self.query_errors += 1
+        with query:
+            query.reply_err(why[:256].encode())
+
+    def _on_old_ptz_query(self, query: Any) -> None:
+        self._reject(
+            query,
+            f"PTZ requests go to {self.keys.manager_ptz(self.mid)}/{{agent_id}}, the agent's own key "
+            "(its id as in PtzRequest.agent_id)",
+        )
+
+    def _answer_ptz(self, answers: list[PtzAnswer]) -> None:
+        now = self.clock.now_ns()
+        for ans in answers:
             with self.lock:
-                alloc = self.fusion.ptz
-                if req.action == "acquire":
-                    target = self.fusion.ptz_targets().get(req.track_id)
-                    sid, reason = alloc.acquire(req.agent_id, target, req.track_id, req.priority, now)
-                else:
-                    sid, reason = alloc.release(req.agent_id, req.track_id)
+                query = self.ptz_queries.pop(ans.token, None)
+            req = ans.request
+            logger.info("PTZ %s by %s for %s: %s", req.action, req.agent_id, req.track_id, ans.sensor_id or ans.reason)
+            if query is None:
+                continue
             reply = PtzReply(
                 manager_id=self.mid,
                 seq=req.seq,
                 stamp_ns=now,
-                ok=bool(sid),
+                ok=bool(ans.sensor_id),
                 track_id=req.track_id,
-                sensor_id=sid,
-                reason=reason[:256],
+                sensor_id=ans.sensor_id,
+                reason=ans.reason[:256],
+                lease_s=ans.lease_s,
             )
-            logger.info("PTZ %s by %s for %s: %s", req.action, req.agent_id, req.track_id, sid or reason)
-            query.reply(self.keys.manager_ptz(self.mid), encode(reply), encoding=MSGPACK)
+            try:
+                with query:
+                    query.reply(self.keys.ptz_request(self.mid, req.agent_id), encode(reply), encoding=MSGPACK)
+            except Exception as err:  # the agent gave up (timeout) or the session is closing
+                logger.debug("PTZ reply to %s: %s", req.agent_id, err)
 
     # -- the tick ------------------------------------------------------------------
     def _batch(self) -> Batch:
+        now = self.clock.now_ns()
         presence: dict[str, bool] = {}
         while self.presence:
             sid, alive = self.presence.popleft()
             presence[sid] = alive
-        infos = [r.msg for r in self.infos.drain()]
+            if alive:
+                self.alive_sensors.add(sid)
+                self.info_gate.came_back(sid)
+            else:
+                self.alive_sensors.discard(sid)
+        agents: dict[str, bool] = {}
+        while self.agent_presence:
+            aid, alive = self.agent_presence.popleft()
+            agents[aid] = alive
+        if self.census is not None:
+            for sid, n in self.census.take().items():
+                self.gate.refuse_unlisted(sid, n)
+        head = self.sensor_head
+        features = []
+        for key, data in self.features.drain_raw():
+            sid = sender_in_key(key, head)
+            f = self.features.decode(key, data)
+            if f is not None and self.gate.features(sid, f, now):
+                features.append(f)
+        infos = []
+        for key, data in self.infos.drain_raw():
+            info = self.infos.decode(key, data)
+            if info is not None and self.gate.same_sender(sender_in_key(key, head), info):
+                taken = self.info_gate.offer_put(info)
+                if taken is not None:
+                    infos.append(taken)
         while self.fetched_infos:
-            infos.append(self.fetched_infos.popleft())
+            sid, info = self.fetched_infos.popleft()
+            if self.gate.same_sender(sid, info):
+                read = self.info_gate.offer_read(info, now)
+                if read is not None:
+                    infos.append(read)
+        for sid in self.info_gate.due(now, self.alive_sensors):
+            self.fetch_queue.put(sid)
+        states = []
+        for key, data in self.ptz_states.drain_raw():
+            st = self.ptz_states.decode(key, data)
+            if st is not None and self.gate.same_sender(sender_in_key(key, head), st):
+                states.append(st)
+        with self.lock:
+            asks = list(self.ptz_asks)
+            self.ptz_asks.clear()
         return Batch(
-            features=[r.msg for r in self.features.drain()],
-            infos=infos,
-            ptz_states=[r.msg for r in self.ptz_states.drain()],
-            presence=presence,
+            features=features, infos=infos, ptz_states=states, presence=presence, ptz_requests=asks, agents=agents
         )
 
     def tick(self) -> TickResult | None:
@@ -212,6 +325,8 @@ class ManagerNode:
         with self.lock:
             self.fusion.absorb(batch)
             t_ns = self.fusion.next_instant(self.clock.now_ns())
+            answers, self.fusion.ptz_answers = self.fusion.ptz_answers, []
+        self._answer_ptz(answers)  # PTZ requests are answered as they come, fused instant or not
         if t_ns is None:
             return None
         t0 = time.perf_counter()
@@ -245,36 +360,22 @@ class ManagerNode:
         return result
 
     def status(self, result: TickResult | None, period_s: float) -> None:
-        ms = np.asarray(self.tick_ms or [0.0])
-        c = result.counters if result is not None else None
         inboxes = (self.features, self.infos, self.ptz_states)
-        self.status_seq += 1
-        msg = ManagerStatus(
-            manager_id=self.mid,
-            seq=self.status_seq,
-            stamp_ns=self.clock.now_ns(),
-            tick_ms=float(ms.mean()),
-            tick_p99_ms=float(np.percentile(ms, 99)),
-            tick_rate_hz=len(self.tick_ms) / period_s,
-            sensors_in_use=(c.sensors_in_use if c else [])[:64],
-            sensors_known=(c.sensors_known if c else [])[:64],
-            sensors_without_pose=(c.sensors_without_pose if c else [])[:64],
-            tracks=len(result.trackset.tracks) if result else 0,
+        counts = InboxCounts(
             decode_errors=sum(i.counters.decode_errors for i in inboxes) + self.query_errors,
-            late_msgs=c.late if c else 0,
-            duplicate_msgs=c.duplicate if c else 0,
-            out_of_order_msgs=c.out_of_order if c else 0,
-            dropped_msgs=sum(i.counters.dropped for i in inboxes) + (c.dropped if c else 0),
-            sensors_absent=(c.sensors_absent if c else [])[:64],
-            poses=[
-                WirePoseEstimate(
-                    sensor_id=p.sensor_id,
-                    pose=Pose(x_m=p.x_m, y_m=p.y_m, z_m=p.z_m, yaw_rad=wrap_angle(p.yaw_rad)),
-                    source=p.source,
-                    sigma_m=p.sigma_xy_m,
-                )
-                for p in (c.poses if c else ())[:64]
-            ],
+            dropped=sum(i.counters.dropped for i in inboxes),
+        )
+        self.status_seq += 1
+        msg = manager_status(
+            self.mid,
+            self.status_seq,
+            self.clock.now_ns(),
+            tick_ms=self.tick_ms,
+            period_s=period_s,
+            result=result,
+            inboxes=counts,
+            gate=self.gate,
+            refused_partial=self.census is not None and self.census.partial,
         )
         self.pub_status.put(msg)
         self.tick_ms.clear()
@@ -288,6 +389,8 @@ class ManagerNode:
         )
         while not self.shutdown.is_set():
             last = self.tick() or last
+            if self.census is not None:
+                self.census.tick()
             now = time.monotonic()
             if now >= next_status:
                 self.status(last, status_every)
@@ -298,11 +401,21 @@ class ManagerNode:
 
     def close(self) -> None:
         self.fetch_queue.put(None)
-        for ent in (self.q_tracks, self.q_ptz, self.live_sub, self.token):
+        for ent in (self.q_tracks, self.q_ptz, self.q_ptz_old, self.live_sub, self.agent_sub, self.token):
             try:
                 ent.undeclare()
             except Exception as err:  # already closed with the session
                 logger.debug("undeclare: %s", err)
+        with self.lock:
+            pending = list(self.ptz_queries.values())
+            self.ptz_queries.clear()
+        for query in pending:
+            try:
+                query.drop()
+            except Exception as err:
+                logger.debug("drop PTZ query: %s", err)
+        if self.census is not None:
+            self.census.close()
         for inbox in (self.features, self.infos, self.ptz_states):
             inbox.close()
         for pub in (self.pub_tracks, self.pub_pairs, self.pub_status):
@@ -317,6 +430,11 @@ def _id_order(tid: str) -> tuple[str, int]:
 
 def run(cfg: ManagerConfig) -> int:
     """Run a manager until SIGINT/SIGTERM; returns the exit code."""
+    if not cfg.manager.sensors:
+        raise ConfigError(
+            f"manager {cfg.manager.id}: no sensors to fuse: run it from its site (--site FILE), list them in "
+            '[manager] sensors, or set sensors = ["*"] to accept any sensor'
+        )
     shutdown = install_signal_handlers()
     clock = NtpClock.from_settings(cfg.clock)
     clock.start()

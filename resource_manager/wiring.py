@@ -172,5 +172,6 @@ def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
             pz.max_zoom,
             math.radians(pz.min_tilt_deg),
             math.radians(pz.max_tilt_deg),
+            pz.lease_s,
         )
     )

@@ -6,7 +6,8 @@
   capture on the NTP-corrected clock.
 * **Publishes** (keys from :class:`common.keys.Keys`): Features per frame on
   ``sensor/{id}/features``; SensorInfo as a queryable on ``sensor/{id}/info``
-  and put whenever it changes; NodeStatus at 1 Hz on ``sensor/{id}/status``
+  and put whenever it changes, by an AdvancedPublisher whose cache serves
+  late joiners (AdvancedSubscriber history); NodeStatus at 1 Hz on ``sensor/{id}/status``
   (fps, drops, processing time, clock offset/uncertainty, decode errors,
   source state and message); a liveliness token ``sensor/{id}``.
 * **Subscribes**: PTZ nodes take PtzCommand on ``sensor/{id}/ptz`` and put
@@ -99,7 +100,8 @@ class SensorNode:
         self._capture = threading.Thread(target=self._capture_loop, name=f"capture-{sid}", daemon=True)
         self.pub_features = TypedPublisher(session, self.keys.sensor_features(sid))
         self.pub_status = TypedPublisher(session, self.keys.sensor_status(sid))
-        self.pub_info = TypedPublisher(session, self.keys.sensor_info(sid), reliable_block=True)
+        # An AdvancedPublisher: late joiners (managers, agents) get the cached SensorInfo from its history.
+        self.pub_info = TypedPublisher(session, self.keys.sensor_info(sid), reliable_block=True, cache_samples=1)
         self.inboxes: list[Inbox[Any]] = []
         self.ptz_inbox: Inbox[PtzCommand] | None = None
         self.plan_inbox: Inbox[ViewPlan] | None = None
@@ -322,7 +324,8 @@ def run_node(cfg: NodeConfig, max_frames: int = 0) -> int:
     clock.start()
     try:
         parts = build_node(cfg, clock.now_ns)
-        with open_session(cfg.zenoh) as session:
+        # Timestamps: what the SensorInfo publisher's cache (zenoh.ext) orders its samples by.
+        with open_session(cfg.zenoh, extra={"timestamping/enabled": True}) as session:
             node = SensorNode(cfg, session, clock, parts, shutdown)
             logger.info(
                 "sensor node %s up: %s source, %s camera, features on %s",

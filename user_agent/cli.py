@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import time
@@ -22,6 +23,8 @@ from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
 
 __all__ = ["configure", "main", "run"]
+
+logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
 
@@ -59,15 +62,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true")
     _net(p)
 
-    p = sub.add_parser("view", help="ask the manager for a PTZ view of a track (or --release it)")
+    p = sub.add_parser(
+        "view", help="hold a PTZ view of a track while this runs (renewed; released on exit), or --release one"
+    )
     p.add_argument("track_id")
-    p.add_argument("--release", action="store_true")
+    p.add_argument(
+        "--release", action="store_true", help="release the view held under --agent-id (a running `view` elsewhere)"
+    )
     p.add_argument("--priority", type=int, default=0)
     p.add_argument("--manager", default=None, help="manager id (default: from the track id)")
+    p.add_argument("--duration", type=float, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)")
     _net(p)
 
-    p = sub.add_parser("record", help="record everything under {prefix}/@v1/** into MCAP")
+    p = sub.add_parser("record", help="record everything under {prefix}/@v1/** (or --keys) into MCAP")
     p.add_argument("out", metavar="OUT.mcap")
+    p.add_argument(
+        "--keys",
+        action="append",
+        default=None,
+        metavar="PATTERN",
+        help="record only these key expressions under {prefix}/@v1/ (e.g. tracks, 'track/*', 'manager/*/status'); "
+        "repeatable (default: everything)",
+    )
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     p.add_argument("--site", default=None, metavar="FILE", help="site file: stores prefix, fps and room for evaluate")
     p.add_argument("--epoch-ns", type=int, default=None, help=f"world epoch (default: env {EPOCH_ENV})")
@@ -127,7 +143,14 @@ def _client(args: argparse.Namespace) -> Any:
     from user_agent.client import AgentClient
 
     settings, prefix, agent_id = _session_and_prefix(args)
-    return AgentClient(settings=settings, prefix=prefix, agent_id=agent_id)
+    agent = AgentClient(settings=settings, prefix=prefix, agent_id=agent_id)
+    if settings.config_file and not agent.token_accepted():
+        logger.warning(
+            "the router did not take this agent's liveliness token %s: on a secure site an agent may speak only "
+            "as its certificate's id (agent-ID.json5: --agent-id ID); PTZ requests under this id are refused too",
+            agent.keys.agent(agent.agent_id),
+        )
+    return agent
 
 
 def _dump(obj: Any) -> None:
@@ -188,20 +211,48 @@ def _record(args: argparse.Namespace) -> int:
             raise ConfigError(f"environment {EPOCH_ENV}: expected integer Unix ns, got {epoch!r}") from err
     if fps:
         meta["fps"] = str(fps)
+    exprs = _record_keys(Keys(prefix), args.keys)
+    meta["keys"] = " ".join(exprs)
     shutdown = install_signal_handlers()
     with open_session(settings) as session:
-        rec = Recorder(session, Keys(prefix).all, McapSink(args.out, meta))
+        rec = Recorder(session, exprs, McapSink(args.out, meta))
         # Announce ourselves once subscribed, so a caller can wait for the recorder to be ready.
         token = session.liveliness().declare_token(Keys(prefix).agent(agent_id or f"recorder-{os.getpid()}"))
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+        next_note = time.monotonic() + 5.0
         try:
             while time.monotonic() < end and not shutdown.sleep(min(0.2, max(0.0, end - time.monotonic()))):
-                pass
+                if time.monotonic() >= next_note:
+                    next_note += 5.0
+                    print(_recorder_note(rec.status(), rec.top_drops()), file=sys.stderr, flush=True)
         finally:
             token.undeclare()
             rec.stop()
-    print(f"recorded {rec.messages} samples into {args.out}", file=sys.stderr)
+    st = rec.status()
+    print(f"recorded {st.written} samples into {args.out}; {_recorder_note(st, rec.top_drops())}", file=sys.stderr)
     return 0
+
+
+def _record_keys(keys: Keys, patterns: list[str] | None) -> list[str]:
+    """Full key expressions for ``--keys`` patterns (relative to ``{prefix}/@v1/`` unless they start with it)."""
+    import zenoh
+
+    if not patterns:
+        return [keys.all]
+    out = []
+    for pat in patterns:
+        full = pat if pat.startswith(keys.root + "/") else f"{keys.root}/{pat.strip('/')}"
+        try:
+            out.append(str(zenoh.KeyExpr(full)))
+        except Exception as err:  # ZError: not a key expression
+            raise ConfigError(f"--keys {pat!r}: not a key expression ({full}): {err}") from err
+    return out
+
+
+def _recorder_note(st: Any, top: list[tuple[str, int]]) -> str:
+    lost = f"dropped {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing dropped"
+    most = "; most on " + ", ".join(f"{k or '(other keys)'} {n}" for k, n in top) if top else ""
+    return f"recorder: {st.written} written, {lost}, {st.lag_s:.1f} s behind live (worst {st.max_lag_s:.1f} s){most}"
 
 
 def _replay(args: argparse.Namespace) -> int:
@@ -317,13 +368,42 @@ def run(args: argparse.Namespace) -> int:
 
                 print(watch_screen([], sensors, []), end="")
         elif action == "view":
-            reply = (
-                agent.release_view(args.track_id, args.manager)
-                if args.release
-                else agent.request_view(args.track_id, args.priority, args.manager)
+            return _view(args, agent)
+    return 0
+
+
+def _view(args: argparse.Namespace, agent: Any) -> int:
+    """Hold a view until Ctrl-C or ``--duration``, renewing its lease; release it on the way out."""
+    if args.release:
+        if not args.agent_id:
+            raise ConfigError(
+                "--release needs --agent-id: the id of the agent holding the view (a view also ends by itself when "
+                "its agent exits)"
             )
-            _dump(reply)
-            return 0 if reply.ok else 1
+        reply = agent.release_view(args.track_id, args.manager)
+        _dump(reply)
+        return 0 if reply.ok else 1
+    shutdown = install_signal_handlers()
+    reply = agent.request_view(args.track_id, args.priority, args.manager)
+    _dump(reply)
+    if not reply.ok:
+        return 1
+    print(
+        f"holding {reply.sensor_id} on {args.track_id} as {agent.agent_id} (lease {reply.lease_s:g} s, renewed); "
+        "Ctrl-C releases it",
+        file=sys.stderr,
+        flush=True,
+    )
+    end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+    try:
+        while time.monotonic() < end and not shutdown.sleep(min(0.5, max(0.0, end - time.monotonic()))):
+            for renewed in agent.keep_views():
+                if not renewed.ok:
+                    _dump(renewed)
+                    print(f"lost the view of {args.track_id}: {renewed.reason}", file=sys.stderr)
+                    return 1
+    finally:
+        agent.release_all()
     return 0
 
 

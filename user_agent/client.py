@@ -2,11 +2,17 @@
 
 A :class:`AgentClient` is a zenoh client of the site's router (or uses a
 session you pass in). It keeps the newest TrackSet of every manager, the
-newest status of every sensor and manager, view plans and pair choices,
-from subscriptions whose zenoh callbacks only enqueue bytes (common.transport);
-a pump thread decodes them and calls your subscribers. Queries (track state,
-history, sensor info, PTZ allocation) are plain zenoh ``get`` calls on the keys
-of :mod:`common.keys`.
+newest status of every sensor and manager, view plans, pair choices and every
+sensor's SensorInfo (an AdvancedSubscriber: the nodes' publisher caches give a
+late joiner the current ones), from subscriptions whose zenoh callbacks only
+enqueue bytes (common.transport); a pump thread decodes them and calls your
+subscribers. Queries (track state, history, PTZ allocation) are plain zenoh
+``get`` calls on the keys of :mod:`common.keys`.
+
+PTZ views are leases: :meth:`AgentClient.request_view` holds a camera for the
+lease the manager grants (``PtzReply.lease_s``), :meth:`AgentClient.keep_views`
+renews what this client holds, and every hold ends when the client's
+liveliness token goes (:meth:`close`, exit, crash).
 
 Example::
 
@@ -25,7 +31,7 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -44,7 +50,7 @@ from common.schema import (
     ViewPlan,
 )
 from common.session import MSGPACK, SessionSettings, open_session
-from common.transport import Inbox
+from common.transport import Inbox, KeyedInbox
 
 __all__ = ["AgentClient", "ManagerView", "SensorView", "Subscription"]
 
@@ -78,6 +84,19 @@ class ManagerView:
     status: ManagerStatus | None
 
 
+MAX_KEPT = 256
+"""Most senders an agent keeps the latest message of, per kind: a flood of fresh ids cannot grow its memory (the
+least recently heard one goes)."""
+
+
+def _keep(table: dict[str, Any], key: str, value: Any) -> None:
+    """``table[key] = value``, most recent last; beyond MAX_KEPT keys the least recently heard goes."""
+    table.pop(key, None)
+    if len(table) >= MAX_KEPT:
+        del table[next(iter(table))]
+    table[key] = value
+
+
 class Subscription:
     """A TrackSet callback; :meth:`close` stops it."""
 
@@ -106,6 +125,8 @@ class AgentClient:
         prefix: the site's key prefix.
         agent_id: announced as a liveliness token ``{root}/agent/{id}`` and sent
             with PTZ requests (default ``agent-<pid>``).
+        sensors: follow only these sensors' statuses and SensorInfo (None: every sensor). An agent that knows
+            its site's sensors (the demo) then receives nothing of what others publish under other ids.
     """
 
     def __init__(
@@ -116,6 +137,7 @@ class AgentClient:
         connect: list[str] | None = None,
         prefix: str = DEFAULT_PREFIX,
         agent_id: str | None = None,
+        sensors: Sequence[str] | None = None,
     ) -> None:
         self.keys = Keys(prefix)
         self.agent_id = validate_id(agent_id or f"agent-{os.getpid()}", "agent id")
@@ -133,21 +155,43 @@ class AgentClient:
         self._mgr_status: dict[str, ManagerStatus] = {}
         self._plans: dict[str, ViewPlan] = {}
         self._pairs: dict[str, PairChoice] = {}
+        self._infos: dict[str, SensorInfo] = {}
+        self._held: dict[str, tuple[str | None, int, float]] = {}
+        """Track id -> (manager id given, priority, monotonic time to renew) of the views this client holds."""
         self._subs: list[Subscription] = []
         self._seq = itertools.count()
         self._stop = threading.Event()
         try:
             self._token = session.liveliness().declare_token(self.keys.agent(self.agent_id))
             self._in_tracks = Inbox(session, self.keys.tracks(), TrackSet, capacity=256)
-            self._in_status = Inbox(session, self.keys.all_sensor_status, NodeStatus, capacity=256)
+            k = self.keys
+            status_keys = [k.all_sensor_status] if sensors is None else [k.sensor_status(s) for s in sensors]
+            info_keys = [k.all_sensor_info] if sensors is None else [k.sensor_info(s) for s in sensors]
+            self._in_status = KeyedInbox(session, status_keys, NodeStatus, capacity=4)
             self._in_mgr = Inbox(session, self.keys.all_manager_status, ManagerStatus, capacity=64)
             self._in_plans = Inbox(session, self.keys.all_plans, ViewPlan, capacity=64)
             self._in_pairs = Inbox(session, self.keys.all_pairs, PairChoice, capacity=64)
+            self._in_infos = KeyedInbox(session, info_keys, SensorInfo, capacity=2, advanced=True)
         except Exception:
             self._stack.close()
             raise
         self._thread = threading.Thread(target=self._pump, name="agent-pump", daemon=True)
         self._thread.start()
+
+    def token_accepted(self, timeout_s: float = 1.0) -> bool:
+        """Whether the router took this agent's liveliness token (a secure site's rules allow only the id of the
+        agent's certificate; a denied token is dropped silently, and so are this agent's PTZ requests).
+
+        The agent's own session answers a liveliness query for its token locally; the router answers too only
+        when it has the token. So two answers: accepted; one: refused (or no router to ask).
+        """
+        key = self.keys.agent(self.agent_id)
+        try:
+            replies = [r for r in self.session.liveliness().get(key, timeout=timeout_s) if r.ok is not None]
+        except Exception as err:  # session closing
+            logger.debug("liveliness query %s: %s", key, err)
+            return True
+        return len(replies) >= 2
 
     # -- lifecycle ----------------------------------------------------------
     def close(self) -> None:
@@ -158,6 +202,7 @@ class AgentClient:
         self._thread.join(timeout=5)
         for inbox in (self._in_tracks, self._in_status, self._in_mgr, self._in_plans, self._in_pairs):
             inbox.close()
+        self._in_infos.close()
         with contextlib.suppress(Exception):
             self._token.undeclare()
         self._stack.close()
@@ -178,16 +223,23 @@ class AgentClient:
                 for r in sets:
                     old = self._tracksets.get(r.msg.manager_id)
                     if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
-                        self._tracksets[r.msg.manager_id] = r.msg
-                    self._heard[r.msg.manager_id] = time.monotonic()
-                for s in self._in_status.drain():
-                    self._node_status[s.msg.sensor_id] = s.msg
+                        _keep(self._tracksets, r.msg.manager_id, r.msg)
+                    _keep(self._heard, r.msg.manager_id, time.monotonic())
+                for key, data in self._in_status.drain_raw():
+                    st = self._in_status.decode(key, data)
+                    if st is not None and key == self.keys.sensor_status(st.sensor_id):
+                        _keep(self._node_status, st.sensor_id, st)
                 for m in self._in_mgr.drain():
-                    self._mgr_status[m.msg.manager_id] = m.msg
+                    if m.key == self.keys.manager_status(m.msg.manager_id):
+                        _keep(self._mgr_status, m.msg.manager_id, m.msg)
                 for p in self._in_plans.drain():
-                    self._plans[p.msg.sensor_id] = p.msg
+                    _keep(self._plans, p.msg.sensor_id, p.msg)
                 for c in self._in_pairs.drain():
-                    self._pairs[c.msg.manager_id] = c.msg
+                    _keep(self._pairs, c.msg.manager_id, c.msg)
+                for key, data in self._in_infos.drain_raw():
+                    info = self._in_infos.decode(key, data)
+                    if info is not None and key == self.keys.sensor_info(info.sensor_id):
+                        _keep(self._infos, info.sensor_id, info)
                 subs = list(self._subs)
                 self._changed.notify_all()
             for r in sets:
@@ -287,11 +339,19 @@ class AgentClient:
         return alive
 
     def sensors(self, timeout_s: float = 1.0) -> list[SensorView]:
-        """Every sensor seen (alive, or with a status/info): info, status and clock offset."""
+        """Every sensor seen (alive, or with a status/info): info, status and clock offset.
+
+        SensorInfo comes from the nodes' publisher caches (AdvancedSubscriber history); a sensor alive without
+        one (a third-party node with a plain queryable) is asked once with a ``get``.
+        """
         alive = self._alive(self.keys.all_sensors, timeout_s)
-        infos = {i.sensor_id: i for i in self._query(self.keys.all_sensor_info, SensorInfo, timeout_s)}
         with self._lock:
             status = dict(self._node_status)
+            infos = dict(self._infos)
+        missing = alive - set(infos)
+        if missing:
+            for i in self._query(self.keys.all_sensor_info, SensorInfo, timeout_s):
+                infos.setdefault(i.sensor_id, i)
         ids = sorted(alive | set(infos) | set(status))
         return [SensorView(s, s in alive, infos.get(s), status.get(s)) for s in ids]
 
@@ -312,7 +372,9 @@ class AgentClient:
             return dict(self._pairs)
 
     # -- PTZ views -----------------------------------------------------------
-    def _ptz(self, action: str, track_id: str, priority: int, manager_id: str | None, timeout_s: float) -> PtzReply:
+    def _ptz(
+        self, action: str, track_id: str, priority: int, manager_id: str | None, timeout_s: float, *, lease_s: float
+    ) -> PtzReply:
         validate_id(track_id, "track id")
         mid = manager_id or track_id.rsplit("-", 1)[0]
         req = PtzRequest(
@@ -322,25 +384,63 @@ class AgentClient:
             action=action,  # type: ignore[arg-type]
             track_id=track_id,
             priority=priority,
+            lease_s=lease_s,
         )
-        replies = self._query(self.keys.manager_ptz(mid), PtzReply, timeout_s, payload=encode(req))
+        key = self.keys.ptz_request(mid, self.agent_id)
+        replies = self._query(key, PtzReply, timeout_s, payload=encode(req))
         if not replies:
-            raise SessionError(f"no PTZ reply from manager {mid!r} within {timeout_s:g} s (is it running?)")
+            raise SessionError(
+                f"no PTZ reply from manager {mid!r} within {timeout_s:g} s (is it running? on a secure site, "
+                f"is {self.agent_id!r} this agent's certificate id?)"
+            )
         return replies[0]
 
     def request_view(
-        self, track_id: str, priority: int = 0, manager_id: str | None = None, timeout_s: float = 2.0
+        self,
+        track_id: str,
+        priority: int = 0,
+        manager_id: str | None = None,
+        timeout_s: float = 2.0,
+        lease_s: float = 0.0,
     ) -> PtzReply:
         """Ask the manager for a PTZ camera to look at a track.
 
         The manager is the one named in the track id (``{manager_id}-{n}``)
         unless ``manager_id`` is given. The reply names the camera, or why none.
+        The hold lasts ``reply.lease_s`` (``lease_s`` if shorter than the manager's)
+        unless renewed by asking again (:meth:`keep_views` does), and ends at once
+        when this client closes.
 
         Raises:
             SessionError: if no manager answers.
         """
-        return self._ptz("acquire", track_id, priority, manager_id, timeout_s)
+        reply = self._ptz("acquire", track_id, priority, manager_id, timeout_s, lease_s=lease_s)
+        with self._lock:
+            if reply.ok:
+                self._held[track_id] = (manager_id, priority, time.monotonic() + reply.lease_s / 3.0)
+            else:
+                self._held.pop(track_id, None)
+        return reply
 
     def release_view(self, track_id: str, manager_id: str | None = None, timeout_s: float = 2.0) -> PtzReply:
         """Give a PTZ view back."""
-        return self._ptz("release", track_id, 0, manager_id, timeout_s)
+        with self._lock:
+            self._held.pop(track_id, None)
+        return self._ptz("release", track_id, 0, manager_id, timeout_s, lease_s=0.0)
+
+    def keep_views(self) -> list[PtzReply]:
+        """Renew the views this client holds whose lease is a third gone; returns the replies (a lost view's too)."""
+        now = time.monotonic()
+        with self._lock:
+            due = [(tid, mid, prio) for tid, (mid, prio, at) in self._held.items() if now >= at]
+        return [self.request_view(tid, prio, mid) for tid, mid, prio in due]
+
+    def release_all(self) -> None:
+        """Release every view this client holds (best effort: the holds end with the client anyway)."""
+        with self._lock:
+            held = [(tid, mid) for tid, (mid, _, _) in self._held.items()]
+        for tid, mid in held:
+            try:
+                self.release_view(tid, mid)
+            except SessionError as err:
+                logger.warning("releasing the view of %s: %s", tid, err)

@@ -28,6 +28,7 @@ floor positions, and :func:`hypotheses_from_tracksets` lines recorded
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -48,6 +49,7 @@ __all__ = [
     "evaluate_positions",
     "frame_distances",
     "hypotheses_from_tracksets",
+    "unseen_spans",
     "within_area",
 ]
 
@@ -334,6 +336,7 @@ def hypotheses_from_tracksets(
     max_gap_s: float = 0.25,
     states: Sequence[str] = DEFAULT_STATES,
     start_ns: int | None = None,
+    skip: Sequence[tuple[int, int]] = (),
 ) -> tuple[dict[int, list[HypPoint]], list[int]]:
     """Line recorded TrackSets up with ground-truth frames.
 
@@ -344,7 +347,9 @@ def hypotheses_from_tracksets(
     first one (or from ``start_ns``, e.g. the end of a run's warm-up) up to the
     last TrackSet is scored: a frame with no TrackSet near enough, before the
     first one included, has no hypotheses (all its people count as misses).
-    Frames after the last TrackSet (the run had ended) are not scored.
+    Frames after the last TrackSet (the run had ended), and those inside the
+    (start, end) ns spans of ``skip`` (:func:`unseen_spans`: what the recording
+    did not see), are not scored.
 
     Returns:
         (hypotheses by frame, the frames to score).
@@ -366,6 +371,8 @@ def hypotheses_from_tracksets(
         t_ns = epoch_ns + round((k - 1) / fps * 1e9)
         if t_ns > last + gap_ns or (start_ns is not None and t_ns < start_ns):
             continue
+        if any(a < t_ns < b for a, b in skip):
+            continue
         scored.append(k)
         pts: list[HypPoint] = []
         for m, s in stamps.items():
@@ -382,3 +389,25 @@ def hypotheses_from_tracksets(
             )
         out[k] = pts
     return out, scored
+
+
+def unseen_spans(tracksets: Iterable[TrackSet], max_gap_s: float = 0.25) -> list[tuple[int, int]]:
+    """Spans (ns) of the run whose TrackSets the recording lost: what was published but not recorded.
+
+    A manager numbers its TrackSets (``seq``, one per tick); between two recorded ones whose numbers are not
+    consecutive, the ones in between were published and lost on the way (a recorder that had to drop). Frames
+    there are not the tracker's misses, so scoring skips them. A manager that published nothing (down,
+    restarted: ``seq`` starts again) leaves no such gap, and its silence is scored. Each span leaves out the
+    ``max_gap_s`` next to the TrackSets that bound it (they still stand for those frames).
+    """
+    by_mgr: dict[str, list[TrackSet]] = {}
+    for ts in tracksets:
+        by_mgr.setdefault(ts.manager_id, []).append(ts)
+    gap_ns = int(max_gap_s * 1e9)
+    spans: list[tuple[int, int]] = []
+    for sets in by_mgr.values():
+        ordered = sorted(sets, key=lambda t: t.stamp_ns)
+        for a, b in itertools.pairwise(ordered):
+            if b.seq > a.seq + 1 and b.stamp_ns - a.stamp_ns > 2 * gap_ns:
+                spans.append((a.stamp_ns + gap_ns, b.stamp_ns - gap_ns))
+    return sorted(spans)

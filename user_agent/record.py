@@ -14,7 +14,10 @@ Per zenoh key the file holds (notes/zenoh.md §7.1):
 
 Log time is the local arrival time; publish time is the message's own
 ``stamp_ns``. Zenoh's callback only enqueues bytes; a writer thread decodes
-and writes (never block a transport thread).
+and writes (never block a transport thread). When the writer cannot keep up
+(a flood), raw sensor messages (features, SensorInfo, statuses, PTZ states)
+are dropped first and never written more than
+``max_lag_s`` late; every drop is counted per key in the file's metadata.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import logging
 import threading
 import time
 from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,13 +46,15 @@ from user_agent.foxglove import (
 )
 from user_agent.messages import decode_on_key, type_for_key
 
-__all__ = ["META_NAME", "RAW_ENCODING", "McapSink", "Recorder"]
+__all__ = ["META_NAME", "RAW_ENCODING", "RECORDER_META", "McapSink", "Recorder", "RecorderStatus"]
 
 logger = logging.getLogger(__name__)
 
 META_NAME = "panostereo"
 """Name of the MCAP metadata record holding the run's facts (site, epoch_ns, fps, room)."""
 RAW_ENCODING = "msgpack"
+RECORDER_META = "panostereo.recorder"
+"""Metadata record of what the recorder wrote and lost (per key) and its worst lag."""
 
 
 def keys_for(key: str) -> Keys | None:
@@ -189,64 +195,180 @@ class McapSink:
             self._fh.close()
 
 
+@dataclass(frozen=True, slots=True)
+class RecorderStatus:
+    """How a recorder keeps up: what it wrote, what it lost and how far behind live it is."""
+
+    written: int
+    dropped: int
+    """Samples lost, every reason."""
+    dropped_raw: int
+    """...of which raw sensor messages (``sensor/**``: features, SensorInfo, statuses; dropped first)."""
+    lag_s: float
+    """Age of the oldest sample waiting to be written (0: keeping up)."""
+    max_lag_s: float
+    """The most any written sample waited."""
+
+
 class Recorder:
-    """Subscribes to a key expression and feeds an :class:`McapSink` from a writer thread.
+    """Subscribes to key expressions and feeds an :class:`McapSink` from a writer thread.
+
+    The zenoh callback copies and queues only. The queue is bounded: what
+    sensors publish (``sensor/**``: features, the bulk of a site's traffic,
+    SensorInfo, statuses, PTZ states) waits in a part of its own and goes
+    first when the writer falls behind: a raw message that waited
+    ``max_lag_s`` (half a second: written samples stay within a second of
+    live) is dropped rather than written late, and raw messages are dropped
+    before anything else is. The derived data (tracks, manager statuses,
+    pairs, plans) is dropped only when the whole queue is full. Every drop is
+    counted per key (:attr:`drops`, at most ``max_keys`` keys, the rest under
+    ""), and :meth:`stop` writes the counts into the file (metadata record
+    ``panostereo.recorder``). At most ``max_keys`` distinct keys are recorded:
+    a flood of fresh keys cannot grow the file's channel table.
 
     Args:
         session: an open zenoh session.
-        key_expr: what to record (``Keys(prefix).all``).
+        key_expr: what to record (``Keys(prefix).all``), or several expressions.
         sink: where to write.
-        capacity: most samples buffered before the oldest are dropped (counted).
+        capacity: most samples waiting, features and the rest together.
+        raw_capacity: most raw sensor messages waiting.
+        max_lag_s: a raw Feature that waited this long is dropped, not written.
     """
 
-    def __init__(self, session: Any, key_expr: str, sink: McapSink, capacity: int = 100_000) -> None:
+    def __init__(
+        self,
+        session: Any,
+        key_expr: str | list[str],
+        sink: McapSink,
+        capacity: int = 20_000,
+        *,
+        raw_capacity: int = 2_000,
+        max_lag_s: float = 0.5,
+        max_keys: int = 2_048,
+    ) -> None:
         self.sink = sink
+        self.drops: dict[str, int] = {}
         self.dropped = 0
-        self._buf: deque[tuple[str, bytes, int]] = deque()
+        self.dropped_raw = 0
+        self.max_lag_ns = 0
+        self._keys: set[str] = set()
+        self._max_keys = max_keys
+        self._high: deque[tuple[str, bytes, int]] = deque()
+        self._low: deque[tuple[str, bytes, int]] = deque()
         self._capacity = capacity
+        self._raw_capacity = min(raw_capacity, capacity)
+        self._raw_marker = "/sensor/"
+        self._lag_limit_ns = int(max_lag_s * 1e9)
         self._cond = threading.Condition()
         self._stop = False
         self._thread = threading.Thread(target=self._loop, name="mcap-writer", daemon=True)
         self._thread.start()
-        self._sub = session.declare_subscriber(key_expr, self._on_sample)
+        exprs = [key_expr] if isinstance(key_expr, str) else list(key_expr)
+        self._subs = [session.declare_subscriber(ke, self._on_sample) for ke in exprs]
+
+    def _drop(self, key: str, raw: bool) -> None:
+        """Count one lost sample (the caller holds the lock)."""
+        self.dropped += 1
+        if raw:
+            self.dropped_raw += 1
+        k = key if key in self.drops or len(self.drops) < self._max_keys else ""
+        self.drops[k] = self.drops.get(k, 0) + 1
 
     def _on_sample(self, sample: Any) -> None:
-        item = (str(sample.key_expr), sample.payload.to_bytes(), time.time_ns())
+        # zenoh's callback thread: decide, copy, queue; nothing else.
+        key = str(sample.key_expr)
+        raw = self._raw_marker in key
         with self._cond:
-            if len(self._buf) >= self._capacity:
-                self._buf.popleft()
-                self.dropped += 1
-            self._buf.append(item)
+            if key not in self._keys:
+                if len(self._keys) >= self._max_keys:
+                    self._drop(key, raw)
+                    return
+                self._keys.add(key)
+            full = len(self._high) + len(self._low) >= self._capacity
+            if raw and (full or len(self._low) >= self._raw_capacity):
+                self._drop(key, True)  # the newest, uncopied: the writer drops the stale ones
+                return
+            if full:
+                if self._low:
+                    old = self._low.popleft()
+                    self._drop(old[0], True)
+                else:
+                    old = self._high.popleft()
+                    self._drop(old[0], False)
+        item = (key, sample.payload.to_bytes(), time.time_ns())
+        with self._cond:
+            (self._low if raw else self._high).append(item)
             self._cond.notify()
+
+    def _next(self) -> tuple[str, bytes, int] | None:
+        """The next sample to write, derived data before raw sensor messages; raw ones too old are dropped here."""
+        with self._cond:
+            while not self._high and not self._low and not self._stop:
+                self._cond.wait(0.2)
+            if self._high:
+                return self._high.popleft()
+            now = time.time_ns()
+            while self._low:
+                item = self._low.popleft()
+                if now - item[2] <= self._lag_limit_ns:
+                    return item
+                self._drop(item[0], True)
+            return None
 
     def _loop(self) -> None:
         while True:
-            with self._cond:
-                while not self._buf and not self._stop:
-                    self._cond.wait(0.2)
-                items = list(self._buf)
-                self._buf.clear()
-                stop = self._stop
-            for key, data, t in items:
-                self.sink.write(key, data, t)
-            if stop:
-                return
+            item = self._next()
+            if item is None:
+                with self._cond:
+                    if self._stop and not self._high and not self._low:
+                        return
+                continue
+            key, data, t = item
+            self.sink.write(key, data, t)
+            lag = time.time_ns() - t
+            self.max_lag_ns = max(self.max_lag_ns, lag)
 
     @property
     def messages(self) -> int:
         return self.sink.messages
 
+    def top_drops(self, n: int = 3) -> list[tuple[str, int]]:
+        """The keys that lost the most samples so far ("" for keys beyond ``max_keys``), most first."""
+        with self._cond:
+            return sorted(self.drops.items(), key=lambda kv: (-kv[1], kv[0]))[:n]
+
+    def status(self) -> RecorderStatus:
+        """What it wrote and lost so far, and how far behind live it is now."""
+        now = time.time_ns()
+        with self._cond:
+            oldest = min((q[0][2] for q in (self._high, self._low) if q), default=now)
+            return RecorderStatus(
+                self.sink.messages, self.dropped, self.dropped_raw, (now - oldest) / 1e9, self.max_lag_ns / 1e9
+            )
+
     def stop(self, close: bool = True) -> None:
-        """Undeclare, write what is buffered and (unless ``close=False``) finish the file."""
-        try:
-            self._sub.undeclare()
-        except Exception as err:  # session already closed
-            logger.debug("undeclare recorder: %s", err)
+        """Undeclare, write what is buffered, record the drop counts and (unless ``close=False``) finish the file."""
+        for sub in self._subs:
+            try:
+                sub.undeclare()
+            except Exception as err:  # session already closed
+                logger.debug("undeclare recorder: %s", err)
         with self._cond:
             self._stop = True
             self._cond.notify()
         self._thread.join(timeout=30)
+        st = self.status()
+        meta = {"dropped": str(st.dropped), "dropped_raw": str(st.dropped_raw),
+                "max_lag_s": f"{st.max_lag_s:.3f}", "written": str(st.written)}  # fmt: skip
+        with self._cond:
+            meta |= {f"dropped:{k or '(other keys)'}": str(n) for k, n in sorted(self.drops.items())}
+        self.sink.add_metadata(RECORDER_META, meta)
         if close:
             self.sink.close()
-        if self.dropped:
-            logger.warning("recorder dropped %d samples (writer too slow)", self.dropped)
+        if st.dropped:
+            logger.warning(
+                "recorder dropped %d samples (%d raw sensor messages) to stay within %.1f s of live",
+                st.dropped,
+                st.dropped_raw,
+                self._lag_limit_ns / 1e9,
+            )

@@ -11,7 +11,7 @@ import numpy.typing as npt
 
 from common.errors import ConfigError
 from common.schema import TrackSet
-from user_agent.evaluate import HypPoint, MotMetrics, evaluate_positions, hypotheses_from_tracksets
+from user_agent.evaluate import HypPoint, MotMetrics, evaluate_positions, hypotheses_from_tracksets, unseen_spans
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
@@ -30,6 +30,8 @@ class Scored:
     frames_scored: int
     hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
     """The tracks' positions at each scored ground-truth frame (what was scored; e.g. for a CSV export)."""
+    unseen_s: float = 0.0
+    """Seconds of the run whose TrackSets the recording lost (not scored; see evaluate.unseen_spans)."""
 
 
 def score_recording(
@@ -50,6 +52,8 @@ def score_recording(
     to the recording's metadata (written by the recorder from the site,
     ``PANOSTEREO_EPOCH_NS`` and, for a demo run, its warm-up). ``on_events`` is called with each scored
     frame's events (see :func:`~user_agent.evaluate.evaluate_positions`), to see where frames are lost.
+    Frames whose TrackSets the recording lost (gaps in a manager's TrackSet numbers) are not scored:
+    ``Scored.unseen_s`` says how much of the run that was.
 
     Raises:
         ConfigError: if the epoch or fps is neither given nor in the recording.
@@ -89,15 +93,18 @@ def score_tracksets(
     """Evaluate TrackSets against ground truth whose frame ``k`` is ``epoch_ns + (k - 1) / fps``.
 
     Every ground-truth frame from the first one (or ``start_ns``) to the last TrackSet is scored
-    (:func:`~user_agent.evaluate.hypotheses_from_tracksets`). ``area``: where the ground truth annotates people
+    (:func:`~user_agent.evaluate.hypotheses_from_tracksets`), except where the TrackSets' numbering shows the
+    recording lost some (:func:`~user_agent.evaluate.unseen_spans`). ``area``: where the ground truth annotates people
     (:meth:`~user_agent.groundtruth.GroundTruth.area`); tracks outside it are not scored.
     """
+    unseen = unseen_spans(tracksets, max_gap_s)
     hyps, frames = hypotheses_from_tracksets(
-        tracksets, epoch_ns, fps, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start_ns
+        tracksets, epoch_ns, fps, gt.frame_numbers, max_gap_s=max_gap_s, start_ns=start_ns, skip=unseen
     )
     metrics = evaluate_positions(gt, hyps, threshold_m, frames=frames, on_events=on_events, area=area)
     published = {t.track_id for ts in tracksets for t in ts.tracks if t.state in ("confirmed", "coasting")}
-    return Scored(metrics, len(published), len(tracksets), len(frames), hyps)
+    unseen_s = sum(b - a for a, b in unseen) / 1e9
+    return Scored(metrics, len(published), len(tracksets), len(frames), hyps, unseen_s)
 
 
 def room_of(rec: Recording) -> tuple[float, float, float, float] | None:

@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 from common.schema import Track
 from user_agent.client import ManagerView, SensorView
 
-__all__ = ["CLEAR_SCREEN", "format_table", "history_table", "tracks_table", "watch_screen"]
+__all__ = ["CLEAR_SCREEN", "format_table", "history_table", "refused_lines", "tracks_table", "watch_screen"]
 
 CLEAR_SCREEN = "\x1b[H\x1b[2J"
 
@@ -62,14 +62,17 @@ def history_table(path: Sequence[Track]) -> str:
     return format_table(("t_s", "x_m", "y_m", "h_m", "state", "pair"), rows)
 
 
-def _sensors_table(sensors: Sequence[SensorView]) -> str:
+def _sensors_table(sensors: Sequence[SensorView], fused: set[str] | None = None) -> str:
     rows = []
     for s in sensors:
         st, info = s.status, s.info
+        live = "up" if s.alive else "DOWN"
+        if fused is not None and s.sensor_id not in fused:
+            live += " (not fused)"
         rows.append(
             (
                 s.sensor_id,
-                "up" if s.alive else "DOWN",
+                live,
                 info.kind if info else "?",
                 (info.pose_source if info else "?"),
                 f"{st.fps:5.1f}" if st else "-",
@@ -97,6 +100,14 @@ def _sensors_table(sensors: Sequence[SensorView]) -> str:
         "bad",
     )
     return format_table(heads, rows)
+
+
+def _fused(managers: Sequence[ManagerView]) -> set[str] | None:
+    """The sensors some live manager fuses (None: unknown, or one accepts any sensor)."""
+    lists = [m.status.sensors_expected for m in managers if m.alive and m.status is not None]
+    if not lists or any(not ids for ids in lists):
+        return None
+    return {sid for ids in lists for sid in ids}
 
 
 def _managers_table(managers: Sequence[ManagerView]) -> str:
@@ -139,10 +150,35 @@ def _poses_table(managers: Sequence[ManagerView]) -> str:
     return format_table(("sensor", "pose", "x_m", "y_m", "yaw_deg", "sigma_m", "manager"), rows)
 
 
+def _refused_table(managers: Sequence[ManagerView], most: int = 10) -> str:
+    rows = [
+        (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed)
+        for m in managers
+        if m.status is not None
+        for r in m.status.refused[:most]
+    ]
+    return format_table(("manager", "sender", "not fused", "wrong id", "clock skew"), rows)
+
+
+def refused_lines(managers: Sequence[ManagerView]) -> list[str]:
+    """The REFUSED section: who sent what the managers would not take (empty when nobody did)."""
+    seen = [m for m in managers if m.status is not None and m.status.refused_msgs]
+    if not seen:
+        return []
+    total = sum(m.status.refused_msgs for m in seen if m.status is not None)
+    partial = any(m.status is not None and m.status.refused_partial for m in seen)
+    head = f"REFUSED ({total} messages{'; a flood paused counting: at least' if partial else ''})"
+    return ["", head, _refused_table(seen)]
+
+
 def watch_screen(
-    tracks: Sequence[Track], sensors: Sequence[SensorView], managers: Sequence[ManagerView], header: str = ""
+    tracks: Sequence[Track],
+    sensors: Sequence[SensorView],
+    managers: Sequence[ManagerView],
+    header: str = "",
+    footer: Sequence[str] = (),
 ) -> str:
-    """The whole live screen."""
+    """The whole live screen (``footer``: extra lines, e.g. a recorder's lag and drops)."""
     parts = []
     if header:
         parts.append(header)
@@ -150,7 +186,7 @@ def watch_screen(
     parts.append(tracks_table(tracks) if tracks else "(none)")
     parts.append("")
     parts.append(f"SENSORS ({sum(s.alive for s in sensors)} up of {len(sensors)})")
-    parts.append(_sensors_table(sensors) if sensors else "(none)")
+    parts.append(_sensors_table(sensors, _fused(managers)) if sensors else "(none)")
     parts.append("")
     parts.append("MANAGERS")
     parts.append(_managers_table(managers) if managers else "(none)")
@@ -158,4 +194,6 @@ def watch_screen(
         parts.append("")
         parts.append("CAMERA POSES (where the manager places each camera: surveyed, or mutual calibration)")
         parts.append(_poses_table(managers))
+    parts += refused_lines(managers)
+    parts += list(footer)
     return "\n".join(parts) + "\n"

@@ -18,24 +18,30 @@ their paths are written) and writes, under ``--out``:
   sends no certificate at all).
 * ``router-usrpwd.json5`` + ``users.txt`` and ``usrpwd/<name>.json5``: the alternative with
   no certificates: user/password authentication on TCP and the same rules, whose subjects
-  are user names. Passwords are random; ``users.txt`` is the router's dictionary.
+  are user names. Passwords are random; ``users.txt`` is the router's dictionary, named in
+  the router's config under ``--certs`` (where the router's files are deployed); it listens
+  on ``--listen-tcp`` (default: ``--listen``'s host, the next port). Every file holding a
+  password is created mode 600.
 
 The rules (one rule + subject + policy per identity, so an identity can only speak for
 itself; key expressions from ``common/keys.py``, ``R = {prefix}/@v1``):
 
 sensor ``<id>``
     put ``R/sensor/<id>/features|info|status|ptz/state``; declare its liveliness token
-    ``R/sensor/<id>`` and its info queryable (and reply on it); subscribe to its own PTZ
-    commands and the view plans (``R/plan/*``: a simulated node needs every robot's goal); see
-    managers' presence.
+    ``R/sensor/<id>`` and its info queryable (and reply on it), and the cache of its SensorInfo
+    publisher (``R/sensor/<id>/info/@adv/**``: a queryable and a liveliness token, zenoh.ext);
+    subscribe to its own PTZ commands and the view plans (``R/plan/*``: a simulated node needs
+    every robot's goal); see managers' presence.
 manager ``<id>``
     put ``R/tracks``, ``R/track/*``, ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands
-    ``R/sensor/*/ptz``; serve ``R/track/**`` and ``R/manager/<id>/**`` queryables; read
-    every sensor key and query sensor info; its liveliness token.
+    ``R/sensor/*/ptz``; serve ``R/track/**`` and ``R/manager/<id>/**`` queryables (PTZ requests
+    arrive on ``R/manager/<id>/ptz/<agent>``); read every sensor key, query sensor info and the
+    SensorInfo publishers' caches; its liveliness token.
 agent ``<id>``
     no put at all; subscribe to tracks, plans, pairs, statuses and PTZ states (not raw
-    features); query tracks, sensor info and the PTZ allocation ``R/manager/*/ptz``; its
-    liveliness token ``R/agent/<id>``.
+    features); query tracks, sensor info (and its publishers' caches) and PTZ views on its own
+    key only, ``R/manager/*/ptz/<id>``: it cannot speak for another agent; its liveliness token
+    ``R/agent/<id>``.
 
 Anything not allowed is denied; a denied put is dropped silently at the router.
 """
@@ -44,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import secrets
 import sys
@@ -54,6 +61,23 @@ ID_RE = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
 
 Rule = dict[str, Any]
+
+
+def info_caches(root: str) -> str:
+    """Where zenoh.ext keeps every sensor's SensorInfo publisher cache and presence token.
+
+    ``**`` never matches a chunk starting with ``@``: ``R/sensor/**`` does not cover these.
+    """
+    return f"{root}/sensor/*/info/@adv/**"
+
+
+def cache_reader_rules(root: str, n: str) -> list[Rule]:
+    """What an AdvancedSubscriber of SensorInfo needs: query the caches, see their publishers come and go."""
+    caches = [info_caches(root)]
+    return [
+        _rule(f"{n}-cache-query", "ingress", ["query", "declare_liveliness_subscriber", "liveliness_query"], caches),
+        _rule(f"{n}-cache-replies", "egress", ["reply", "declare_queryable", "liveliness_token"], caches),
+    ]
 
 
 def _rule(rid: str, flow: str, messages: list[str], keys: list[str]) -> Rule:
@@ -72,7 +96,9 @@ def sensor_rules(root: str, sid: str) -> list[Rule]:
         # wildcards (the manager subscribes to R/sensor/*/features): the rule must include them.
         _rule(f"{n}-subscribers", "egress", ["declare_subscriber"], [f"{root}/sensor/**"]),
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
-        _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], [f"{own}/info"]),
+        _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], [f"{own}/info", f"{own}/info/@adv/**"]),
+        _rule(f"{n}-cache-token", "ingress", ["liveliness_token"], [f"{own}/info/@adv/**"]),
+        _rule(f"{n}-cache-queried", "egress", ["query"], [info_caches(root)]),
         # Plans of every camera: a simulated node replays every robot's goals to render the same world.
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], [f"{own}/ptz", f"{root}/plan/*"]),
         _rule(
@@ -113,6 +139,7 @@ def manager_rules(root: str, mid: str) -> list[Rule]:
         _rule(f"{n}-queried", "egress", ["query"], served),
         _rule(f"{n}-replies", "egress", ["reply"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
         _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/**"]),
+        *cache_reader_rules(root, n),
     ]
 
 
@@ -128,7 +155,7 @@ def agent_rules(root: str, aid: str) -> list[Rule]:
         f"{root}/sensor/*/status",
         f"{root}/sensor/*/ptz/state",
     ]
-    queries = [f"{root}/tracks", f"{root}/track/**", f"{root}/sensor/*/info", f"{root}/manager/*/ptz"]
+    queries = [f"{root}/tracks", f"{root}/track/**", f"{root}/sensor/*/info", f"{root}/manager/*/ptz/{aid}"]
     return [
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
         _rule(f"{n}-query", "ingress", ["query"], queries),
@@ -138,6 +165,7 @@ def agent_rules(root: str, aid: str) -> list[Rule]:
         _rule(f"{n}-recv", "egress", ["put", "delete"], read),
         _rule(f"{n}-replies", "egress", ["reply"], queries),
         _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/**"]),
+        *cache_reader_rules(root, n),
     ]
 
 
@@ -208,11 +236,12 @@ def client_tls(certs: str, name: str, connect: str) -> dict[str, Any]:
     return c
 
 
-def router_usrpwd(out: str, listen: str, acl: dict[str, Any], password: str) -> dict[str, Any]:
+def router_usrpwd(certs: str, listen: str, acl: dict[str, Any], password: str) -> dict[str, Any]:
+    """The dictionary is named where the router's files are deployed (``--certs``), beside its config."""
     c = _base("router", [listen], [])
     c["transport"] = {
         "link": {"protocols": ["tcp"]},
-        "auth": {"usrpwd": {"user": "router", "password": password, "dictionary_file": f"{out}/users.txt"}},
+        "auth": {"usrpwd": {"user": "router", "password": password, "dictionary_file": f"{certs}/users.txt"}},
     }
     c["access_control"] = acl
     return c
@@ -232,12 +261,33 @@ def _ids(text: str, what: str) -> list[str]:
     return ids
 
 
-def _write(path: Path, obj: dict[str, Any], header: str) -> None:
-    path.write_text(
+def _write(path: Path, obj: dict[str, Any], header: str, secret: bool = False) -> None:
+    text = (
         f"// {header}\n// Generated by deploy/security/make_configs.py; see deploy/security/README.md.\n"
         + json.dumps(obj, indent=2)
         + "\n"
     )
+    _write_text(path, text, secret)
+
+
+def _write_text(path: Path, text: str, secret: bool) -> None:
+    """Write a file; a secret one is created mode 600 (never readable by others, not even for a moment)."""
+    if not secret:
+        path.write_text(text)
+        return
+    path.unlink(missing_ok=True)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+
+
+def _tcp_listen(tls_listen: str) -> str:
+    """The user/password router's default endpoint: the TLS one's host, the next port, over tcp."""
+    rest = tls_listen.split("/", 1)[-1]
+    host, _, port = rest.rpartition(":")
+    if not port.isdigit() or not host:
+        raise SystemExit(f"make_configs.py: error: --listen must be PROTO/HOST:PORT, got {tls_listen!r}")
+    return f"tcp/{host}:{int(port) + 1}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -249,7 +299,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--managers", default="m1", help="manager ids")
     p.add_argument("--agents", default="a1", help="agent ids")
     p.add_argument("--listen", default="tls/127.0.0.1:7447", help="router TLS endpoint")
-    p.add_argument("--listen-tcp", default="tcp/127.0.0.1:7447", help="router endpoint of the usrpwd variant")
+    p.add_argument(
+        "--listen-tcp",
+        default=None,
+        help="router endpoint of the usrpwd variant (default: --listen's host, the next port, tcp)",
+    )
     p.add_argument("--router-host", default="localhost", help="name clients connect to (must be in the SAN)")
     p.add_argument("--tls-only", action="store_true", help="skip the user/password variant (no secrets written)")
     args = p.parse_args(argv)
@@ -263,7 +317,8 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     port = args.listen.rsplit(":", 1)[-1]
-    tcp_port = args.listen_tcp.rsplit(":", 1)[-1]
+    listen_tcp = args.listen_tcp or _tcp_listen(args.listen)
+    tcp_port = listen_tcp.rsplit(":", 1)[-1]
     who = identities(root, sensors, managers, agents)
 
     _write(
@@ -284,20 +339,22 @@ def main(argv: list[str] | None = None) -> int:
     passwords = {name: secrets.token_urlsafe(18) for name, _ in who}
     router_pw = secrets.token_urlsafe(18)
     (out / "usrpwd").mkdir(exist_ok=True)
-    users = out / "users.txt"
-    users.write_text("".join(f"{n}:{pw}\n" for n, pw in passwords.items()))
-    users.chmod(0o600)
+    _write_text(out / "users.txt", "".join(f"{n}:{pw}\n" for n, pw in passwords.items()), secret=True)
     _write(
         out / "router-usrpwd.json5",
-        router_usrpwd(str(out), args.listen_tcp, access_control(root, who, "usernames"), router_pw),
-        f"panostereo router: user/password + default-deny ACL for prefix {args.prefix} (no TLS)",
+        router_usrpwd(certs, listen_tcp, access_control(root, who, "usernames"), router_pw),
+        f"panostereo router: user/password + default-deny ACL for prefix {args.prefix} (no TLS); "
+        f"its dictionary: {certs}/users.txt",
+        secret=True,
     )
     for name, pw in passwords.items():
         f = out / "usrpwd" / f"{name}.json5"
         _write(
-            f, client_usrpwd(name, pw, f"tcp/{args.router_host}:{tcp_port}"), f"panostereo client {name}: user/password"
+            f,
+            client_usrpwd(name, pw, f"tcp/{args.router_host}:{tcp_port}"),
+            f"panostereo client {name}: user/password",
+            secret=True,
         )
-        f.chmod(0o600)
     print(
         f"make_configs.py: wrote router-tls.json5, router-usrpwd.json5, users.txt and {len(who)} client configs"
         f" in {out}"

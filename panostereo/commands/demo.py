@@ -127,6 +127,30 @@ def _progress(elapsed: float, duration: float, client: Any) -> str:
     return f"demo {elapsed:5.1f}/{duration:.0f} s  tracks {len(tracks)}"
 
 
+def recorded_keys(keys: Keys, sensors: list[str]) -> list[str]:
+    """What the demo records: everything of its own sensors, managers, tracks and plans.
+
+    Not ``{root}/**``: whatever another client publishes under other sensor ids (a stray camera, a flood of
+    fresh ids) is then never routed to the recorder at all; the manager counts it (``ManagerStatus.refused``)
+    and the summary names those senders.
+    """
+    return [
+        keys.tracks(),
+        keys.all_tracks,
+        keys.all_plans,
+        f"{keys.root}/manager/**",
+        *(f"{keys.sensor(sid)}/**" for sid in sensors),
+    ]
+
+
+def _recorder_line(recorder: Any) -> str:
+    st = recorder.status()
+    lost = f"LOST {st.dropped} ({st.dropped_raw} raw sensor messages)" if st.dropped else "nothing lost"
+    top = recorder.top_drops()
+    most = "; most on " + ", ".join(f"{k or '(other keys)'} {n}" for k, n in top) if top else ""
+    return f"recording: {st.written} samples, {lost}, {st.lag_s:.1f} s behind (worst {st.max_lag_s:.1f} s){most}"
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the demo; returns 0 when it completed (whatever the scores)."""
     from common.scenario import site_with_seed
@@ -170,6 +194,9 @@ def run(args: argparse.Namespace) -> int:
 
     shutdown = install_signal_handlers()
     router_log = out / "logs" / "router.log"
+    recorder: Any = None
+    last_status: dict[str, Any] = {}
+    seen_sensors: set[str] = set()
     router = Supervisor([router_plan([args.listen], log_path=router_log)], restart=False, grace_s=3.0)
     procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
     tty = sys.stdout.isatty() and not args.no_view
@@ -181,9 +208,10 @@ def run(args: argparse.Namespace) -> int:
         _wait_router(router, endpoint, router_log)
         settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
-            recorder = Recorder(session, keys.all, McapSink(recording, meta))
+            sensors_started = sorted(i for c, i in ids.values() if c == "node")
+            recorder = Recorder(session, recorded_keys(keys, sensors_started), McapSink(recording, meta))
             sink = recorder.sink
-            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo")
+            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo", sensors=sensors_started)
             try:
                 procs.start()
                 sensors = {i for c, i in ids.values() if c == "node"}
@@ -232,12 +260,20 @@ def run(args: argparse.Namespace) -> int:
                         if tty:
                             sensor_views = client.sensors(timeout_s=0.3)
                             head = f"panostereo demo  {elapsed:5.1f}/{duration:.0f} s  site {site.site.name}  out {out}"
-                            screen = watch_screen(client.tracks(timeout_s=0), sensor_views, client.managers(0.3), head)
+                            screen = watch_screen(
+                                client.tracks(timeout_s=0),
+                                sensor_views,
+                                client.managers(0.3),
+                                head,
+                                footer=["", _recorder_line(recorder)],
+                            )
                             print(CLEAR_SCREEN + screen, flush=True)
                         else:
-                            print(_progress(elapsed, duration, client), flush=True)
+                            print(f"{_progress(elapsed, duration, client)}  {_recorder_line(recorder)}", flush=True)
                     shutdown.sleep(0.2)
                 t_stop_ns = time.time_ns()
+                last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
+                seen_sensors = {v.sensor_id for v in client.sensors(timeout_s=0.5)}
             finally:
                 recorder.stop(close=False)  # the ground-truth scene is added before the file is finished
                 client.close()
@@ -259,6 +295,10 @@ def run(args: argparse.Namespace) -> int:
             fps=fps,
             threshold_m=args.threshold,
             restarts=procs.restarts(),
+            started={i for c, i in ids.values() if c == "node"},
+            recorder=recorder.status() if recorder is not None else None,
+            refused=_refusals(last_status),
+            seen_sensors=seen_sensors,
         )
     finally:
         sink.close()
@@ -299,6 +339,10 @@ def _finish(
     fps: float,
     threshold_m: float,
     restarts: dict[str, int],
+    started: set[str],
+    recorder: Any,
+    refused: dict[str, int],
+    seen_sensors: set[str],
 ) -> int:
     from user_agent.groundtruth import read_gt_csv
     from user_agent.recording import load_recording
@@ -333,10 +377,17 @@ def _finish(
         title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}",
         gt_cameras=gt_cameras,
     )
-    cams = len(set(rec.sensor_infos) | set(rec.node_status))
+    seen = set(rec.sensor_infos) | set(rec.node_status) | seen_sensors
+    strays = sorted((seen | set(refused)) - started)
     metrics = m.to_dict()
+    lost = {
+        "dropped": recorder.dropped if recorder else 0,
+        "dropped_raw": recorder.dropped_raw if recorder else 0,
+        "max_lag_s": round(recorder.max_lag_s, 2) if recorder else 0.0,
+        "unscored_s": round(scored.unseen_s, 2),
+    }
     summary: dict[str, Any] = {
-        "cameras": cams or len(site.camera),
+        "cameras": len(started),
         "people": m.gt_ids if m.frames else len(gt.person_ids),
         "frames": m.frames,
         "tracks_published": scored.tracks_published,
@@ -350,12 +401,48 @@ def _finish(
         "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
         "scored_from_s": round((rec.meta_int("score_from_ns", epoch_ns) - epoch_ns) / 1e9, 2),
         "recorded_samples": rec.samples,
+        "recording_lost": lost,
+        "sensors_not_started": strays,
+        "refused_by_manager": refused,
         "restarts": restarts,
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     print(json.dumps(summary, indent=2))
+    for line in _warnings(lost, strays, refused, started):
+        print(f"WARNING: {line}")
     print(f"summary: {out / 'summary.json'}")
     return 0
+
+
+def _refusals(statuses: dict[str, Any]) -> dict[str, int]:
+    """Sender id -> messages the managers refused from it (their last status)."""
+    out: dict[str, int] = {}
+    for st in statuses.values():
+        for r in st.refused:
+            out[r.sender_id] = out.get(r.sender_id, 0) + r.unlisted + r.wrong_id + r.skewed
+    return out
+
+
+def _warnings(lost: dict[str, Any], strays: list[str], refused: dict[str, int], started: set[str]) -> list[str]:
+    """What the summary's reader must not miss: a recording that lost data, sensors nobody started."""
+    out = []
+    if lost["dropped"]:
+        out.append(
+            f"the recording lost {lost['dropped']} samples ({lost['dropped_raw']} raw sensor messages) to stay near "
+            f"live; {lost['unscored_s']} s whose tracks it lost were not scored"
+        )
+    elif lost["unscored_s"]:
+        out.append(f"{lost['unscored_s']} s of the run's tracks never reached the recording and were not scored")
+    if strays:
+        shown = ", ".join(strays[:10]) + (f" and {len(strays) - 10} more" if len(strays) > 10 else "")
+        out.append(
+            f"sensors this demo did not start were on its network: {shown} "
+            f"(the manager fuses only {', '.join(sorted(started))})"
+        )
+    mine = {sid: n for sid, n in refused.items() if sid in started}
+    if mine:
+        out.append(f"the manager refused messages under the site's own ids (forged or misconfigured): {mine}")
+    return out
 
 
 _SUMMARY_METRICS = ("mota", "motp_m", "idf1", "id_switches", "mean_error_m", "p90_error_m")

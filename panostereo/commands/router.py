@@ -6,12 +6,17 @@ and every process connects to it as a client.
 
 Usage::
 
-    panostereo router [--listen tcp/0.0.0.0:7447] [--zenoh-config FILE]
+    panostereo router [--listen tcp/0.0.0.0:7447] [--zenoh-config FILE] [--zenoh-log warn]
 
 Listens on ``tcp/127.0.0.1:7447`` by default with multicast scouting off,
 logs the locators it listens on, and runs until SIGINT/SIGTERM, then closes
 its session and exits 0. A port already in use is one clear error line and
 exit code 1.
+
+Zenoh's own log (Rust) is where a refused client leaves its trace (a
+certificate from another CA, an expired one, a wrong password): it is off
+unless ``--zenoh-log LEVEL`` (or ``RUST_LOG``, which refines it) turns it on,
+on stdout beside the router's own lines.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import re
 from typing import Any
 
@@ -30,6 +36,7 @@ __all__ = ["DEFAULT_LISTEN", "configure", "run"]
 logger = logging.getLogger(__name__)
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+ZENOH_LOG_LEVELS = ("error", "warn", "info", "debug", "trace")
 
 _IN_USE_RE = re.compile(r"(?i)address already in use")
 
@@ -54,6 +61,24 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--multicast-scouting", action="store_true", default=False, help="enable multicast scouting (off by default)"
     )
+    parser.add_argument(
+        "--zenoh-log",
+        default=None,
+        choices=ZENOH_LOG_LEVELS,
+        metavar="LEVEL",
+        help="turn zenoh's own log on at this level (" + ", ".join(ZENOH_LOG_LEVELS) + "); RUST_LOG refines it. "
+        "'warn' shows why a client was refused (its certificate, password)",
+    )
+
+
+def init_zenoh_log(level: str | None) -> None:
+    """Send zenoh's (Rust) log to stdout: at ``level``, or as RUST_LOG says; nothing when neither is set."""
+    import zenoh
+
+    if level:
+        zenoh.init_log_from_env_or(level)
+    elif os.environ.get("RUST_LOG"):
+        zenoh.try_init_log_from_env()
 
 
 def _settings(args: argparse.Namespace) -> SessionSettings:
@@ -110,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         SessionError: the port is taken or zenoh refused the configuration.
     """
     settings = _settings(args)
+    init_zenoh_log(args.zenoh_log)
     shutdown = install_signal_handlers()
     configured = _listen_endpoints(settings)
     wants_port0 = any(ep.rsplit(":", 1)[-1] == "0" for ep in configured)

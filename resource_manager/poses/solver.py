@@ -24,6 +24,14 @@ bearings. Chaining rules, repeated until nothing changes:
 Raw poses are smoothed over time with an alpha-beta filter (time constant
 ``smoothing_s``), and carry the error model's uncertainty: σ_B ≈ B²σ_α/(2R)
 (notes/geometry.md §2.1), divided by √2 when both views are averaged.
+
+A raw pose far from the smoothed one (beyond ``jump_m``, or ``outlier_sigmas``)
+is refused; the filter restarts there only when ``outlier_run`` refused poses in
+a row agree with each other: a robot that really moved gives the same new pose
+tick after tick, sightings forged under its id (or a band half hidden) give
+poses that agree with nothing. While such poses keep coming the pose is held,
+not lost (``timeout_s`` counts from the last raw pose of any kind), so when they
+stop the real sightings carry on where they left off.
 """
 
 from __future__ import annotations
@@ -53,13 +61,14 @@ class MutualParams:
     smoothing_s: float = 1.0
     timeout_s: float = 2.0
     jump_m: float = 1.0
-    """A raw pose this far from the smoothed one restarts the filter there (the robot was moved)."""
+    """A raw pose this far from the smoothed one is refused like an outlier; ``outlier_run`` of them that agree
+    restart the filter there (the robot was moved)."""
     hold: bool = True
     """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     outlier_sigmas: float = 3.0
     """A raw pose further than this many sigmas (plus 5 cm, 0.5 deg) from the smoothed one is refused; 0: off."""
     outlier_run: int = 5
-    """...unless this many in a row were (then it is followed: the robot moved)."""
+    """...unless this many in a row were, and agree with each other (then it is followed: the robot moved)."""
     boundary_sigma_rad: float = 0.0
     """0: use the observer's bearing sigma."""
     default_bearing_sigma_rad: float = math.radians(0.2)
@@ -110,6 +119,10 @@ class _Filter:
     sigma_yaw: float = 0.0
     outliers: int = 0
     """Consecutive raw poses refused as outliers."""
+    refused: list[RawPose] = field(default_factory=list)
+    """The latest of them (at most ``outlier_run``): a restart needs them to agree."""
+    contested_ns: int = 0
+    """When the last refused raw pose came: the pose is held, not timed out, while they keep coming."""
 
 
 @dataclass(slots=True)
@@ -129,10 +142,13 @@ class PoseSolver:
     filters: dict[str, _Filter] = field(default_factory=dict)
 
     def update_info(self, info: SensorInfo) -> bool:
-        """Take a SensorInfo (newest stamp wins); return True if it changed anything."""
+        """Take a SensorInfo; return True if it changed anything.
+
+        Whichever arrives last wins: the manager's shell passes only what the sensor's own queryable
+        confirmed (resource_manager/ingest/infos.py). Its stamp is not compared: a forged one from 2262
+        would otherwise shadow every real SensorInfo after it.
+        """
         old = self.infos.get(info.sensor_id)
-        if old is not None and old.stamp_ns > info.stamp_ns:
-            return False
         self.infos[info.sensor_id] = info
         return old != info
 
@@ -307,7 +323,7 @@ class PoseSolver:
             if sid in known:
                 del self.filters[sid]
                 continue
-            if t_ns - f.t_ns > timeout_ns:
+            if t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
                 logger.info("pose of %s lost: no sighting for %.1f s", sid, (t_ns - f.t_ns) / 1e9)
                 del self.filters[sid]
                 continue
@@ -327,18 +343,43 @@ class PoseSolver:
                 )
         return out
 
+    def _restart(self, sid: str, rp: RawPose, t_ns: int) -> None:
+        self.filters[sid] = _Filter(
+            rp.x_m, rp.y_m, rp.yaw_rad, t_ns=t_ns, sigma_xy=rp.sigma_xy_m, sigma_yaw=rp.sigma_yaw_rad
+        )
+
+    def _agree(self, poses: list[RawPose]) -> bool:
+        """Whether refused raw poses agree with each other (the same new place), within their sigmas."""
+        k = max(self.params.outlier_sigmas, 3.0)
+        mx = sum(p.x_m for p in poses) / len(poses)
+        my = sum(p.y_m for p in poses) / len(poses)
+        myaw = math.atan2(sum(math.sin(p.yaw_rad) for p in poses), sum(math.cos(p.yaw_rad) for p in poses))
+        for p in poses:
+            if math.hypot(p.x_m - mx, p.y_m - my) > k * p.sigma_xy_m + 0.05:
+                return False
+            if abs(float(wrap_angle(p.yaw_rad - myaw))) > k * p.sigma_yaw_rad + math.radians(0.5):
+                return False
+        return True
+
+    def _refuse(self, sid: str, f: _Filter, rp: RawPose, t_ns: int) -> None:
+        """A raw pose off the smoothed one: held back; ``outlier_run`` of them that agree restart the filter."""
+        f.outliers += 1
+        f.contested_ns = t_ns
+        f.refused = [*f.refused[-(self.params.outlier_run - 1) :], rp] if self.params.outlier_run > 1 else [rp]
+        if len(f.refused) >= self.params.outlier_run and self._agree(f.refused):
+            self._restart(sid, rp, t_ns)
+
     def _smooth(self, sid: str, rp: RawPose, t_ns: int) -> None:
         f = self.filters.get(sid)
         timeout_ns = int(self.params.timeout_s * 1e9)
-        if (
-            f is None
-            or t_ns - f.t_ns > timeout_ns
-            or t_ns <= f.t_ns
-            or math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m
-        ):
-            self.filters[sid] = _Filter(
-                rp.x_m, rp.y_m, rp.yaw_rad, t_ns=t_ns, sigma_xy=rp.sigma_xy_m, sigma_yaw=rp.sigma_yaw_rad
-            )
+        if f is None or t_ns - max(f.t_ns, f.contested_ns) > timeout_ns or t_ns <= f.t_ns:
+            self._restart(sid, rp, t_ns)
+            return
+        if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m:
+            if f.n >= 3:
+                self._refuse(sid, f, rp, t_ns)
+            else:  # a young filter follows: it may have started from a bad pose
+                self._restart(sid, rp, t_ns)
             return
         dt = (t_ns - f.t_ns) / 1e9
         a = 1.0 - math.exp(-dt / self.params.smoothing_s)
@@ -352,13 +393,10 @@ class PoseSolver:
             tol_xy = k * math.hypot(rp.sigma_xy_m, f.sigma_xy) + 0.05
             tol_yaw = k * math.hypot(rp.sigma_yaw_rad, f.sigma_yaw) + math.radians(0.5)
             if math.hypot(rx, ry) > tol_xy or abs(ryaw) > tol_yaw:
-                f.outliers += 1
-                if f.outliers > self.params.outlier_run:
-                    self.filters[sid] = _Filter(
-                        rp.x_m, rp.y_m, rp.yaw_rad, t_ns=t_ns, sigma_xy=rp.sigma_xy_m, sigma_yaw=rp.sigma_yaw_rad
-                    )
+                self._refuse(sid, f, rp, t_ns)
                 return
         f.outliers = 0
+        f.refused = []
         f.x, f.y, f.yaw = px + a * rx, py + a * ry, float(wrap_angle(pyaw + a * ryaw))
         f.vx += bgain * rx / dt
         f.vy += bgain * ry / dt

@@ -7,8 +7,15 @@ is taken, a request of strictly higher priority preempts the lowest-priority
 holder. While assigned, each tick the camera gets a PtzCommand pointing it at
 the person: pan = azimuth from the camera to the track, tilt = elevation of
 ``aim_height_frac`` of the person's height, zoom so that ``target_width_m``
-fills the field of view. An assignment ends on release, preemption, or when the
-track ends; the reply always says which camera or why none.
+fills the field of view. The reply always says which camera or why none.
+
+A hold is a lease, not a gift. It ends on release, preemption, when the track
+ends, when the agent's liveliness token goes (exit, crash, partition:
+:meth:`PtzAllocator.agent_gone`), or when its lease runs out: ``lease_s`` after
+the agent's last request for it (an agent keeping a view asks again before
+then). Requests arrive as :class:`PtzAsk` (the agent named by the request's
+key, never by its payload alone) and are answered in the fusion tick, the one
+thread that changes the allocation.
 """
 
 from __future__ import annotations
@@ -16,9 +23,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from common.schema import SensorInfo
+from common.schema import PtzRequest, SensorInfo
 
-__all__ = ["Assignment", "PtzAim", "PtzAllocator", "PtzParams", "PtzTarget"]
+__all__ = ["Assignment", "PtzAim", "PtzAllocator", "PtzAnswer", "PtzAsk", "PtzParams", "PtzTarget"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,6 +37,8 @@ class PtzParams:
     max_zoom: float = 10.0
     min_tilt_rad: float = math.radians(-80.0)
     max_tilt_rad: float = math.radians(60.0)
+    lease_s: float = 30.0
+    """A hold ends this long after the agent's last request for it (a request may ask for less)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,6 +56,34 @@ class Assignment:
     track_id: str
     priority: int
     since_ns: int
+    expires_ns: int = 2**63 - 1
+    """The hold ends at this instant unless renewed."""
+
+
+@dataclass(frozen=True, slots=True)
+class PtzAsk:
+    """A PTZ request as the manager's shell received it."""
+
+    request: PtzRequest
+    agent_id: str
+    """The agent its key names (the shell refused it if the payload named another)."""
+    arrival_ns: int
+    """When it arrived, on the manager's clock (the agent's own stamp is not trusted)."""
+    token: int
+    """The shell's handle of the query to answer."""
+
+
+@dataclass(frozen=True, slots=True)
+class PtzAnswer:
+    """What to reply to one :class:`PtzAsk`."""
+
+    token: int
+    request: PtzRequest
+    sensor_id: str
+    """The camera, or "" with ``reason``."""
+    reason: str
+    lease_s: float
+    """How long the hold lasts unless renewed (0 when nothing is held)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,16 +144,45 @@ class PtzAllocator:
         zoom = min(max(math.tan(self.params.hfov_rad / 2) / math.tan(fov_needed / 2), 1.0), self.params.max_zoom)
         return PtzAim(sensor_id, target.track_id, math.atan2(dy, dx), tilt, zoom)
 
+    def lease_ns(self, asked_s: float) -> int:
+        """The lease a request gets: what it asked for, at most ``params.lease_s`` (0: the default)."""
+        lease = self.params.lease_s if asked_s <= 0 else min(asked_s, self.params.lease_s)
+        return int(lease * 1e9)
+
+    def answer(self, ask: PtzAsk, target: PtzTarget | None) -> PtzAnswer:
+        """Apply one request (acquire, renew or release) and say what to reply."""
+        req = ask.request
+        if req.action == "acquire":
+            lease = self.lease_ns(req.lease_s)
+            sid, reason = self.acquire(ask.agent_id, target, req.track_id, req.priority, ask.arrival_ns, lease_ns=lease)
+            return PtzAnswer(ask.token, req, sid, reason, lease / 1e9 if sid else 0.0)
+        sid, reason = self.release(ask.agent_id, req.track_id)
+        return PtzAnswer(ask.token, req, sid, reason, 0.0)
+
+    def agent_gone(self, agent_id: str) -> None:
+        """The agent's liveliness token went: every hold of it ends."""
+        for sid, a in list(self.assignments.items()):
+            if a.agent_id == agent_id:
+                del self.assignments[sid]
+                self.ended.append((a, "agent left (its liveliness token went)"))
+
     def acquire(
-        self, agent_id: str, target: PtzTarget | None, track_id: str, priority: int, t_ns: int
+        self,
+        agent_id: str,
+        target: PtzTarget | None,
+        track_id: str,
+        priority: int,
+        t_ns: int,
+        *,
+        lease_ns: int | None = None,
     ) -> tuple[str, str]:
-        """Assign a camera; return (sensor_id, "") or ("", reason)."""
+        """Assign a camera (or renew the agent's hold of it); return (sensor_id, "") or ("", reason)."""
         if target is None:
             return "", f"no current track {track_id!r}"
+        expires = t_ns + (self.lease_ns(0.0) if lease_ns is None else lease_ns)
         for sid, a in self.assignments.items():
             if a.agent_id == agent_id and a.track_id == track_id:
-                if a.priority != priority:
-                    self.assignments[sid] = Assignment(sid, agent_id, track_id, priority, a.since_ns)
+                self.assignments[sid] = Assignment(sid, agent_id, track_id, priority, a.since_ns, expires)
                 return sid, ""
         if not self.cameras:
             return "", "no PTZ camera with a known pose is online"
@@ -130,13 +196,13 @@ class PtzAllocator:
 
         free = sorted((s for s in able if s not in self.assignments), key=dist)
         if free:
-            self.assignments[free[0]] = Assignment(free[0], agent_id, track_id, priority, t_ns)
+            self.assignments[free[0]] = Assignment(free[0], agent_id, track_id, priority, t_ns, expires)
             return free[0], ""
         weakest = min(able, key=lambda s: (self.assignments[s].priority, -self.assignments[s].since_ns))
         held = self.assignments[weakest]
         if held.priority < priority:
             self.ended.append((held, f"preempted by {agent_id} (priority {priority} > {held.priority})"))
-            self.assignments[weakest] = Assignment(weakest, agent_id, track_id, priority, t_ns)
+            self.assignments[weakest] = Assignment(weakest, agent_id, track_id, priority, t_ns, expires)
             return weakest, ""
         return "", (
             f"all {len(able)} PTZ camera(s) that can see track {track_id!r} are held at priority >= {priority}"
@@ -152,10 +218,14 @@ class PtzAllocator:
                 return sid, ""
         return "", f"{agent_id} holds no PTZ camera for track {track_id!r}"
 
-    def tick(self, targets: dict[str, PtzTarget]) -> list[PtzAim]:
-        """Drop assignments whose track ended; aim every assigned camera."""
+    def tick(self, targets: dict[str, PtzTarget], t_ns: int | None = None) -> list[PtzAim]:
+        """Drop assignments whose track ended or whose lease ran out by ``t_ns``; aim every assigned camera."""
         out: list[PtzAim] = []
         for sid, a in list(self.assignments.items()):
+            if t_ns is not None and t_ns >= a.expires_ns:
+                del self.assignments[sid]
+                self.ended.append((a, "lease expired (not renewed)"))
+                continue
             tgt = targets.get(a.track_id)
             if tgt is None:
                 del self.assignments[sid]

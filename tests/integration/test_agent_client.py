@@ -58,7 +58,7 @@ class Driver:
                        session.liveliness().declare_token(K.manager("mgr1"))]  # fmt: skip
         self.q_track = session.declare_queryable(K.all_tracks, self._on_track)
         self.q_info = session.declare_queryable(K.sensor_info("pano1"), self._on_info)
-        self.q_ptz = session.declare_queryable(K.manager_ptz("mgr1"), self._on_ptz)
+        self.q_ptz = session.declare_queryable(K.ptz_requests("mgr1"), self._on_ptz)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._publish, daemon=True)
         self._thread.start()
@@ -88,7 +88,7 @@ class Driver:
             reply = PtzReply(manager_id="mgr1", seq=len(self.requests), stamp_ns=time.time_ns(), ok=ok,
                              track_id=req.track_id, sensor_id="ptz1" if ok else "",
                              reason="" if ok else "unknown track")  # fmt: skip
-            q.reply(K.manager_ptz("mgr1"), encode(reply), encoding=MSGPACK)
+            q.reply(str(q.key_expr), encode(reply), encoding=MSGPACK)
 
     def _publish(self) -> None:
         i = 0

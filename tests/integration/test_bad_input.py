@@ -121,6 +121,8 @@ def _write_files(tmp: Path, closed_port: str) -> None:
     files["manager-bad-matcher.toml"] = re.sub(r"(?m)^matcher = .*$", 'matcher = "fancy"', mgr)
     files["manager-negative-rate.toml"] = re.sub(r"(?m)^rate_hz = .*$", "rate_hz = -10.0", mgr)
     files["manager-bad-id.toml"] = re.sub(r'(?m)^id = "mgr1"', 'id = "MGR 1"', mgr, count=1)
+    files["manager-no-sensors.toml"] = re.sub(r"(?m)^sensors = .*$", "sensors = []", mgr)
+    files["manager-any-and-ids.toml"] = re.sub(r"(?m)^sensors = .*$", 'sensors = ["*", "pano1"]', mgr)
     for name, text in files.items():
         (tmp / name).write_text(text, errors="surrogateescape")
     (tmp / "a-directory.toml").mkdir(exist_ok=True)
@@ -186,6 +188,8 @@ ROWS: list[Row] = [
     Row("manager-invalid-matcher", ("manager", "--config", "{tmp}/manager-bad-matcher.toml"), r"matcher"),
     Row("manager-negative-rate", ("manager", "--config", "{tmp}/manager-negative-rate.toml"), r"rate_hz"),
     Row("manager-invalid-id", ("manager", "--config", "{tmp}/manager-bad-id.toml"), r"MGR 1"),
+    Row("manager-no-sensors", ("manager", "--config", "{tmp}/manager-no-sensors.toml"), r"no sensors to fuse"),
+    Row("manager-any-and-ids", ("manager", "--config", "{tmp}/manager-any-and-ids.toml"), r"manager\.sensors"),
     Row(
         "manager-unreachable-router",
         ("manager", "--config", "{tmp}/manager-unreachable.toml"),

@@ -173,12 +173,16 @@ class FaultSite:
         )
         return path
 
-    def manager_config(self, *, ntp_port: int | None = None, state_dir: Path | None = None) -> Path:
+    def manager_config(
+        self, *, ntp_port: int | None = None, state_dir: Path | None = None, extra_sensors: tuple[str, ...] = ()
+    ) -> Path:
+        """The manager fuses the site's cameras (and ``extra_sensors``); any other sensor id is refused."""
         clock = f'ntp_server = "127.0.0.1"\nntp_port = {ntp_port}\nresync_s = 2.0\n' if ntp_port else ""
         path = self.tmp / "manager.toml"
+        sensors = ", ".join(f'"{sid}"' for sid in [*self.ids, *extra_sensors])
         path.write_text(
             f'[manager]\nid = "{MANAGER_ID}"\nprefix = "{self.prefix}"\nrate_hz = 10.0\n'
-            f'state_dir = "{state_dir or self.tmp / "state"}"\n'
+            f'state_dir = "{state_dir or self.tmp / "state"}"\nsensors = [{sensors}]\n'
             f'[zenoh]\nconnect = ["{self.endpoint}"]\nconnect_timeout_ms = 20000\n'
             f"[clock]\n{clock}"
         )
@@ -434,8 +438,9 @@ def test_node_clock_two_seconds_off_is_corrected_by_ntp(site: FaultSite) -> None
     """Everyone's reference (the NTP server) is 2 s ahead of this host's clock.
 
     The manager and three nodes synchronise to it. The fourth node first runs on its system
-    clock, 2 s behind everyone: its frames are too old to bracket any fusion instant and it
-    is never used. Restarted with the same NTP server it is corrected and used.
+    clock, 2 s behind everyone: its frames are further from the manager's clock than
+    ``max_skew_s`` (1.5 s), refused and counted as clock skew against it, and it is never used.
+    Restarted with the same NTP server it is corrected and used.
     """
     with FakeNtpServer(skew_s=2.0) as ntp:
         site.start_router()
@@ -450,8 +455,8 @@ def test_node_clock_two_seconds_off_is_corrected_by_ntp(site: FaultSite) -> None
             t0 = time.monotonic()
             wait_for(lambda: len(obs.status_since(t0)) >= 3, 10.0, "three manager status messages")
             assert not [s for s in obs.sets_since(t0) if off in s.sensors_used], "frames 2 s old were fused"
-            late = [s.late_msgs for s in obs.status_since(t0)]
-            assert late[-1] > late[0], f"the manager does not count {off}'s 2 s old frames as late: {late}"
+            counted = [next((r.skewed for r in s.refused if r.sender_id == off), 0) for s in obs.status_since(t0)]
+            assert counted[-1] > counted[0], f"the manager does not count {off}'s 2 s old frames as skewed: {counted}"
             skewed.stop()
             t1 = time.monotonic()
             site.start_node(off, site.node_config(off, ntp_port=ntp.port))
@@ -480,7 +485,7 @@ def test_late_and_out_of_order_frames_are_counted_and_tracking_holds(site: Fault
     cameras, and its tracks stay on the people."""
     site.start_router()
     with observing(site) as obs:
-        site.start_manager()
+        site.start_manager(site.manager_config(extra_sensors=(f"s{SENSORS:02d}", f"s{SENSORS + 1:02d}")))
         for sid in site.ids:
             site.start_node(sid)
         fleet = site._spawn(

@@ -6,8 +6,11 @@ errors, or dropped when its inbox was full); the manager keeps tracking the real
 detection nodes of a simulated room); memory stays bounded.
 
 Every hostile payload is checked here to fail ``common.codec.decode`` for the type the key
-carries, so "counted" can be checked exactly: the receiver's ``decode_errors + dropped_msgs``
-must grow by at least the number sent (more only by real frames dropped meanwhile).
+carries, so "counted" can be checked exactly: on the keys of the sensors the manager fuses, its
+``decode_errors + dropped_msgs`` must grow by at least the number sent (more only by real frames
+dropped meanwhile). Payloads under ids it does not fuse are refused by key, before decoding, and
+counted per id in ``refused``; a flood of them pauses that count (``refused_partial``), so there
+it is checked to have grown, not to be exact.
 """
 
 from __future__ import annotations
@@ -257,6 +260,10 @@ def _counted(statuses: list[Any]) -> int:
     return int(last.decode_errors) + int(getattr(last, "dropped_msgs", 0))
 
 
+def _refused(statuses: list[Any]) -> int:
+    return int(statuses[-1].refused_msgs)
+
+
 def _settled(get: Any, timeout_s: float, what: str) -> int:
     """Wait until the counter stops moving for two status periods; return its value."""
     seen: list[int] = []
@@ -319,33 +326,37 @@ def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: 
     t_before = time.monotonic()
     wait_for(lambda: obs.status_since(t_before), 5.0, "a manager status before the flood")
     mgr_before = _counted(obs.status_since(t_before))
+    refused_before = _refused(obs.status_since(t_before))
     node_before = _counted(_node_status(attacker, pk.sensor_status("ptz1")))
 
     # Split 10^5 payloads over every key the manager and the nodes subscribe to.
     share = N_PAYLOADS // 10
     plan = [
         (k.sensor_features(real[0]), hostile_payloads(Features, share, 1)),  # a real camera's key
-        (k.sensor_features("evil"), hostile_payloads(Features, share, 2)),
         (k.sensor_features(real[2]), hostile_payloads(Features, share, 5)),
         (k.sensor_info(real[1]), hostile_payloads(SensorInfo, share, 3)),
+        (k.sensor_ptz_state(real[3]), hostile_payloads(PtzState, share, 6)),
+    ]
+    unlisted = [  # ids the manager does not fuse: refused by key
+        (k.sensor_features("evil"), hostile_payloads(Features, share, 2)),
         (k.sensor_info("evil"), hostile_payloads(SensorInfo, share, 4)),
-        (k.sensor_ptz_state("ptz9"), hostile_payloads(PtzState, share, 6)),
     ]
     node_plan = [
         (pk.sensor_ptz("ptz1"), hostile_payloads(PtzCommand, 2 * share, 7)),
         (pk.plan("pano1"), hostile_payloads(ViewPlan, 2 * share, 8)),
     ]
     n_mgr = sum(len(p) for _, p in plan)
+    n_unlisted = sum(len(p) for _, p in unlisted)
     n_node = sum(len(p) for _, p in node_plan)
-    assert n_mgr + n_node == N_PAYLOADS
+    assert n_mgr + n_unlisted + n_node == N_PAYLOADS
     rss = RssWatch({n: p for n, p in procs.items() if n in ("manager", "ptz1")})
     t_flood = time.monotonic()
-    sent = _flood(attacker, plan + node_plan)
+    sent = _flood(attacker, plan + unlisted + node_plan)
     assert sent == N_PAYLOADS
     # Hostile queries on the queryables: the PTZ allocation and a node's info.
     replies = 0
     for i, data in enumerate(hostile_payloads(PtzRequest, 500, 9)):
-        for r in attacker.get(k.manager_ptz(MANAGER_ID), payload=data, timeout=2.0):
+        for r in attacker.get(k.ptz_request(MANAGER_ID, "a1"), payload=data, timeout=2.0):
             replies += 1 if r.ok is not None or r.err is not None else 0
         if i % 50 == 0:
             rss.sample()
@@ -378,6 +389,11 @@ def test_1e5_hostile_payloads_counted_no_crash_tracking_continues(flooded_site: 
     for name, p in procs.items():
         assert p.alive, f"{name} died under hostile input:\n{p.log()}"
     assert mgr_after - mgr_before >= n_mgr, f"manager counted {mgr_after - mgr_before} of {n_mgr} bad payloads"
+    last = obs.status_since(t_flood)[-1]
+    refused = _refused(obs.status_since(t_flood)) - refused_before
+    assert refused > 0 and any(r.sender_id == "evil" and r.unlisted > 0 for r in last.refused), last.refused
+    if not last.refused_partial:
+        assert refused >= n_unlisted, f"{refused} of {n_unlisted} payloads of an unlisted sensor counted"
     assert node_after - node_before >= n_node, f"node counted {node_after - node_before} of {n_node} bad payloads"
     # Tracking of the real data continues, with every real camera.
     t_after = time.monotonic()

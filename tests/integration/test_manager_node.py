@@ -96,7 +96,7 @@ def _config(tmp_path: Path) -> Path:
     cfg = tmp_path / "manager.toml"
     cfg.write_text(
         f'[manager]\nid = "{MID}"\nprefix = "{PREFIX}"\nrate_hz = 10.0\nlatency_ms = 150.0\n'
-        'state_dir = "state"\nhistory_hz = 10.0\n\n[planner]\nenabled = false\n'
+        'state_dir = "state"\nhistory_hz = 10.0\nsensors = ["pa", "pb", "zz1"]\n\n[planner]\nenabled = false\n'
     )
     return cfg
 
@@ -158,20 +158,32 @@ def test_manager_end_to_end(router: Any, spawn: Any, sessions: Any, tmp_path: Pa
             assert bad and bad[0].err is not None
             # PTZ allocation: acquire, a lower priority is refused with a reason, commands follow, release.
             req = PtzRequest(agent_id="ag1", seq=1, stamp_ns=time.time_ns(), action="acquire", track_id=tid, priority=5)
-            rep = decode(_get(sessions, keys.manager_ptz(MID), encode(req))[0].ok.payload.to_bytes(), PtzReply)
+            rep = decode(_get(sessions, keys.ptz_request(MID, "ag1"), encode(req))[0].ok.payload.to_bytes(), PtzReply)
             assert rep.ok and rep.sensor_id == "zz1", rep
+            assert 0 < rep.lease_s <= 30.0, rep
             low = PtzRequest(agent_id="ag2", seq=1, stamp_ns=time.time_ns(), action="acquire", track_id=tid, priority=1)
-            rep2 = decode(_get(sessions, keys.manager_ptz(MID), encode(low))[0].ok.payload.to_bytes(), PtzReply)
+            rep2 = decode(_get(sessions, keys.ptz_request(MID, "ag2"), encode(low))[0].ok.payload.to_bytes(), PtzReply)
             assert not rep2.ok and "priority" in rep2.reason
             cmd = wait_for(lambda: commands[-1] if commands else None, 5, "a PTZ command")
             assert cmd.sensor_id == "zz1" and cmd.track_id == tid and -1.2 < cmd.tilt_rad < 0.2
             rel = PtzRequest(agent_id="ag1", seq=2, stamp_ns=time.time_ns(), action="release", track_id=tid)
-            rep3 = decode(_get(sessions, keys.manager_ptz(MID), encode(rel))[0].ok.payload.to_bytes(), PtzReply)
+            # Identity is the key's: ag2 cannot release ag1's view by naming ag1 in its payload.
+            forged = _get(sessions, keys.ptz_request(MID, "ag2"), encode(rel))
+            assert forged and forged[0].err is not None and "ag1" in forged[0].err.payload.to_string()
+            rep3 = decode(_get(sessions, keys.ptz_request(MID, "ag1"), encode(rel))[0].ok.payload.to_bytes(), PtzReply)
             assert rep3.ok and rep3.sensor_id == "zz1"
-            junk = _get(sessions, keys.manager_ptz(MID), b"\x00garbage")
+            junk = _get(sessions, keys.ptz_request(MID, "ag1"), b"\x00garbage")
             assert junk and junk[0].err is not None
+            old_key = _get(sessions, keys.manager_ptz(MID), encode(req))
+            assert old_key and old_key[0].err is not None and "ptz/" in old_key[0].err.payload.to_string()
             st = wait_for(lambda: statuses[-1] if statuses else None, 5, "a ManagerStatus")
             assert st.tracks >= 1 and "pa" in st.sensors_in_use and st.tick_ms > 0
+            assert st.sensors_expected == ["pa", "pb", "zz1"]
+            wait_for(
+                lambda: any(r.sender_id == "ag2" and r.wrong_id >= 1 for r in statuses[-1].refused),
+                5,
+                "the forged release counted against ag2 in ManagerStatus.refused",
+            )
         # SIGTERM: a clean exit.
         mgr.signal(signal.SIGTERM)
         assert mgr.wait(10) == 0
@@ -191,3 +203,37 @@ def test_manager_end_to_end(router: Any, spawn: Any, sessions: Any, tmp_path: Pa
     finally:
         for s in subs:
             s.undeclare()
+
+
+def test_a_killed_agents_ptz_hold_goes_to_the_next_agent_within_3_s(
+    router: Any, spawn: Any, sessions: Any, tmp_path: Path
+) -> None:
+    """`agent view` holds the PTZ camera while it runs; kill -9 it, and another agent at the same priority gets
+    the camera within 3 s (its liveliness token went, so its hold did)."""
+    from user_agent.client import AgentClient
+
+    keys = Keys(PREFIX)
+    _start(spawn, _config(tmp_path), router)
+    wait_for_liveliness(sessions, keys.manager(MID), timeout_s=20)
+    tracksets: list[TrackSet] = []
+    sub = sessions.declare_subscriber(keys.tracks(), lambda s: tracksets.append(decode(s.payload.to_bytes(), TrackSet)))
+    try:
+        with FakeSensors(sessions, keys), AgentClient(sessions, prefix=PREFIX, agent_id="second") as other:
+            ts = wait_for(lambda: next((t for t in reversed(tracksets) if t.tracks), None), 20, "a track")
+            tid = ts.tracks[0].track_id
+            holder = spawn(
+                [sys.executable, "-m", "panostereo", "agent", "view", tid, "--prefix", PREFIX,
+                 "--connect", router.endpoint, "--agent-id", "holder"],
+                name="holder",
+            )  # fmt: skip
+            holder.wait_for_output(r"holding zz1", 20)
+            refused = other.request_view(tid)
+            assert not refused.ok and "holder" in refused.reason, refused
+            t_kill = time.monotonic()
+            holder.signal(signal.SIGKILL)
+            reply = wait_for(lambda: (r := other.request_view(tid)).ok and r, 10, "the camera for the second agent")
+            taken_s = time.monotonic() - t_kill
+            assert reply.sensor_id == "zz1"
+            assert taken_s <= 3.0, f"the second agent got the camera {taken_s:.2f} s after the holder was killed"
+    finally:
+        sub.undeclare()

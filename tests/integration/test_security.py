@@ -11,8 +11,10 @@ same receiver does get the legitimate message, through the same router, in the s
 
 from __future__ import annotations
 
+import datetime
 import json
 import re
+import shutil
 import subprocess
 import sys
 import threading
@@ -27,7 +29,7 @@ import pytest
 from common.codec import decode, encode
 from common.errors import SessionError
 from common.keys import Keys
-from common.schema import Features, PtzCommand, PtzReply, PtzRequest, Track, TrackSet
+from common.schema import Features, Pose, PtzCommand, PtzReply, PtzRequest, Track, TrackSet
 from common.session import SessionSettings, open_session
 from tests.support import REPO, ManagedProcess, free_port, spawn, wait_for, wait_for_port
 
@@ -87,9 +89,20 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureSite]:
     tls_port, tcp_port = free_port(), free_port()
     _make_configs(certs, cfg, "--prefix", KEYS.prefix, "--sensors", ids, "--listen", f"tls/127.0.0.1:{tls_port}",
                   "--listen-tcp", f"tcp/127.0.0.1:{tcp_port}")  # fmt: skip
+    # As deployed: the router's dictionary goes where its other files are (the folder --certs names).
+    shutil.copy(cfg / "users.txt", certs / "users.txt")
     logs = root / "logs"
     router = spawn(
-        [sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(cfg / "router-tls.json5")],
+        [
+            sys.executable,
+            "-m",
+            "panostereo",
+            "router",
+            "--zenoh-config",
+            str(cfg / "router-tls.json5"),
+            "--zenoh-log",
+            "warn",
+        ],
         log_dir=logs,
         name="router-tls",
     )
@@ -194,6 +207,11 @@ def _deliver_until(put: Any, pred: Any, what: str, timeout_s: float = 10.0) -> A
 # ---------------------------------------------------------------------------
 
 
+def _not_after(pem: Path) -> datetime.datetime:
+    text = _openssl("x509", "-in", str(pem), "-noout", "-enddate").split("=", 1)[1]
+    return datetime.datetime.strptime(" ".join(text.split()), "%b %d %H:%M:%S %Y %Z")
+
+
 def _openssl(*args: str) -> str:
     res = subprocess.run(["openssl", *args], capture_output=True, text=True, timeout=30, check=False)
     assert res.returncode == 0, res.stderr
@@ -217,16 +235,44 @@ def test_make_certs_roles_names_and_modes(tmp_path: Path) -> None:
         assert (out / f"{name}.key").stat().st_mode & 0o077 == 0, f"{name}.key is readable by others"
     assert "CA:TRUE" in _openssl("x509", "-in", str(out / "ca.pem"), "-noout", "-ext", "basicConstraints")
     assert (out / "ca.key").stat().st_mode & 0o077 == 0
-    # Re-running adds identities under the same CA (an existing site grows); --force starts a new one.
+    # Re-running adds identities under the same CA (an existing site grows) and re-keys nobody else: adding a
+    # camera as documented leaves the router's and the agents' certificates (default --managers/--agents) alone.
     ca_before = (out / "ca.pem").read_text()
+    kept = {n: (out / f"{n}.pem").read_bytes() + (out / f"{n}.key").read_bytes() for n in names}
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c9"])
     assert (out / "ca.pem").read_text() == ca_before
     assert _openssl("verify", "-CAfile", str(out / "ca.pem"), str(out / "sensor-c9.pem")).strip().endswith("OK")
+    assert {n: (out / f"{n}.pem").read_bytes() + (out / f"{n}.key").read_bytes() for n in names} == kept
+    # --renew re-issues just the names given (new key too); a leaf never outlives its CA.
+    said = _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--renew", "router", "--days", "9000"])
+    assert (out / "router.key").read_bytes() != kept["router"][-len((out / "router.key").read_bytes()) :]
+    assert (out / "agent-a1.pem").read_bytes() + (out / "agent-a1.key").read_bytes() == kept["agent-a1"]
+    assert "new: router " in said
+    assert _not_after(out / "router.pem") < _not_after(out / "ca.pem")
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--force"])
     assert (out / "ca.pem").read_text() != ca_before
     bad = subprocess.run([*make, "--sensors", "Bad_Id"], capture_output=True, text=True, timeout=30, check=False)
     assert bad.returncode != 0
     assert "Bad_Id" in bad.stderr
+
+
+def test_configs_for_two_hosts_listen_where_told_and_keep_secrets_private(tmp_path: Path) -> None:
+    """As in the README's two-host walk-through: both routers listen on the given host, the dictionary is named
+    where the router's files are deployed (--certs), and no file holding a password is readable by others."""
+    out = tmp_path / "site-certs"
+    _make_configs("/etc/panostereo/certs", out, "--sensors", "cam1 cam2", "--managers", "mgr1", "--agents", "a1",
+                  "--listen", "tls/0.0.0.0:7447", "--router-host", "192.168.1.10")  # fmt: skip
+    usr = _json5(out / "router-usrpwd.json5")
+    assert usr["listen"]["endpoints"] == ["tcp/0.0.0.0:7448"]
+    assert usr["transport"]["auth"]["usrpwd"]["dictionary_file"] == "/etc/panostereo/certs/users.txt"
+    assert _json5(out / "router-tls.json5")["listen"]["endpoints"] == ["tls/0.0.0.0:7447"]
+    assert _json5(out / "usrpwd" / "sensor-cam1.json5")["connect"]["endpoints"] == ["tcp/192.168.1.10:7448"]
+    for secret in [out / "router-usrpwd.json5", out / "users.txt", *(out / "usrpwd").glob("*.json5")]:
+        assert secret.stat().st_mode & 0o077 == 0, f"{secret.name} is readable by others"
+    # Each agent may ask for PTZ views on its own key only.
+    rules = {r["id"]: r for r in _json5(out / "router-tls.json5")["access_control"]["rules"]}
+    assert "pano/@v1/manager/*/ptz/a1" in rules["agent-a1-query"]["key_exprs"]
+    assert not [k for r in rules.values() if r["id"].startswith("agent-") for k in r["key_exprs"] if k.endswith("/ptz")]
 
 
 # ---------------------------------------------------------------------------
@@ -242,15 +288,55 @@ def test_each_role_connects_with_its_certificate(site: SecureSite, name: str) ->
     assert links_ok, site.router.log()
 
 
+ROUTER_SAYS = {
+    "no client certificate": "NoCertificatesPresented|no certificates",
+    "certificate from another CA": "UnknownIssuer",
+    "expired certificate": "certificate expired",
+    "client trusts another CA": "UnknownCA",
+    "plain tcp to the tls port": "corrupt message",
+}
+"""What zenoh's log (WARN) says about each refused client, as rustls words it."""
+
+
+def _expired_leaf(ca_dir: Path, name: str, out: Path) -> tuple[Path, Path]:
+    """A certificate for ``name`` from the site CA that expired in 2020 (``openssl ca`` sets past dates)."""
+    out.mkdir(parents=True, exist_ok=True)
+    key, csr, pem = out / f"{name}.key", out / f"{name}.csr", out / f"{name}.pem"
+    _openssl("genpkey", "-algorithm", "EC", "-pkeyopt", "ec_paramgen_curve:P-256", "-out", str(key))
+    _openssl("req", "-new", "-key", str(key), "-subj", f"/CN={name}", "-out", str(csr))
+    (out / "index.txt").write_text("")
+    (out / "serial").write_text("1000\n")
+    conf = out / "ca.cnf"
+    conf.write_text(
+        f"[ca]\ndefault_ca = c\n[c]\ndatabase = {out}/index.txt\nnew_certs_dir = {out}\nserial = {out}/serial\n"
+        "default_md = sha256\npolicy = p\n[p]\ncommonName = supplied\n[ext]\nbasicConstraints = critical,CA:FALSE\n"
+        "extendedKeyUsage = serverAuth,clientAuth\nsubjectAltName = DNS:localhost,IP:127.0.0.1\n"
+    )
+    _openssl("ca", "-batch", "-config", str(conf), "-cert", str(ca_dir / "ca.pem"), "-keyfile", str(ca_dir / "ca.key"),
+             "-in", str(csr), "-out", str(pem), "-startdate", "20200101000000Z", "-enddate", "20200102000000Z",
+             "-extensions", "ext", "-notext")  # fmt: skip
+    return pem, key
+
+
 @pytest.mark.parametrize(
     "case",
-    ["no client certificate", "certificate from another CA", "client trusts another CA", "plain tcp to the tls port"],
+    [
+        "no client certificate",
+        "certificate from another CA",
+        "expired certificate",
+        "client trusts another CA",
+        "plain tcp to the tls port",
+    ],
 )
 def test_untrusted_peers_are_refused(site: SecureSite, tmp_path: Path, case: str) -> None:
     name = "sensor-c1"
     connect = site.tls
-    if case == "no client certificate":
-        cfg = _variant(site, tmp_path, name, connect_certificate=None, connect_private_key=None)
+    if case == "expired certificate":
+        pem, key = _expired_leaf(site.certs, name, tmp_path / "expired")
+        cfg = _variant(site, tmp_path, name, connect_certificate=str(pem), connect_private_key=str(key))
+    elif case == "no client certificate":
+        # A client that does not do mutual TLS at all (no certificate, enable_mtls off).
+        cfg = _variant(site, tmp_path, name, connect_certificate=None, connect_private_key=None, enable_mtls=False)
     elif case == "certificate from another CA":
         cfg = _variant(
             site,
@@ -265,8 +351,12 @@ def test_untrusted_peers_are_refused(site: SecureSite, tmp_path: Path, case: str
         cfg = site.cfg / f"{name}.json5"
         connect = f"tcp/127.0.0.1:{site.tls_port}"
     refused = _settings(cfg, connect, timeout_ms=REFUSE_MS)
+    before = site.router.stdout_text()
     with pytest.raises(SessionError, match="cannot open a zenoh client session"), open_session(refused):
         pass
+    # The router says why (panostereo router --zenoh-log warn): a refused client leaves a trace.
+    why = ROUTER_SAYS[case]
+    wait_for(lambda: re.search(why, site.router.stdout_text()[len(before) :]), 10.0, f"the router's log to say {why!r}")
     # ...and a legitimate client still gets in afterwards.
     with _tls_client(site, name) as s:
         assert s.info.routers_zid()
@@ -331,6 +421,11 @@ def test_forged_features_and_tracks_change_nothing(site: SecureSite) -> None:
         wait_for(lambda: feats.where(lambda k, m: m.seq == 3), 10.0, "c1's features after the attacks")
 
 
+def _pose_of(status: Any, sensor_id: str) -> tuple[float, float, float] | None:
+    est = next((p for p in status.poses if p.sensor_id == sensor_id), None)
+    return None if est is None else (est.pose.x_m, est.pose.y_m, est.pose.yaw_rad)
+
+
 def wait_for_any(pred: Any, timeout_s: float) -> bool:
     """True as soon as ``pred()`` is truthy within ``timeout_s``; False if it never is (bounded negative wait)."""
     try:
@@ -392,7 +487,7 @@ def test_queries_follow_the_roles(site: SecureSite) -> None:
             with q:
                 req = decode(q.payload.to_bytes(), PtzRequest)
                 reply = PtzReply(manager_id="m1", seq=1, stamp_ns=1, ok=False, track_id=req.track_id, reason="test")
-                q.reply(KEYS.manager_ptz("m1"), encode(reply))
+                q.reply(str(q.key_expr), encode(reply))
 
         def on_info(q: Any) -> None:
             with q:
@@ -400,7 +495,7 @@ def test_queries_follow_the_roles(site: SecureSite) -> None:
 
         qs = [
             mgr.declare_queryable(KEYS.all_tracks, on_track),
-            mgr.declare_queryable(KEYS.manager_ptz("m1"), on_ptz),
+            mgr.declare_queryable(KEYS.ptz_requests("m1"), on_ptz),
             c1.declare_queryable(KEYS.sensor_info("c1"), on_info),
         ]
 
@@ -411,7 +506,9 @@ def test_queries_follow_the_roles(site: SecureSite) -> None:
             KEYS.track(track.track_id)
         ]
         req = PtzRequest(agent_id="a1", seq=1, stamp_ns=1, action="acquire", track_id=track.track_id)
-        assert wait_for(lambda: get(agent, KEYS.manager_ptz("m1"), encode(req)), 10.0, "PTZ allocation reply")
+        assert wait_for(lambda: get(agent, KEYS.ptz_request("m1", "a1"), encode(req)), 10.0, "PTZ allocation reply")
+        # An agent speaks only for itself: its certificate may not query another agent's PTZ key.
+        assert get(agent, KEYS.ptz_request("m1", "a2"), encode(req)) == []
         assert wait_for(lambda: get(mgr, KEYS.all_sensor_info), 10.0, "manager reads sensor info") == [
             KEYS.sensor_info("c1")
         ]
@@ -505,7 +602,9 @@ def test_committed_demo_configs_match_the_generator(tmp_path: Path) -> None:
 def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Path, request: Any) -> None:
     """Router (TLS + ACL), real manager and sensor nodes with their certificates, an agent: tracks flow;
     an agent certificate publishing fake tracks and a sensor certificate publishing another camera's
-    features change nothing."""
+    features change nothing. Identity is the key's: a sensor publishing, on its own keys, SensorInfo and
+    Features that name another sensor is refused and counted, and the other camera's pose does not move.
+    A late-joining agent gets every SensorInfo from the publishers' caches (AdvancedSubscriber history)."""
     from tests.integration.test_faults import MANAGER_ID, _up_to_speed, make_fault_site, observing_session, running
     from user_agent.client import AgentClient
 
@@ -537,13 +636,131 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
                     _up_to_speed(fsite, obs)
                 except AssertionError as err:
                     raise AssertionError(f"{err}\n{fsite.logs()}") from err
+                victim, liar = fsite.ids[0], fsite.ids[3]
                 t0 = time.monotonic()
+                wait_for(lambda: obs.status_since(t0), 5.0, "a manager status")
+                pose_before = _pose_of(obs.status_since(t0)[-1], victim)
+                real_info = next(v.info for v in agent.sensors() if v.sensor_id == victim)
+                assert real_info is not None and pose_before is not None
+                moved = msg_replace(real_info, pose=Pose(x_m=0.5, y_m=0.5, z_m=1.0, yaw_rad=0.0), seq=99)
                 for i in range(50):
                     rogue_agent.put(keys.tracks(), encode(_trackset(MANAGER_ID, 10**9 + i)))
-                    rogue_sensor.put(keys.sensor_features(fsite.ids[0]), encode(_features(fsite.ids[0], 10**9 + i)))
+                    rogue_sensor.put(keys.sensor_features(victim), encode(_features(victim, 10**9 + i)))  # denied
+                    # On its own keys (allowed by the rules) but speaking for the victim: refused by the manager.
+                    lie = msg_replace(_features(victim, i), stamp_ns=time.time_ns())
+                    rogue_sensor.put(keys.sensor_features(liar), encode(lie))
+                    rogue_sensor.put(keys.sensor_info(liar), encode(moved))
+                    time.sleep(0.02)  # paced: none pushed out of the manager's per-key buffers uncounted
                 # The manager goes on (its tick after the forgeries arrives), all four cameras in use.
                 wait_for(lambda: obs.tracking_with(t0, set(fsite.ids), min_sets=10), 20.0, "tracks after the forgeries")
                 assert not forged.where(lambda k, m: m.seq >= 10**9), "a forged TrackSet reached an agent"
                 assert agent.tracks(timeout_s=2.0), "the agent API sees no tracks over TLS"
                 assert {v.sensor_id for v in agent.sensors()} >= set(fsite.ids)
+                last = wait_for(
+                    lambda: next(
+                        (st for st in reversed(obs.status_since(t0))
+                         if any(r.sender_id == liar and r.wrong_id >= 50 for r in st.refused)),
+                        None,
+                    ),
+                    10.0,
+                    f"{liar}'s messages speaking for {victim} refused and counted (50 of 100 at least)",
+                )  # fmt: skip
+                assert _pose_of(last, victim) == pose_before, "a forged SensorInfo moved another sensor's pose"
+                assert next(v.info for v in agent.sensors() if v.sensor_id == victim) == real_info
+            # A late joiner gets every sensor's SensorInfo from the nodes' publisher caches (no get of its own).
+            with AgentClient(settings=agent_settings, prefix=fsite.prefix, agent_id="a1") as late:
+                wait_for(lambda: set(late._infos) >= set(fsite.ids), 10.0, "SensorInfo from the caches")
         assert router.alive, router.log()
+
+
+# ---------------------------------------------------------------------------
+# Rotation and revocation (deploy/security/README.md, section 5)
+# ---------------------------------------------------------------------------
+
+
+def _router_with(tmp_path: Path, name: str, conf: dict[str, Any]) -> tuple[ManagedProcess, str]:
+    """A TLS router from a config dict on a fresh port; returns it and its endpoint."""
+    port = free_port()
+    conf["listen"]["endpoints"] = [f"tls/127.0.0.1:{port}"]
+    path = tmp_path / f"{name}.json5"
+    path.write_text(json.dumps(conf))
+    proc = spawn([sys.executable, "-m", "panostereo", "router", "--zenoh-config", str(path)], log_dir=tmp_path,
+                 name=name)  # fmt: skip
+    wait_for_port(port, 20.0, proc=proc)
+    return proc, f"tls/localhost:{port}"
+
+
+def test_ca_rotation_a_bundle_of_old_and_new_ca_lets_both_generations_in(site: SecureSite, tmp_path: Path) -> None:
+    """Rotation: a new CA, every trust point holding old + new CA in one file; certificates of both
+    generations connect meanwhile; once the old CA leaves the bundle, its certificates are refused."""
+    new = tmp_path / "new"
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(new), "--sensors", "c2", "--ca-name", "site-ca-2"])
+    bundle = tmp_path / "ca-bundle.pem"
+    bundle.write_text((site.certs / "ca.pem").read_text() + (new / "ca.pem").read_text())
+    conf = _json5(site.cfg / "router-tls.json5")
+    conf["transport"]["link"]["tls"].update(
+        root_ca_certificate=str(bundle),
+        listen_certificate=str(new / "router.pem"),
+        listen_private_key=str(new / "router.key"),
+    )
+    router, endpoint = _router_with(tmp_path, "router-rotating", conf)
+    old_c1 = _variant(site, tmp_path, "sensor-c1", root_ca_certificate=str(bundle))
+    new_pem, new_key = str(new / "sensor-c2.pem"), str(new / "sensor-c2.key")
+    new_c2 = _variant(site, tmp_path, "sensor-c2", root_ca_certificate=str(bundle), connect_certificate=new_pem,
+                      connect_private_key=new_key)  # fmt: skip
+    try:
+        for cfg in (old_c1, new_c2):
+            with open_session(_settings(cfg, endpoint)) as s:
+                assert s.info.routers_zid()
+    finally:
+        router.stop()
+    conf["transport"]["link"]["tls"]["root_ca_certificate"] = str(new / "ca.pem")  # rotation done
+    router, endpoint = _router_with(tmp_path, "router-rotated", conf)
+    try:
+        with pytest.raises(SessionError), open_session(_settings(old_c1, endpoint, timeout_ms=REFUSE_MS)):
+            pass
+        with open_session(_settings(new_c2, endpoint)) as s:
+            assert s.info.routers_zid()
+    finally:
+        router.stop()
+
+
+def test_revocation_an_identity_out_of_the_rules_can_do_nothing(site: SecureSite, tmp_path: Path) -> None:
+    """Revocation: regenerate the router's config without the identity (its certificate still verifies):
+    it connects, and every message of it is denied while the others flow."""
+    cfg = tmp_path / "revoked"
+    _make_configs(site.certs, cfg, "--prefix", KEYS.prefix, "--sensors", "c1", "--tls-only")  # c2 left out
+    router, endpoint = _router_with(tmp_path, "router-revoked", _json5(cfg / "router-tls.json5"))
+    try:
+        with (
+            open_session(_settings(site.cfg / "manager-m1.json5", endpoint)) as mgr,
+            open_session(_settings(site.cfg / "sensor-c1.json5", endpoint)) as c1,
+            open_session(_settings(site.cfg / "sensor-c2.json5", endpoint)) as c2,
+        ):
+            feats = Collector(mgr, KEYS.all_features, Features)
+            _deliver_until(
+                lambda: c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 1))),
+                lambda: feats.where(lambda k, m: m.seq == 1),
+                "c1's features",
+            )
+            c2.put(KEYS.sensor_features("c2"), encode(_features("c2", 666)))
+            c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 2)))
+            wait_for(lambda: feats.where(lambda k, m: m.seq == 2), 10.0, "c1's marker")
+            assert not wait_for_any(lambda: feats.where(lambda k, m: m.sensor_id == "c2"), SETTLE_S), feats.items
+    finally:
+        router.stop()
+
+
+@pytest.mark.parametrize(("agent_id", "warned"), [(None, True), ("a1", False)])
+def test_an_agent_told_when_the_router_refuses_its_identity(
+    site: SecureSite, agent_id: str | None, warned: bool
+) -> None:
+    """`agent tracks --zenoh-config agent-a1.json5` without `--agent-id a1` announces itself as agent-<pid>, which
+    the rules deny silently: the CLI says so (its PTZ requests would be refused as well)."""
+    args = [sys.executable, "-m", "panostereo", "agent", "tracks", "--prefix", KEYS.prefix, "--timeout", "0.2",
+            "--zenoh-config", str(site.cfg / "agent-a1.json5"), "--connect", site.tls]  # fmt: skip
+    if agent_id:
+        args += ["--agent-id", agent_id]
+    res = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 0, res.stderr
+    assert ("did not take this agent's liveliness token" in res.stderr) == warned, res.stderr

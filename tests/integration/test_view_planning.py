@@ -114,7 +114,9 @@ def test_planner_moves_robot_and_measured_error_falls(router: Any, spawn: Any, t
     with client_session(router.endpoint) as session:
         got = Collector(session, keys)
         try:
-            mgr = spawn([sys.executable, "-m", "resource_manager", "--config", mgr_cfg], env=env, name="manager")
+            # --site: the manager fuses the planning site's sensor nodes (tripod, robot), as `panostereo up` has it.
+            mgr = spawn([sys.executable, "-m", "resource_manager", "--config", mgr_cfg, "--site", SITE], env=env,
+                        name="manager")  # fmt: skip
             for cfg in node_cfgs:
                 spawn([sys.executable, "-m", "sensor_node", "--config", cfg], env=env, name=cfg.stem)
             wait_for_liveliness(session, keys.manager(MID), timeout_s=20)

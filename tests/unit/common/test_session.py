@@ -84,6 +84,23 @@ def test_flags_override_config() -> None:
     assert (s.config_file, s.multicast_scouting) == ("z.json5", True)
 
 
+def test_a_zenoh_config_flag_names_the_router_not_the_process_tables_endpoint(tmp_path: Path) -> None:
+    """`node --config cam.toml --zenoh-config sensor-cam.json5` (the secure deployment): the file's tls/ endpoint
+    is used, not the tcp/ one of cam.toml's [zenoh] table; --connect still overrides both."""
+    f = tmp_path / "sensor.json5"
+    f.write_text('{ mode: "client", connect: { endpoints: ["tls/router.lab:7447"] } }')
+    p = argparse.ArgumentParser()
+    add_session_args(p)
+    toml = SessionSettings(connect=["tcp/127.0.0.1:7447"], lease_ms=2000)
+    s = settings_from_args(p.parse_args(["--zenoh-config", str(f)]), toml)
+    assert cfg(s, "connect/endpoints") == ["tls/router.lab:7447"] and s.lease_ms == 2000
+    s = settings_from_args(p.parse_args(["--zenoh-config", str(f), "--connect", "tls/other:1"]), toml)
+    assert cfg(s, "connect/endpoints") == ["tls/other:1"]
+    # The table's own config_file keeps the table's connect (documented: "overrides the file's endpoint").
+    own = SessionSettings(config_file=str(f), connect=["tls/10.0.0.9:7447"])
+    assert cfg(settings_from_args(p.parse_args([]), own), "connect/endpoints") == ["tls/10.0.0.9:7447"]
+
+
 def test_config_file_is_used_and_flags_override_it(tmp_path: Path) -> None:
     f = tmp_path / "z.json5"
     f.write_text('{ mode: "peer", transport: { link: { tx: { batch_size: 8192 } } } }')

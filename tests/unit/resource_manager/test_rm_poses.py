@@ -146,6 +146,38 @@ def test_a_lone_outlier_pose_is_refused_a_persistent_one_followed() -> None:
     assert math.hypot(p.x_m - 3.6, p.y_m) < 0.3  # it persists: the robot really moved (raw sigma ~0.13 m here)
 
 
+def test_forged_sightings_that_agree_with_nothing_neither_move_nor_drop_a_pose() -> None:
+    """A flood of sightings forged under the robots' ids (random boundaries, 8 s, longer than the timeout): every
+    raw pose they give is refused (none agree with each other) and the pose is held, not lost; when they stop, the
+    real sightings carry on the same filter (no restart, so no settling as if the robot had moved)."""
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s = solver(cams, timeout_s=2.0)
+    rng = np.random.default_rng(4)
+    t = 1
+    for _ in range(20):
+        p = s.solve(sightings(cams, rng, PX), t)["r1"]
+        t += 100_000_000
+    kept = s.filters["r1"]
+    forged_rng = np.random.default_rng(5)
+    for _ in range(80):  # 8 s of forged frames only
+
+        def forged() -> list[AlignedSighting]:
+            left = float(forged_rng.uniform(-math.pi, math.pi))
+            return [AlignedSighting("r1" if forged_rng.random() < 0.5 else "p1", left,
+                                    left - float(forged_rng.uniform(0.01, 0.5)), 0.18)]  # fmt: skip
+
+        held = s.solve({"p1": forged(), "r1": forged()}, t)
+        t += 100_000_000
+        # Held (a forged pose that happens to lie within its tolerance nudges it: a few cm, no jump).
+        assert "r1" in held and math.hypot(held["r1"].x_m - 3, held["r1"].y_m) < 0.25, held.get("r1")
+    assert s.filters["r1"] is kept  # never restarted at a forged pose, never timed out
+    for _ in range(10):
+        p = s.solve(sightings(cams, rng, PX), t)["r1"]
+        t += 100_000_000
+    assert s.filters["r1"] is kept and kept.outliers == 0  # the same filter, carried on by the real sightings
+    assert math.hypot(p.x_m - 3, p.y_m) < 0.05
+
+
 # -- settling: a robot's views after it moved (resource_manager/settling.py) ------------------------------------
 def _pose(sid: str, x: float, y: float, sigma: float = 0.01, yaw: float = 0.0) -> PoseEstimate:
     return PoseEstimate(sid, x, y, 1.1, yaw, "mutual", sigma, math.radians(0.3))

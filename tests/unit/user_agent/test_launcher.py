@@ -93,8 +93,10 @@ def test_site_plans_pick_host_and_build_argv(tmp_path: Path) -> None:
     site = load_site(tmp_path / "site.toml")
     local = site_plans(site, connect="tcp/127.0.0.1:1", env={"A": "1"}, python="py")
     assert [p.name for p in local] == ["m", "a"]
+    # A site's manager gets the site, whose sensor nodes are the ones it fuses.
+    site_file = str((tmp_path / "site.toml").resolve())
     assert local[0].argv == ["py", "-m", "panostereo", "manager", "--config", str(tmp_path / "m.toml"),
-                             "--connect", "tcp/127.0.0.1:1"]  # fmt: skip
+                             "--connect", "tcp/127.0.0.1:1", "--site", site_file]  # fmt: skip
     assert local[1].argv[:6] == ["py", "-m", "panostereo", "agent", "record", "x.mcap"]
     assert [p.name for p in site_plans(site, host="cam1")] == ["n1"]
     assert "--connect" not in site_plans(site, host="cam1")[0].argv

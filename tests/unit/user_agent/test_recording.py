@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import json
 import math
+import threading
+import time
+import types
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import pytest
@@ -13,7 +18,7 @@ from msgspec.structs import replace as msgspec_replace
 
 from common.codec import encode
 from common.keys import Keys
-from common.schema import PairChoice, PairEntry, PanoramicModel, Pose, SensorInfo, Track, TrackSet
+from common.schema import Features, PairChoice, PairEntry, PanoramicModel, Pose, SensorInfo, Track, TrackSet
 from user_agent.groundtruth import GtPoint, read_gt_csv, write_gt_rows
 from user_agent.record import McapSink
 from user_agent.recording import iter_raw, load_recording
@@ -190,3 +195,101 @@ def test_a_pose_the_manager_lost_no_longer_places_the_camera() -> None:
     assert places.camera_xyz["robot"] == (3.0, 2.0, 1.1)
     places.update(status([]), EPOCH)  # the manager lost it: no rays drawn from where it was
     assert "robot" not in places.camera_xyz
+
+
+def test_lost_tracksets_are_not_scored_but_a_silent_manager_is(recorded: tuple[Path, Path], tmp_path: Path) -> None:
+    """Frames where the recording lost TrackSets (a gap in their seq) are skipped, not counted as misses;
+    frames where the manager published nothing (no gap: it was silent) are scored."""
+    _, gt_path = recorded
+    gt = read_gt_csv(gt_path)
+
+    def run(name: str, keep: Callable[[int], bool], seq: Callable[[int], int]) -> Any:
+        sink = McapSink(tmp_path / name, {"epoch_ns": str(EPOCH), "fps": str(FPS)})
+        for i in range(80):
+            if not keep(i):
+                continue
+            stamp = EPOCH + int(0.4e9) + i * 50_000_000
+            k = 1 + (stamp - EPOCH) / 1e9 * FPS
+            tracks = [_track(f"mgr1-{p + 1}", *person(k, p), stamp) for p in (0, 1)]
+            ts = TrackSet(manager_id="mgr1", seq=seq(i), stamp_ns=stamp, tracks=tracks)
+            sink.write(K.tracks(), encode(ts), stamp)
+        sink.close()
+        return score_recording(load_recording(tmp_path / name), gt)
+
+    lost = run("lost.mcap", lambda i: not 20 <= i < 50, lambda i: i)  # 1.5 s of TrackSets the recorder lost
+    silent = run("silent.mcap", lambda i: not 20 <= i < 50, lambda i: i if i < 20 else i - 30)  # manager silent
+    assert lost.unseen_s == pytest.approx(1.05, abs=0.06) and silent.unseen_s == 0.0
+    # Frames 1 and 2 come before the first TrackSet (both people missed there); the lost span costs nothing.
+    assert lost.metrics.misses == 4 and lost.metrics.false_positives == 0
+    assert silent.metrics.misses > 4 and silent.frames_scored > lost.frames_scored
+
+
+class _Session:
+    def __init__(self) -> None:
+        self.callbacks: list[Callable[[Any], None]] = []
+
+    def declare_subscriber(self, key_expr: str, callback: Callable[[Any], None]) -> Any:
+        self.callbacks.append(callback)
+        return types.SimpleNamespace(undeclare=lambda: None)
+
+
+def _sample(key: str, data: bytes) -> Any:
+    return types.SimpleNamespace(key_expr=key, payload=types.SimpleNamespace(to_bytes=lambda: data))
+
+
+def test_recorder_drops_features_first_counts_every_drop_per_key_and_writes_the_counts(tmp_path: Path) -> None:
+    from user_agent.record import RECORDER_META, Recorder
+    from user_agent.recording import read_metadata
+
+    session = _Session()
+    sink = McapSink(tmp_path / "r.mcap", {"epoch_ns": str(EPOCH)})
+    gate = threading.Event()
+    write = sink.write
+
+    def slow_write(key: str, data: bytes, t: int) -> None:
+        gate.wait()  # the writer is stuck until the test lets it go: everything queues
+        write(key, data, t)
+
+    sink.write = slow_write  # type: ignore[method-assign]
+    rec = Recorder(session, [K.all], sink, capacity=50, raw_capacity=10, max_lag_s=0.2)
+    (deliver,) = session.callbacks
+    feat = encode(Features(sensor_id="pano1", seq=0, stamp_ns=EPOCH, frame_index=0))
+    for i in range(40):
+        deliver(_sample(K.tracks(), encode(TrackSet(manager_id="mgr1", seq=i, stamp_ns=EPOCH + i))))
+    for _ in range(100):
+        deliver(_sample(K.sensor_features("pano1"), feat))
+    for i in range(40, 60):  # the queue is full: the queued features go before any track
+        deliver(_sample(K.tracks(), encode(TrackSet(manager_id="mgr1", seq=i, stamp_ns=EPOCH + i))))
+    st = rec.status()
+    assert st.dropped == 100 + 10 and st.dropped_raw == 100  # 90 refused at the door, 10 pushed out; 10 tracks
+    assert rec.drops == {K.sensor_features("pano1"): 100, K.tracks(): 10}
+    assert rec.top_drops(1) == [(K.sensor_features("pano1"), 100)]  # what the record/demo screens name
+    time.sleep(0.3)
+    gate.set()
+    rec.stop()
+    meta = read_metadata(tmp_path / "r.mcap")
+    assert meta["dropped"] == "110" and meta[f"dropped:{K.tracks()}"] == "10"
+    assert RECORDER_META.startswith("panostereo.")
+    tracks = load_recording(tmp_path / "r.mcap").tracksets
+    assert [t.seq for t in tracks] == list(range(10, 60))  # the oldest tracks went only when no feature was left
+
+
+def test_recorder_drops_features_that_waited_too_long_and_caps_its_keys(tmp_path: Path) -> None:
+    from user_agent.record import Recorder
+
+    session = _Session()
+    sink = McapSink(tmp_path / "r.mcap", {})
+    gate = threading.Event()
+    write = sink.write
+    sink.write = lambda k, d, t: (gate.wait(), write(k, d, t))  # type: ignore[method-assign, func-returns-value]
+    rec = Recorder(session, K.all, sink, capacity=1000, raw_capacity=500, max_lag_s=0.1, max_keys=5)
+    (deliver,) = session.callbacks
+    deliver(_sample(K.tracks(), b"\xc1"))  # the writer takes it and waits on the gate
+    for i in range(20):
+        deliver(_sample(K.sensor_features(f"s{i}"), b"\x00"))
+    assert rec.status().dropped == 16  # 5 keys at most: tracks and s0..s3
+    time.sleep(0.2)
+    gate.set()
+    rec.stop()
+    st = rec.status()
+    assert st.dropped == 20 and st.dropped_raw == 20 and st.written == 1  # the 4 stale features too

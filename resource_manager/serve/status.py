@@ -1,0 +1,73 @@
+"""ManagerStatus from one status period: tick times, the last tick's counters, the inboxes' and the gate's counts."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from common.geometry import wrap_angle
+from common.schema import MAX_SENSORS, ManagerStatus, Pose
+from common.schema import PoseEstimate as WirePoseEstimate
+from resource_manager.fusion import TickResult
+from resource_manager.ingest.gate import SenderGate
+
+__all__ = ["InboxCounts", "manager_status"]
+
+
+@dataclass(frozen=True, slots=True)
+class InboxCounts:
+    """What the shell's subscriptions and queryables saw over the run."""
+
+    decode_errors: int
+    dropped: int
+
+
+def manager_status(
+    manager_id: str,
+    seq: int,
+    stamp_ns: int,
+    *,
+    tick_ms: Sequence[float],
+    period_s: float,
+    result: TickResult | None,
+    inboxes: InboxCounts,
+    gate: SenderGate,
+    refused_partial: bool,
+) -> ManagerStatus:
+    """The status message; lists are capped at their schema bounds."""
+    ms = np.asarray(list(tick_ms) or [0.0])
+    c = result.counters if result is not None else None
+    refusals = gate.refusals
+    return ManagerStatus(
+        manager_id=manager_id,
+        seq=seq,
+        stamp_ns=stamp_ns,
+        tick_ms=float(ms.mean()),
+        tick_p99_ms=float(np.percentile(ms, 99)),
+        tick_rate_hz=len(tick_ms) / period_s,
+        sensors_in_use=(c.sensors_in_use if c else [])[:MAX_SENSORS],
+        sensors_known=(c.sensors_known if c else [])[:MAX_SENSORS],
+        sensors_without_pose=(c.sensors_without_pose if c else [])[:MAX_SENSORS],
+        tracks=len(result.trackset.tracks) if result else 0,
+        decode_errors=inboxes.decode_errors,
+        late_msgs=c.late if c else 0,
+        duplicate_msgs=c.duplicate if c else 0,
+        out_of_order_msgs=c.out_of_order if c else 0,
+        dropped_msgs=inboxes.dropped + (c.dropped if c else 0),
+        sensors_absent=(c.sensors_absent if c else [])[:MAX_SENSORS],
+        poses=[
+            WirePoseEstimate(
+                sensor_id=p.sensor_id,
+                pose=Pose(x_m=p.x_m, y_m=p.y_m, z_m=p.z_m, yaw_rad=wrap_angle(p.yaw_rad)),
+                source=p.source,
+                sigma_m=p.sigma_xy_m,
+            )
+            for p in (c.poses if c else ())[:MAX_SENSORS]
+        ],
+        sensors_expected=gate.expected[:MAX_SENSORS],
+        refused_msgs=refusals.total,
+        refused=refusals.top(MAX_SENSORS),
+        refused_partial=refused_partial,
+    )
