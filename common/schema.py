@@ -41,6 +41,7 @@ __all__ = [
     "Blob",
     "DetectorState",
     "Features",
+    "Latency",
     "ManagerStatus",
     "NodeStatus",
     "PairChoice",
@@ -55,6 +56,7 @@ __all__ = [
     "PtzState",
     "Refusal",
     "SensorInfo",
+    "SensorTiming",
     "Sighting",
     "Track",
     "TrackSet",
@@ -361,6 +363,9 @@ class TrackSet(_Msg, frozen=True, tag="pano.TrackSet"):
     stamp_ns: StampNs
     tracks: Annotated[list[Track], msgspec.Meta(max_length=MAX_TRACKS)] = []
     sensors_used: IdList = []
+    published_ns: StampNs = 0
+    """When the manager published it, on its NTP-corrected clock: ``published_ns - stamp_ns`` is the capture ->
+    publish age (0: not published live, e.g. a dataset evaluation)."""
 
 
 class PairEntry(_Msg, frozen=True, tag="pano.PairEntry"):
@@ -429,6 +434,45 @@ class Refusal(_Msg, frozen=True, tag="pano.Refusal"):
     """Features stamped further from the manager's clock than its ``max_skew_s``: never buffered."""
 
 
+class SensorTiming(_Msg, frozen=True, tag="pano.SensorTiming"):
+    """How one sensor's frames reach the manager, as its fusion schedule measures them."""
+
+    sensor_id: Id
+    period_ms: Millis
+    """Its measured frame period."""
+    delay_ms: Annotated[float, msgspec.Meta(ge=-1e9, le=1e9)]
+    """Capture -> arrival at the manager (node processing plus transport), running mean."""
+    jitter_ms: Millis
+    """The delay's and the period's running mean absolute deviation."""
+    wait_ms: Millis
+    """How long past its expected next frame the manager waits for it before fusing the others without it."""
+    frames: Count = 0
+    """Frames received from it so far."""
+    late_frames: Count = 0
+    """Frames that arrived after their instant was fused (dropped from it), so far."""
+    missed: Count = 0
+    """Deadlines it missed (the others were fused without it), so far."""
+
+
+class Latency(_Msg, frozen=True, tag="pano.Latency"):
+    """Where the time from capture to a published TrackSet went, medians over the status period."""
+
+    age_ms: Millis
+    """Capture -> publish age of the newest TrackSet."""
+    age_p50_ms: Millis
+    age_p99_ms: Millis
+    node_ms: Millis
+    """The node's processing of the frame each instant waited for last (capture -> publish)."""
+    transport_ms: Millis
+    """That frame's node -> manager transport."""
+    wait_ms: Millis
+    """Its arrival -> the fusion starting (the watermark, or the fixed delay)."""
+    fusion_ms: Millis
+    """The fusion tick."""
+    publish_ms: Millis
+    """The fusion's end -> the TrackSet handed to zenoh."""
+
+
 class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """The resource manager's health, published at 1 Hz."""
 
@@ -460,6 +504,14 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """Refused messages per sender id, the most refused first."""
     refused_partial: bool = False
     """True when unlisted senders flooded faster than the manager counts them: their counts are lower bounds."""
+    schedule: Literal["watermark", "fixed"] = "watermark"
+    """When it fuses (``[manager] schedule``)."""
+    frames_received: Count = 0
+    """Features messages that reached the fusion so far, every sensor's."""
+    latency: Latency | None = None
+    """Capture -> publish of its TrackSets over the status period (None: nothing published in it)."""
+    timing: Annotated[list[SensorTiming], msgspec.Meta(max_length=MAX_SENSORS)] = []
+    """Per sensor in use: its frames' measured period, delay and jitter, and how late they came."""
 
 
 # ---------------------------------------------------------------------------

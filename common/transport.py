@@ -18,6 +18,7 @@ import math
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
@@ -182,7 +183,9 @@ class KeyedInbox(Generic[T]):
     (a wildcard flooded with fresh keys cannot grow memory); samples of further
     keys are dropped and counted. ``advanced`` makes each subscriber a zenoh.ext
     AdvancedSubscriber that also fetches the publishers' cached samples
-    (history) when it starts and when a publisher appears.
+    (history) when it starts and when a publisher appears. ``notify`` is called
+    (on zenoh's thread, so it must only signal, e.g. ``Event.set``) after each
+    sample is buffered: a consumer waits for data instead of polling.
     """
 
     def __init__(
@@ -195,9 +198,11 @@ class KeyedInbox(Generic[T]):
         max_keys: int = 256,
         advanced: bool = False,
         log_every_s: float = 5.0,
+        notify: Callable[[], None] | None = None,
     ) -> None:
         self.msg_type = msg_type
         self.counters = Counters()
+        self._notify = notify
         self._capacity = capacity
         self._max_keys = max_keys
         self._bufs: dict[str, deque[bytes]] = {}
@@ -242,6 +247,8 @@ class KeyedInbox(Generic[T]):
                 buf.popleft()
                 self.counters.dropped += 1
             buf.append(data)
+        if self._notify is not None:
+            self._notify()
 
     def drain_raw(self) -> list[tuple[str, bytes]]:
         """(key, payload) of everything buffered, each key's in arrival order (never blocks)."""

@@ -67,10 +67,15 @@ class ManagerSection(ConfigStruct, frozen=True):
     rate_hz: Annotated[float, msgspec.Meta(gt=0.0, le=200.0)] = 10.0
     """Most fusion ticks per second: the manager fuses each instant every sensor has reached (the watermark of
     their frames, resource_manager/ingest/schedule.py), at the sensors' pace up to this rate."""
+    schedule: Literal["watermark", "fixed"] = "watermark"
+    """When to fuse: ``watermark`` (as soon as every sensor in use has a frame at or after the instant, or has
+    missed the deadline its measured period, delay and jitter predict) or ``fixed`` (``latency_ms`` behind the
+    clock on a ``rate_hz`` timer, whether or not the frames arrived long ago: a steady cadence, and the old
+    rule to compare against)."""
     latency_ms: Annotated[float, msgspec.Meta(ge=0.0, le=10_000.0)] = 200.0
-    """How long past its expected next frame (its newest plus one frame period) a sensor is waited for before
-    the others are fused without it. Raising it waits longer for a slow network; lowering it leaves late sensors
-    out sooner."""
+    """Watermark: the most a late sensor is waited for past its expected next frame (its newest plus one frame
+    period) before the others are fused without it; within it, each sensor is waited for as long as its own
+    measured delivery delay and jitter predict. Fixed: the delay behind the clock."""
     max_extrapolation_ms: NonNeg = 100.0
     """Furthest a blob is extrapolated (or held) past its nearest frame (at least 0.6 of the sensor's frame
     period); beyond it the sensor sits out the tick."""

@@ -72,6 +72,9 @@ class Batch:
     """PTZ requests, answered in the tick (``Fusion.ptz_answers``): the allocation changes on one thread."""
     agents: Mapping[str, bool] = field(default_factory=dict)
     """Liveliness changes of user agents: agent id -> alive (a gone agent's PTZ holds end)."""
+    received_ns: int = 0
+    """When these features arrived (the manager's clock); 0: each at its own capture stamp plus its node's
+    processing (dataset time)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,6 +155,7 @@ class Fusion:
     def absorb(self, batch: Batch) -> None:
         """File a batch of messages without running a tick."""
         for info in batch.infos:
+            self.schedule.declare(info.sensor_id, info.fps)
             self.poses.update_info(info)
             self.ptz.update_info(info)
         for sid, alive in batch.presence.items():
@@ -166,6 +170,7 @@ class Fusion:
             elif sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos:
                 self.present[sid] = False
                 self.ingest.forget(sid)
+                self.schedule.forget(sid)
                 self.poses.forget(sid)
                 self.ptz.forget(sid)
         for f in batch.features:  # in arrival order: the buffers sort, and count what came out of order
@@ -176,7 +181,10 @@ class Fusion:
                 # Bounded memory: ids nobody announced cannot grow the buffers without limit.
                 self.ingest.counters.dropped += 1
                 continue
-            self.ingest.add(f)
+            kind = self.ingest.add(f)
+            processing_ns = int(f.processing_ms * 1e6)
+            arrival = batch.received_ns or f.stamp_ns + processing_ns
+            self.schedule.arrived(sid, f.stamp_ns, arrival, processing_ns, kind)
         for aid, alive in batch.agents.items():
             if not alive:
                 self.ptz.agent_gone(aid)
@@ -240,6 +248,7 @@ class Fusion:
             newest = buf.newest_stamp()
             if sid not in self.poses.infos and not self.present.get(sid) and (newest is None or newest < old_ns):
                 self.ingest.forget(sid)  # a stale sensor that never said what it is: free its slot
+                self.schedule.forget(sid)
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
         return self._result(outcome.pair_entries, plans, commands, ended, in_use=sorted(views), aligned=aligned)
@@ -258,19 +267,22 @@ class Fusion:
             max_gap_ns=max(p.max_gap_ns, int(GAP_PERIODS * period)),
         )
 
+    def _in_use(self) -> list[str]:
+        return [
+            sid
+            for sid, buf in self.ingest.buffers.items()
+            if buf.newest_stamp() is not None and self.present.get(sid, True)
+        ]
+
     def next_instant(self, now_ns: int) -> int | None:
         """The instant to fuse now by the watermark rule (:mod:`resource_manager.ingest.schedule`), or None while
         nothing new can be fused. Call after :meth:`absorb` has filed what arrived."""
-        newest: dict[str, int] = {}
-        periods: dict[str, int] = {}
-        for sid, buf in self.ingest.buffers.items():
-            stamp = buf.newest_stamp()
-            if stamp is None or not self.present.get(sid, True):
-                continue
-            newest[sid] = stamp
-            info = self.poses.infos.get(sid)
-            periods[sid] = int(1e9 / info.fps) if info is not None and info.fps > 0 else 0
-        return self.schedule.instant(newest, periods, now_ns, self.last_t_ns)
+        return self.schedule.instant(self._in_use(), now_ns, self.last_t_ns)
+
+    def until_due_ns(self, now_ns: int) -> int | None:
+        """How long until an instant may be due with no new frame (a sensor's deadline passing); None: only a
+        new frame can make one due."""
+        return self.schedule.until_due_ns(self._in_use(), now_ns, self.last_t_ns)
 
     def _detector_states(self, t_ns: int) -> dict[str, DetectorState]:
         """Sensors whose frames around ``t_ns`` say their detector cannot see ("learning", "moving")."""

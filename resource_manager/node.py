@@ -11,8 +11,10 @@ another sensor than its key, and Features stamped off the clock by more than
 SensorInfo is re-read from each sensor's queryable on a period and when its
 liveliness token comes back (:mod:`resource_manager.ingest.infos`).
 
-Each tick at ``rate_hz``: fuse at ``now - latency`` on the NTP-corrected clock,
-then publish the TrackSet on ``tracks``, each track on ``track/{id}``, the pair
+The tick thread sleeps until a Features message arrives or a sensor's deadline
+passes, then fuses the instant the sensors' watermark allows
+(:mod:`resource_manager.ingest.schedule`; at most ``rate_hz``), and publishes
+the TrackSet on ``tracks``, each track on ``track/{id}``, the pair
 choices on ``manager/{id}/pairs``, view plans on ``plan/{sensor}``, PTZ commands
 on ``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
 (latest state, or the path with ``?history=SECONDS``) and PTZ requests on
@@ -32,11 +34,13 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
+import msgspec
+
 from common.clock import NtpClock
 from common.codec import decode, encode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
-from common.schema import MAX_SENSORS, Features, PtzReply, PtzRequest, PtzState, SensorInfo, Track
+from common.schema import MAX_SENSORS, Features, Latency, PtzReply, PtzRequest, PtzState, SensorInfo, Track
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
@@ -49,8 +53,9 @@ from resource_manager.serve.status import InboxCounts, manager_status
 
 __all__ = ["ManagerNode", "run"]
 
-POLL_S = 0.005
-"""How often the manager looks whether the sensors' watermark allows a new fusion."""
+MAX_SLEEP_S = 0.1
+"""Longest the tick thread sleeps with nothing arriving and no deadline due (liveliness, PTZ requests and the
+census are looked at on each wake)."""
 
 logger = logging.getLogger(__name__)
 
@@ -103,17 +108,30 @@ class ManagerNode:
         self.sensor_head = f"{k.root}/sensor/"
         listed = self.gate.expected
         self.census: KeyCensus | None = None
+        self.wake = threading.Event()
+        """Set by each arriving Features message (and PTZ request): the tick thread looks at once."""
+        self.latencies: deque[Latency] = deque(maxlen=4096)
+        """Capture -> publish split of each TrackSet published since the last status."""
         if self.gate.any_sensor:
             logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
             self.features = KeyedInbox(
-                session, [k.all_features], Features, capacity=FRAMES_PER_SENSOR, max_keys=4 * MAX_SENSORS
+                session,
+                [k.all_features],
+                Features,
+                capacity=FRAMES_PER_SENSOR,
+                max_keys=4 * MAX_SENSORS,
+                notify=self.wake.set,
             )
             self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
         else:
             logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
             self.features = KeyedInbox(
-                session, [k.sensor_features(s) for s in listed], Features, capacity=FRAMES_PER_SENSOR
+                session,
+                [k.sensor_features(s) for s in listed],
+                Features,
+                capacity=FRAMES_PER_SENSOR,
+                notify=self.wake.set,
             )
             self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
@@ -228,6 +246,7 @@ class ManagerNode:
             token = next(self.ptz_tokens)
             self.ptz_queries[token] = query
             self.ptz_asks.append(PtzAsk(req, parsed.ident, self.clock.now_ns(), token))
+        self.wake.set()
 
     def _reject(self, query: Any, why: str) -> None:
         self.query_errors += 1
@@ -268,6 +287,7 @@ class ManagerNode:
 
     # -- the tick ------------------------------------------------------------------
     def _batch(self) -> Batch:
+        self.wake.clear()  # before draining: a sample arriving from here on wakes the next look
         now = self.clock.now_ns()
         presence: dict[str, bool] = {}
         while self.presence:
@@ -316,7 +336,13 @@ class ManagerNode:
             asks = list(self.ptz_asks)
             self.ptz_asks.clear()
         return Batch(
-            features=features, infos=infos, ptz_states=states, presence=presence, ptz_requests=asks, agents=agents
+            features=features,
+            infos=infos,
+            ptz_states=states,
+            presence=presence,
+            ptz_requests=asks,
+            agents=agents,
+            received_ns=now,
         )
 
     def tick(self) -> TickResult | None:
@@ -329,10 +355,12 @@ class ManagerNode:
         self._answer_ptz(answers)  # PTZ requests are answered as they come, fused instant or not
         if t_ns is None:
             return None
+        waited = self.fusion.schedule.last
         t0 = time.perf_counter()
         with self.lock:
             result = self.fusion.step(Batch(), t_ns)
-            self.tick_ms.append((time.perf_counter() - t0) * 1e3)
+            fused_s = time.perf_counter() - t0
+            self.tick_ms.append(fused_s * 1e3)
             kept = [tr for tr in result.trackset.tracks if self.store.add(tr)]
             self.live_ids = {tr.track_id for tr in result.trackset.tracks}
             self.store.prune(t_ns)
@@ -344,9 +372,22 @@ class ManagerNode:
                 self.log.append(kept, t_ns)
             except OSError as err:
                 logger.error("cannot write the track log: %s", err.strerror)
-        self.pub_tracks.put(result.trackset)
-        for tr in result.trackset.tracks:
-            self.session.put(self.keys.track(tr.track_id), encode(tr), encoding=MSGPACK)
+        t1 = time.perf_counter()
+        published = self.clock.now_ns()
+        self.pub_tracks.put(msgspec.structs.replace(result.trackset, published_ns=published))
+        if waited is not None and waited.t_ns == t_ns:
+            self.latencies.append(
+                Latency(
+                    age_ms=max(0.0, (published - t_ns) / 1e6),
+                    age_p50_ms=0.0,
+                    age_p99_ms=0.0,
+                    node_ms=waited.node_ns / 1e6,
+                    transport_ms=waited.transport_ns / 1e6,
+                    wait_ms=waited.wait_ns / 1e6,
+                    fusion_ms=fused_s * 1e3,
+                    publish_ms=(time.perf_counter() - t1) * 1e3,
+                )
+            )
         self.pub_pairs.put(result.pair_choice)
         for plan in result.plans:
             self.session.put(self.keys.plan(plan.sensor_id), encode(plan), encoding=MSGPACK)
@@ -376,9 +417,12 @@ class ManagerNode:
             inboxes=counts,
             gate=self.gate,
             refused_partial=self.census is not None and self.census.partial,
+            schedule=self.fusion.schedule,
+            latencies=self.latencies,
         )
         self.pub_status.put(msg)
         self.tick_ms.clear()
+        self.latencies.clear()
 
     def loop(self) -> None:
         status_every = self.cfg.manager.status_period_s
@@ -395,9 +439,13 @@ class ManagerNode:
             if now >= next_status:
                 self.status(last, status_every)
                 next_status = now + status_every
-            # Frames arrive at the cameras' pace: look again soon (a fusion waits for the watermark, not a timer).
-            if self.shutdown.sleep(POLL_S):
-                break
+            # Sleep until a frame arrives or a sensor's deadline passes: a fusion waits for the watermark, not a
+            # timer.
+            with self.lock:
+                due_ns = self.fusion.until_due_ns(self.clock.now_ns())
+            sleep_s = MAX_SLEEP_S if due_ns is None else min(MAX_SLEEP_S, due_ns / 1e9)
+            sleep_s = min(sleep_s, max(0.0, next_status - now))
+            self.wake.wait(sleep_s)
 
     def close(self) -> None:
         self.fetch_queue.put(None)

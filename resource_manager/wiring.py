@@ -9,7 +9,7 @@ from collections.abc import Callable
 from common.geometry import wrap_angle
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignParams
-from resource_manager.ingest.schedule import Watermark
+from resource_manager.ingest.schedule import ScheduleParams, Scheduler
 from resource_manager.plan.planner import PlannerParams, ViewPlanner
 from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.serve.ptz import PtzAllocator, PtzParams
@@ -43,10 +43,13 @@ def align_params(config: ManagerConfig) -> AlignParams:
     )
 
 
-def schedule(config: ManagerConfig) -> Watermark:
-    """When to fuse: the sensors' watermark, a late sensor waited for ``latency_ms``, at most ``rate_hz``."""
+def schedule(config: ManagerConfig) -> Scheduler:
+    """When to fuse (``schedule``): the sensors' watermark, a late sensor waited for at most ``latency_ms``, at
+    most ``rate_hz``; or ``fixed``: ``latency_ms`` behind the clock at ``rate_hz``."""
     m = config.manager
-    return Watermark(allowance_ns=int(m.latency_ms * 1e6), min_interval_ns=int(1e9 / m.rate_hz))
+    return Scheduler(
+        ScheduleParams(mode=m.schedule, max_wait_ns=int(m.latency_ms * 1e6), min_interval_ns=int(1e9 / m.rate_hz))
+    )
 
 
 def pose_solver(config: ManagerConfig) -> PoseSolver:

@@ -8,10 +8,18 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
-from common.schema import Track
+from common.schema import Latency, Track
 from user_agent.client import ManagerView, SensorView
 
-__all__ = ["CLEAR_SCREEN", "format_table", "history_table", "refused_lines", "tracks_table", "watch_screen"]
+__all__ = [
+    "CLEAR_SCREEN",
+    "format_table",
+    "history_table",
+    "latency_lines",
+    "refused_lines",
+    "tracks_table",
+    "watch_screen",
+]
 
 CLEAR_SCREEN = "\x1b[H\x1b[2J"
 
@@ -121,6 +129,7 @@ def _managers_table(managers: Sequence[ManagerView]) -> str:
                 f"{st.tick_ms:6.2f}" if st else "-",
                 f"{st.tick_p99_ms:6.2f}" if st else "-",
                 f"{st.tick_rate_hz:5.1f}" if st else "-",
+                _age(st.latency) if st else "-",
                 st.tracks if st else "-",
                 ",".join(st.sensors_in_use) if st else "-",
                 ",".join(st.sensors_without_pose) if st and st.sensors_without_pose else "-",
@@ -128,8 +137,70 @@ def _managers_table(managers: Sequence[ManagerView]) -> str:
                 st.decode_errors if st else "-",
             )
         )
-    heads = ("manager", "live", "tick_ms", "p99_ms", "hz", "tracks", "sensors in use", "no pose", "late/ooo", "bad")
+    heads = (
+        "manager",
+        "live",
+        "tick_ms",
+        "p99_ms",
+        "hz",
+        "age_ms",
+        "tracks",
+        "sensors in use",
+        "no pose",
+        "late/ooo",
+        "bad",
+    )
     return format_table(heads, rows)
+
+
+def _age(lat: Latency | None) -> str:
+    """Capture -> publish age of the newest TrackSet (and the period's p99)."""
+    return "-" if lat is None else f"{lat.age_ms:.0f} (p99 {lat.age_p99_ms:.0f})"
+
+
+def latency_lines(managers: Sequence[ManagerView]) -> list[str]:
+    """The LATENCY section: where each manager's capture -> publish time went, and each sensor's frame timing."""
+    split = [
+        (
+            m.manager_id,
+            m.status.schedule,
+            f"{lat.age_p50_ms:6.1f}",
+            f"{lat.age_p99_ms:6.1f}",
+            f"{lat.node_ms:6.1f}",
+            f"{lat.transport_ms:6.1f}",
+            f"{lat.wait_ms:6.1f}",
+            f"{lat.fusion_ms:6.1f}",
+            f"{lat.publish_ms:6.1f}",
+        )
+        for m in managers
+        if m.status is not None and (lat := m.status.latency) is not None
+    ]
+    timing = [
+        (
+            t.sensor_id,
+            m.manager_id,
+            f"{t.period_ms:6.1f}",
+            f"{t.delay_ms:6.1f}",
+            f"{t.jitter_ms:6.1f}",
+            f"{t.wait_ms:6.1f}",
+            t.late_frames,
+            t.missed,
+        )
+        for m in managers
+        if m.status is not None
+        for t in m.status.timing
+    ]
+    if not split and not timing:
+        return []
+    out = ["", "LATENCY (capture -> publish, ms, medians over the last status period)"]
+    if split:
+        heads: tuple[str, ...] = ("manager", "schedule", "p50", "p99", "node", "transport", "wait", "fusion", "publish")
+        out.append(format_table(heads, split))
+    if timing:
+        out.append("")
+        heads = ("sensor", "manager", "period_ms", "delay_ms", "jitter_ms", "waited_ms", "late", "missed")
+        out.append(format_table(heads, timing))
+    return out
 
 
 def _poses_table(managers: Sequence[ManagerView]) -> str:
@@ -194,6 +265,7 @@ def watch_screen(
         parts.append("")
         parts.append("CAMERA POSES (where the manager places each camera: surveyed, or mutual calibration)")
         parts.append(_poses_table(managers))
+    parts += latency_lines(managers)
     parts += refused_lines(managers)
     parts += list(footer)
     return "\n".join(parts) + "\n"

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from common.geometry import wrap_angle
-from common.schema import MAX_SENSORS, ManagerStatus, Pose
+from common.schema import MAX_SENSORS, Latency, ManagerStatus, Pose, SensorTiming
 from common.schema import PoseEstimate as WirePoseEstimate
 from resource_manager.fusion import TickResult
 from resource_manager.ingest.gate import SenderGate
+from resource_manager.ingest.schedule import Scheduler
 
 __all__ = ["InboxCounts", "manager_status"]
 
@@ -35,8 +36,11 @@ def manager_status(
     inboxes: InboxCounts,
     gate: SenderGate,
     refused_partial: bool,
+    schedule: Scheduler,
+    latencies: Collection[Latency],
 ) -> ManagerStatus:
-    """The status message; lists are capped at their schema bounds."""
+    """The status message; lists are capped at their schema bounds. ``latencies``: the capture -> publish split
+    of each TrackSet published in the period, oldest first."""
     ms = np.asarray(list(tick_ms) or [0.0])
     c = result.counters if result is not None else None
     refusals = gate.refusals
@@ -70,4 +74,46 @@ def manager_status(
         refused_msgs=refusals.total,
         refused=refusals.top(MAX_SENSORS),
         refused_partial=refused_partial,
+        schedule=schedule.params.mode,
+        frames_received=schedule.received,
+        latency=_latency(latencies),
+        timing=_timing(schedule)[:MAX_SENSORS],
     )
+
+
+def _latency(latencies: Collection[Latency]) -> Latency | None:
+    """Medians of each part over the period; the newest TrackSet's age, and the ages' p50 and p99."""
+    if not latencies:
+        return None
+    rows = np.array(
+        [(x.age_ms, x.node_ms, x.transport_ms, x.wait_ms, x.fusion_ms, x.publish_ms) for x in latencies], float
+    )
+    med = np.median(rows, axis=0)
+    return Latency(
+        age_ms=float(rows[-1, 0]),
+        age_p50_ms=float(med[0]),
+        age_p99_ms=float(np.percentile(rows[:, 0], 99)),
+        node_ms=float(med[1]),
+        transport_ms=float(med[2]),
+        wait_ms=float(med[3]),
+        fusion_ms=float(med[4]),
+        publish_ms=float(med[5]),
+    )
+
+
+def _timing(schedule: Scheduler) -> list[SensorTiming]:
+    wait = schedule.params.max_wait_ns
+    return [
+        SensorTiming(
+            sensor_id=sid,
+            period_ms=s.period() / 1e6,
+            delay_ms=s.delay_ns / 1e6,
+            jitter_ms=(s.delay_dev_ns + s.period_dev_ns) / 1e6,
+            wait_ms=s.allowance_ns(wait) / 1e6 if schedule.params.mode == "watermark" else wait / 1e6,
+            frames=s.received,
+            late_frames=s.late,
+            missed=s.missed,
+        )
+        for sid, s in sorted(schedule.sensors.items())
+        if s.frames
+    ]

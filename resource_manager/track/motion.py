@@ -89,43 +89,52 @@ class LineObservation:
     var: float
 
 
-def _predicted(
-    x: FloatArray, obs: list[Observation], lines: list[LineObservation] | None = None
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(h(x), H, R) of the stacked observations at state ``x`` (bearings, distances, then lines)."""
-    rows_h: list[float] = []
-    rows_j: list[list[float]] = []
-    var: list[float] = []
-    px, py = float(x[0]), float(x[1])
-    for ln in lines or []:
-        ux, uy = ln.direction
-        rows_h.append(ux * px + uy * py)
-        rows_j.append([ux, uy, 0.0, 0.0])
-        var.append(ln.var)
-    for o in obs:
-        dx, dy = px - o.origin_xy[0], py - o.origin_xy[1]
-        r2 = max(dx * dx + dy * dy, MIN_RANGE_M**2)
-        r = math.sqrt(r2)
-        rows_h.append(math.atan2(dy, dx))
-        rows_j.append([-dy / r2, dx / r2, 0.0, 0.0])
-        var.append(o.bearing_var)
-        if math.isfinite(o.range_m):
-            rows_h.append(r)
-            rows_j.append([dx / r, dy / r, 0.0, 0.0])
-            var.append(o.range_var)
-    return np.array(rows_h), np.array(rows_j), np.diag(var)
+@dataclass(frozen=True, slots=True)
+class _Stack:
+    """Observations stacked as rows: the lines, every view's bearing, then the distances where there are any."""
 
+    origin: FloatArray
+    """(no, 2) camera positions."""
+    has_range: npt.NDArray[np.bool_]
+    lines_dir: FloatArray
+    """(nl, 2) unit directions."""
+    z: FloatArray
+    var: FloatArray
+    angle: npt.NDArray[np.bool_]
+    """Which rows are angles (residuals wrapped)."""
+    rows: npt.NDArray[np.int64]
+    """The observation each non-line row comes from."""
 
-def _measured(obs: list[Observation], lines: list[LineObservation]) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-    z: list[float] = [ln.value for ln in lines]
-    angle: list[bool] = [False] * len(lines)
-    for o in obs:
-        z.append(o.bearing_rad)
-        angle.append(True)
-        if math.isfinite(o.range_m):
-            z.append(o.range_m)
-            angle.append(False)
-    return np.array(z), np.array(angle, dtype=bool)
+    @staticmethod
+    def of(obs: list[Observation], lines: list[LineObservation]) -> _Stack:
+        o = np.array([(*ob.origin_xy, ob.bearing_rad, ob.bearing_var, ob.range_m, ob.range_var) for ob in obs])
+        o = o.reshape(-1, 6)
+        has = np.isfinite(o[:, 4])
+        nl, no, nr = len(lines), len(obs), int(has.sum())
+        return _Stack(
+            origin=o[:, :2],
+            has_range=has,
+            lines_dir=np.array([ln.direction for ln in lines], dtype=np.float64).reshape(-1, 2),
+            z=np.concatenate([[ln.value for ln in lines], o[:, 2], o[has, 4]]),
+            var=np.concatenate([[ln.var for ln in lines], o[:, 3], o[has, 5]]),
+            angle=np.concatenate([np.zeros(nl, bool), np.ones(no, bool), np.zeros(nr, bool)]),
+            rows=np.concatenate([np.arange(no), np.flatnonzero(has)]).astype(np.int64),
+        )
+
+    def predicted(self, x: FloatArray, with_lines: bool = True) -> tuple[FloatArray, FloatArray]:
+        """(h(x), H) of the rows at state ``x`` (without the lines' rows if not ``with_lines``)."""
+        d = x[:2] - self.origin
+        r2 = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, MIN_RANGE_M**2)
+        r = np.sqrt(r2)
+        has = self.has_range
+        parts_h = [np.arctan2(d[:, 1], d[:, 0]), r[has]]
+        parts_j = [np.column_stack([-d[:, 1] / r2, d[:, 0] / r2]), d[has] / r[has, None]]
+        if with_lines:
+            parts_h.insert(0, self.lines_dir @ x[:2])
+            parts_j.insert(0, self.lines_dir)
+        jac = np.zeros((sum(len(ph) for ph in parts_h), 4))
+        jac[:, :2] = np.concatenate(parts_j)
+        return np.concatenate(parts_h), jac
 
 
 def update(
@@ -152,21 +161,21 @@ def update(
     if not obs:
         return x, p, np.ones(0)
     lines = lines or []
-    z, angle = _measured(obs, lines)
-    rows = np.array([i for i, o in enumerate(obs) for _ in range(1 + int(math.isfinite(o.range_m)))], dtype=np.int64)
+    st = _Stack.of(obs, lines)
+    z, angle = st.z, st.angle
     nl = len(lines)
     info_prior = np.linalg.inv(p)
     resp = np.ones(len(obs))
     if outlier is not None:  # first judged against the prediction, with its uncertainty
-        resp = _responsibilities(x, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p)
+        resp = _responsibilities(x, st, nl=nl, outlier=outlier, p=p)
     xi = x.copy()
     p_new = p
     for _ in range(IEKF_ITERATIONS):
-        hx, h, r = _predicted(xi, obs, lines)
-        w = 1.0 / np.diag(r)
+        hx, h = st.predicted(xi)
+        w = 1.0 / st.var
         if outlier is not None:
             # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
-            w = w * np.concatenate([np.ones(nl), resp[rows]])
+            w = w * np.concatenate([np.ones(nl), resp[st.rows]])
         hw = h.T * w  # Hᵀ W
         p_new = np.asarray(np.linalg.inv(info_prior + hw @ h), dtype=np.float64)
         nu = z - hx - h @ (x - xi)
@@ -175,32 +184,24 @@ def update(
         moved = float(np.hypot(step[0] - xi[0], step[1] - xi[1]))
         xi = step
         if outlier is not None:
-            resp = _responsibilities(xi, obs, z=z[nl:], angle=angle[nl:], rows=rows, outlier=outlier, p=p_new)
+            resp = _responsibilities(xi, st, nl=nl, outlier=outlier, p=p_new)
         if moved < 1e-4:
             break
     return xi, 0.5 * (p_new + p_new.T), resp
 
 
-def _responsibilities(
-    x: FloatArray,
-    obs: list[Observation],
-    *,
-    z: FloatArray,
-    angle: npt.NDArray[np.bool_],
-    rows: npt.NDArray[np.int64],
-    outlier: tuple[float, float],
-    p: FloatArray,
-) -> FloatArray:
+def _responsibilities(x: FloatArray, st: _Stack, *, nl: int, outlier: tuple[float, float], p: FloatArray) -> FloatArray:
     """Posterior probability of each observation's core (not outlier) component, from its residual at ``x`` and
-    its variance there (the measurement's plus the estimate's, ``p``)."""
+    its variance there (the measurement's plus the estimate's, ``p``); the lines (first ``nl`` rows) left out."""
     eps, scale = outlier
-    hx, h, r = _predicted(x, obs)
-    nu = z - hx
+    hx, h = st.predicted(x, with_lines=False)
+    nu = st.z[nl:] - hx
+    angle = st.angle[nl:]
     nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
-    var = np.diag(r) + np.einsum("ij,jk,ik->i", h, p, h)
-    d2 = np.zeros(len(obs))
-    np.add.at(d2, rows, nu**2 / var)
-    dims = np.bincount(rows, minlength=len(obs)).astype(np.float64)
+    var = st.var[nl:] + np.einsum("ij,jk,ik->i", h, p, h)
+    n = len(st.origin)
+    d2 = np.bincount(st.rows, weights=nu**2 / var, minlength=n)
+    dims = np.bincount(st.rows, minlength=n).astype(np.float64)
     core = (1.0 - eps) * np.exp(-0.5 * d2)
     wide = eps * np.exp(-0.5 * d2 / scale**2) / scale**dims
     return np.asarray(core / np.maximum(core + wide, 1e-300), dtype=np.float64)

@@ -24,7 +24,7 @@ one ln(1 - P_D).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +60,8 @@ class TrackTable:
     height: FloatArray
     """(n,) head-top heights."""
     height_var: FloatArray
+    looks: dict[tuple[int, str], tuple[FloatArray, FloatArray]] = field(default_factory=dict)
+    """Colour looks as arrays, filled on first use (see :func:`_look_arrays`)."""
 
     @staticmethod
     def of(tracks: list[TrackRecord]) -> TrackTable:
@@ -253,38 +255,47 @@ def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], table: TrackTable, mod
     0 where the track has no look to compare.
     """
     assert v.hist_sqrt is not None
-    out = np.zeros((len(tracks), v.n))
     k = v.hist_sqrt.shape[1]
+    own, own_ok = _look_arrays(tracks, table, k, v.sensor_id, model.look_min_s)
+    total, count = _look_arrays(tracks, table, k, "", model.look_min_s)
+    # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's direction).
+    others = total - own * own_ok[:, None]
+    others_ok = count - own_ok > 0
+    norm = np.linalg.norm(others, axis=1)
+    others = others / np.maximum(norm, 1e-12)[:, None]
+    out = np.where(own_ok[:, None] > 0, _colour_ln_lr(own, v.hist_sqrt, model), 0.0)
+    return np.asarray(out + np.where(others_ok[:, None], _colour_ln_lr(others, v.hist_sqrt, model), 0.0))
+
+
+def _look_arrays(
+    tracks: list[TrackRecord], table: TrackTable, bins: int, sensor_id: str, min_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """(n, bins) looks and (n,) 1/0 whether each track has one, learnt for at least ``min_s``: in view
+    ``sensor_id``, or (``""``) the sum and count over every view. Computed once per tick per view."""
+    key = (bins, sensor_id)
+    got = table.looks.get(key)
+    if got is not None:
+        return got
+    n = len(tracks)
+    mat = np.zeros((n, bins))
+    ok = np.zeros(n)
     for i, tr in enumerate(tracks):
-        own = tr.looks.get(v.sensor_id)
-        if own is not None and own.shape == (k,) and tr.look_s.get(v.sensor_id, 0.0) >= model.look_min_s:
-            out[i] += _colour_ln_lr(own, v.hist_sqrt, model)
-        others = other_views_look(tr, v.sensor_id, k, model.look_min_s)
-        if others is not None:
-            out[i] += _colour_ln_lr(others, v.hist_sqrt, model)
-    return out
+        items = tr.looks.items() if not sensor_id else [(sensor_id, tr.looks.get(sensor_id))]
+        for sid, look in items:
+            if look is not None and look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s:
+                mat[i] += look
+                ok[i] += 1.0
+    table.looks[key] = (mat, ok)
+    return mat, ok
 
 
-def _colour_ln_lr(look: FloatArray, hist_sqrt: FloatArray, model: TrackModel) -> FloatArray:
-    """(m,) ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an outlier
-    floor, against a uniform distance for anyone else."""
-    dist = 1.0 - np.clip(hist_sqrt @ look, 0.0, 1.0)
+def _colour_ln_lr(looks: FloatArray, hist_sqrt: FloatArray, model: TrackModel) -> FloatArray:
+    """(n, m) ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an
+    outlier floor, against a uniform distance for anyone else; ``looks`` (n, k), ``hist_sqrt`` (m, k)."""
+    dist = 1.0 - np.clip(looks @ hist_sqrt.T, 0.0, 1.0)
     sig, eps = model.colour_sigma, model.outlier_prob
     same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
     return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)
-
-
-def other_views_look(tr: TrackRecord, sensor_id: str, bins: int, min_s: float) -> FloatArray | None:
-    """The mean of a track's learnt looks in the views other than ``sensor_id``, renormalised (None: none)."""
-    learnt = [
-        look
-        for sid, look in tr.looks.items()
-        if sid != sensor_id and look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
-    ]
-    if not learnt:
-        return None
-    mean = np.sum(learnt, axis=0)
-    return np.asarray(mean / max(float(np.linalg.norm(mean)), 1e-12), dtype=np.float64)
 
 
 def _link_term(v: ViewBlobs, tracks: list[TrackRecord], model: TrackModel) -> FloatArray:

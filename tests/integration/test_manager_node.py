@@ -144,6 +144,8 @@ def test_manager_end_to_end(router: Any, spawn: Any, sessions: Any, tmp_path: Pa
             tid = ts.tracks[0].track_id
             assert tid.startswith(f"{MID}-")
             assert sorted(ts.sensors_used) == ["pa", "pb"]
+            # the TrackSet says when it was published: after its fusion instant, on the same (NTP) clock
+            assert ts.published_ns >= ts.stamp_ns
             wait_for(lambda: len([t for t in tracksets if t.tracks]) >= 12, 10, "more tracked ticks")
             # get keys.track(tid): the latest state.
             replies = _get(sessions, keys.track(tid))
@@ -179,6 +181,13 @@ def test_manager_end_to_end(router: Any, spawn: Any, sessions: Any, tmp_path: Pa
             st = wait_for(lambda: statuses[-1] if statuses else None, 5, "a ManagerStatus")
             assert st.tracks >= 1 and "pa" in st.sensors_in_use and st.tick_ms > 0
             assert st.sensors_expected == ["pa", "pb", "zz1"]
+            # where the latency went, and each sensor's frame timing as the schedule measures it
+            st = wait_for(lambda: statuses[-1] if statuses and statuses[-1].latency else None, 5, "a latency split")
+            assert st.schedule == "watermark" and st.latency is not None
+            assert 0 < st.latency.age_p50_ms < 1000 and st.latency.fusion_ms > 0
+            timing = {t.sensor_id: t for t in st.timing}
+            assert {"pa", "pb"} <= set(timing) and timing["pa"].frames > 0 and timing["pa"].period_ms > 0
+            assert st.frames_received >= timing["pa"].frames
             wait_for(
                 lambda: any(r.sender_id == "ag2" and r.wrong_id >= 1 for r in statuses[-1].refused),
                 5,

@@ -78,3 +78,24 @@ def test_watch_screen_names_refused_senders_and_sensors_no_manager_fuses() -> No
     assert lines[-1] == "recording: nothing lost"
     quiet = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0)
     assert "REFUSED" not in watch_screen([], sensors, [ManagerView("mgr1", True, quiet)])
+
+
+def test_watch_screen_shows_where_the_latency_went_and_each_sensors_timing() -> None:
+    from common.schema import Latency, SensorTiming
+
+    lat = Latency(age_ms=41.0, age_p50_ms=40.2, age_p99_ms=61.5, node_ms=3.1, transport_ms=0.7, wait_ms=28.0,
+                  fusion_ms=8.4, publish_ms=0.2)  # fmt: skip
+    timing = [SensorTiming(sensor_id="pano1", period_ms=33.3, delay_ms=4.2, jitter_ms=0.8, wait_ms=20.0, frames=900,
+                           late_frames=2, missed=1)]  # fmt: skip
+    ms = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=8.4, tick_p99_ms=9.0, tick_rate_hz=10.0,
+                       latency=lat, timing=timing)  # fmt: skip
+    lines = watch_screen([], [], [ManagerView("mgr1", True, ms)]).splitlines()
+    mgr_row = next(ln for ln in lines if ln.startswith("mgr1 ") and "up" in ln)
+    assert "41 (p99 62)" in mgr_row
+    split = next(ln.split() for ln in lines if ln.startswith("mgr1 ") and "watermark" in ln)
+    assert split == ["mgr1", "watermark", "40.2", "61.5", "3.1", "0.7", "28.0", "8.4", "0.2"]
+    assert ["pano1", "mgr1", "33.3", "4.2", "0.8", "20.0", "2", "1"] in [ln.split() for ln in lines]
+    quiet = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0)
+    assert not any(
+        ln.startswith("LATENCY") for ln in watch_screen([], [], [ManagerView("mgr1", True, quiet)]).splitlines()
+    )
