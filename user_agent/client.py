@@ -178,20 +178,30 @@ class AgentClient:
         self._thread = threading.Thread(target=self._pump, name="agent-pump", daemon=True)
         self._thread.start()
 
-    def token_accepted(self, timeout_s: float = 1.0) -> bool:
+    def token_accepted(self, timeout_s: float = 3.0) -> bool:
         """Whether the router took this agent's liveliness token (a secure site's rules allow only the id of the
         agent's certificate; a denied token is dropped silently, and so are this agent's PTZ requests).
 
         The agent's own session answers a liveliness query for its token locally; the router answers too only
-        when it has the token. So two answers: accepted; one: refused (or no router to ask).
+        when it has the token. So two answers: accepted; one: refused (or no router to ask). A token just declared
+        may not have reached the router yet, and a busy router answers late: asked again until ``timeout_s``.
         """
         key = self.keys.agent(self.agent_id)
-        try:
-            replies = [r for r in self.session.liveliness().get(key, timeout=timeout_s) if r.ok is not None]
-        except Exception as err:  # session closing
-            logger.debug("liveliness query %s: %s", key, err)
-            return True
-        return len(replies) >= 2
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            try:
+                replies = [
+                    r for r in self.session.liveliness().get(key, timeout=min(1.0, max(left, 0.1))) if r.ok is not None
+                ]
+            except Exception as err:  # session closing
+                logger.debug("liveliness query %s: %s", key, err)
+                return True
+            if len(replies) >= 2:
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.1)
 
     # -- lifecycle ----------------------------------------------------------
     def close(self) -> None:

@@ -666,7 +666,12 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
                     f"{liar}'s messages speaking for {victim} refused and counted (50 of 100 at least)",
                 )  # fmt: skip
                 assert _pose_of(last, victim) == pose_before, "a forged SensorInfo moved another sensor's pose"
-                assert next(v.info for v in agent.sensors() if v.sensor_id == victim) == real_info
+                seen = wait_for(
+                    lambda: next((v.info for v in agent.sensors() if v.sensor_id == victim and v.info), None),
+                    10.0,
+                    f"{victim}'s SensorInfo at the agent",
+                )
+                assert seen == real_info, "a forged SensorInfo reached the agent"
             # A late joiner gets every sensor's SensorInfo from the nodes' publisher caches (no get of its own).
             with AgentClient(settings=agent_settings, prefix=fsite.prefix, agent_id="a1") as late:
                 wait_for(lambda: set(late._infos) >= set(fsite.ids), 10.0, "SensorInfo from the caches")
