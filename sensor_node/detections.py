@@ -31,9 +31,9 @@ import numpy as np
 
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
+from common.frames import Clock, Frame, Pacer
 from common.schema import Blob, Features, Pose, SourceState
 from sensor_node.config import read_start_file
-from sensor_node.sources import Clock, Frame, Pacer
 from sensor_node.tracks2d import Tracker2D
 
 __all__ = ["Detection", "DetectionFrames", "features_from_detections", "load_calibration", "read_mot"]

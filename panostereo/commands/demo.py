@@ -79,8 +79,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int, mobile: set[str]) -> list[Any]:
-    """Goals the simulated robots received, by the one rule the sim nodes use (common.scenario)."""
-    from common.scenario import goals_from_plans as shared
+    """Goals the simulated robots received, by the one rule the sim nodes use (sim.world)."""
+    from sim.driver import goals_from_plans as shared
 
     return list(shared([p for p in plans if p.sensor_id in mobile], epoch_ns))
 
@@ -153,7 +153,7 @@ def _recorder_line(recorder: Any) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; returns 0 when it completed (whatever the scores)."""
-    from common.scenario import site_with_seed
+    from sim.world import site_with_seed
     from user_agent.client import AgentClient
     from user_agent.record import McapSink, Recorder
     from user_agent.views import CLEAR_SCREEN, watch_screen
@@ -356,7 +356,7 @@ def _finish(
             raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({src})")
         shutil.copyfile(src, gt_path)
     else:
-        from common.scenario import World, write_gt_csv
+        from sim.world import World, write_gt_csv
 
         world = World.from_site(site).with_goals(
             goals_from_plans(sink.plans, epoch_ns, {c.id for c in site.camera if c.mobile})

@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.errors import ConfigError
+from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
 from resource_manager.config import ManagerConfig, load_manager_config
@@ -38,7 +39,6 @@ from resource_manager.fusion import Batch, Fusion
 from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
-from sensor_node.sources import Frame
 from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import read_gt_csv
 from user_agent.report import Scored, score_tracksets

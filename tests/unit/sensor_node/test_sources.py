@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from common.errors import SourceError
-from sensor_node.sources import FolderFrames, OpenCvFrames, Pacer
+from common.frames import Pacer
+from sensor_node.sources import FolderFrames, OpenCvFrames
 from tests.support import skip_or_fail
 
 

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.cameras import PinholeCamera
-from sensor_node.render_bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive
 
 __all__ = ["RayGrid", "paint_primitives_rays"]
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from common.scenario import PersonState, PlatformState
+from sim.world import PersonState, PlatformState
 
 __all__ = [
     "PLATFORM_LABEL0",

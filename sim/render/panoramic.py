@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.cameras import CylindricalCamera
-from sensor_node.render_bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive
 
 __all__ = ["PanoView", "paint_primitives"]
 

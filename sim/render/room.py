@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from common.scenario import World
+from sim.world import World
 
 __all__ = ["PX_PER_M", "RoomTextures", "cast_room", "make_textures"]
 

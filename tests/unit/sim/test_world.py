@@ -12,16 +12,16 @@ import numpy as np
 import pytest
 
 from common.errors import ConfigError
-from common.scenario import (
+from common.site import CameraSpec, SiteConfig, SiteSection, WorldSpec, load_site
+from sim.driver import goals_from_plans
+from sim.world import (
     Goal,
     World,
-    goals_from_plans,
     sensor_bearing,
     site_with_seed_from_env,
     world_time_s,
     write_gt_csv,
 )
-from common.site import CameraSpec, SiteConfig, SiteSection, WorldSpec, load_site
 
 REPO = Path(__file__).resolve().parents[3]
 SITES = REPO / "deploy" / "sites"
@@ -221,11 +221,11 @@ def test_sensor_bearing_is_relative_to_the_camera_heading() -> None:
 
 
 def test_old_times_are_recomputed_after_the_kept_window(monkeypatch: pytest.MonkeyPatch) -> None:
-    import common.paths
+    import sim.walkers
 
     ref = World.from_site(_site())
     expect = [ref.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)]
-    monkeypatch.setattr(common.paths, "KEEP_S", 10.0)
+    monkeypatch.setattr(sim.walkers, "KEEP_S", 10.0)
     small = World.from_site(_site())
     small.people_at(80.0)  # frames before ~70 s are dropped, checkpoints thinned
     assert [small.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)] == expect

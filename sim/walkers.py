@@ -38,8 +38,8 @@ import numpy as np
 import numpy.typing as npt
 
 from common.errors import ConfigError
-from common.people import Door, WalkerLook, make_look
 from common.site import WorldSpec
+from sim.people import Door, WalkerLook, make_look
 
 __all__ = ["DT_S", "WalkerSample", "WalkerSim"]
 

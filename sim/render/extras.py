@@ -1,6 +1,6 @@
 """What real cameras see besides people: soft cast shadows on the floor and a distractor swaying in place.
 
-Used by :class:`sensor_node.render.PanoramicRenderer` when ``[world.lighting]`` asks for them
+Used by :class:`sim.render.cameras.PanoramicRenderer` when ``[world.lighting]`` asks for them
 (``shadow_gain`` < 1, ``sway_m`` > 0), so the simulated sites exercise what PETS 2009 showed (issue 14):
 
 * **shadows** -- each present person darkens the floor around and a little beside their feet to
