@@ -35,13 +35,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI
+from common.arrays import FloatArray
 from common.cylindrical import CylindricalCamera
 from common.errors import CalibrationError, ConfigError
 
 __all__ = ["AnnularModel", "center_from_lines", "design_pal", "fit_radial_polynomial"]
-
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)

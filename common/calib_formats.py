@@ -32,14 +32,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.pinhole import PinholeCamera, rotation_from_rvec
 
 __all__ = ["FOLD_FIT", "calibration_json", "from_opencv_file", "from_p_matrix", "from_tsai_xml", "tsai_rotation"]
 
-FloatArray = npt.NDArray[np.float64]
 
 FOLD_FIT = 0.85
 """Fraction of the fold radius inside which a folding Tsai lens is fitted."""

@@ -33,7 +33,7 @@ import msgspec
 
 from common.config import ConfigStruct
 
-__all__ = ["DRIFT_PPM", "ClockSettings", "ClockStatus", "NtpClock", "interp_angle", "interp_linear"]
+__all__ = ["DRIFT_PPM", "ClockSettings", "ClockStatus", "NtpClock", "interp_linear"]
 
 logger = logging.getLogger(__name__)
 
@@ -231,19 +231,3 @@ def interp_linear(t0: float, v0: float, t1: float, v1: float, t: float) -> float
     if t1 == t0:
         return v1
     return v0 + (v1 - v0) * ((t - t0) / (t1 - t0))
-
-
-def _wrap(a: float) -> float:
-    """Wrap an angle to [-π, π)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def interp_angle(t0: float, a0: float, t1: float, a1: float, t: float) -> float:
-    """Angle at ``t`` moving from ``a0`` to ``a1`` along the shorter arc, wrapped to [-π, π).
-
-    E.g. from 179° to −179° passes through 180°, not through 0°.
-    """
-    step = _wrap(a1 - a0)
-    if t1 == t0:
-        return _wrap(a0 + step)
-    return _wrap(a0 + step * ((t - t0) / (t1 - t0)))

@@ -31,18 +31,12 @@ from typing import Any, overload
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI, wrap_angle
+from common.arrays import FloatArray
 from common.errors import CalibrationError, ConfigError
 from common.schema import PanoramicModel
 
 __all__ = ["CylindricalCalibration", "CylindricalCamera", "calibrate_cylindrical"]
-
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    """Wrap angles to [-pi, pi)."""
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 def _out(x: npt.ArrayLike, like: npt.ArrayLike) -> Any:
@@ -96,7 +90,7 @@ class CylindricalCamera:
     def bearing_from_col(self, u: FloatArray | float) -> FloatArray | float:
         """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a (fractional) column."""
         b = self.bearing0_rad + self.direction * np.asarray(u, dtype=np.float64) / self.f_h_px
-        return _out(_wrap(b), u)
+        return _out(wrap_angle(b), u)
 
     @overload
     def col_from_bearing(self, bearing_rad: float) -> float: ...
@@ -252,7 +246,7 @@ def calibrate_cylindrical(
     for direction in (1, -1):
         offs = bearings - direction * uv[:, 0] / f_h
         b0 = math.atan2(float(np.mean(np.sin(offs))), float(np.mean(np.cos(offs))))
-        cost = float(np.sum(_wrap(offs - b0) ** 2))
+        cost = float(np.sum(wrap_angle(offs - b0) ** 2))
         if best is None or cost < best[0]:
             best = (cost, direction, b0)
     assert best is not None

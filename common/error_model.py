@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import optimize
 
+from common.arrays import FloatArray
 from common.errors import GeometryError
 
 __all__ = [
@@ -45,7 +46,6 @@ __all__ = [
     "pair_position_errors",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 MAX_ERROR_M = 1.0e4
 """Cap of :func:`pair_position_error` for degenerate geometry (fits the wire's bounded floats)."""

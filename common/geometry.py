@@ -27,6 +27,8 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
+from common.arrays import FloatArray
 from common.errors import GeometryError
 
 __all__ = [
@@ -40,23 +42,12 @@ __all__ = [
     "sighting_bearing",
     "size_ratio",
     "triangulate",
-    "wrap_angle",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
 
 MAX_SIZE_RATIO_OFFSET_RAD = math.radians(10.0)
 """Eq. (2) is only considered when the target is within this angle of the baseline line
 (as seen from both cameras): the size-ratio formula has a bias ~h^2/(2 D2) off the line."""
-
-
-def wrap_angle(a: Any) -> Any:
-    """Wrap angle(s) to [-pi, pi). Returns a float for a scalar, an array for an array."""
-    if type(a) is float or type(a) is int:  # plain Python numbers: float % is np.mod's rule, ~10x cheaper
-        return (a + math.pi) % TWO_PI - math.pi
-    w = np.mod(np.asarray(a, dtype=np.float64) + math.pi, TWO_PI) - math.pi
-    return float(w) if np.ndim(w) == 0 else w
 
 
 def _triangulate_f(b: float, p1: float, p2: float) -> tuple[float, float]:
@@ -259,8 +250,8 @@ def localize_pair(  # noqa: PLR0917 - positional signature fixed by the team con
     if b <= 0:
         raise GeometryError("the two cameras are at the same position: baseline B = 0")
     psi12 = math.atan2(by, bx)
-    a1 = (bearing1_world - psi12 + math.pi) % TWO_PI - math.pi  # wrap_angle
-    a2 = (psi12 + math.pi - bearing2_world + math.pi) % TWO_PI - math.pi
+    a1 = angle_diff(bearing1_world, psi12)
+    a2 = angle_diff(psi12 + math.pi, bearing2_world)
     abs1, abs2 = abs(a1), abs(a2)
     phi0 = min(max(math.pi - abs1 - abs2, 0.0), math.pi)
 

@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.schema import PinholeModel
 
 __all__ = ["PinholeCamera", "PtzCamera", "rotation_from_rvec"]
 
-FloatArray = npt.NDArray[np.float64]
 _DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
 
 

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
+from common.angles import wrap_angle
 from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
 from common.errors import ConfigError
 from common.frames import Clock, Frame, FrameSource
@@ -200,7 +201,7 @@ def sensor_info(
 def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
     if cfg.pose is None:
         return None
-    yaw = math.atan2(math.sin(math.radians(cfg.pose.yaw_deg)), math.cos(math.radians(cfg.pose.yaw_deg)))
+    yaw = wrap_angle(math.radians(cfg.pose.yaw_deg))
     return Pose(x_m=cfg.pose.x_m, y_m=cfg.pose.y_m, z_m=cfg.pose.z_m, yaw_rad=yaw)
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.angles import wrap_angle
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
 from common.frames import Clock, Frame, Pacer
@@ -154,14 +155,14 @@ def features_from_detections(
     half = math.pi / 2
     for i, d in enumerate(dets):
         dw = float(az[i, 1] - az[i, 2])
-        width = abs(math.atan2(math.sin(dw), math.cos(dw)))
+        width = abs(wrap_angle(dw))
         inside = (
             d.left_px > 0 and d.left_px + d.width_px < camera.width_px and d.top_px + d.height_px < camera.height_px
         )
         blobs.append(
             Blob(
                 local_id=max(0, ids[i]),
-                bearing_rad=math.atan2(math.sin(az[i, 0]), math.cos(az[i, 0])),
+                bearing_rad=wrap_angle(float(az[i, 0])),
                 width_rad=width,
                 top_elev_rad=_clip(float(el[i, 3]), -half, half),
                 bottom_elev_rad=_clip(float(el[i, 0]), -half, half),

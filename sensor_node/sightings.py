@@ -28,12 +28,13 @@ from __future__ import annotations
 import colorsys
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import wrap_angle
+from common.arrays import Image
 from common.cameras import CylindricalCamera
 from common.errors import GeometryError
 from common.geometry import baseline_exact, sighting_bearing
@@ -43,8 +44,6 @@ from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.unwarp import PanoFrame
 
 __all__ = ["BandFinder", "BodySighting", "is_body_blob"]
-
-Image = npt.NDArray[Any]
 
 
 @dataclass(frozen=True, slots=True)
@@ -238,10 +237,10 @@ class BandFinder:
             return None
         sighting = Sighting(
             target_id=body.id,
-            left_rad=_wrap_pi(b_left),
-            right_rad=_wrap_pi(b_right),
+            left_rad=wrap_angle(b_left),
+            right_rad=wrap_angle(b_right),
             alpha_rad=float(alpha),
-            bearing_rad=_wrap_pi(sighting_bearing(b_left, b_right)),
+            bearing_rad=wrap_angle(sighting_bearing(b_left, b_right)),
             distance_m=float(min(dist, 1e5)),
             body_radius_m=float(body.radius_m),
         )
@@ -282,11 +281,6 @@ def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:
         right = roi(small, (u0 + n + 1) % width, a, side, b - a)
         return max(abs(level - float(left.mean())), abs(level - float(right.mean()))) > 20.0
     return False
-
-
-def _wrap_pi(a: float) -> float:
-    w = math.atan2(math.sin(a), math.cos(a))
-    return min(math.pi, max(-math.pi, w))
 
 
 def is_body_blob(

@@ -10,13 +10,10 @@ import math
 import threading
 from collections.abc import Callable
 
+from common.angles import angle_diff, wrap_angle
 from common.frames import PtzPose
 
 __all__ = ["SimulatedPtz"]
-
-
-def _wrap(a: float) -> float:
-    return math.atan2(math.sin(a), math.cos(a))
 
 
 class SimulatedPtz:
@@ -46,7 +43,7 @@ class SimulatedPtz:
         self.pan_rate, self.tilt_rate, self.zoom_rate = pan_rate, tilt_rate, zoom_rate
         self.tilt_limit_rad = tilt_limit_rad
         self.zoom_range = zoom_range
-        self._start = PtzPose(_wrap(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
+        self._start = PtzPose(wrap_angle(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
         self._target = self._start
         self._clock = clock
         self._t0_ns = clock()
@@ -61,7 +58,7 @@ class SimulatedPtz:
     def _at(self, now_ns: int) -> PtzPose:
         dt = max(0.0, (now_ns - self._t0_ns) / 1e9)
         s, g = self._start, self._target
-        dpan = _wrap(g.pan_rad - s.pan_rad)
+        dpan = angle_diff(g.pan_rad, s.pan_rad)
         dtilt = g.tilt_rad - s.tilt_rad
         dzoom = g.zoom - s.zoom
 
@@ -72,14 +69,14 @@ class SimulatedPtz:
         p, mp = step(dpan, self.pan_rate)
         t, mt = step(dtilt, self.tilt_rate)
         z, mz = step(dzoom, self.zoom_rate)
-        return PtzPose(_wrap(s.pan_rad + p), s.tilt_rad + t, s.zoom + z, mp or mt or mz)
+        return PtzPose(wrap_angle(s.pan_rad + p), s.tilt_rad + t, s.zoom + z, mp or mt or mz)
 
     def command(self, pan_rad: float, tilt_rad: float, zoom: float) -> None:
         now = self._clock()
         with self._lock:
             cur = self._at(now)
             self._start = PtzPose(cur.pan_rad, cur.tilt_rad, cur.zoom)
-            self._target = PtzPose(_wrap(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
+            self._target = PtzPose(wrap_angle(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
             self._t0_ns = now
             self.commands += 1
 

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
 from common.errors import ConfigError
 from common.site import WorldSpec
 from sim.people import Door, WalkerLook, make_look
@@ -108,10 +109,6 @@ class _Walker:
     def restore(self, snap: tuple[float | int, ...]) -> None:
         for k, v in zip(self.__slots__, snap, strict=True):
             setattr(self, k, v)
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class WalkerSim:
@@ -362,9 +359,9 @@ class WalkerSim:
             return
         pref = self.looks[i].speed_mps
         want = self._steer(i, w, others, obst)
-        err = _wrap(want - w.heading)
+        err = angle_diff(want, w.heading)
         rate = TURN_RATE_RADPS * (0.5 if w.mode == _PAUSE else 1.0)
-        w.heading = _wrap(w.heading + max(-rate * DT_S, min(rate * DT_S, err)))
+        w.heading = wrap_angle(w.heading + max(-rate * DT_S, min(rate * DT_S, err)))
         if w.mode == _PAUSE:
             v_goal = 0.0
             if t_s >= w.timer:
@@ -466,8 +463,8 @@ class WalkerSim:
                 a, b = self._frames[k0 - self._base], self._frames[k0 + 1 - self._base]
             else:
                 a, b = self._old_pair(k0)
-        dh = (b[:, 2] - a[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
-        heading = (a[:, 2] + frac * dh + math.pi) % (2.0 * math.pi) - math.pi
+        dh = wrap_angle(b[:, 2] - a[:, 2])
+        heading = wrap_angle(a[:, 2] + frac * dh)
         # A jump (entering through the door from outside) is not interpolated.
         jump = np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]) > 0.5
         f = np.where(jump, 0.0, frac)

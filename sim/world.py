@@ -37,8 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
-import numpy as np
 
+from common.angles import angle_diff
 from common.errors import ConfigError
 from common.site import CameraSpec, SiteConfig, WorldSpec
 from sim.people import Door, WalkerLook
@@ -374,8 +374,7 @@ def write_gt_csv(world: World, path: str | Path, fps: float, duration_s: float) 
 
 def sensor_bearing(platform: PlatformState, x_m: float, y_m: float) -> float:
     """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a world point seen from a platform."""
-    b = math.atan2(y_m - platform.y_m, x_m - platform.x_m) - platform.yaw_rad
-    return float(np.mod(b + math.pi, 2.0 * math.pi) - math.pi)
+    return angle_diff(math.atan2(y_m - platform.y_m, x_m - platform.x_m), platform.yaw_rad)
 
 
 def _goal_key(g: Goal) -> tuple[float, str, float, float]:

@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
+from common.angles import angle_diff
 from common.errors import ConfigError
 
 __all__ = [
@@ -192,10 +193,6 @@ BoxBearing = Callable[[float, float], float]
 """Azimuth (rad) of the ray through an image point (u, v)."""
 
 
-def _wrap_deg(a_rad: float) -> float:
-    return math.degrees(math.atan2(math.sin(a_rad), math.cos(a_rad)))
-
-
 def score_detections(
     truth: Mapping[int, Sequence[Box]],
     found: Mapping[int, Sequence[Detection2D]],
@@ -255,5 +252,5 @@ def score_detections(
                 az = d.bearing_rad
                 if not math.isfinite(az):
                     az = bearing_of(d.box.left_px + d.box.width_px / 2.0, d.box.bottom_px)
-                sc.bearing_err_deg.append(_wrap_deg(az - truth_az))
+                sc.bearing_err_deg.append(math.degrees(angle_diff(az, truth_az)))
     return out

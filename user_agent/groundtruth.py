@@ -15,14 +15,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 
 __all__ = ["GT_HEADER", "GroundTruth", "GtPoint", "read_gt_csv", "write_gt_rows"]
 
-FloatArray = npt.NDArray[np.float64]
 
 GT_HEADER = ("frame", "id", "x_m", "y_m", "z_m")
 

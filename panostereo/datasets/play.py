@@ -27,9 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
@@ -42,8 +40,6 @@ from sensor_node.detections import DetectionFrames
 from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import read_gt_csv
 from user_agent.report import Scored, score_tracksets
-
-FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
 

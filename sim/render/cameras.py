@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import U8Image
 from common.cameras import AnnularModel, CylindricalCamera, PtzCamera, design_pal
 from common.errors import ConfigError
 from common.site import CameraSpec, LightingSpec
@@ -46,7 +47,6 @@ __all__ = ["PanoramicRenderer", "PtzRenderer", "light_gain"]
 
 logger = logging.getLogger(__name__)
 
-U8Image = npt.NDArray[np.uint8]
 
 PANO_MARGIN_ROWS = 3
 """Rows rendered beyond each edge of the panorama (the ring's edges interpolate into them)."""

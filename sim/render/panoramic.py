@@ -20,12 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
+from common.arrays import FloatArray
 from common.cameras import CylindricalCamera
 from sim.render.bodies import Cylinder, Head, Primitive
 
 __all__ = ["PanoView", "paint_primitives"]
-
-F64 = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,7 +44,9 @@ def _to_sensor(view: PanoView, x_m: float, y_m: float) -> tuple[float, float]:
     return (c * dx + s * dy, -s * dx + c * dy)
 
 
-def _columns(cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float) -> tuple[F64, F64] | None:
+def _columns(
+    cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float
+) -> tuple[FloatArray, FloatArray] | None:
     """Integer columns touched by bearings [bearing_c + d_lo, bearing_c + d_hi] and their coverage."""
     f = cam.f_h_px * cam.direction
     u_c = float(cam.col_from_bearing(bearing_c))
@@ -61,7 +63,7 @@ def _columns(cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float)
 def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
     pano: npt.NDArray[np.uint8],
     labels: npt.NDArray[np.int32] | None,
-    cols: F64,
+    cols: FloatArray,
     r0: int,
     alpha: npt.NDArray[np.float32],
     colour: npt.NDArray[np.float32],
@@ -84,8 +86,8 @@ def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
 
 
 def _coverage(
-    cam: CylindricalCamera, v_top: F64, v_bot: F64, cover: F64
-) -> tuple[int, F64, npt.NDArray[np.float32]] | None:
+    cam: CylindricalCamera, v_top: FloatArray, v_bot: FloatArray, cover: FloatArray
+) -> tuple[int, FloatArray, npt.NDArray[np.float32]] | None:
     """The rows a shape spans per column, and each pixel's coverage (vertical overlap × column cover).
 
     Returns ``(r0, v, alpha)``: the first row, the row centres as a column vector, and alpha of shape
@@ -100,7 +102,7 @@ def _coverage(
     return r0, v, (cov_v * cover[None, :]).astype(np.float32)
 
 
-def _band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt.NDArray[np.float32]:
+def _band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> npt.NDArray[np.float32]:
     out = np.empty((*z.shape, 3), np.float32)
     out[:] = np.asarray(bands[0][1], np.float32)
     for z_from, bgr in bands[1:]:
@@ -131,7 +133,7 @@ def _paint_cylinder(
     for sgn in (-1.0, 1.0):
         tx, ty = c.b_m * math.cos(phi + sgn * delta), c.a_m * math.sin(phi + sgn * delta)
         wx, wy = sx + ch * tx - sh * ty, sy + sh * tx + ch * ty
-        spans.append((math.atan2(wy, wx) - bearing_c + math.pi) % (2 * math.pi) - math.pi)
+        spans.append(angle_diff(math.atan2(wy, wx), bearing_c))
     got = _columns(cam, bearing_c, min(spans), max(spans))
     if got is None:
         return
@@ -184,7 +186,7 @@ def _paint_head(
         return
     cols, cover = got
     theta = np.asarray(cam.bearing_from_col(cols), dtype=np.float64)
-    dth = (theta - bearing_c + math.pi) % (2 * math.pi) - math.pi
+    dth = wrap_angle(theta - bearing_c)
     p = d * np.sin(dth) / h.rh_m
     f = np.sqrt(np.clip(1.0 - p * p, 0.0, 1.0))
     dist = d * np.cos(dth)

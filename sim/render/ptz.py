@@ -18,12 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.cameras import PinholeCamera
 from sim.render.bodies import Cylinder, Head, Primitive
 
 __all__ = ["RayGrid", "paint_primitives_rays"]
-
-F64 = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,9 +30,9 @@ class RayGrid:
     """Per-pixel rays of a perspective camera (arrays shaped (height, width))."""
 
     origin_xyz: tuple[float, float, float]
-    dir_x: F64
-    dir_y: F64
-    slope: F64
+    dir_x: FloatArray
+    dir_y: FloatArray
+    slope: FloatArray
     """Rise per metre of horizontal travel."""
     pinhole: PinholeCamera
 
@@ -58,7 +57,7 @@ def _bbox(grid: RayGrid, prim: Primitive) -> tuple[int, int, int, int] | None:
     return None if x1 <= x0 or y1 <= y0 else (x0, x1, y0, y1)
 
 
-def _bands(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt.NDArray[np.float32]:
+def _bands(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> npt.NDArray[np.float32]:
     out = np.empty((*z.shape, 3), np.float32)
     out[:] = np.asarray(bands[0][1], np.float32)
     for z_from, bgr in bands[1:]:
@@ -67,8 +66,8 @@ def _bands(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt
 
 
 def _cylinder(
-    origin: tuple[float, float, float], dx: F64, dy: F64, slope: F64, c: Cylinder
-) -> tuple[npt.NDArray[np.bool_], F64, npt.NDArray[np.float32]]:
+    origin: tuple[float, float, float], dx: FloatArray, dy: FloatArray, slope: FloatArray, c: Cylinder
+) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.float32]]:
     ox, oy, oz = origin
     ch, sh = math.cos(c.heading_rad), math.sin(c.heading_rad)
     rx, ry = ox - c.x_m, oy - c.y_m
@@ -100,8 +99,8 @@ def _cylinder(
 
 
 def _head(
-    origin: tuple[float, float, float], dx: F64, dy: F64, slope: F64, h: Head
-) -> tuple[npt.NDArray[np.bool_], F64, npt.NDArray[np.float32]]:
+    origin: tuple[float, float, float], dx: FloatArray, dy: FloatArray, slope: FloatArray, h: Head
+) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.float32]]:
     ox, oy, oz = origin
     k = h.rh_m / h.rv_m
     cx, cy, cz = ox - h.x_m, oy - h.y_m, (oz - h.zc_m) * k

@@ -24,18 +24,14 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import Float32Array, FloatArray, U8Image
 from sim.world import World
 
 __all__ = ["PX_PER_M", "RoomTextures", "cast_room", "make_textures"]
 
 PX_PER_M = 50.0
 """Texture resolution (texels per metre): 2 cm, finer than a panorama pixel at 2 m."""
-
-U8Image = npt.NDArray[np.uint8]
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,7 +48,7 @@ class RoomTextures:
     wall_height_m: float
 
 
-def _blotches(rng: np.random.Generator, h: int, w: int, cell_px: int, amp: float) -> F32:
+def _blotches(rng: np.random.Generator, h: int, w: int, cell_px: int, amp: float) -> Float32Array:
     """Smooth random field (low-frequency noise) of amplitude ``amp``."""
     small = rng.normal(0.0, 1.0, (max(2, h // cell_px + 2), max(2, w // cell_px + 2))).astype(np.float32)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC) * np.float32(amp)
@@ -180,10 +176,10 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
 def cast_room(
     tex: RoomTextures,
     origin_xyz: tuple[float, float, float],
-    dir_x: F64,
-    dir_y: F64,
-    slope: F64,
-) -> tuple[U8Image, F32]:
+    dir_x: FloatArray,
+    dir_y: FloatArray,
+    slope: FloatArray,
+) -> tuple[U8Image, Float32Array]:
     """Colour and depth of the room surface each ray hits.
 
     Args:
