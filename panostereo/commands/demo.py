@@ -319,13 +319,13 @@ def _write_truth_scene(sink: Any, gt: Any, epoch_ns: int, fps: float) -> None:
     Written after the run, on its own channel (``kind=extra``): replay republishes raw channels only, so the
     truth never reaches a pipeline.
     """
-    from user_agent.foxglove import SCENE_UPDATE_SCHEMA, truth_scene
+    from user_agent.foxglove import truth_scene
 
     for k in gt.frame_numbers:
         stamp = epoch_ns + round((k - 1) / fps * 1e9)
         people = [(p.person_id, p.x_m, p.y_m, p.z_m) for p in gt.frames[k]]
         scene = truth_scene(people, stamp, lifetime_s=1.5 / fps)
-        sink.add_json("/scene/ground_truth", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, scene, stamp)
+        sink.add_foxglove("/scene/ground_truth", scene, stamp)
 
 
 def _finish(
