@@ -35,6 +35,9 @@ from common.config import ConfigStruct
 
 __all__ = ["DRIFT_PPM", "ClockSettings", "ClockStatus", "NtpClock", "interp_linear"]
 
+NTP_LEAP_UNSYNCHRONISED = 3
+"""An NTP reply's leap indicator 3: the server's own clock is not synchronised (RFC 5905)."""
+
 logger = logging.getLogger(__name__)
 
 DRIFT_PPM = 15.0
@@ -162,7 +165,7 @@ class NtpClock:
             logger.debug("NTP request to %s failed: %s", self._server_text(), err)
             return None
         offset_s, delay_s = float(stats.offset), float(stats.delay)
-        if not (math.isfinite(offset_s) and math.isfinite(delay_s)) or stats.leap == 3:
+        if not (math.isfinite(offset_s) and math.isfinite(delay_s)) or stats.leap == NTP_LEAP_UNSYNCHRONISED:
             logger.debug("NTP reply from %s unusable (leap=%s)", self._server_text(), stats.leap)
             return None
         root_s = float(stats.root_delay) / 2.0 + float(stats.root_dispersion)

@@ -39,6 +39,9 @@ from sensor_node.tracks2d import Tracker2D
 
 __all__ = ["Detection", "DetectionFrames", "features_from_detections", "load_calibration", "read_mot"]
 
+MOT_FIELDS = 7
+"""A MOTChallenge line has at least frame, id, left, top, width, height, conf."""
+
 
 @dataclass(frozen=True, slots=True)
 class Detection:
@@ -73,7 +76,7 @@ def read_mot(path: Path, min_confidence: float = 0.0) -> dict[int, list[Detectio
             continue
         parts = [p.strip() for p in s.split(",")]
         try:
-            if len(parts) < 7:
+            if len(parts) < MOT_FIELDS:
                 raise ValueError(f"{len(parts)} fields")
             frame = int(float(parts[0]))
             vals = [float(p) for p in parts[1:7]]

@@ -43,6 +43,9 @@ logger = logging.getLogger(__name__)
 
 STATUS_PERIOD_S = 1.0
 
+INFO_OFFSET_CHANGE_NS = 1_000_000
+"""SensorInfo is put again when the clock offset moved by this much (1 ms) or more."""
+
 PIPELINE_MESSAGES = {
     "warmup": "learning the background: no blobs yet",
     "moving": "camera moving: no blobs until it stops and the background is relearnt",
@@ -154,7 +157,7 @@ class SensorNode:
         same = (
             msgspec.structs.replace(new, seq=old.seq, stamp_ns=old.stamp_ns, clock_uncertainty_ns=0)
             == (msgspec.structs.replace(old, clock_uncertainty_ns=0, clock_offset_ns=new.clock_offset_ns))
-            and abs(new.clock_offset_ns - old.clock_offset_ns) < 1_000_000
+            and abs(new.clock_offset_ns - old.clock_offset_ns) < INFO_OFFSET_CHANGE_NS
         )
         if same:
             return

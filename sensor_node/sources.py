@@ -98,37 +98,45 @@ class OpenCvFrames:
         self._backoff_s = min(self.reconnect_max_s, self._backoff_s * 2)
         return _backoff_wait(stop, wait)
 
+    def _pace(self, stop: threading.Event) -> bool:
+        """Wait for a file's next frame time (devices and streams pace themselves); True if stopped meanwhile."""
+        if not (self.is_file and self._period_s > 0):
+            return False
+        delay = self._next_due - time.monotonic()
+        if delay > 0 and stop.wait(delay):
+            return True
+        self._next_due = max(self._next_due + self._period_s, time.monotonic() - self._period_s)
+        return False
+
+    def _read_failed(self, stop: threading.Event) -> bool:
+        """After a read that gave no frame: a file ends (or starts again), a device or stream reconnects.
+        True if the node is stopping meanwhile."""
+        if not self.is_file:
+            return self._fail(f"read from {self.uri!r} failed", stop)
+        self._cap.release()
+        self._cap = None
+        if not self.loop:
+            self.state, self.message = "ended", f"end of file {self.uri!r}"
+        return False
+
     def read(self, stop: threading.Event) -> Frame | None:
-        while not stop.is_set():
-            if self.state == "ended":
-                return None
+        while not stop.is_set() and self.state != "ended":
             if self._cap is None and not self._open():
                 if self._fail(f"cannot open {self.uri!r}", stop):
-                    return None
+                    break
                 continue
-            if self.is_file and self._period_s > 0:
-                delay = self._next_due - time.monotonic()
-                if delay > 0 and stop.wait(delay):
-                    return None
-                self._next_due = max(self._next_due + self._period_s, time.monotonic() - self._period_s)
+            if self._pace(stop):
+                break
             ok, image = self._cap.read()
             stamp = self.clock()
-            if not ok or image is None:
-                if self.is_file:
-                    self._cap.release()
-                    self._cap = None
-                    if self.loop:
-                        continue
-                    self.state, self.message = "ended", f"end of file {self.uri!r}"
-                    return None
-                if self._fail(f"read from {self.uri!r} failed", stop):
-                    return None
-                continue
-            self.state, self.message = "ok", ""
-            self._backoff_s = self.reconnect_min_s
-            frame = Frame(index=self._index, stamp_ns=stamp, image=image)
-            self._index += 1
-            return frame
+            if ok and image is not None:
+                self.state, self.message = "ok", ""
+                self._backoff_s = self.reconnect_min_s
+                frame = Frame(index=self._index, stamp_ns=stamp, image=image)
+                self._index += 1
+                return frame
+            if self._read_failed(stop):
+                break
         return None
 
     def close(self) -> None:

@@ -47,6 +47,11 @@ __all__ = [
     "score_detections",
 ]
 
+BOX_FIELDS = 6
+"""A ground-truth box line has at least frame, id, left, top, width, height."""
+MERGED_PEOPLE = 2
+"""A blob that holds this many people's boxes or more is a merge."""
+
 COVER_FRAC = 0.5
 """Fraction of a ground-truth box inside a blob for the blob to hold that person (merges)."""
 
@@ -146,7 +151,7 @@ def read_boxes(path: Path) -> dict[int, list[Box]]:
             continue
         parts = s.split(",")
         try:
-            if len(parts) < 6:
+            if len(parts) < BOX_FIELDS:
                 raise ValueError(f"{len(parts)} fields")
             frame = int(float(parts[0]))
             left, top, w, h = (float(p) for p in parts[2:6])
@@ -223,7 +228,7 @@ def score_detections(
         inter = _intersections(gt_a, det_a)
         cover = inter / np.maximum(_areas(gt_a), 1e-12)[:, None] if gt else np.zeros((0, len(det)))
         holds = cover >= COVER_FRAC
-        merged = holds & (holds.sum(axis=0) >= 2)[None, :]
+        merged = holds & (holds.sum(axis=0) >= MERGED_PEOPLE)[None, :]
         for sc in out:
             sc.frames += 1
             sc.objects += len(gt)

@@ -23,6 +23,9 @@ from user_agent.messages import placed_pose
 
 __all__ = ["PlotInput", "render_top_view", "save_top_view"]
 
+PAIR = 2
+"""A track localised by a pair of cameras names both."""
+
 
 _BG = (255, 255, 255)
 _GRID = (230, 230, 230)
@@ -122,7 +125,7 @@ def _cameras(img: U8Image, view: _View, inp: PlotInput) -> None:
             used[(a, b)] += 1
     for ts in inp.tracksets:
         for tr in ts.tracks:
-            if len(tr.sensors) >= 2 and not inp.pairs:
+            if len(tr.sensors) >= PAIR and not inp.pairs:
                 a, b = sorted(tr.sensors[:2])
                 used[(a, b)] += 1
     top = max(used.values(), default=1)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from common.arrays import BoolArray, FloatArray
 from sim.world import PersonState, PlatformState
 
 __all__ = [
@@ -78,6 +79,20 @@ class Head:
 
 
 Primitive = Cylinder | Head
+
+HAIR_TOP = 0.4
+"""Above this height on the head (its vertical semi-axis = 1) the head shows hair..."""
+HAIR_BACK = -0.2
+"""...and where it faces away more than this (cosine of the angle to the face's direction)..."""
+HAIR_SIDE = 0.35
+HAIR_SIDE_TOP = -0.05
+"""...and on the sides (facing below HAIR_SIDE) above this height; the face is the rest."""
+
+
+def is_hair(height: FloatArray, facing: FloatArray) -> BoolArray:
+    """Where a head shows hair rather than skin, from the height on it (-1 chin .. 1 crown) and how much
+    that point faces the way the face looks (the cosine)."""
+    return (height > HAIR_TOP) | (facing < HAIR_BACK) | ((facing < HAIR_SIDE) & (height > HAIR_SIDE_TOP))
 
 
 def _bgr(rgb: tuple[int, int, int]) -> BGR:

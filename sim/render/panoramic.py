@@ -23,9 +23,12 @@ import numpy.typing as npt
 from common.angles import angle_diff, wrap_angle
 from common.arrays import FloatArray
 from common.cameras import CylindricalCamera
-from sim.render.bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive, is_hair
 
 __all__ = ["PanoView", "paint_primitives"]
+
+LABEL_COVERAGE = 0.5
+"""A pixel's label is a primitive's when it covers at least this fraction of the pixel."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,7 +85,7 @@ def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
     pano[r0:r1, sl] = (old + a * (colour - old) + 0.5).astype(np.uint8)
     if labels is not None:
         sub = labels[r0:r1, sl]
-        labels[r0:r1, sl] = np.where(alpha >= 0.5, label, sub)
+        labels[r0:r1, sl] = np.where(alpha >= LABEL_COVERAGE, label, sub)
 
 
 def _coverage(
@@ -204,7 +207,7 @@ def _paint_head(
     hd = h.heading_rad - view.yaw_rad
     facing = (hx * math.cos(hd) + hy * math.sin(hd))[None, :]
     zeta = (oz + (v0 - v) * dist[None, :] / fv - h.zc_m) / h.rv_m
-    hair = (zeta > 0.4) | (facing < -0.2) | ((facing < 0.35) & (zeta > -0.05))
+    hair = is_hair(zeta, facing)
     colour = np.where(hair[..., None], np.asarray(h.hair_bgr, np.float32), np.asarray(h.skin_bgr, np.float32))
     shade = 0.55 + 0.45 * f[None, :] * np.sqrt(np.clip(1.0 - 0.7 * zeta * zeta, 0.0, 1.0))
     _blend(pano, labels, cols, r0, alpha, (colour * shade[..., None]).astype(np.float32), h.label)

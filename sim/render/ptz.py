@@ -20,9 +20,14 @@ import numpy.typing as npt
 
 from common.arrays import FloatArray
 from common.cameras import PinholeCamera
-from sim.render.bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive, is_hair
 
 __all__ = ["RayGrid", "paint_primitives_rays"]
+
+FLAT_SLOPE = 1e-12
+"""A ray whose slope is below this is horizontal: it never leaves a cylinder's height band."""
+NEAR_M = 1e-3
+"""Surfaces nearer than this along a ray are behind the lens: not seen."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,12 +85,12 @@ def _cylinder(
     t_near, t_far = (-b2 - root) / (2.0 * a2), (-b2 + root) / (2.0 * a2)
     with np.errstate(divide="ignore", invalid="ignore"):
         ta, tb = (c.z0_m - oz) / slope, (c.z1_m - oz) / slope
-    flat = np.abs(slope) < 1e-12
+    flat = np.abs(slope) < FLAT_SLOPE
     inside_slab = c.z0_m <= oz <= c.z1_m
     tz0 = np.where(flat, -np.inf if inside_slab else np.inf, np.minimum(ta, tb))
     tz1 = np.where(flat, np.inf if inside_slab else -np.inf, np.maximum(ta, tb))
     entry = np.maximum(t_near, tz0)
-    hit = (disc >= 0.0) & (entry <= np.minimum(t_far, tz1)) & (entry > 1e-3)
+    hit = (disc >= 0.0) & (entry <= np.minimum(t_far, tz1)) & (entry > NEAR_M)
     z = np.clip(oz + entry * slope, c.z0_m, c.z1_m)
     colour = _bands(c.bands, z)
     hx, hy = qx + t_near * dlx, qy + t_near * dly
@@ -109,10 +114,10 @@ def _head(
     b2 = 2.0 * (cx * dx + cy * dy + cz * sz)
     disc = b2 * b2 - 4.0 * a2 * (cx * cx + cy * cy + cz * cz - h.rh_m * h.rh_m)
     t = (-b2 - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * a2)
-    hit = (disc >= 0.0) & (t > 1e-3)
+    hit = (disc >= 0.0) & (t > NEAR_M)
     nx, ny, nz = (cx + t * dx) / h.rh_m, (cy + t * dy) / h.rh_m, (cz + t * sz) / h.rh_m
     facing = nx * math.cos(h.heading_rad) + ny * math.sin(h.heading_rad)
-    hair = (nz > 0.4) | (facing < -0.2) | ((facing < 0.35) & (nz > -0.05))
+    hair = is_hair(nz, facing)
     colour = np.where(hair[..., None], np.asarray(h.hair_bgr, np.float32), np.asarray(h.skin_bgr, np.float32))
     lam = np.clip(-(nx * dx + ny * dy + nz * sz) / np.sqrt(a2), 0.0, 1.0)
     colour *= (0.5 + 0.5 * lam)[..., None].astype(np.float32)
