@@ -22,7 +22,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from common.arrays import BoolArray, FloatArray
+import numpy as np
+
+from common.arrays import BoolArray, Float32Array, FloatArray
 from sim.world import PersonState, PlatformState
 
 __all__ = [
@@ -87,6 +89,15 @@ HAIR_BACK = -0.2
 HAIR_SIDE = 0.35
 HAIR_SIDE_TOP = -0.05
 """...and on the sides (facing below HAIR_SIDE) above this height; the face is the rest."""
+
+
+def band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> Float32Array:
+    """The BGR colour of a cylinder's bands (``Cylinder.bands``: from each height up) at heights ``z``."""
+    out = np.empty((*z.shape, 3), np.float32)
+    out[:] = np.asarray(bands[0][1], np.float32)
+    for z_from, bgr in bands[1:]:
+        out[z >= z_from] = np.asarray(bgr, np.float32)
+    return out
 
 
 def is_hair(height: FloatArray, facing: FloatArray) -> BoolArray:

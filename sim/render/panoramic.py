@@ -23,7 +23,7 @@ import numpy.typing as npt
 from common.angles import angle_diff, wrap_angle
 from common.arrays import FloatArray
 from common.cameras import CylindricalCamera
-from sim.render.bodies import Cylinder, Head, Primitive, is_hair
+from sim.render.bodies import Cylinder, Head, Primitive, band_colours, is_hair
 
 __all__ = ["PanoView", "paint_primitives"]
 
@@ -105,14 +105,6 @@ def _coverage(
     return r0, v, (cov_v * cover[None, :]).astype(np.float32)
 
 
-def _band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> npt.NDArray[np.float32]:
-    out = np.empty((*z.shape, 3), np.float32)
-    out[:] = np.asarray(bands[0][1], np.float32)
-    for z_from, bgr in bands[1:]:
-        out[z >= z_from] = np.asarray(bgr, np.float32)
-    return out
-
-
 def _paint_cylinder(
     pano: npt.NDArray[np.uint8],
     labels: npt.NDArray[np.int32] | None,
@@ -167,7 +159,7 @@ def _paint_cylinder(
     z = oz + (v0 - v) * t_near[None, :] / fv
     cap = (z > c.z1_m) | (z < c.z0_m)
     zc = np.clip(z, c.z0_m, c.z1_m)
-    colour = _band_colours(c.bands, zc)
+    colour = band_colours(c.bands, zc)
     span = max(c.z1_m - c.z0_m, 1e-6)
     shade = (1.0 - c.shade_depth + c.shade_depth * np.sqrt(lam))[None, :] * (0.88 + 0.12 * (zc - c.z0_m) / span)
     shade = np.where(cap, 0.8, shade)

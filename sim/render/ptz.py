@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from common.arrays import FloatArray
 from common.cameras import PinholeCamera
-from sim.render.bodies import Cylinder, Head, Primitive, is_hair
+from sim.render.bodies import Cylinder, Head, Primitive, band_colours, is_hair
 
 __all__ = ["RayGrid", "paint_primitives_rays"]
 
@@ -62,14 +62,6 @@ def _bbox(grid: RayGrid, prim: Primitive) -> tuple[int, int, int, int] | None:
     return None if x1 <= x0 or y1 <= y0 else (x0, x1, y0, y1)
 
 
-def _bands(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> npt.NDArray[np.float32]:
-    out = np.empty((*z.shape, 3), np.float32)
-    out[:] = np.asarray(bands[0][1], np.float32)
-    for z_from, bgr in bands[1:]:
-        out[z >= z_from] = np.asarray(bgr, np.float32)
-    return out
-
-
 def _cylinder(
     origin: tuple[float, float, float], dx: FloatArray, dy: FloatArray, slope: FloatArray, c: Cylinder
 ) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.float32]]:
@@ -92,7 +84,7 @@ def _cylinder(
     entry = np.maximum(t_near, tz0)
     hit = (disc >= 0.0) & (entry <= np.minimum(t_far, tz1)) & (entry > NEAR_M)
     z = np.clip(oz + entry * slope, c.z0_m, c.z1_m)
-    colour = _bands(c.bands, z)
+    colour = band_colours(c.bands, z)
     hx, hy = qx + t_near * dlx, qy + t_near * dly
     nx, ny = hx / c.b_m, hy / c.a_m
     lam = np.clip(-(nx * dlx * c.b_m + ny * dly * c.a_m) / (np.hypot(nx, ny) + 1e-12), 0.0, 1.0)
