@@ -251,9 +251,10 @@ def _plan_stats(row: dict[str, Any], site: Path, robot: str = "robot", fixed: st
     """A run's view-plan figures from its recording and ground truth (scoring only)."""
     if "summary" not in row:
         return row
-    from common.scenario import World, goals_from_plans
     from common.schema import ManagerStatus
     from common.site import load_site
+    from sim.driver import goals_from_plans
+    from sim.world import World
     from user_agent.messages import decode_on_key
     from user_agent.record import keys_for
     from user_agent.recording import iter_raw, load_recording

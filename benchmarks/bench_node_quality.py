@@ -6,7 +6,7 @@ Usage::
                                             [--score-every 3] [--camera cam1 ...] [--world-seed 5]
 
 For each panoramic camera of each site, renders frames with the simulator
-(:class:`sensor_node.render.PanoramicRenderer`; people walking, lighting,
+(:class:`sim.render.cameras.PanoramicRenderer`; people walking, lighting,
 sensor noise) from world time ``t0 - warmup`` on, runs every frame through
 :class:`sensor_node.pipeline.ImagePipeline` exactly as a node does (default
 ``[pipeline]`` settings, the other cameras as known bodies), and scores every
@@ -69,15 +69,15 @@ import msgspec
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from common.scenario import World, sensor_bearing, site_with_seed
 from common.schema import Blob
 from common.site import CameraSpec, SiteConfig, load_site
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import PanoramicGeometry
 from sensor_node.pipeline import ImagePipeline
-from sensor_node.render import PANO_MARGIN_ROWS, PanoramicRenderer
-from sensor_node.render_bodies import head_size
 from sensor_node.unwarp import Unwarper
+from sim.render.bodies import head_size
+from sim.render.cameras import PANO_MARGIN_ROWS, PanoramicRenderer
+from sim.world import World, sensor_bearing, site_with_seed
 
 logger = logging.getLogger(__name__)
 REPO = Path(__file__).resolve().parent.parent

@@ -45,13 +45,13 @@ import cv2
 import numpy as np
 
 from common.codec import encode
-from common.scenario import World
 from common.site import load_site
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import PanoramicGeometry
 from sensor_node.pipeline import ImagePipeline
-from sensor_node.render import PanoramicRenderer
 from sensor_node.unwarp import Unwarper
+from sim.render.cameras import PanoramicRenderer
+from sim.world import World
 
 REPO = Path(__file__).resolve().parent.parent
 

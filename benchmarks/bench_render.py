@@ -38,9 +38,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from common.scenario import World
 from common.site import load_site
-from sensor_node.render import PanoramicRenderer, PtzRenderer
+from sim.render.cameras import PanoramicRenderer, PtzRenderer
+from sim.world import World
 
 REPO = Path(__file__).resolve().parents[1]
 

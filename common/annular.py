@@ -35,13 +35,29 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI
+from common.arrays import FloatArray
 from common.cylindrical import CylindricalCamera
 from common.errors import CalibrationError, ConfigError
 
 __all__ = ["AnnularModel", "center_from_lines", "design_pal", "fit_radial_polynomial"]
 
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
+MIN_SIZE_PX = 2
+"""An image or panorama narrower or lower than this many pixels is refused."""
+HALF_PX = 0.5
+"""Pixel centres are at integers: a row covers +-0.5 around its index."""
+MAX_ELEV_DEG = 89.0
+"""A lens's field of view must stay below +-this elevation (tan grows without bound at 90 deg)."""
+MIN_LINES = 2
+"""Step 1: the ring centre is the intersection of at least this many imaged vertical lines."""
+MIN_LINE_POINTS = 2
+"""...each given by at least this many points."""
+COINCIDENT_PX = 1e-12
+"""A line whose points spread less than this (px) is a single point."""
+PARALLEL_RATIO = 1e-6
+"""Lines whose least-squares system has a singular-value ratio below this are (nearly) parallel."""
+POLY_TERMS = 3
+"""Step 2: r = a0 + a1 v + a2 v^2 has three terms, so it needs three distinct rows."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,7 +81,7 @@ class AnnularModel:
     """+1: psi grows with the column; -1: it decreases."""
 
     def __post_init__(self) -> None:
-        if min(self.image_w, self.image_h, self.pano_w, self.pano_h) < 2:
+        if min(self.image_w, self.image_h, self.pano_w, self.pano_h) < MIN_SIZE_PX:
             raise ConfigError(
                 f"image and panorama sizes must be >= 2 px, got {self.image_w}x{self.image_h}, "
                 f"{self.pano_w}x{self.pano_h}"
@@ -136,7 +152,7 @@ class AnnularModel:
         """
         yy, xx = np.mgrid[0 : self.image_h, 0 : self.image_w].astype(np.float64)
         u, v = self.pano_from_annular(xx, yy)
-        inside = np.isfinite(v) & (v >= -0.5) & (v <= self.pano_h - 0.5)
+        inside = np.isfinite(v) & (v >= -HALF_PX) & (v <= self.pano_h - HALF_PX)
         map_x = np.where(inside, u, -1.0).astype(np.float32)
         map_y = np.where(inside, np.clip(v, 0.0, self.pano_h - 1.0), -1.0).astype(np.float32)
         return map_x, map_y
@@ -167,7 +183,7 @@ def design_pal(
         height_m: camera height above the floor for the cylindrical camera.
     """
     (img_w, img_h), (pano_w, pano_h) = image_size, pano_size
-    if not -89.0 < elev_min_deg < elev_max_deg < 89.0:
+    if not -MAX_ELEV_DEG < elev_min_deg < elev_max_deg < MAX_ELEV_DEG:
         raise ConfigError(f"need -89 < elev_min_deg < elev_max_deg < 89, got {elev_min_deg}, {elev_max_deg}")
     t_lo, t_hi = math.tan(math.radians(elev_min_deg)), math.tan(math.radians(elev_max_deg))
     f_v = pano_h / (t_hi - t_lo)
@@ -210,23 +226,23 @@ def center_from_lines(lines: list[npt.NDArray[np.float64]] | list[npt.ArrayLike]
     Raises:
         CalibrationError: fewer than 2 lines, a line with < 2 distinct points, or all lines parallel.
     """
-    if len(lines) < 2:
+    if len(lines) < MIN_LINES:
         raise CalibrationError(f"centre determination needs >= 2 lines, got {len(lines)}")
     normals, offsets = [], []
     for i, pts in enumerate(lines):
         p = np.asarray(pts, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 2 or not np.all(np.isfinite(p)):
+        if p.shape[1:] != (2,) or len(p) < MIN_LINE_POINTS or not np.all(np.isfinite(p)):
             raise CalibrationError(f"line {i}: expected (N>=2, 2) finite points, got shape {p.shape}")
         m = p.mean(axis=0)
         _, s, vt = np.linalg.svd(p - m)
-        if s[0] <= 1e-12:
+        if s[0] <= COINCIDENT_PX:
             raise CalibrationError(f"line {i}: all points coincide")
         n = vt[1]  # normal = direction of least spread
         normals.append(n)
         offsets.append(float(n @ m))
     a = np.asarray(normals)
     sol, _, rank, sv = np.linalg.lstsq(a, np.asarray(offsets), rcond=None)
-    if rank < 2 or sv[-1] < 1e-6 * sv[0]:
+    if rank < MIN_LINES or sv[-1] < PARALLEL_RATIO * sv[0]:
         raise CalibrationError("the lines are (nearly) parallel: no unique intersection")
     return float(sol[0]), float(sol[1])
 
@@ -245,12 +261,12 @@ def fit_radial_polynomial(rows_v: npt.ArrayLike, radii_px: npt.ArrayLike) -> tup
     r = np.asarray(radii_px, dtype=np.float64).ravel()
     if v.shape != r.shape:
         raise CalibrationError(f"rows and radii must have the same length, got {v.size} and {r.size}")
-    if v.size < 3:
+    if v.size < POLY_TERMS:
         raise CalibrationError(f"the 2nd-order polynomial needs >= 3 point pairs, got {v.size}")
     if not (np.all(np.isfinite(v)) and np.all(np.isfinite(r))):
         raise CalibrationError("rows and radii must be finite")
     a = np.column_stack([np.ones_like(v), v, v * v])
     sol, _, rank, _ = np.linalg.lstsq(a, r, rcond=None)
-    if rank < 3:
+    if rank < POLY_TERMS:
         raise CalibrationError(f"need >= 3 distinct rows, got rank {rank}")
     return float(sol[0]), float(sol[1]), float(sol[2])

@@ -32,14 +32,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.pinhole import PinholeCamera, rotation_from_rvec
 
 __all__ = ["FOLD_FIT", "calibration_json", "from_opencv_file", "from_p_matrix", "from_tsai_xml", "tsai_rotation"]
 
-FloatArray = npt.NDArray[np.float64]
+MAT3_VALUES = 9
+"""Numbers in a 3x3 matrix (K, R)."""
+VEC3_VALUES = 3
+"""Numbers in a 3-vector (rvec, tvec)."""
+SIZE_VALUES = 2
+"""(width, height)."""
+P_VALUES = 12
+"""Numbers in a 3x4 projection matrix."""
+
 
 FOLD_FIT = 0.85
 """Fraction of the fold radius inside which a folding Tsai lens is fitted."""
@@ -180,19 +188,19 @@ def from_opencv_file(path: Path, *, units_m: float = 1.0, image_size: tuple[int,
         size_node = _node(fs, ("image_size", "imageSize"))
     finally:
         fs.release()
-    if k is None or k.size != 9:
+    if k is None or k.size != MAT3_VALUES:
         raise ConfigError(f"{path}: expected a 3x3 camera_matrix, got {None if k is None else k.shape}")
-    if rmat is not None and rmat.size == 9:
+    if rmat is not None and rmat.size == MAT3_VALUES:
         r = rmat.reshape(3, 3)
-    elif rvec is not None and rvec.size == 3:
+    elif rvec is not None and rvec.size == VEC3_VALUES:
         r = rotation_from_rvec(rvec.ravel())
     else:
         raise ConfigError(f"{path}: expected the camera's pose: rvec (3) or R (3x3), with tvec")
-    if tvec is None or tvec.size != 3:
+    if tvec is None or tvec.size != VEC3_VALUES:
         raise ConfigError(f"{path}: expected tvec with 3 values, got {None if tvec is None else tvec.size}")
     if w is not None and h is not None:
         size = (round(w), round(h))
-    elif size_node is not None and size_node.size == 2:
+    elif size_node is not None and size_node.size == SIZE_VALUES:
         size = (round(float(size_node.ravel()[0])), round(float(size_node.ravel()[1])))
     elif image_size is not None:
         size = image_size
@@ -218,7 +226,7 @@ def from_p_matrix(text: str, image_size: tuple[int, int], *, units_m: float = 1.
             values = np.asarray(text.replace(",", " ").replace(";", " ").split(), np.float64)
         except ValueError as err:
             raise ConfigError(f"{source}: expected 12 numbers (a 3x4 P matrix)") from err
-    if values.size != 12:
+    if values.size != P_VALUES:
         raise ConfigError(f"{source}: expected 12 numbers (a 3x4 P matrix), got {values.size}")
     p = values.reshape(3, 4).copy()
     p[:, 3] *= units_m

@@ -33,7 +33,10 @@ import msgspec
 
 from common.config import ConfigStruct
 
-__all__ = ["DRIFT_PPM", "ClockSettings", "ClockStatus", "NtpClock", "interp_angle", "interp_linear"]
+__all__ = ["DRIFT_PPM", "ClockSettings", "ClockStatus", "NtpClock", "interp_linear"]
+
+NTP_LEAP_UNSYNCHRONISED = 3
+"""An NTP reply's leap indicator 3: the server's own clock is not synchronised (RFC 5905)."""
 
 logger = logging.getLogger(__name__)
 
@@ -162,7 +165,7 @@ class NtpClock:
             logger.debug("NTP request to %s failed: %s", self._server_text(), err)
             return None
         offset_s, delay_s = float(stats.offset), float(stats.delay)
-        if not (math.isfinite(offset_s) and math.isfinite(delay_s)) or stats.leap == 3:
+        if not (math.isfinite(offset_s) and math.isfinite(delay_s)) or stats.leap == NTP_LEAP_UNSYNCHRONISED:
             logger.debug("NTP reply from %s unusable (leap=%s)", self._server_text(), stats.leap)
             return None
         root_s = float(stats.root_delay) / 2.0 + float(stats.root_dispersion)
@@ -231,19 +234,3 @@ def interp_linear(t0: float, v0: float, t1: float, v1: float, t: float) -> float
     if t1 == t0:
         return v1
     return v0 + (v1 - v0) * ((t - t0) / (t1 - t0))
-
-
-def _wrap(a: float) -> float:
-    """Wrap an angle to [-π, π)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def interp_angle(t0: float, a0: float, t1: float, a1: float, t: float) -> float:
-    """Angle at ``t`` moving from ``a0`` to ``a1`` along the shorter arc, wrapped to [-π, π).
-
-    E.g. from 179° to −179° passes through 180°, not through 0°.
-    """
-    step = _wrap(a1 - a0)
-    if t1 == t0:
-        return _wrap(a0 + step)
-    return _wrap(a0 + step * ((t - t0) / (t1 - t0)))

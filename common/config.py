@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -78,47 +79,60 @@ def _bounds(info: Any) -> str:
     return " and ".join(parts)
 
 
+def _number(kind: str, info: Any) -> str:
+    b = _bounds(info)
+    return f"{kind} {b}" if b else kind
+
+
+def _expected_union(info: Any) -> str | None:
+    options = [_expected(t) for t in info.types]
+    return " or ".join(o for o in options if o) or None
+
+
+def _expected_str(info: Any) -> str:
+    extra = []
+    if info.min_length:
+        extra.append(f"at least {info.min_length} characters")
+    if info.max_length is not None:
+        extra.append(f"at most {info.max_length} characters")
+    if info.pattern:
+        extra.append(f"matching {info.pattern}")
+    return "a string" + (" (" + ", ".join(extra) + ")" if extra else "")
+
+
+def _expected_list(info: Any) -> str:
+    n = []
+    if info.min_length is not None and info.min_length == info.max_length:
+        n.append(f"exactly {info.min_length}")
+    else:
+        if info.min_length is not None:
+            n.append(f"at least {info.min_length}")
+        if info.max_length is not None:
+            n.append(f"at most {info.max_length}")
+    inner = _expected(info.item_type)
+    return "a list" + (f" of {' and '.join(n)} items" if n else "") + (f", each {inner}" if inner else "")
+
+
+_DESCRIPTIONS: tuple[tuple[type | tuple[type, ...], Callable[[Any], str | None]], ...] = (
+    (mi.UnionType, _expected_union),
+    (mi.LiteralType, lambda info: "one of " + ", ".join(repr(v) for v in info.values)),
+    (mi.FloatType, lambda info: _number("a number", info)),
+    (mi.IntType, lambda info: _number("an integer", info)),
+    (mi.BoolType, lambda _: "true or false"),
+    (mi.StrType, _expected_str),
+    ((mi.ListType, mi.VarTupleType, mi.SetType, mi.FrozenSetType), _expected_list),
+    (mi.TupleType, lambda info: f"a list of {len(info.item_types)} items"),
+    (mi.NoneType, lambda _: None),
+    ((mi.StructType, mi.DictType), lambda _: "a table"),
+)
+"""What each kind of config value must be, in plain words (the first kind that matches describes it)."""
+
+
 def _expected(info: Any) -> str | None:
     """Plain-words description of what a config value must be."""
-    if isinstance(info, mi.UnionType):
-        options = [_expected(t) for t in info.types]
-        return " or ".join(o for o in options if o) or None
-    if isinstance(info, mi.LiteralType):
-        return "one of " + ", ".join(repr(v) for v in info.values)
-    if isinstance(info, mi.FloatType):
-        b = _bounds(info)
-        return f"a number {b}" if b else "a number"
-    if isinstance(info, mi.IntType):
-        b = _bounds(info)
-        return f"an integer {b}" if b else "an integer"
-    if isinstance(info, mi.BoolType):
-        return "true or false"
-    if isinstance(info, mi.StrType):
-        extra = []
-        if info.min_length:
-            extra.append(f"at least {info.min_length} characters")
-        if info.max_length is not None:
-            extra.append(f"at most {info.max_length} characters")
-        if info.pattern:
-            extra.append(f"matching {info.pattern}")
-        return "a string" + (" (" + ", ".join(extra) + ")" if extra else "")
-    if isinstance(info, (mi.ListType, mi.VarTupleType, mi.SetType, mi.FrozenSetType)):
-        n = []
-        if info.min_length is not None and info.min_length == info.max_length:
-            n.append(f"exactly {info.min_length}")
-        else:
-            if info.min_length is not None:
-                n.append(f"at least {info.min_length}")
-            if info.max_length is not None:
-                n.append(f"at most {info.max_length}")
-        inner = _expected(info.item_type)
-        return "a list" + (f" of {' and '.join(n)} items" if n else "") + (f", each {inner}" if inner else "")
-    if isinstance(info, mi.TupleType):
-        return f"a list of {len(info.item_types)} items"
-    if isinstance(info, mi.NoneType):
-        return None
-    if isinstance(info, (mi.StructType, mi.DictType)):
-        return "a table"
+    for kinds, describe in _DESCRIPTIONS:
+        if isinstance(info, kinds):
+            return describe(info)
     return None
 
 

@@ -31,18 +31,19 @@ from typing import Any, overload
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI, wrap_angle
+from common.arrays import FloatArray
 from common.errors import CalibrationError, ConfigError
 from common.schema import PanoramicModel
 
 __all__ = ["CylindricalCalibration", "CylindricalCamera", "calibrate_cylindrical"]
 
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    """Wrap angles to [-pi, pi)."""
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
+MIN_PANO_PX = 8
+"""A panorama smaller than this in either direction is refused."""
+CALIB_UNKNOWNS = 3
+"""Step 3 solves (v0, f_v, f_v H_c) by least squares: at least three known points, in general position."""
+ON_AXIS_M = 1e-9
+"""A calibration point closer than this to the camera's vertical axis has no bearing."""
 
 
 def _out(x: npt.ArrayLike, like: npt.ArrayLike) -> Any:
@@ -74,7 +75,7 @@ class CylindricalCamera:
     """Sensor-frame bearing of column 0 (0 by definition of the sensor frame)."""
 
     def __post_init__(self) -> None:
-        if self.width_px < 8 or self.height_px < 8:
+        if min(self.width_px, self.height_px) < MIN_PANO_PX:
             raise ConfigError(f"panorama size must be >= 8x8 px, got {self.width_px}x{self.height_px}")
         if not (math.isfinite(self.f_v_px) and self.f_v_px > 0):
             raise ConfigError(f"f_v_px must be finite and > 0, got {self.f_v_px}")
@@ -96,7 +97,7 @@ class CylindricalCamera:
     def bearing_from_col(self, u: FloatArray | float) -> FloatArray | float:
         """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a (fractional) column."""
         b = self.bearing0_rad + self.direction * np.asarray(u, dtype=np.float64) / self.f_h_px
-        return _out(_wrap(b), u)
+        return _out(wrap_angle(b), u)
 
     @overload
     def col_from_bearing(self, bearing_rad: float) -> float: ...
@@ -229,19 +230,19 @@ def calibrate_cylindrical(
     """
     p = np.asarray(points_xyz_sensor, dtype=np.float64)
     uv = np.asarray(pixels_uv, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3 or uv.shape != (p.shape[0], 2):
+    if p.shape[1:] != (3,) or uv.shape != (len(p), 2):
         raise CalibrationError(f"expected points (N,3) and pixels (N,2), got {p.shape} and {uv.shape}")
     n = p.shape[0]
-    if n < 3:
+    if n < CALIB_UNKNOWNS:
         raise CalibrationError(f"calibration needs >= 3 known points, got {n}")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(uv))):
         raise CalibrationError("calibration points and pixels must be finite")
     rho = np.hypot(p[:, 0], p[:, 1])
-    if np.any(rho <= 1e-9):
+    if np.any(rho <= ON_AXIS_M):
         raise CalibrationError("a calibration point lies on the camera axis (rho = 0)")
     a = np.column_stack([np.ones(n), -p[:, 2] / rho, 1.0 / rho])
     sol, _, rank, _ = np.linalg.lstsq(a, uv[:, 1], rcond=None)
-    if rank < 3:
+    if rank < CALIB_UNKNOWNS:
         raise CalibrationError(f"degenerate calibration points: rank {rank} < 3 (vary distance and height)")
     v0, f_v, fvh = (float(s) for s in sol)
     if not f_v > 0:
@@ -252,7 +253,7 @@ def calibrate_cylindrical(
     for direction in (1, -1):
         offs = bearings - direction * uv[:, 0] / f_h
         b0 = math.atan2(float(np.mean(np.sin(offs))), float(np.mean(np.cos(offs))))
-        cost = float(np.sum(_wrap(offs - b0) ** 2))
+        cost = float(np.sum(wrap_angle(offs - b0) ** 2))
         if best is None or cost < best[0]:
             best = (cost, direction, b0)
     assert best is not None

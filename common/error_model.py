@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import optimize
 
+from common.arrays import FloatArray
 from common.errors import GeometryError
 
 __all__ = [
@@ -45,7 +46,6 @@ __all__ = [
     "pair_position_errors",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 MAX_ERROR_M = 1.0e4
 """Cap of :func:`pair_position_error` for degenerate geometry (fits the wire's bounded floats)."""
@@ -287,7 +287,7 @@ def pair_position_errors(
     o1 = np.asarray(o1_xy, dtype=np.float64).reshape(-1, 2)
     o2 = np.asarray(o2_xy, dtype=np.float64).reshape(-1, 2)
     t = np.asarray(target_xy, dtype=np.float64)
-    t = t.reshape(-1, 2) if t.size != 2 else t.reshape(1, 2)
+    t = t.reshape(-1, 2)
     sigma = np.asarray(sigma_bearing_rad, dtype=np.float64)
     sigma_b = np.asarray(sigma_baseline_m, dtype=np.float64)
     v1, v2 = t - o1, t - o2

@@ -27,6 +27,8 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
+from common.arrays import FloatArray
 from common.errors import GeometryError
 
 __all__ = [
@@ -40,29 +42,31 @@ __all__ = [
     "sighting_bearing",
     "size_ratio",
     "triangulate",
-    "wrap_angle",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-TWO_PI = 2.0 * math.pi
 
 MAX_SIZE_RATIO_OFFSET_RAD = math.radians(10.0)
 """Eq. (2) is only considered when the target is within this angle of the baseline line
 (as seen from both cameras): the size-ratio formula has a bias ~h^2/(2 D2) off the line."""
 
-
-def wrap_angle(a: Any) -> Any:
-    """Wrap angle(s) to [-pi, pi). Returns a float for a scalar, an array for an array."""
-    if type(a) is float or type(a) is int:  # plain Python numbers: float % is np.mod's rule, ~10x cheaper
-        return (a + math.pi) % TWO_PI - math.pi
-    w = np.mod(np.asarray(a, dtype=np.float64) + math.pi, TWO_PI) - math.pi
-    return float(w) if np.ndim(w) == 0 else w
+MIN_SIN = 1e-12
+"""Rays whose converging angle has a sine below this are parallel: Eq. (1) has no solution."""
+MIN_SIZE_RATIO_DEN = 1e-15
+"""Eq. (2) is singular when w1 cos phi1 + w2 cos phi2 is below this."""
+MIN_RAYS = 2
+"""An intersection needs at least two rays."""
+MAX_RAYS_COND = 1e10
+"""Rays whose normal equations are worse conditioned than this are (nearly) parallel."""
+AT_CAMERA_M2 = 1e-18
+"""A point closer than this (squared, m^2) to a ray's origin has no bearing from it."""
+CONVERGED_M = 1e-10
+"""The Gauss-Newton refinement stops when its step is below this (m)."""
 
 
 def _triangulate_f(b: float, p1: float, p2: float) -> tuple[float, float]:
     """Eq. (1) on plain floats (the scalar branch of :func:`triangulate`; numpy on 0-d arrays costs ~10x)."""
     s0 = math.sin(p1 + p2)
-    if not (p1 >= 0 and p2 >= 0 and p1 + p2 < math.pi and s0 > 1e-12 and b > 0):
+    if not (p1 >= 0 and p2 >= 0 and p1 + p2 < math.pi and s0 > MIN_SIN and b > 0):
         raise GeometryError(
             f"triangulation needs converging rays: phi1={p1:.6g}, phi2={p2:.6g} rad "
             f"(expected >= 0 with phi1 + phi2 < pi), B={b:.6g} m (expected > 0)"
@@ -83,7 +87,7 @@ def triangulate(b_m: Any, phi1_rad: Any, phi2_rad: Any) -> tuple[Any, Any]:
     p1 = np.asarray(phi1_rad, dtype=np.float64)
     p2 = np.asarray(phi2_rad, dtype=np.float64)
     s0 = np.sin(p1 + p2)  # = sin(phi0), phi0 = pi - phi1 - phi2
-    ok = (p1 >= 0) & (p2 >= 0) & (p1 + p2 < math.pi) & (s0 > 1e-12) & (b > 0)
+    ok = (p1 >= 0) & (p2 >= 0) & (p1 + p2 < math.pi) & (s0 > MIN_SIN) & (b > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
         d1 = np.where(ok, b * np.sin(p2) / s0, np.nan)
         d2 = np.where(ok, b * np.sin(p1) / s0, np.nan)
@@ -104,7 +108,7 @@ def size_ratio(b_m: float, w1: float, w2: float, cos_phi1: float, cos_phi2: floa
     if not (w1 > 0 and w2 > 0 and b_m > 0):
         raise GeometryError(f"size ratio needs w1, w2, B > 0, got w1={w1}, w2={w2}, B={b_m}")
     den = w1 * cos_phi1 + w2 * cos_phi2
-    if abs(den) < 1e-15:
+    if abs(den) < MIN_SIZE_RATIO_DEN:
         raise GeometryError(f"size ratio is singular: w1 cos phi1 + w2 cos phi2 = 0 (w1={w1}, w2={w2})")
     d1 = b_m * w2 * cos_phi2 / den * cos_phi1
     d2 = b_m * w1 * cos_phi1 / den * cos_phi2
@@ -171,7 +175,7 @@ def intersect_rays(origins_xy: npt.ArrayLike, bearings_rad: npt.ArrayLike, sigma
     th = np.asarray(bearings_rad, dtype=np.float64).ravel()
     sg = np.broadcast_to(np.asarray(sigmas_rad, dtype=np.float64), th.shape).astype(np.float64)
     n = o.shape[0]
-    if n < 2 or th.shape != (n,):
+    if n < MIN_RAYS or th.shape != (n,):
         raise GeometryError(f"need >= 2 rays with one bearing each, got {n} origins and {th.size} bearings")
     if not (np.all(np.isfinite(o)) and np.all(np.isfinite(th)) and np.all(sg > 0)):
         raise GeometryError("ray origins and bearings must be finite and sigmas > 0")
@@ -180,14 +184,14 @@ def intersect_rays(origins_xy: npt.ArrayLike, bearings_rad: npt.ArrayLike, sigma
     w = 1.0 / sg**2
     a = (nrm * w[:, None]).T @ nrm
     rhs = (nrm * w[:, None]).T @ np.einsum("ij,ij->i", nrm, o)
-    if np.linalg.cond(a) > 1e10:
+    if np.linalg.cond(a) > MAX_RAYS_COND:
         raise GeometryError("the rays are (nearly) parallel: no unique intersection")
     x = np.linalg.solve(a, rhs)
     jtj = a
     for _ in range(10):
         diff = x - o
         r2 = np.einsum("ij,ij->i", diff, diff)
-        if np.any(r2 < 1e-18):
+        if np.any(r2 < AT_CAMERA_M2):
             raise GeometryError("the intersection coincides with a camera position")
         res = wrap_angle(np.arctan2(diff[:, 1], diff[:, 0]) - th) / sg
         jac = np.column_stack([-diff[:, 1] / r2, diff[:, 0] / r2]) / sg[:, None]
@@ -197,7 +201,7 @@ def intersect_rays(origins_xy: npt.ArrayLike, bearings_rad: npt.ArrayLike, sigma
         except np.linalg.LinAlgError as err:
             raise GeometryError("the rays are degenerate at the solution") from err
         x = x + step
-        if float(np.hypot(*step)) < 1e-10:
+        if float(np.hypot(*step)) < CONVERGED_M:
             break
     diff = x - o
     if np.any(np.einsum("ij,ij->i", diff, d) <= 0):
@@ -259,8 +263,8 @@ def localize_pair(  # noqa: PLR0917 - positional signature fixed by the team con
     if b <= 0:
         raise GeometryError("the two cameras are at the same position: baseline B = 0")
     psi12 = math.atan2(by, bx)
-    a1 = (bearing1_world - psi12 + math.pi) % TWO_PI - math.pi  # wrap_angle
-    a2 = (psi12 + math.pi - bearing2_world + math.pi) % TWO_PI - math.pi
+    a1 = angle_diff(bearing1_world, psi12)
+    a2 = angle_diff(psi12 + math.pi, bearing2_world)
     abs1, abs2 = abs(a1), abs(a2)
     phi0 = min(max(math.pi - abs1 - abs2, 0.0), math.pi)
 

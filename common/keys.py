@@ -234,42 +234,38 @@ class Keys:
         if not key.startswith(head):
             raise ConfigError(f"key {key!r} is not under {self.root!r}")
         parts = key[len(head) :].split("/")
-        kind: KeyKind | None = None
-        ident = ""
-        match parts:
-            case ["tracks"]:
-                kind = "tracks"
-            case ["track", tid]:
-                kind, ident = "track", tid
-            case ["plan", sid]:
-                kind, ident = "plan", sid
-            case ["agent", aid]:
-                kind, ident = "agent", aid
-            case ["sensor", sid]:
-                kind, ident = "sensor", sid
-            case ["sensor", sid, "info"]:
-                kind, ident = "sensor_info", sid
-            case ["sensor", sid, "features"]:
-                kind, ident = "sensor_features", sid
-            case ["sensor", sid, "status"]:
-                kind, ident = "sensor_status", sid
-            case ["sensor", sid, "ptz"]:
-                kind, ident = "sensor_ptz", sid
-            case ["sensor", sid, "ptz", "state"]:
-                kind, ident = "sensor_ptz_state", sid
-            case ["manager", mid]:
-                kind, ident = "manager", mid
-            case ["manager", mid, "pairs"]:
-                kind, ident = "manager_pairs", mid
-            case ["manager", mid, "ptz"]:
-                kind, ident = "manager_ptz", mid
-            case ["manager", mid, "ptz", aid]:
-                validate_id(mid, f"manager id in key {key!r}")
-                return ParsedKey(kind="ptz_request", ident=validate_id(aid, f"id in key {key!r}"), parent=mid)
-            case ["manager", mid, "status"]:
-                kind, ident = "manager_status", mid
+        kind = next((k for shape, k in _KEY_SHAPES if _fits(shape, parts)), None)
+        if kind == "ptz_request":
+            mid, aid = parts[1], parts[3]
+            validate_id(mid, f"manager id in key {key!r}")
+            return ParsedKey(kind="ptz_request", ident=validate_id(aid, f"id in key {key!r}"), parent=mid)
+        ident = parts[1] if len(parts) > 1 else ""
         if kind is None:
             raise ConfigError(f"key {key!r} is not a documented panostereo key")
         if ident:
             validate_id(ident, f"id in key {key!r}")
         return ParsedKey(kind=kind, ident=ident)
+
+
+_KEY_SHAPES: tuple[tuple[tuple[str, ...], KeyKind], ...] = (
+    (("tracks",), "tracks"),
+    (("track", "*"), "track"),
+    (("plan", "*"), "plan"),
+    (("agent", "*"), "agent"),
+    (("sensor", "*"), "sensor"),
+    (("sensor", "*", "info"), "sensor_info"),
+    (("sensor", "*", "features"), "sensor_features"),
+    (("sensor", "*", "status"), "sensor_status"),
+    (("sensor", "*", "ptz"), "sensor_ptz"),
+    (("sensor", "*", "ptz", "state"), "sensor_ptz_state"),
+    (("manager", "*"), "manager"),
+    (("manager", "*", "pairs"), "manager_pairs"),
+    (("manager", "*", "ptz"), "manager_ptz"),
+    (("manager", "*", "status"), "manager_status"),
+    (("manager", "*", "ptz", "*"), "ptz_request"),
+)
+"""The documented keys below the root, ``*`` for an id (the second part: the sensor's, manager's, ...)."""
+
+
+def _fits(shape: tuple[str, ...], parts: list[str]) -> bool:
+    return len(shape) == len(parts) and all(s in ("*", p) for s, p in zip(shape, parts, strict=True))

@@ -17,12 +17,26 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.schema import PinholeModel
 
 __all__ = ["PinholeCamera", "PtzCamera", "rotation_from_rvec"]
 
-FloatArray = npt.NDArray[np.float64]
+NO_ROTATION_RAD = 1e-15
+"""An axis-angle vector shorter than this is no rotation."""
+K22_TOLERANCE = 1e-9
+"""K[2, 2] must be 1 within this."""
+UNDISTORT_TOLERANCE = 1e-12
+"""Undistortion's Newton iteration stops below this residual (normalised coordinates); a Jacobian
+determinant below it is clamped to it."""
+IN_FRONT_M = 1e-12
+"""A point is in front of the camera when its camera-frame z exceeds this."""
+IMAGE_SIZE_VALUES = 2
+"""``image_size`` is [width, height]."""
+_TILT_TERMS = slice(12, 14)
+"""OpenCV's tilted-sensor coefficients (tau_x, tau_y) in a 14-term distortion vector."""
+
 _DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
 
 
@@ -30,7 +44,7 @@ def rotation_from_rvec(rvec: npt.ArrayLike) -> FloatArray:
     """Rodrigues: rotation matrix of an axis-angle vector (as ``cv2.Rodrigues``)."""
     w = np.asarray(rvec, dtype=np.float64).reshape(3)
     theta = float(np.linalg.norm(w))
-    if theta < 1e-15:
+    if theta < NO_ROTATION_RAD:
         return np.eye(3)
     k = w / theta
     kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
@@ -84,11 +98,11 @@ class PinholeCamera:
         dist = np.array(self.dist, dtype=np.float64).ravel()
         if dist.size not in _DIST_LENGTHS or not np.all(np.isfinite(dist)):
             raise ConfigError(f"pinhole dist must have one of {_DIST_LENGTHS} finite values, got {dist.size}")
-        if dist.size == 14 and np.any(dist[12:] != 0):
+        if dist.size == max(_DIST_LENGTHS) and np.any(dist[_TILT_TERMS] != 0):
             raise ConfigError("pinhole dist: tilted-sensor terms (tau_x, tau_y) are not supported, must be 0")
         dist.setflags(write=False)
         object.__setattr__(self, "dist", dist)
-        if not (self.k[0, 0] > 0 and self.k[1, 1] > 0 and abs(self.k[2, 2] - 1) < 1e-9):
+        if not (self.k[0, 0] > 0 and self.k[1, 1] > 0 and abs(self.k[2, 2] - 1) < K22_TOLERANCE):
             raise ConfigError(f"pinhole K must have fx, fy > 0 and K[2,2] = 1, got {self.k.tolist()}")
         if not np.allclose(self.r @ self.r.T, np.eye(3), atol=1e-4) or np.linalg.det(self.r) < 0:
             raise ConfigError("pinhole R must be a rotation (orthonormal, det +1)")
@@ -116,7 +130,7 @@ class PinholeCamera:
         size = d.get("image_size")
         if (
             not isinstance(size, list | tuple)
-            or len(size) != 2
+            or len(size) != IMAGE_SIZE_VALUES
             or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
         ):
             raise ConfigError(f"{source}: image_size must be [width, height] positive integers, got {size!r}")
@@ -213,14 +227,14 @@ class PinholeCamera:
         for _ in range(20):
             fx, fy = self._distort(x, y)
             ex, ey = fx - xd, fy - yd
-            if float(np.max(np.abs(ex) + np.abs(ey))) < 1e-12:
+            if float(np.max(np.abs(ex) + np.abs(ey))) < UNDISTORT_TOLERANCE:
                 break
             ax, ay = self._distort(x + eps, y)
             bx, by = self._distort(x, y + eps)
             j11, j21 = (ax - fx) / eps, (ay - fy) / eps
             j12, j22 = (bx - fx) / eps, (by - fy) / eps
             det = j11 * j22 - j12 * j21
-            det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+            det = np.where(np.abs(det) < UNDISTORT_TOLERANCE, UNDISTORT_TOLERANCE, det)
             x = x - (j22 * ex - j12 * ey) / det
             y = y - (-j21 * ex + j11 * ey) / det
         return x, y
@@ -236,7 +250,7 @@ class PinholeCamera:
         """World points (N, 3) -> pixels (N, 2) and in_front (N,) (camera z > 0)."""
         p = np.asarray(xyz_world, dtype=np.float64).reshape(-1, 3)
         c = p @ self.r.T + self.t
-        in_front = c[:, 2] > 1e-12
+        in_front = c[:, 2] > IN_FRONT_M
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.where(in_front, c[:, 2], np.nan)
             xd, yd = self._distort(c[:, 0] / z, c[:, 1] / z)

@@ -144,6 +144,25 @@ def _zerror_text(err: BaseException, with_location: bool = False) -> str:
     return " ".join(text.split())
 
 
+def _base_config(config_file: str) -> Any:
+    """The zenoh config file's ``zenoh.Config`` (an empty one without a file).
+
+    Raises:
+        ConfigError: the file is missing or zenoh rejects it.
+    """
+    import zenoh
+
+    if not config_file:
+        return zenoh.Config()
+    path = Path(config_file)
+    if not path.is_file():
+        raise ConfigError(f"zenoh config file {config_file!r} does not exist")
+    try:
+        return zenoh.Config.from_file(str(path))
+    except Exception as err:  # ZError: syntax error, unknown key, bad value
+        raise ConfigError(f"zenoh config file {config_file}: {_zerror_text(err, True)}") from err
+
+
 def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None) -> Any:
     """Build a ``zenoh.Config`` from settings.
 
@@ -155,19 +174,8 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
     Raises:
         ConfigError: if the config file is missing or zenoh rejects a value.
     """
-    import zenoh
-
     try:
-        if settings.config_file:
-            path = Path(settings.config_file)
-            if not path.is_file():
-                raise ConfigError(f"zenoh config file {settings.config_file!r} does not exist")
-            try:
-                conf = zenoh.Config.from_file(str(path))
-            except Exception as err:  # ZError: syntax error, unknown key, bad value
-                raise ConfigError(f"zenoh config file {settings.config_file}: {_zerror_text(err, True)}") from err
-        else:
-            conf = zenoh.Config()
+        conf = _base_config(settings.config_file)
         conf.insert_json5("mode", json.dumps(settings.mode))
         connect = list(settings.connect)
         if not connect and settings.mode == "client" and not settings.config_file:

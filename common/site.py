@@ -63,6 +63,9 @@ __all__ = [
     "site_sensor_ids",
 ]
 
+PERSON_HEIGHT_RANGE_M = (0.5, 2.5)
+"""People's heights a site may declare (``world.person_height_m``) lie within this range."""
+
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
 Range = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
@@ -249,7 +252,7 @@ def load_site(path: str | Path) -> SiteConfig:
             raise ConfigError(f"{path}: process name {proc.name!r} appears twice")
         names.add(proc.name)
     lo, hi = site.world.person_height_m
-    if not 0.5 <= lo <= hi <= 2.5:
+    if not PERSON_HEIGHT_RANGE_M[0] <= lo <= hi <= PERSON_HEIGHT_RANGE_M[1]:
         raise ConfigError(f"{path}: world.person_height_m must be [low, high] within 0.5-2.5 m, got {[lo, hi]}")
     return msgspec.structs.replace(site, path=str(Path(path)))
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from common.geometry import wrap_angle
+from common.angles import wrap_angle
 from common.schema import (
     MAX_SENSORS,
     DetectorState,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from common.geometry import wrap_angle
+from common.angles import wrap_angle
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignParams
 from resource_manager.ingest.schedule import ScheduleParams, Scheduler

@@ -7,7 +7,7 @@ abnormal change, update outside objects), :mod:`~sensor_node.blobs`,
 :mod:`~sensor_node.tracks2d`, :mod:`~sensor_node.sightings` (Eq. 3) and
 :mod:`~sensor_node.detections` (MOT files -> Features), composed by
 :mod:`~sensor_node.pipeline`. Frame sources: :mod:`~sensor_node.sources`
-(OpenCV, folders), :mod:`~sensor_node.sources_sim` (the simulated camera);
+(OpenCV, folders), :mod:`~sim.source` (the simulated camera);
 PTZ heads: :mod:`~sensor_node.ptz`. :mod:`~sensor_node.build` wires a config
 into parts; the shell :mod:`~sensor_node.node` captures, runs them and
 publishes; :mod:`~sensor_node.cli` is the entry point.

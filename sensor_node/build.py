@@ -1,7 +1,10 @@
-"""Wiring: from a NodeConfig to a frame source, a processor and the sensor's description.
+"""Wiring, and the node's source registry: from a NodeConfig to a frame source, a processor and the
+sensor's description.
 
 Pure of zenoh: the shell (:mod:`sensor_node.node`) publishes what this builds.
-Which pipeline a node runs follows from its source and camera:
+Each ``[source] kind`` has one builder in :data:`SOURCES`; the simulated camera's
+is the only place a node reaches the simulator (:mod:`sim`, imported when a
+``sim`` source is built). Which pipeline a node runs follows from its source and camera:
 
 =========================  ==========================  ==================================
 source                     camera                      processing
@@ -17,13 +20,24 @@ detections                 calibration JSON            boxes -> Features (no ima
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
+from common.angles import wrap_angle
 from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
 from common.errors import ConfigError
-from common.scenario import site_with_seed_from_env
-from common.schema import Features, PanoramicModel, PinholeModel, Pose, PoseSource, SensorInfo, SensorKind
+from common.frames import Clock, Frame, FrameSource
+from common.schema import (
+    Features,
+    PanoramicModel,
+    PinholeModel,
+    Pose,
+    PoseSource,
+    SensorInfo,
+    SensorKind,
+    ViewPlan,
+)
 from common.site import load_site
 from sensor_node.config import (
     DetectionsSource,
@@ -37,17 +51,18 @@ from sensor_node.config import (
 from sensor_node.detections import DetectionFrames, camera_pose, features_from_detections, load_calibration
 from sensor_node.features import PanoramicGeometry, PinholeGeometry
 from sensor_node.pipeline import ImagePipeline
-from sensor_node.ptz import PtzDriver, SimulatedPtz
-from sensor_node.sources import Clock, FolderFrames, Frame, FrameSource, OpenCvFrames
-from sensor_node.sources_sim import SimFrames
+from sensor_node.ptz import PtzHead
+from sensor_node.sources import FolderFrames, OpenCvFrames
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import Unwarper
 
 __all__ = [
     "BOX_POINT_SIGMA_M",
     "HEAD_POINT_SIGMA_M",
+    "SOURCES",
     "DetectionProcessor",
     "NodeParts",
+    "PlanFollower",
     "Processor",
     "build_node",
     "sensor_info",
@@ -58,6 +73,8 @@ HEAD_POINT_SIGMA_M = 0.05
 centimetres of the body's axis (the paper: the head's bearing is the most accurate part of a blob)."""
 BOX_POINT_SIGMA_M = 0.1
 """...and of a detector box's bottom centre: the feet spread in stride, the box jitters."""
+SAME_HEIGHT_M = 1e-6
+"""A surveyed camera height this close to the rendered camera's is the same height."""
 
 
 class Processor(Protocol):
@@ -68,22 +85,30 @@ class Processor(Protocol):
         ...
 
 
+class PlanFollower(Protocol):
+    """A mobile platform that drives to the goals of the manager's view plans (a robot's driver)."""
+
+    def follow(self, plan: ViewPlan) -> None:
+        """Take a view plan (any sensor's: the platform keeps its own); must not block."""
+        ...
+
+
 class ImageProcessor:
     """Frames with pixels through :class:`ImagePipeline` (PTZ: follows the head's pose)."""
 
-    def __init__(self, pipeline: ImagePipeline, ptz_base: Any = None) -> None:
+    def __init__(self, pipeline: ImagePipeline, ptz: PtzHead | None = None) -> None:
         self.pipeline = pipeline
-        self.ptz_base = ptz_base
+        self.ptz = ptz
         self._ptz_state: tuple[float, float, float] | None = None
 
     def process_frame(self, frame: Frame, seq: int) -> tuple[Features, str]:
         assert frame.image is not None
-        pose = frame.extra.get("ptz")
-        if pose is not None and self.ptz_base is not None:
+        pose = frame.ptz
+        if pose is not None and self.ptz is not None:
             state = (pose.pan_rad, pose.tilt_rad, pose.zoom)
             if state != self._ptz_state:
                 # The head moved: new rays, and the background must be learnt afresh.
-                self.pipeline.set_geometry(PinholeGeometry(self.ptz_base.with_state(*state).pinhole()))
+                self.pipeline.set_geometry(PinholeGeometry(self.ptz.camera(pose)))
                 self.pipeline.reset()
                 self._ptz_state = state
         self.pipeline.seq = seq
@@ -122,11 +147,10 @@ class NodeParts:
     model: PanoramicModel | PinholeModel
     pose: Pose | None
     fps: float
-    ptz: PtzDriver | None = None
-    sim: SimFrames | None = None
-    """The simulated source (it takes view-plan goals), if any."""
-    ptz_base: Any = None
-    """PtzCamera at the head's position (PTZ nodes): its state gives the current model."""
+    ptz: PtzHead | None = None
+    """The PTZ head (PTZ nodes): it takes the manager's commands and reports its pose."""
+    plans: PlanFollower | None = None
+    """What follows the manager's view plans (a mobile platform that drives to their goals), if any."""
     camera_height_m: float = 0.0
     """Height of the optical centre above the floor from the camera model (panoramic; 0: unknown)."""
     exit_at_end: bool = False
@@ -137,6 +161,7 @@ def sensor_info(
     cfg: NodeConfig,
     parts: NodeParts,
     *,
+    model: PanoramicModel | PinholeModel | None = None,
     seq: int,
     stamp_ns: int,
     clock_offset_ns: int = 0,
@@ -147,7 +172,8 @@ def sensor_info(
 
     A robot's x, y and yaw come from mutual calibration (the manager ignores them unless ``pose_source`` is
     "surveyed"); its camera height is known from the camera model and is needed for head heights
-    (z = z_cam + D tan(top_elev)) and Eq. 7's height consistency, so it is sent as the pose's z.
+    (z = z_cam + D tan(top_elev)) and Eq. 7's height consistency, so it is sent as the pose's z. ``model``:
+    the camera model now (a PTZ head's, where it points); default the one the node was built with.
     """
     pose_source: PoseSource = "surveyed" if parts.pose is not None else ("mutual" if cfg.node.mobile else "unknown")
     pose = parts.pose
@@ -158,7 +184,7 @@ def sensor_info(
         seq=seq,
         stamp_ns=stamp_ns,
         kind=parts.kind,
-        model=parts.model,
+        model=parts.model if model is None else model,
         pose=pose,
         pose_source=pose_source,
         mobile=cfg.node.mobile,
@@ -175,7 +201,7 @@ def sensor_info(
 def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
     if cfg.pose is None:
         return None
-    yaw = math.atan2(math.sin(math.radians(cfg.pose.yaw_deg)), math.cos(math.radians(cfg.pose.yaw_deg)))
+    yaw = wrap_angle(math.radians(cfg.pose.yaw_deg))
     return Pose(x_m=cfg.pose.x_m, y_m=cfg.pose.y_m, z_m=cfg.pose.z_m, yaw_rad=yaw)
 
 
@@ -185,57 +211,60 @@ def _panoramic(cfg: NodeConfig, annular: AnnularModel, cyl: CylindricalCamera) -
     )
 
 
-def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
-    """Build the source and processor a config describes.
+def _simulated(cfg: NodeConfig, src: SimSource, pose: Pose | None, clock: Clock) -> NodeParts:
+    """A camera of a simulated site: rendered pixels, a simulated PTZ head, robots that follow the plans."""
+    from sim.ptz_head import SimulatedPtz
+    from sim.source import SimFrames
+    from sim.world import site_with_seed_from_env
 
-    Raises:
-        ConfigError: inconsistent config (e.g. a PTZ sim camera without a [pose]).
-        SourceError: a source that cannot start (missing folder, unreadable detection file).
-    """
-    src = cfg.source
     where = cfg.path or "node config"
-    pose = _surveyed_pose(cfg)
-    if isinstance(src, SimSource):
-        # PANOSTEREO_SEED (``panostereo demo --seed N``) picks the world the ground truth is written for.
-        site = site_with_seed_from_env(load_site(cfg.resolve(src.site)))
-        cam_id = src.camera or cfg.node.id
-        spec = site.camera_by_id(cam_id)
-        epoch = epoch_from(src.epoch_ns, clock())
-        fps = src.fps or site.site.fps
-        if spec.kind == "panoramic":
-            sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock)
-            annular, cyl = sim.models
-            if pose is not None and abs(pose.z_m - cyl.height_m) > 1e-6:
-                cyl = CylindricalCamera(cyl.width_px, cyl.height_px, cyl.f_v_px, cyl.v0_px, pose.z_m, cyl.direction)
-            proc = ImageProcessor(_panoramic(cfg, annular, cyl))
-            return NodeParts(sim, proc, "panoramic", cyl.to_model(), pose, fps, sim=sim, camera_height_m=cyl.height_m)
-        if pose is None:
-            raise ConfigError(f"{where}: a simulated PTZ camera needs a [pose] table (the head's surveyed position)")
-        ptz = SimulatedPtz(math.radians(spec.pan_deg), math.radians(spec.tilt_deg), spec.zoom, clock)
-        sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock, ptz=ptz)
-        base = sim.ptz_camera(pose.x_m, pose.y_m, pose.z_m)
-        p0 = ptz.pose(clock())
-        geo = PinholeGeometry(base.with_state(p0.pan_rad, p0.tilt_rad, p0.zoom).pinhole())
-        pipe = ImagePipeline(cfg.node.id, geo, cfg.pipeline)
-        ptz_pose = Pose(x_m=pose.x_m, y_m=pose.y_m, z_m=pose.z_m, yaw_rad=0.0)
-        return NodeParts(sim, ImageProcessor(pipe, base), "ptz", geo.camera.to_model(), ptz_pose, fps, ptz, sim, base)
-    if isinstance(src, DetectionsSource):
-        camera = load_calibration(cfg.resolve(src.calibration))
-        # A recorded site started by a launcher plays from frame 1 once every process is up (its start file).
-        start = start_file_from_env() if src.epoch_ns == 0 else None
-        frames = DetectionFrames(
-            cfg.resolve(src.file),
-            src.fps,
-            clock,
-            epoch_ns=epoch_from(src.epoch_ns, clock()),
-            min_confidence=src.min_confidence,
-            max_lag_s=src.max_lag_s,
-            loop=src.loop,
-            start_file=start,
+    # PANOSTEREO_SEED (``panostereo demo --seed N``) picks the world the ground truth is written for.
+    site = site_with_seed_from_env(load_site(cfg.resolve(src.site)))
+    cam_id = src.camera or cfg.node.id
+    spec = site.camera_by_id(cam_id)
+    epoch = epoch_from(src.epoch_ns, clock())
+    fps = src.fps or site.site.fps
+    if spec.kind == "panoramic":
+        sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock)
+        annular, cyl = sim.models
+        if pose is not None and abs(pose.z_m - cyl.height_m) > SAME_HEIGHT_M:
+            cyl = CylindricalCamera(cyl.width_px, cyl.height_px, cyl.f_v_px, cyl.v0_px, pose.z_m, cyl.direction)
+        proc = ImageProcessor(_panoramic(cfg, annular, cyl))
+        return NodeParts(
+            sim, proc, "panoramic", cyl.to_model(), pose, fps, plans=sim.plans, camera_height_m=cyl.height_m
         )
-        proc_d = DetectionProcessor(cfg.node.id, camera)
-        return NodeParts(frames, proc_d, "pinhole", camera.to_model(), camera_pose(camera), src.fps)
-    assert isinstance(src, OpenCvSource | FolderSource)
+    if pose is None:
+        raise ConfigError(f"{where}: a simulated PTZ camera needs a [pose] table (the head's surveyed position)")
+    driver = SimulatedPtz(math.radians(spec.pan_deg), math.radians(spec.tilt_deg), spec.zoom, clock)
+    sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock, ptz=driver)
+    head = PtzHead(driver, sim.ptz_camera(pose.x_m, pose.y_m, pose.z_m))
+    geo = PinholeGeometry(head.camera(driver.pose(clock())))
+    pipe = ImagePipeline(cfg.node.id, geo, cfg.pipeline)
+    ptz_pose = Pose(x_m=pose.x_m, y_m=pose.y_m, z_m=pose.z_m, yaw_rad=0.0)
+    return NodeParts(sim, ImageProcessor(pipe, head), "ptz", geo.camera.to_model(), ptz_pose, fps, head, sim.plans)
+
+
+def _detections(cfg: NodeConfig, src: DetectionsSource, pose: Pose | None, clock: Clock) -> NodeParts:
+    """A detection file: a camera whose person detector ran elsewhere (boxes, no pixels)."""
+    camera = load_calibration(cfg.resolve(src.calibration))
+    # A recorded site started by a launcher plays from frame 1 once every process is up (its start file).
+    start = start_file_from_env() if src.epoch_ns == 0 else None
+    frames = DetectionFrames(
+        cfg.resolve(src.file),
+        src.fps,
+        clock,
+        epoch_ns=epoch_from(src.epoch_ns, clock()),
+        min_confidence=src.min_confidence,
+        max_lag_s=src.max_lag_s,
+        loop=src.loop,
+        start_file=start,
+    )
+    proc_d = DetectionProcessor(cfg.node.id, camera)
+    return NodeParts(frames, proc_d, "pinhole", camera.to_model(), camera_pose(camera), src.fps)
+
+
+def _camera(cfg: NodeConfig, src: OpenCvSource | FolderSource, pose: Pose | None, clock: Clock) -> NodeParts:
+    """A real camera (OpenCV capture or an image folder) with its ``[camera]`` calibration."""
     cam = cfg.camera
     assert cam is not None  # validated in config
     source: FrameSource
@@ -248,10 +277,9 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
             reconnect_min_s=src.reconnect_min_s,
             reconnect_max_s=src.reconnect_max_s,
         )
-        fps = src.fps
     else:
         source = FolderFrames(cfg.resolve(src.path), src.glob, src.fps, clock, loop=src.loop)
-        fps = src.fps
+    fps = src.fps
     at_exit = src.at_end == "exit"
     if cam.model == "pinhole":
         camera = load_calibration(cfg.resolve(cam.calibration))
@@ -269,3 +297,22 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
     return NodeParts(
         source, proc_p, "panoramic", cyl.to_model(), pose, fps, camera_height_m=cyl.height_m, exit_at_end=at_exit
     )
+
+
+SOURCES: dict[type, Callable[[NodeConfig, Any, Pose | None, Clock], NodeParts]] = {
+    SimSource: _simulated,
+    DetectionsSource: _detections,
+    OpenCvSource: _camera,
+    FolderSource: _camera,
+}
+"""The source registry: each ``[source]`` table's type -> the builder of its node."""
+
+
+def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
+    """Build the source and processor a config describes.
+
+    Raises:
+        ConfigError: inconsistent config (e.g. a PTZ sim camera without a [pose]).
+        SourceError: a source that cannot start (missing folder, unreadable detection file).
+    """
+    return SOURCES[type(cfg.source)](cfg, cfg.source, _surveyed_pose(cfg), clock)

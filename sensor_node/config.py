@@ -50,6 +50,7 @@ from common.clock import ClockSettings
 from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
+from common.schema import MAX_HIST_BINS
 from common.session import SessionSettings
 
 __all__ = [
@@ -78,6 +79,8 @@ EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
 START_ENV = "PANOSTEREO_START_FILE"
 """Environment variable naming a file the launcher writes once every process of a site is up: recorded sources
 (detection files) wait for it and play their frame 1 at the Unix ns it holds (the world epoch)."""
+BAND_BOUNDS = 2
+"""``band_z_m`` is [bottom_m, top_m], or empty for the default band."""
 
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
@@ -215,7 +218,7 @@ class BodySpec(ConfigStruct, frozen=True):
     @property
     def band_range_m(self) -> tuple[float, float]:
         """(bottom, top) of the band above the floor."""
-        if len(self.band_z_m) == 2:
+        if len(self.band_z_m) == BAND_BOUNDS:
             return float(self.band_z_m[0]), float(self.band_z_m[1])
         return 0.55 * self.height_m, 0.72 * self.height_m
 
@@ -287,10 +290,9 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """Narrower blobs are dropped (a person 10 m away is ~7 px wide in a 1080 px panorama)."""
     split_dip_px: Annotated[int, msgspec.Meta(ge=0)] = 8
     """A blob whose top profile has two peaks (heads) with a valley this many rows below the lower one
-    is split there into two objects, each side having to rise to a head (0: never). On the rendered
-    sites (``benchmarks/bench_node_quality.py``) 8 with ``split_gap_cols`` 1 raised the people found
-    from 60 % to 85 % (six) and 89 % to 96 % (demo); ghosts that were merged into people become
-    blobs of their own. Lower: people side by side separate sooner, a shoulder may pass for a head."""
+    is split there into two objects, each side having to rise to a head (0: never); ghosts that were
+    merged into people become blobs of their own. Lower: people side by side separate sooner, a
+    shoulder may pass for a head; higher: merged people stay merged."""
     split_gap_cols: Annotated[int, msgspec.Meta(ge=0)] = 1
     """A blob whose vertical projection profile has a gap (columns with at most one changed pixel) at
     least this many columns wide is parted there (grouping joins regions up to ``merge_gap_px`` apart:
@@ -417,12 +419,12 @@ def validate(cfg: NodeConfig) -> NodeConfig:
         if body.id in seen:
             raise ConfigError(f"{src}: body[{i}].id {body.id!r} appears twice")
         seen.add(body.id)
-        if body.band_z_m and not (len(body.band_z_m) == 2 and body.band_z_m[0] < body.band_z_m[1]):
+        if body.band_z_m and not (len(body.band_z_m) == BAND_BOUNDS and body.band_z_m[0] < body.band_z_m[1]):
             raise ConfigError(
                 f"{src}: body[{i}].band_z_m: expected [bottom_m, top_m] with bottom < top, got {body.band_z_m}"
             )
     bins = cfg.pipeline.hist_bins
-    if bins[0] < 1 or bins[1] < 1 or bins[0] * bins[1] > 512:
+    if bins[0] < 1 or bins[1] < 1 or bins[0] * bins[1] > MAX_HIST_BINS:
         raise ConfigError(f"{src}: pipeline.hist_bins: expected two positive counts with product <= 512, got {bins}")
     gap = cfg.pipeline.merge_gap_px
     if gap[0] < 0 or gap[1] < 0:

@@ -29,14 +29,18 @@ from pathlib import Path
 
 import numpy as np
 
+from common.angles import wrap_angle
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
+from common.frames import Clock, Frame, Pacer
 from common.schema import Blob, Features, Pose, SourceState
 from sensor_node.config import read_start_file
-from sensor_node.sources import Clock, Frame, Pacer
 from sensor_node.tracks2d import Tracker2D
 
 __all__ = ["Detection", "DetectionFrames", "features_from_detections", "load_calibration", "read_mot"]
+
+MOT_FIELDS = 7
+"""A MOTChallenge line has at least frame, id, left, top, width, height, conf."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,7 +76,7 @@ def read_mot(path: Path, min_confidence: float = 0.0) -> dict[int, list[Detectio
             continue
         parts = [p.strip() for p in s.split(",")]
         try:
-            if len(parts) < 7:
+            if len(parts) < MOT_FIELDS:
                 raise ValueError(f"{len(parts)} fields")
             frame = int(float(parts[0]))
             vals = [float(p) for p in parts[1:7]]
@@ -154,14 +158,14 @@ def features_from_detections(
     half = math.pi / 2
     for i, d in enumerate(dets):
         dw = float(az[i, 1] - az[i, 2])
-        width = abs(math.atan2(math.sin(dw), math.cos(dw)))
+        width = abs(wrap_angle(dw))
         inside = (
             d.left_px > 0 and d.left_px + d.width_px < camera.width_px and d.top_px + d.height_px < camera.height_px
         )
         blobs.append(
             Blob(
                 local_id=max(0, ids[i]),
-                bearing_rad=math.atan2(math.sin(az[i, 0]), math.cos(az[i, 0])),
+                bearing_rad=wrap_angle(float(az[i, 0])),
                 width_rad=width,
                 top_elev_rad=_clip(float(el[i, 3]), -half, half),
                 bottom_elev_rad=_clip(float(el[i, 0]), -half, half),

@@ -11,9 +11,10 @@
   (fps, drops, processing time, clock offset/uncertainty, decode errors,
   source state and message); a liveliness token ``sensor/{id}``.
 * **Subscribes**: PTZ nodes take PtzCommand on ``sensor/{id}/ptz`` and put
-  PtzState on ``sensor/{id}/ptz/state`` when the head moves; simulated
-  sources take every ViewPlan (``plan/*``) and hand its goal to the simulated
-  world, so mobile robots drive where the manager plans (closed loop).
+  PtzState on ``sensor/{id}/ptz/state`` when the head moves; a node whose
+  platform follows view plans (``NodeParts.plans``: a mobile robot's driver)
+  takes every ViewPlan (``plan/*``) and hands it over, so mobile robots drive
+  where the manager plans (closed loop).
 * **Shutdown**: SIGINT/SIGTERM set a flag; the loop ends, the capture thread
   is joined, the session closed.
 """
@@ -29,18 +30,21 @@ import msgspec
 
 from common.clock import NtpClock
 from common.codec import encode
+from common.frames import Frame
 from common.schema import NodeStatus, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import Inbox, TypedPublisher
 from sensor_node.build import NodeParts, build_node, sensor_info
 from sensor_node.config import NodeConfig
-from sensor_node.sources import Frame
 
 __all__ = ["LatestSlot", "SensorNode", "run_node"]
 
 logger = logging.getLogger(__name__)
 
 STATUS_PERIOD_S = 1.0
+
+INFO_OFFSET_CHANGE_NS = 1_000_000
+"""SensorInfo is put again when the clock offset moved by this much (1 ms) or more."""
 
 PIPELINE_MESSAGES = {
     "warmup": "learning the background: no blobs yet",
@@ -110,9 +114,11 @@ class SensorNode:
             self.ptz_inbox = Inbox(session, self.keys.sensor_ptz(sid), PtzCommand, capacity=64, drop_oldest=False)
             self.pub_ptz = TypedPublisher(session, self.keys.sensor_ptz_state(sid), reliable_block=True)
             self.inboxes.append(self.ptz_inbox)
-        if parts.sim is not None:
+        if parts.plans is not None:
             self.plan_inbox = Inbox(session, self.keys.all_plans, ViewPlan, capacity=256)
             self.inboxes.append(self.plan_inbox)
+        self.model = parts.model
+        """The camera model SensorInfo describes (a PTZ head's changes as it comes to rest)."""
         self._info_lock = threading.Lock()
         self._info_seq = 0
         self._info: SensorInfo = self._make_info()
@@ -136,6 +142,7 @@ class SensorNode:
         return sensor_info(
             self.cfg,
             self.parts,
+            model=self.model,
             seq=self._info_seq,
             stamp_ns=self.clock.now_ns(),
             clock_offset_ns=int(st.offset_ns),
@@ -150,7 +157,7 @@ class SensorNode:
         same = (
             msgspec.structs.replace(new, seq=old.seq, stamp_ns=old.stamp_ns, clock_uncertainty_ns=0)
             == (msgspec.structs.replace(old, clock_uncertainty_ns=0, clock_offset_ns=new.clock_offset_ns))
-            and abs(new.clock_offset_ns - old.clock_offset_ns) < 1_000_000
+            and abs(new.clock_offset_ns - old.clock_offset_ns) < INFO_OFFSET_CHANGE_NS
         )
         if same:
             return
@@ -197,16 +204,15 @@ class SensorNode:
                     cmd.tilt_rad,
                     cmd.zoom,
                 )
-                self.parts.ptz.command(cmd.pan_rad, cmd.tilt_rad, cmd.zoom)
-        if self.plan_inbox is not None and self.parts.sim is not None:
+                self.parts.ptz.driver.command(cmd.pan_rad, cmd.tilt_rad, cmd.zoom)
+        if self.plan_inbox is not None and self.parts.plans is not None:
             for rp in self.plan_inbox.drain():
-                plan = rp.msg
-                self.parts.sim.add_goal(plan.sensor_id, plan.goal_x_m, plan.goal_y_m, plan.stamp_ns)
+                self.parts.plans.follow(rp.msg)
 
     def _publish_ptz(self) -> None:
         if self.parts.ptz is None or self.pub_ptz is None:
             return
-        p = self.parts.ptz.pose(self.clock.now_ns())
+        p = self.parts.ptz.driver.pose(self.clock.now_ns())
         state = (round(p.pan_rad, 4), round(p.tilt_rad, 4), round(p.zoom, 3), p.moving)
         if state == self._last_ptz:
             return
@@ -223,8 +229,8 @@ class SensorNode:
             )
         )
         self._ptz_seq += 1
-        if self.parts.ptz_base is not None and not p.moving:
-            self.parts.model = self.parts.ptz_base.with_state(p.pan_rad, p.tilt_rad, p.zoom).pinhole().to_model()
+        if not p.moving:
+            self.model = self.parts.ptz.model(p)
 
     def _publish_status(self, elapsed_s: float) -> None:
         st = self.clock.status()

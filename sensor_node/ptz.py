@@ -1,34 +1,23 @@
-"""PTZ heads: a small driver interface, and the simulated head.
+"""PTZ heads: the driver interface the node commands, and the head's camera model.
 
 The node receives :class:`~common.schema.PtzCommand` (pan = world azimuth of
 the optical axis, tilt > 0 up, zoom), hands it to its driver, and publishes
-:class:`~common.schema.PtzState` when the head's pose changes. A real head
-(ONVIF, Pelco-D, VISCA, ...) plugs in by implementing :class:`PtzDriver`; the
-simulated head slews at bounded rates so a command takes visible time, and the
-simulated camera renders from wherever the head points at capture time.
+:class:`~common.schema.PtzState` when the head's pose changes. A head (ONVIF,
+Pelco-D, VISCA, ..., or the simulator's) plugs in by implementing
+:class:`PtzDriver`; :class:`PtzHead` pairs it with the camera mounted on it, so
+the pipeline and the SensorInfo follow the pose the head reports.
 """
 
 from __future__ import annotations
 
-import math
-import threading
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-__all__ = ["PtzDriver", "PtzPose", "SimulatedPtz"]
+from common.cameras import PinholeCamera, PtzCamera
+from common.frames import PtzPose
+from common.schema import PinholeModel
 
-
-@dataclass(frozen=True, slots=True)
-class PtzPose:
-    """Where a head points."""
-
-    pan_rad: float
-    """World azimuth of the optical axis (counter-clockwise from +x)."""
-    tilt_rad: float
-    """Elevation of the optical axis, > 0 up."""
-    zoom: float
-    moving: bool = False
+__all__ = ["PtzDriver", "PtzHead"]
 
 
 class PtzDriver(Protocol):
@@ -43,74 +32,18 @@ class PtzDriver(Protocol):
         ...
 
 
-def _wrap(a: float) -> float:
-    return math.atan2(math.sin(a), math.cos(a))
+@dataclass(frozen=True, slots=True)
+class PtzHead:
+    """A PTZ camera: the driver that moves the head, and the camera it carries."""
 
+    driver: PtzDriver
+    base: PtzCamera
+    """The camera at the head's surveyed position; its pan, tilt and zoom are replaced by the head's pose."""
 
-class SimulatedPtz:
-    """A simulated head: slews at ``pan_rate``/``tilt_rate`` (rad/s) and zooms at ``zoom_rate`` (x/s).
+    def camera(self, pose: PtzPose) -> PinholeCamera:
+        """The pinhole camera of the head in ``pose``."""
+        return self.base.with_state(pose.pan_rad, pose.tilt_rad, pose.zoom).pinhole()
 
-    Args:
-        pan_rad, tilt_rad, zoom: initial pose.
-        clock: the node's clock (Unix ns); commands take effect from when they arrive.
-        tilt_limit_rad: |tilt| is clamped below this.
-        zoom_range: (min, max) zoom.
-    """
-
-    def __init__(
-        self,
-        pan_rad: float,
-        tilt_rad: float,
-        zoom: float,
-        clock: Callable[[], int],
-        *,
-        pan_rate: float = math.radians(120.0),
-        tilt_rate: float = math.radians(90.0),
-        zoom_rate: float = 4.0,
-        tilt_limit_rad: float = math.radians(80.0),
-        zoom_range: tuple[float, float] = (1.0, 30.0),
-    ) -> None:
-        self._lock = threading.Lock()
-        self.pan_rate, self.tilt_rate, self.zoom_rate = pan_rate, tilt_rate, zoom_rate
-        self.tilt_limit_rad = tilt_limit_rad
-        self.zoom_range = zoom_range
-        self._start = PtzPose(_wrap(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
-        self._target = self._start
-        self._clock = clock
-        self._t0_ns = clock()
-        self.commands = 0
-
-    def _clamp_tilt(self, t: float) -> float:
-        return max(-self.tilt_limit_rad, min(self.tilt_limit_rad, t))
-
-    def _clamp_zoom(self, z: float) -> float:
-        return max(self.zoom_range[0], min(self.zoom_range[1], z))
-
-    def _at(self, now_ns: int) -> PtzPose:
-        dt = max(0.0, (now_ns - self._t0_ns) / 1e9)
-        s, g = self._start, self._target
-        dpan = _wrap(g.pan_rad - s.pan_rad)
-        dtilt = g.tilt_rad - s.tilt_rad
-        dzoom = g.zoom - s.zoom
-
-        def step(d: float, rate: float) -> tuple[float, bool]:
-            m = rate * dt
-            return (d, False) if abs(d) <= m else (math.copysign(m, d), True)
-
-        p, mp = step(dpan, self.pan_rate)
-        t, mt = step(dtilt, self.tilt_rate)
-        z, mz = step(dzoom, self.zoom_rate)
-        return PtzPose(_wrap(s.pan_rad + p), s.tilt_rad + t, s.zoom + z, mp or mt or mz)
-
-    def command(self, pan_rad: float, tilt_rad: float, zoom: float) -> None:
-        now = self._clock()
-        with self._lock:
-            cur = self._at(now)
-            self._start = PtzPose(cur.pan_rad, cur.tilt_rad, cur.zoom)
-            self._target = PtzPose(_wrap(pan_rad), self._clamp_tilt(tilt_rad), self._clamp_zoom(zoom))
-            self._t0_ns = now
-            self.commands += 1
-
-    def pose(self, now_ns: int) -> PtzPose:
-        with self._lock:
-            return self._at(now_ns)
+    def model(self, pose: PtzPose) -> PinholeModel:
+        """The wire model (SensorInfo) of the head in ``pose``."""
+        return self.camera(pose).to_model()

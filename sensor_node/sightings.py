@@ -28,12 +28,13 @@ from __future__ import annotations
 import colorsys
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import wrap_angle
+from common.arrays import Image
 from common.cameras import CylindricalCamera
 from common.errors import GeometryError
 from common.geometry import baseline_exact, sighting_bearing
@@ -43,8 +44,6 @@ from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.unwarp import PanoFrame
 
 __all__ = ["BandFinder", "BodySighting", "is_body_blob"]
-
-Image = npt.NDArray[Any]
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,9 +69,9 @@ def _hue_ranges(rgb: list[int], tol_deg: float) -> list[tuple[int, int]]:
     t = tol_deg / 4.0
     lo, hi = c - t, c + t
     if lo < 0:
-        return [(0, math.floor(hi)), (math.ceil(lo + 180), 179)]
-    if hi > 179:
-        return [(math.ceil(lo), 179), (0, math.floor(hi - 180))]
+        return [(0, math.floor(hi)), (math.ceil(lo + 180), MAX_HUE)]
+    if hi > MAX_HUE:
+        return [(math.ceil(lo), MAX_HUE), (0, math.floor(hi - 180))]
     return [(math.ceil(lo), math.floor(hi))]
 
 
@@ -176,7 +175,7 @@ class BandFinder:
         cut = r1 == mask.shape[0] - 1
         # A band cut by the image's lower edge (a near body seen steeply) is a sliver: only its top
         # rows are in view, so only its upper bound on the shape applies.
-        if not (cut or (r1 - r0 + 1) / n >= 0.15) or (r1 - r0 + 1) / n > 1.5:
+        if not (cut or (r1 - r0 + 1) / n >= BAND_MIN_ASPECT) or (r1 - r0 + 1) / n > BAND_MAX_ASPECT:
             return None  # not band-shaped
         if not _white_beside(lower, u0, n, r0, r1):
             return None  # the band colour without the white body around it (e.g. a shirt)
@@ -200,8 +199,8 @@ class BandFinder:
             top = math.tan(-float(self.camera.elevation_from_row(r0 - 0.5)))
             return top <= 0.0 or dist_m <= (1.0 + BAND_RANGE_TOL) * ((self.camera.height_m - z1) / top + body.radius_m)
         tan_dn = math.tan(-float(self.camera.elevation_from_row(0.5 * (r0 + r1))))
-        if abs(drop_m) < 0.05 or tan_dn * drop_m <= 0.0:
-            return abs(drop_m) < 0.05
+        if abs(drop_m) < LEVEL_BAND_M or tan_dn * drop_m <= 0.0:
+            return abs(drop_m) < LEVEL_BAND_M
         band_m = drop_m / tan_dn + body.radius_m
         return abs(dist_m - band_m) <= BAND_RANGE_TOL * band_m
 
@@ -213,7 +212,7 @@ class BandFinder:
         (u0, n), (r0, r1) = run, rows
         # Sub-pixel boundaries from the colour gradient across the band rows (inner rows only).
         pad = 3 + frame.scale
-        inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= 4 else (r0, r1)
+        inner0, inner1 = (r0 + 1, r1 - 1) if r1 - r0 >= TRIM_ROWS_FROM else (r0, r1)
         if inner1 - inner0 < SLIVER_ROWS:
             # A sliver of band (cut by the image edge): the white body right above it has the same
             # silhouette; measure over both.
@@ -223,7 +222,7 @@ class BandFinder:
         # grad[j] is the step between strip columns j and j+1: the boundary at column u0 - pad + j + 0.5.
         left = _peak(grad, 1, pad + frame.scale)
         right = _peak(grad, pad + n - frame.scale - 2, pad + n + pad - 2)
-        if left is None or right is None or right - left < 2:
+        if left is None or right is None or right - left < MIN_BODY_COLS:
             return None
         left_col = u0 - pad + left + 0.5
         right_col = u0 - pad + right + 0.5
@@ -238,10 +237,10 @@ class BandFinder:
             return None
         sighting = Sighting(
             target_id=body.id,
-            left_rad=_wrap_pi(b_left),
-            right_rad=_wrap_pi(b_right),
+            left_rad=wrap_angle(b_left),
+            right_rad=wrap_angle(b_right),
             alpha_rad=float(alpha),
-            bearing_rad=_wrap_pi(sighting_bearing(b_left, b_right)),
+            bearing_rad=wrap_angle(sighting_bearing(b_left, b_right)),
             distance_m=float(min(dist, 1e5)),
             body_radius_m=float(body.radius_m),
         )
@@ -262,6 +261,28 @@ SLIVER_ROWS = 6
 BAND_RANGE_TOL = 0.3
 """Largest relative disagreement between the Eq. 3 range and the band-elevation range of one sighting."""
 
+MAX_HUE = 179
+"""OpenCV's 8-bit hue runs 0..179 (degrees / 2)."""
+BAND_MIN_ASPECT = 0.15
+"""A band's rows over its columns: below this it is a line, not the marking band (unless cut by the image
+edge). Lower: thinner bands (far or steeply seen bodies) count, so do stripes on shirts."""
+BAND_MAX_ASPECT = 1.5
+"""...above this it is a column (a pole, a person in the band's colour). Higher: the opposite."""
+LEVEL_BAND_M = 0.05
+"""A band within this height of the camera's own is level with it: its elevation says nothing of its range."""
+TRIM_ROWS_FROM = 4
+"""A band at least this many rows high loses its top and bottom rows (mixed pixels) for the boundaries."""
+MIN_BODY_COLS = 2
+"""Occluding boundaries closer than this (px) are no body: Eq. (3)'s angle would be noise."""
+WHITE_MAX_SAT = 60
+"""The body above and below the band is white: median saturation (0..255) below this..."""
+WHITE_MIN_VALUE = 110
+"""...and median value (0..255) above this. Raise the value or lower the saturation: only bright white
+bodies count (a shaded body is missed); the opposite: pale walls and shirts pass."""
+BODY_CONTRAST = 20.0
+"""...and it differs from what is on both sides of it by more than this grey level somewhere (a white
+body stands out from the room; a band-coloured shirt below a pale wall has the wall on both sides)."""
+
 
 def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:
     """True if the band sits on a white body: right above it (or, out of view, below) the image is
@@ -275,18 +296,13 @@ def _white_beside(small: Image, u0: int, n: int, r0: int, r1: int) -> bool:
             continue
         inside = np.ascontiguousarray(roi(small, c0 % width, a, cw, b - a))
         hsv = cv2.cvtColor(inside, cv2.COLOR_BGR2HSV).reshape(-1, 3)
-        if not (float(np.median(hsv[:, 1])) < 60 and float(np.median(hsv[:, 2])) > 110):
+        if not (float(np.median(hsv[:, 1])) < WHITE_MAX_SAT and float(np.median(hsv[:, 2])) > WHITE_MIN_VALUE):
             return False
         level = float(inside.mean())
         left = roi(small, (u0 - 1 - side) % width, a, side, b - a)
         right = roi(small, (u0 + n + 1) % width, a, side, b - a)
-        return max(abs(level - float(left.mean())), abs(level - float(right.mean()))) > 20.0
+        return max(abs(level - float(left.mean())), abs(level - float(right.mean()))) > BODY_CONTRAST
     return False
-
-
-def _wrap_pi(a: float) -> float:
-    w = math.atan2(math.sin(a), math.cos(a))
-    return min(math.pi, max(-math.pi, w))
 
 
 def is_body_blob(

@@ -1,13 +1,10 @@
-"""Frame sources: OpenCV capture (device, file, RTSP/HTTP), image folder; see also
-:mod:`sensor_node.sources_sim` (simulated cameras) and :mod:`sensor_node.detections`
-(MOTChallenge detection files).
+"""Frame sources of real cameras: OpenCV capture (device, file, RTSP/HTTP), image folder; see also
+:mod:`sensor_node.detections` (MOTChallenge detection files) and, for simulated cameras, the node's
+source registry (:mod:`sensor_node.build`).
 
-A source is read by the node's capture thread: :meth:`FrameSource.read` blocks
-until the next frame (pacing itself for files and folders), stamps it on the
-node's NTP-corrected clock at capture, and returns None only when the source
-has ended or the node is stopping. Failures do not raise out of ``read``: the
-source reconnects with exponential backoff and says so in ``state`` and
-``message``, which the node publishes in its status.
+Each is a :class:`common.frames.FrameSource`: it paces itself for files and folders and stamps
+frames at capture. Failures do not raise out of ``read``: the source reconnects with exponential
+backoff and says so in ``state`` and ``message``, which the node publishes in its status.
 """
 
 from __future__ import annotations
@@ -16,88 +13,19 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
 from common.errors import SourceError
+from common.frames import Clock, Frame, Pacer
 from common.schema import SourceState
 
-__all__ = ["Clock", "FolderFrames", "Frame", "FrameSource", "OpenCvFrames", "Pacer"]
+__all__ = ["FolderFrames", "OpenCvFrames"]
 
 logger = logging.getLogger(__name__)
-
-Clock = Callable[[], int]
-"""Returns Unix ns on the node's (NTP-corrected) clock."""
-
-
-@dataclass(frozen=True, slots=True)
-class Frame:
-    """One captured frame."""
-
-    index: int
-    """0-based frame counter of the source (for detection files: file frame - 1)."""
-    stamp_ns: int
-    """Capture time on the node's NTP-corrected clock."""
-    image: npt.NDArray[Any] | None = None
-    """BGR image (None for image-less sources)."""
-    payload: Any = None
-    """Image-less sources: what was read (e.g. the frame's detections)."""
-    skipped: int = 0
-    """Frames the source itself skipped before this one (it was late)."""
-    extra: dict[str, Any] = field(default_factory=dict)
-
-
-class FrameSource(Protocol):
-    """What the node's capture thread reads."""
-
-    state: SourceState
-    message: str
-
-    def read(self, stop: threading.Event) -> Frame | None:
-        """Block until the next frame; None when the source ended or ``stop`` is set."""
-        ...
-
-    def close(self) -> None: ...
-
-
-class Pacer:
-    """Frame slots k at times ``epoch + k / fps`` on a clock: wait for the next, skipping missed ones.
-
-    Args:
-        fps: slots per second.
-        clock: the node clock.
-        epoch_ns: time of slot 0.
-        max_late_ns: a slot at most this late is still served (late); an older one is skipped
-            to the current slot (0: always jump to the slot at or after now).
-    """
-
-    def __init__(self, fps: float, clock: Clock, epoch_ns: int, max_late_ns: int = 0) -> None:
-        if fps <= 0:
-            raise SourceError(f"frame rate must be > 0, got {fps}")
-        self.period_ns = round(1e9 / fps)
-        self.clock = clock
-        self.epoch_ns = epoch_ns
-        self.max_late_ns = max_late_ns
-        self.next_k = 0
-
-    def wait(self, stop: threading.Event) -> tuple[int, int, int] | None:
-        """Sleep until the next slot; return (k, slot stamp ns, slots skipped), or None if stopped."""
-        now = self.clock()
-        k = self.next_k
-        if self.epoch_ns + k * self.period_ns < now - self.max_late_ns:
-            k = max(k, -((self.epoch_ns - now) // self.period_ns))  # ceil((now - epoch) / period)
-        skipped = k - self.next_k if self.next_k > 0 else 0
-        stamp = self.epoch_ns + k * self.period_ns
-        delay = (stamp - now) / 1e9
-        if delay > 0 and stop.wait(delay):
-            return None
-        self.next_k = k + 1
-        return k, stamp, skipped
 
 
 def _backoff_wait(stop: threading.Event, seconds: float) -> bool:
@@ -170,37 +98,45 @@ class OpenCvFrames:
         self._backoff_s = min(self.reconnect_max_s, self._backoff_s * 2)
         return _backoff_wait(stop, wait)
 
+    def _pace(self, stop: threading.Event) -> bool:
+        """Wait for a file's next frame time (devices and streams pace themselves); True if stopped meanwhile."""
+        if not (self.is_file and self._period_s > 0):
+            return False
+        delay = self._next_due - time.monotonic()
+        if delay > 0 and stop.wait(delay):
+            return True
+        self._next_due = max(self._next_due + self._period_s, time.monotonic() - self._period_s)
+        return False
+
+    def _read_failed(self, stop: threading.Event) -> bool:
+        """After a read that gave no frame: a file ends (or starts again), a device or stream reconnects.
+        True if the node is stopping meanwhile."""
+        if not self.is_file:
+            return self._fail(f"read from {self.uri!r} failed", stop)
+        self._cap.release()
+        self._cap = None
+        if not self.loop:
+            self.state, self.message = "ended", f"end of file {self.uri!r}"
+        return False
+
     def read(self, stop: threading.Event) -> Frame | None:
-        while not stop.is_set():
-            if self.state == "ended":
-                return None
+        while not stop.is_set() and self.state != "ended":
             if self._cap is None and not self._open():
                 if self._fail(f"cannot open {self.uri!r}", stop):
-                    return None
+                    break
                 continue
-            if self.is_file and self._period_s > 0:
-                delay = self._next_due - time.monotonic()
-                if delay > 0 and stop.wait(delay):
-                    return None
-                self._next_due = max(self._next_due + self._period_s, time.monotonic() - self._period_s)
+            if self._pace(stop):
+                break
             ok, image = self._cap.read()
             stamp = self.clock()
-            if not ok or image is None:
-                if self.is_file:
-                    self._cap.release()
-                    self._cap = None
-                    if self.loop:
-                        continue
-                    self.state, self.message = "ended", f"end of file {self.uri!r}"
-                    return None
-                if self._fail(f"read from {self.uri!r} failed", stop):
-                    return None
-                continue
-            self.state, self.message = "ok", ""
-            self._backoff_s = self.reconnect_min_s
-            frame = Frame(index=self._index, stamp_ns=stamp, image=image)
-            self._index += 1
-            return frame
+            if ok and image is not None:
+                self.state, self.message = "ok", ""
+                self._backoff_s = self.reconnect_min_s
+                frame = Frame(index=self._index, stamp_ns=stamp, image=image)
+                self._index += 1
+                return frame
+            if self._read_failed(stop):
+                break
         return None
 
     def close(self) -> None:

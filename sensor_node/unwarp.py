@@ -18,19 +18,14 @@ What the pipeline needs from a frame is cheaper than a full colour panorama:
 
 from __future__ import annotations
 
-from typing import Any
-
 import cv2
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import Image
 from common.cameras import AnnularModel
 from common.errors import SourceError
 
 __all__ = ["PanoFrame", "Unwarper"]
-
-Image = npt.NDArray[Any]
-"""An 8-bit image (cv2 results are typed loosely)."""
 
 
 def _wrap_cols(a: Image, u0: int, v0: int, w: int, h: int) -> Image:

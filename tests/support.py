@@ -521,3 +521,15 @@ def message_strategy(msg_type: type, max_list: int = 3) -> Any:
     import msgspec.inspect as mi
 
     return strategy_for_type(mi.type_info(msg_type), max_list)
+
+
+def decode_protobuf(schema_name: str, schema_data: bytes, payload: bytes) -> Any:
+    """A protobuf message (Foxglove's well-known types) decoded with the FileDescriptorSet its channel carries."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    fds = descriptor_pb2.FileDescriptorSet.FromString(schema_data)
+    pool = descriptor_pool.DescriptorPool()
+    for fd in fds.file:
+        pool.Add(fd)
+    cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema_name))
+    return cls.FromString(payload)

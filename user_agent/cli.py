@@ -13,6 +13,7 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import msgspec
@@ -27,6 +28,10 @@ __all__ = ["configure", "main", "run"]
 logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
+FIRST_SCREEN_WAIT_S = 1.5
+"""`watch` waits up to this long for the statuses (1 Hz) before its first screen."""
+SENSORS_REFRESH_S = 3.0
+"""`watch` asks for the sensors again this often (s); tracks and managers every screen."""
 
 
 def _net(p: argparse.ArgumentParser) -> None:
@@ -36,7 +41,7 @@ def _net(p: argparse.ArgumentParser) -> None:
     add_session_args(p)
 
 
-def configure(parser: argparse.ArgumentParser) -> None:
+def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one flat add_argument list per action
     """Add the agent's subcommands to ``parser`` (used by ``panostereo agent`` too)."""
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
 
@@ -167,7 +172,7 @@ def _watch(args: argparse.Namespace) -> int:
         sensors = agent.sensors(timeout_s=1.0)
         # Statuses come at 1 Hz: give the first screen a moment to have them.
         first = time.monotonic()
-        while time.monotonic() - first < 1.5 and not shutdown.is_set():
+        while time.monotonic() - first < FIRST_SCREEN_WAIT_S and not shutdown.is_set():
             if all(v.status is not None for v in sensors if v.alive) and all(
                 m.status is not None for m in agent.managers(timeout_s=0.3)
             ):
@@ -176,7 +181,7 @@ def _watch(args: argparse.Namespace) -> int:
             sensors = agent.sensors(timeout_s=0.3)
         last_sensors = time.monotonic()
         while True:
-            if time.monotonic() - last_sensors > 3.0:
+            if time.monotonic() - last_sensors > SENSORS_REFRESH_S:
                 sensors, last_sensors = agent.sensors(timeout_s=1.0), time.monotonic()
             header = f"panostereo watch  {time.strftime('%H:%M:%S')}  prefix {agent.keys.prefix}"
             screen = watch_screen(agent.tracks(timeout_s=0), sensors, agent.managers(timeout_s=0.5), header)
@@ -322,21 +327,9 @@ def _evaluate(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     """Run the chosen subcommand."""
     action = args.action
-    if action == "watch":
-        return _watch(args)
-    if action == "record":
-        return _record(args)
-    if action == "replay":
-        return _replay(args)
-    if action == "evaluate":
-        return _evaluate(args)
-    if action == "foxglove":
-        return _foxglove(args)
-    if action == "plot":
-        from user_agent.report import plot_recording
-
-        print(plot_recording(args.input, args.out, args.ground_truth, title=args.title))
-        return 0
+    handler = _HANDLERS.get(action)
+    if handler is not None:
+        return handler(args)
     from user_agent.views import history_table, tracks_table
 
     if action in ("history", "view"):
@@ -370,6 +363,24 @@ def run(args: argparse.Namespace) -> int:
         elif action == "view":
             return _view(args, agent)
     return 0
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from user_agent.report import plot_recording
+
+    print(plot_recording(args.input, args.out, args.ground_truth, title=args.title))
+    return 0
+
+
+_HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "watch": _watch,
+    "record": _record,
+    "replay": _replay,
+    "evaluate": _evaluate,
+    "foxglove": _foxglove,
+    "plot": _plot,
+}
+"""The actions that need no agent session of their own (the others query through one)."""
 
 
 def _view(args: argparse.Namespace, agent: Any) -> int:

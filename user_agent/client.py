@@ -84,6 +84,8 @@ class ManagerView:
     status: ManagerStatus | None
 
 
+ACCEPTED_REPLIES = 2
+"""A liveliness query for the agent's own token answered by its session and by the router: the router took it."""
 MAX_KEPT = 256
 """Most senders an agent keeps the latest message of, per kind: a flood of fresh ids cannot grow its memory (the
 least recently heard one goes)."""
@@ -197,7 +199,7 @@ class AgentClient:
             except Exception as err:  # session closing
                 logger.debug("liveliness query %s: %s", key, err)
                 return True
-            if len(replies) >= 2:
+            if len(replies) >= ACCEPTED_REPLIES:
                 return True
             if time.monotonic() >= deadline:
                 return False
@@ -235,21 +237,7 @@ class AgentClient:
                     if old is None or r.msg.stamp_ns >= old.stamp_ns or r.msg.seq < old.seq:
                         _keep(self._tracksets, r.msg.manager_id, r.msg)
                     _keep(self._heard, r.msg.manager_id, time.monotonic())
-                for key, data in self._in_status.drain_raw():
-                    st = self._in_status.decode(key, data)
-                    if st is not None and key == self.keys.sensor_status(st.sensor_id):
-                        _keep(self._node_status, st.sensor_id, st)
-                for m in self._in_mgr.drain():
-                    if m.key == self.keys.manager_status(m.msg.manager_id):
-                        _keep(self._mgr_status, m.msg.manager_id, m.msg)
-                for p in self._in_plans.drain():
-                    _keep(self._plans, p.msg.sensor_id, p.msg)
-                for c in self._in_pairs.drain():
-                    _keep(self._pairs, c.msg.manager_id, c.msg)
-                for key, data in self._in_infos.drain_raw():
-                    info = self._in_infos.decode(key, data)
-                    if info is not None and key == self.keys.sensor_info(info.sensor_id):
-                        _keep(self._infos, info.sensor_id, info)
+                self._take_statuses()
                 subs = list(self._subs)
                 self._changed.notify_all()
             for r in sets:
@@ -258,6 +246,26 @@ class AgentClient:
                         sub.callback(r.msg)
                     except Exception:
                         logger.exception("track subscriber callback failed")
+
+    def _take_statuses(self) -> None:
+        """Keep what arrived besides tracks: statuses, plans, pairs, SensorInfo (the caller holds the lock).
+
+        A status or SensorInfo counts only under its own sender's key."""
+        for key, data in self._in_status.drain_raw():
+            st = self._in_status.decode(key, data)
+            if st is not None and key == self.keys.sensor_status(st.sensor_id):
+                _keep(self._node_status, st.sensor_id, st)
+        for m in self._in_mgr.drain():
+            if m.key == self.keys.manager_status(m.msg.manager_id):
+                _keep(self._mgr_status, m.msg.manager_id, m.msg)
+        for p in self._in_plans.drain():
+            _keep(self._plans, p.msg.sensor_id, p.msg)
+        for c in self._in_pairs.drain():
+            _keep(self._pairs, c.msg.manager_id, c.msg)
+        for key, data in self._in_infos.drain_raw():
+            info = self._in_infos.decode(key, data)
+            if info is not None and key == self.keys.sensor_info(info.sensor_id):
+                _keep(self._infos, info.sensor_id, info)
 
     def _unsubscribe(self, sub: Subscription) -> None:
         with self._lock:

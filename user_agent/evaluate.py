@@ -53,6 +53,11 @@ __all__ = [
     "within_area",
 ]
 
+MOSTLY_TRACKED = 0.8
+"""An object matched in at least this fraction of its frames is mostly tracked (CLEAR-MOT's MT)..."""
+MOSTLY_LOST = 0.2
+"""...in less than this fraction, mostly lost (ML); partially tracked between."""
+
 DEFAULT_STATES: tuple[str, ...] = ("confirmed", "coasting")
 """Track states scored by default (tentative tracks are not yet claims)."""
 
@@ -139,6 +144,19 @@ class MotAccumulator:
     co_valid: dict[tuple[str, str], int] = field(default_factory=dict)
     """(object, hypothesis) -> frames where both exist within the threshold (for IDF1)."""
 
+    def _count(self, gt_ids: Sequence[str], hyp_ids: Sequence[str], valid: npt.NDArray[np.bool_]) -> None:
+        """Count a frame: its objects and hypotheses, and the pairs within the threshold (for IDF1)."""
+        self.frames += 1
+        self.objects += len(gt_ids)
+        self.hypotheses += len(hyp_ids)
+        for o in gt_ids:
+            self.obj_frames[o] = self.obj_frames.get(o, 0) + 1
+        for h in hyp_ids:
+            self.hyp_frames[h] = self.hyp_frames.get(h, 0) + 1
+        for i, j in zip(*np.nonzero(valid), strict=True):
+            key = (gt_ids[i], hyp_ids[j])
+            self.co_valid[key] = self.co_valid.get(key, 0) + 1
+
     def update(
         self, gt_ids: Sequence[str], hyp_ids: Sequence[str], dist: Sequence[Sequence[float]] | npt.NDArray[np.float64]
     ) -> list[tuple[str, str, str, float]]:
@@ -159,17 +177,8 @@ class MotAccumulator:
         d = np.asarray(dist, dtype=np.float64).reshape(len(gt_ids), len(hyp_ids))
         if len(set(gt_ids)) != len(gt_ids) or len(set(hyp_ids)) != len(hyp_ids):
             raise ConfigError(f"duplicate ids in one frame: objects {list(gt_ids)}, hypotheses {list(hyp_ids)}")
-        self.frames += 1
-        self.objects += len(gt_ids)
-        self.hypotheses += len(hyp_ids)
-        for o in gt_ids:
-            self.obj_frames[o] = self.obj_frames.get(o, 0) + 1
-        for h in hyp_ids:
-            self.hyp_frames[h] = self.hyp_frames.get(h, 0) + 1
         valid = np.isfinite(d)
-        for i, j in zip(*np.nonzero(valid), strict=True):
-            key = (gt_ids[i], hyp_ids[j])
-            self.co_valid[key] = self.co_valid.get(key, 0) + 1
+        self._count(gt_ids, hyp_ids, valid)
 
         events: list[tuple[str, str, str, float]] = []
         free_o = set(range(len(gt_ids)))
@@ -257,9 +266,9 @@ class MotAccumulator:
             p90_error_m=float(np.percentile(errs, 90)) if errs.size else math.nan,
             gt_ids=len(self.obj_frames),
             track_ids=len(self.hyp_frames),
-            mostly_tracked=sum(r >= 0.8 for r in ratios),
-            partially_tracked=sum(0.2 <= r < 0.8 for r in ratios),
-            mostly_lost=sum(r < 0.2 for r in ratios),
+            mostly_tracked=sum(r >= MOSTLY_TRACKED for r in ratios),
+            partially_tracked=sum(MOSTLY_LOST <= r < MOSTLY_TRACKED for r in ratios),
+            mostly_lost=sum(r < MOSTLY_LOST for r in ratios),
             threshold_m=threshold_m,
         )
 

@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
+from common.angles import angle_diff
 from common.errors import ConfigError
 
 __all__ = [
@@ -45,6 +46,11 @@ __all__ = [
     "read_boxes",
     "score_detections",
 ]
+
+BOX_FIELDS = 6
+"""A ground-truth box line has at least frame, id, left, top, width, height."""
+MERGED_PEOPLE = 2
+"""A blob that holds this many people's boxes or more is a merge."""
 
 COVER_FRAC = 0.5
 """Fraction of a ground-truth box inside a blob for the blob to hold that person (merges)."""
@@ -145,7 +151,7 @@ def read_boxes(path: Path) -> dict[int, list[Box]]:
             continue
         parts = s.split(",")
         try:
-            if len(parts) < 6:
+            if len(parts) < BOX_FIELDS:
                 raise ValueError(f"{len(parts)} fields")
             frame = int(float(parts[0]))
             left, top, w, h = (float(p) for p in parts[2:6])
@@ -192,10 +198,6 @@ BoxBearing = Callable[[float, float], float]
 """Azimuth (rad) of the ray through an image point (u, v)."""
 
 
-def _wrap_deg(a_rad: float) -> float:
-    return math.degrees(math.atan2(math.sin(a_rad), math.cos(a_rad)))
-
-
 def score_detections(
     truth: Mapping[int, Sequence[Box]],
     found: Mapping[int, Sequence[Detection2D]],
@@ -226,7 +228,7 @@ def score_detections(
         inter = _intersections(gt_a, det_a)
         cover = inter / np.maximum(_areas(gt_a), 1e-12)[:, None] if gt else np.zeros((0, len(det)))
         holds = cover >= COVER_FRAC
-        merged = holds & (holds.sum(axis=0) >= 2)[None, :]
+        merged = holds & (holds.sum(axis=0) >= MERGED_PEOPLE)[None, :]
         for sc in out:
             sc.frames += 1
             sc.objects += len(gt)
@@ -255,5 +257,5 @@ def score_detections(
                 az = d.bearing_rad
                 if not math.isfinite(az):
                     az = bearing_of(d.box.left_px + d.box.width_px / 2.0, d.box.bottom_px)
-                sc.bearing_err_deg.append(_wrap_deg(az - truth_az))
+                sc.bearing_err_deg.append(math.degrees(angle_diff(az, truth_az)))
     return out

@@ -1,30 +1,52 @@
-"""Foxglove well-known schemas (JSON) and builders for the 3D scene of a recording.
+"""The 3D scene of a site as Foxglove's well-known messages, built with foxglove-sdk's typed schemas.
 
-Foxglove recognises a message by its schema *name* (``foxglove.SceneUpdate``,
-``foxglove.FrameTransform``) on a JSON channel whose body follows Foxglove's
-JSON schema: times are ``{"sec", "nsec"}``, poses are position + quaternion
-(notes/zenoh.md §7.1). The schemas below are written from Foxglove's published
-message definitions, limited to the primitives this project draws (the others
-are declared as arrays so a reader accepts the full message shape).
+``foxglove.SceneUpdate`` (people as bodies with heads, labels, velocity arrows and the rays of the camera
+pair that localised them; camera bodies; ground-truth figures) and ``foxglove.FrameTransform`` (world ->
+each camera) come from :mod:`foxglove.messages`: Foxglove recognises them by their schema, and each
+encodes itself (protobuf) with the schema it carries (``get_schema()``). The recorder writes them into
+its MCAP file (:mod:`user_agent.record`), the live bridge logs them on typed channels
+(:mod:`user_agent.live`).
 
-Pure: builds dicts; the recorder serialises them.
+Pure: builds messages; the recorder and the bridge write them.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any, Final
+from typing import Final, TypeAlias
+
+from foxglove.messages import (
+    ArrowPrimitive,
+    Color,
+    CubePrimitive,
+    CylinderPrimitive,
+    Duration,
+    FrameTransform,
+    KeyValuePair,
+    LinePrimitive,
+    LinePrimitiveLineType,
+    Point3,
+    Quaternion,
+    SceneEntity,
+    SceneUpdate,
+    SpherePrimitive,
+    TextPrimitive,
+    Timestamp,
+    Vector3,
+)
+from foxglove.messages import (
+    Pose as FgPose,
+)
 
 from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet
 from user_agent.colors import id_color
 from user_agent.messages import camera_poses, placed_pose
 
 __all__ = [
-    "FRAME_TRANSFORM_SCHEMA",
-    "SCENE_UPDATE_SCHEMA",
     "WORLD_FRAME",
     "CameraPlacements",
+    "FoxgloveMessage",
     "cameras_scene",
     "frame_transform",
     "tracks_scene",
@@ -33,179 +55,65 @@ __all__ = [
 
 WORLD_FRAME: Final = "world"
 
-_TIME = {
-    "type": "object",
-    "title": "time",
-    "properties": {"sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0}},
-}
-_DURATION = {
-    "type": "object",
-    "title": "duration",
-    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer", "minimum": 0}},
-}
-_VEC3 = {
-    "type": "object",
-    "title": "foxglove.Vector3",
-    "properties": {"x": {"type": "number"}, "y": {"type": "number"}, "z": {"type": "number"}},
-}
-_QUAT = {
-    "type": "object",
-    "title": "foxglove.Quaternion",
-    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
-}
-_POSE = {"type": "object", "title": "foxglove.Pose", "properties": {"position": _VEC3, "orientation": _QUAT}}
-_COLOR = {"type": "object", "title": "foxglove.Color", "properties": {k: {"type": "number"} for k in "rgba"}}
-_POINT3 = {"type": "object", "title": "foxglove.Point3", "properties": {k: {"type": "number"} for k in "xyz"}}
+FoxgloveMessage: TypeAlias = SceneUpdate | FrameTransform
+"""The Foxglove messages the scene is made of (each has ``get_schema()`` and ``encode()``)."""
+
+DEFAULT_HEIGHT_M = 1.7
+"""A person's height drawn when the track's is not known (below :data:`MIN_HEIGHT_M`)."""
+MIN_HEIGHT_M = 0.5
+"""A height below this is no person's (unknown): :data:`DEFAULT_HEIGHT_M` is drawn instead."""
+MIN_SPEED_MPS = 0.05
+"""A track slower than this gets no velocity arrow."""
+BODY_WIDTH_M = 0.45
+"""Diameter of a tracked person's body."""
+HEAD_SIZE_M = 0.24
+"""Diameter of a tracked person's head."""
+NECK_M = 0.25
+"""Head top to the body's top (the head and neck)."""
+TRUTH_WIDTH_M = 0.5
+"""Diameter of a ground-truth figure."""
+LENS_SIZE_M = 0.15
+"""Edge of the cube drawn at a camera's optical centre."""
+LABEL_ABOVE_M = 0.25
+"""Labels float this far above what they name (ground truth: further, not to cover the track's)."""
+TRUTH_LABEL_ABOVE_M = 0.45
+FONT_SIZE = 14.0
+
+_WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
+_BODY_WHITE = Color(r=0.95, g=0.95, b=0.95, a=1.0)
+_TRUTH_GREY = Color(r=0.6, g=0.6, b=0.6, a=0.35)
 
 
-def _prim(title: str, **props: Any) -> dict[str, Any]:
-    return {"type": "object", "title": title, "properties": {"pose": _POSE, "color": _COLOR, **props}}
+def _time(stamp_ns: int) -> Timestamp:
+    return Timestamp(sec=stamp_ns // 1_000_000_000, nsec=stamp_ns % 1_000_000_000)
 
 
-_ENTITY = {
-    "type": "object",
-    "title": "foxglove.SceneEntity",
-    "properties": {
-        "timestamp": _TIME,
-        "frame_id": {"type": "string"},
-        "id": {"type": "string"},
-        "lifetime": _DURATION,
-        "frame_locked": {"type": "boolean"},
-        "metadata": {
-            "type": "array",
-            "items": {
-                "type": "object",
-                "title": "foxglove.KeyValuePair",
-                "properties": {"key": {"type": "string"}, "value": {"type": "string"}},
-            },
-        },
-        "arrows": {
-            "type": "array",
-            "items": _prim(
-                "foxglove.ArrowPrimitive",
-                shaft_length={"type": "number"},
-                shaft_diameter={"type": "number"},
-                head_length={"type": "number"},
-                head_diameter={"type": "number"},
-            ),
-        },
-        "cubes": {"type": "array", "items": _prim("foxglove.CubePrimitive", size=_VEC3)},
-        "spheres": {"type": "array", "items": _prim("foxglove.SpherePrimitive", size=_VEC3)},
-        "cylinders": {
-            "type": "array",
-            "items": _prim(
-                "foxglove.CylinderPrimitive",
-                size=_VEC3,
-                bottom_scale={"type": "number"},
-                top_scale={"type": "number"},
-            ),
-        },
-        "lines": {
-            "type": "array",
-            "items": _prim(
-                "foxglove.LinePrimitive",
-                type={"type": "integer", "description": "0 LINE_STRIP, 1 LINE_LOOP, 2 LINE_LIST"},
-                thickness={"type": "number"},
-                scale_invariant={"type": "boolean"},
-                points={"type": "array", "items": _POINT3},
-                colors={"type": "array", "items": _COLOR},
-                indices={"type": "array", "items": {"type": "integer", "minimum": 0}},
-            ),
-        },
-        "triangles": {"type": "array", "items": {"type": "object", "title": "foxglove.TriangleListPrimitive"}},
-        "texts": {
-            "type": "array",
-            "items": _prim(
-                "foxglove.TextPrimitive",
-                billboard={"type": "boolean"},
-                font_size={"type": "number"},
-                scale_invariant={"type": "boolean"},
-                text={"type": "string"},
-            ),
-        },
-        "models": {"type": "array", "items": {"type": "object", "title": "foxglove.ModelPrimitive"}},
-    },
-}
-
-SCENE_UPDATE_SCHEMA: Final[dict[str, Any]] = {
-    "title": "foxglove.SceneUpdate",
-    "description": "An update to the entities displayed in a 3D scene",
-    "type": "object",
-    "properties": {
-        "deletions": {
-            "type": "array",
-            "items": {
-                "type": "object",
-                "title": "foxglove.SceneEntityDeletion",
-                "properties": {
-                    "timestamp": _TIME,
-                    "type": {"type": "integer", "description": "0 MATCHING_ID, 1 ALL"},
-                    "id": {"type": "string"},
-                },
-            },
-        },
-        "entities": {"type": "array", "items": _ENTITY},
-    },
-}
-
-FRAME_TRANSFORM_SCHEMA: Final[dict[str, Any]] = {
-    "title": "foxglove.FrameTransform",
-    "description": "A transform between two reference frames in 3D space",
-    "type": "object",
-    "properties": {
-        "timestamp": _TIME,
-        "parent_frame_id": {"type": "string"},
-        "child_frame_id": {"type": "string"},
-        "translation": _VEC3,
-        "rotation": _QUAT,
-    },
-}
+def _yaw_quat(yaw_rad: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw_rad / 2), w=math.cos(yaw_rad / 2))
 
 
-def _time(stamp_ns: int) -> dict[str, int]:
-    return {"sec": stamp_ns // 1_000_000_000, "nsec": stamp_ns % 1_000_000_000}
+def _pose(x: float, y: float, z: float, yaw_rad: float = 0.0) -> FgPose:
+    return FgPose(position=Vector3(x=x, y=y, z=z), orientation=_yaw_quat(yaw_rad))
 
 
-def _yaw_quat(yaw_rad: float) -> dict[str, float]:
-    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw_rad / 2), "w": math.cos(yaw_rad / 2)}
-
-
-def _pose(x: float, y: float, z: float, yaw_rad: float = 0.0) -> dict[str, Any]:
-    return {"position": {"x": x, "y": y, "z": z}, "orientation": _yaw_quat(yaw_rad)}
-
-
-def _color(ident: str, alpha: float = 1.0) -> dict[str, float]:
+def _color(ident: str, alpha: float = 1.0) -> Color:
     r, g, b = id_color(ident)
-    return {"r": r, "g": g, "b": b, "a": alpha}
+    return Color(r=r, g=g, b=b, a=alpha)
 
 
-def _text(x: float, y: float, z: float, text: str) -> dict[str, Any]:
-    white = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
-    return {
-        "pose": _pose(x, y, z),
-        "billboard": True,
-        "font_size": 14.0,
-        "scale_invariant": True,
-        "color": white,
-        "text": text,
-    }
+def _text(x: float, y: float, z: float, text: str) -> TextPrimitive:
+    return TextPrimitive(
+        pose=_pose(x, y, z), billboard=True, font_size=FONT_SIZE, scale_invariant=True, color=_WHITE, text=text
+    )
 
 
-def _entity(stamp_ns: int, ident: str, lifetime_ns: int, **prims: list[dict[str, Any]]) -> dict[str, Any]:
-    base: dict[str, Any] = {
-        "timestamp": _time(stamp_ns),
-        "frame_id": WORLD_FRAME,
-        "id": ident,
-        "lifetime": {"sec": lifetime_ns // 1_000_000_000, "nsec": lifetime_ns % 1_000_000_000},
-        "frame_locked": False,
-        "metadata": [],
-        **{k: [] for k in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models")},
-    }
-    base.update(prims)
-    return base
+def _lifetime(lifetime_ns: int) -> Duration:
+    return Duration(sec=lifetime_ns // 1_000_000_000, nsec=lifetime_ns % 1_000_000_000)
 
 
-def tracks_scene(ts: TrackSet, camera_xyz: dict[str, tuple[float, float, float]], lifetime_s: float = 0.5) -> dict:
+def tracks_scene(
+    ts: TrackSet, camera_xyz: dict[str, tuple[float, float, float]], lifetime_s: float = 0.5
+) -> SceneUpdate:
     """A SceneUpdate drawing each tracked person (body, head, label, velocity, rays of its camera pair).
 
     Args:
@@ -214,74 +122,86 @@ def tracks_scene(ts: TrackSet, camera_xyz: dict[str, tuple[float, float, float]]
             used to draw the rays from the pair that localised each track.
         lifetime_s: how long an entity stays without an update (so lost tracks vanish).
     """
-    life_ns = int(lifetime_s * 1e9)
+    life = _lifetime(int(lifetime_s * 1e9))
     entities = []
     for tr in ts.tracks:
-        h = tr.height_m if tr.height_m > 0.5 else 1.7
+        h = tr.height_m if tr.height_m > MIN_HEIGHT_M else DEFAULT_HEIGHT_M
         col = _color(tr.track_id, 0.9 if tr.state == "confirmed" else 0.5)
         speed = math.hypot(tr.vx_mps, tr.vy_mps)
-        rays = [
-            {"x": cx, "y": cy, "z": cz} for sid in tr.sensors if sid in camera_xyz for cx, cy, cz in [camera_xyz[sid]]
-        ]
-        lines = []
-        if rays:
-            pts = []
-            for p in rays:
-                pts += [p, {"x": tr.x_m, "y": tr.y_m, "z": h - 0.1}]
-            lines.append(
-                {
-                    "type": 2,
-                    "pose": _pose(0, 0, 0),
-                    "thickness": 2.0,
-                    "scale_invariant": True,
-                    "points": pts,
-                    "color": _color(tr.track_id, 0.5),
-                    "colors": [],
-                    "indices": [],
-                }
-            )
-        entity = _entity(
-            ts.stamp_ns,
-            f"track/{tr.track_id}",
-            life_ns,
-            cylinders=[
-                {
-                    "pose": _pose(tr.x_m, tr.y_m, (h - 0.25) / 2),
-                    "size": {"x": 0.45, "y": 0.45, "z": h - 0.25},
-                    "bottom_scale": 1.0,
-                    "top_scale": 0.9,
-                    "color": col,
-                }
-            ],
-            spheres=[
-                {"pose": _pose(tr.x_m, tr.y_m, h - 0.12), "size": {"x": 0.24, "y": 0.24, "z": 0.24}, "color": col}
-            ],
-            texts=[_text(tr.x_m, tr.y_m, h + 0.25, f"{tr.track_id} {tr.method} ±{tr.predicted_error_m:.2f} m")],
-            arrows=[
-                {
-                    "pose": _pose(tr.x_m, tr.y_m, 0.05, math.atan2(tr.vy_mps, tr.vx_mps)),
-                    "shaft_length": speed,
-                    "shaft_diameter": 0.04,
-                    "head_length": 0.12,
-                    "head_diameter": 0.1,
-                    "color": col,
-                }
+        head_z = h - HEAD_SIZE_M / 2
+        rays: list[Point3] = []
+        for sid in tr.sensors:
+            if sid in camera_xyz:
+                cx, cy, cz = camera_xyz[sid]
+                rays += [Point3(x=cx, y=cy, z=cz), Point3(x=tr.x_m, y=tr.y_m, z=h - 0.1)]
+        lines = (
+            [
+                LinePrimitive(
+                    type=LinePrimitiveLineType.LineList,
+                    pose=_pose(0, 0, 0),
+                    thickness=2.0,
+                    scale_invariant=True,
+                    points=rays,
+                    color=_color(tr.track_id, 0.5),
+                )
             ]
-            if speed > 0.05
-            else [],
-            lines=lines,
+            if rays
+            else []
         )
-        entity["metadata"] = [
-            {"key": "track_id", "value": tr.track_id},
-            {"key": "state", "value": tr.state},
-            {"key": "method", "value": tr.method},
-            {"key": "sensors", "value": ",".join(tr.sensors)},
-        ]
-        entities.append(entity)
-    return {"deletions": [], "entities": entities}
+        arrows = (
+            [
+                ArrowPrimitive(
+                    pose=_pose(tr.x_m, tr.y_m, 0.05, math.atan2(tr.vy_mps, tr.vx_mps)),
+                    shaft_length=speed,
+                    shaft_diameter=0.04,
+                    head_length=0.12,
+                    head_diameter=0.1,
+                    color=col,
+                )
+            ]
+            if speed > MIN_SPEED_MPS
+            else []
+        )
+        body_h = h - NECK_M
+        entities.append(
+            SceneEntity(
+                timestamp=_time(ts.stamp_ns),
+                frame_id=WORLD_FRAME,
+                id=f"track/{tr.track_id}",
+                lifetime=life,
+                metadata=[
+                    KeyValuePair(key="track_id", value=tr.track_id),
+                    KeyValuePair(key="state", value=tr.state),
+                    KeyValuePair(key="method", value=tr.method),
+                    KeyValuePair(key="sensors", value=",".join(tr.sensors)),
+                ],
+                cylinders=[
+                    CylinderPrimitive(
+                        pose=_pose(tr.x_m, tr.y_m, body_h / 2),
+                        color=col,
+                        bottom_scale=1.0,
+                        size=Vector3(x=BODY_WIDTH_M, y=BODY_WIDTH_M, z=body_h),
+                        top_scale=0.9,
+                    )
+                ],
+                spheres=[
+                    SpherePrimitive(
+                        pose=_pose(tr.x_m, tr.y_m, head_z),
+                        color=col,
+                        size=Vector3(x=HEAD_SIZE_M, y=HEAD_SIZE_M, z=HEAD_SIZE_M),
+                    )
+                ],
+                texts=[
+                    _text(tr.x_m, tr.y_m, h + LABEL_ABOVE_M, f"{tr.track_id} {tr.method} ±{tr.predicted_error_m:.2f} m")
+                ],
+                arrows=arrows,
+                lines=lines,
+            )
+        )
+    return SceneUpdate(entities=entities)
 
 
-def cameras_scene(infos: list[SensorInfo], stamp_ns: int, poses: Mapping[str, Pose] | None = None) -> dict:
+def cameras_scene(infos: list[SensorInfo], stamp_ns: int, poses: Mapping[str, Pose] | None = None) -> SceneUpdate:
     """A SceneUpdate drawing every camera whose pose is known (robot body, lens, label).
 
     Args:
@@ -295,78 +215,75 @@ def cameras_scene(infos: list[SensorInfo], stamp_ns: int, poses: Mapping[str, Po
         p = poses.get(info.sensor_id) if poses is not None else placed_pose(info)
         if p is None:
             continue
-        col = _color(info.sensor_id)
         cyl = []
         if info.body_radius_m > 0:
-            r = info.body_radius_m
-            white = {"r": 0.95, "g": 0.95, "b": 0.95, "a": 1.0}
-            size = {"x": 2 * r, "y": 2 * r, "z": p.z_m * 0.8}
+            d = 2 * info.body_radius_m
             cyl = [
-                {
-                    "pose": _pose(p.x_m, p.y_m, p.z_m * 0.4),
-                    "size": size,
-                    "bottom_scale": 1.0,
-                    "top_scale": 1.0,
-                    "color": white,
-                }
+                CylinderPrimitive(
+                    pose=_pose(p.x_m, p.y_m, p.z_m * 0.4),
+                    size=Vector3(x=d, y=d, z=p.z_m * 0.8),
+                    bottom_scale=1.0,
+                    top_scale=1.0,
+                    color=_BODY_WHITE,
+                )
             ]
+        lens = CubePrimitive(
+            pose=_pose(p.x_m, p.y_m, p.z_m, p.yaw_rad),
+            color=_color(info.sensor_id),
+            size=Vector3(x=LENS_SIZE_M, y=LENS_SIZE_M, z=LENS_SIZE_M),
+        )
+        label = _text(p.x_m, p.y_m, p.z_m + 0.3, f"{info.sensor_id} ({info.kind}, {info.pose_source})")
         entities.append(
-            _entity(
-                stamp_ns,
-                f"camera/{info.sensor_id}",
-                0,
+            SceneEntity(
+                timestamp=_time(stamp_ns),
+                frame_id=WORLD_FRAME,
+                id=f"camera/{info.sensor_id}",
+                lifetime=_lifetime(0),
                 cylinders=cyl,
-                cubes=[
-                    {
-                        "pose": _pose(p.x_m, p.y_m, p.z_m, p.yaw_rad),
-                        "size": {"x": 0.15, "y": 0.15, "z": 0.15},
-                        "color": col,
-                    }
-                ],
-                texts=[_text(p.x_m, p.y_m, p.z_m + 0.3, f"{info.sensor_id} ({info.kind}, {info.pose_source})")],
+                cubes=[lens],
+                texts=[label],
             )
         )
-    return {"deletions": [], "entities": entities}
+    return SceneUpdate(entities=entities)
 
 
-def frame_transform(sensor_id: str, pose: Pose | None, stamp_ns: int) -> dict | None:
+def frame_transform(sensor_id: str, pose: Pose | None, stamp_ns: int) -> FrameTransform | None:
     """FrameTransform world -> the sensor's frame (None when its pose is unknown)."""
-    p = pose
-    if p is None:
+    if pose is None:
         return None
-    return {
-        "timestamp": _time(stamp_ns),
-        "parent_frame_id": WORLD_FRAME,
-        "child_frame_id": sensor_id,
-        "translation": {"x": p.x_m, "y": p.y_m, "z": p.z_m},
-        "rotation": _yaw_quat(p.yaw_rad),
-    }
+    return FrameTransform(
+        timestamp=_time(stamp_ns),
+        parent_frame_id=WORLD_FRAME,
+        child_frame_id=sensor_id,
+        translation=Vector3(x=pose.x_m, y=pose.y_m, z=pose.z_m),
+        rotation=_yaw_quat(pose.yaw_rad),
+    )
 
 
-def truth_scene(people: list[tuple[str, float, float, float]], stamp_ns: int, lifetime_s: float) -> dict:
+def truth_scene(people: list[tuple[str, float, float, float]], stamp_ns: int, lifetime_s: float) -> SceneUpdate:
     """A SceneUpdate of ground-truth people ``(id, x_m, y_m, height_m)``: translucent grey figures, for comparison."""
-    grey = {"r": 0.6, "g": 0.6, "b": 0.6, "a": 0.35}
     entities = []
     for pid, x, y, h in people:
-        hh = h if h > 0.5 else 1.7
+        hh = h if h > MIN_HEIGHT_M else DEFAULT_HEIGHT_M
         entities.append(
-            _entity(
-                stamp_ns,
-                f"truth/{pid}",
-                int(lifetime_s * 1e9),
+            SceneEntity(
+                timestamp=_time(stamp_ns),
+                frame_id=WORLD_FRAME,
+                id=f"truth/{pid}",
+                lifetime=_lifetime(int(lifetime_s * 1e9)),
                 cylinders=[
-                    {
-                        "pose": _pose(x, y, hh / 2),
-                        "size": {"x": 0.5, "y": 0.5, "z": hh},
-                        "bottom_scale": 1.0,
-                        "top_scale": 1.0,
-                        "color": grey,
-                    }
+                    CylinderPrimitive(
+                        pose=_pose(x, y, hh / 2),
+                        size=Vector3(x=TRUTH_WIDTH_M, y=TRUTH_WIDTH_M, z=hh),
+                        bottom_scale=1.0,
+                        top_scale=1.0,
+                        color=_TRUTH_GREY,
+                    )
                 ],
-                texts=[_text(x, y, hh + 0.45, f"truth #{pid}")],
+                texts=[_text(x, y, hh + TRUTH_LABEL_ABOVE_M, f"truth #{pid}")],
             )
         )
-    return {"deletions": [], "entities": entities}
+    return SceneUpdate(entities=entities)
 
 
 class CameraPlacements:
@@ -387,7 +304,7 @@ class CameraPlacements:
         """Known optical centres by sensor id (for :func:`tracks_scene`)."""
         return {s: (q.x_m, q.y_m, q.z_m) for s, q in self._poses.items()}
 
-    def update(self, msg: SensorInfo | ManagerStatus, stamp_ns: int) -> tuple[dict | None, list[dict]]:
+    def update(self, msg: SensorInfo | ManagerStatus, stamp_ns: int) -> tuple[SceneUpdate | None, list[FrameTransform]]:
         """Take a SensorInfo or ManagerStatus; the cameras' SceneUpdate and the FrameTransforms it changes.
 
         Returns:

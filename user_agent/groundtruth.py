@@ -15,14 +15,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
+from common.arrays import FloatArray
 from common.errors import ConfigError
 
 __all__ = ["GT_HEADER", "GroundTruth", "GtPoint", "read_gt_csv", "write_gt_rows"]
 
-FloatArray = npt.NDArray[np.float64]
+MIN_HULL_POINTS = 3
+"""The scored area is the convex hull of the ground truth's positions: it needs three distinct points."""
+
 
 GT_HEADER = ("frame", "id", "x_m", "y_m", "z_m")
 
@@ -59,7 +61,7 @@ class GroundTruth:
         """(k, 2) the convex hull of every annotated floor position, counter-clockwise: where the ground truth
         says who is there (None: fewer than three distinct points)."""
         pts = np.unique(np.array([[p.x_m, p.y_m] for pts in self.frames.values() for p in pts]).reshape(-1, 2), axis=0)
-        if len(pts) < 3:
+        if len(pts) < MIN_HULL_POINTS:
             return None
         try:
             hull = ConvexHull(pts)

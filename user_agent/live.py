@@ -1,11 +1,12 @@
-"""``agent foxglove``: serve the live 3D scene over Foxglove's WebSocket protocol (needs the ``foxglove`` extra).
+"""``agent foxglove``: serve the live 3D scene over Foxglove's WebSocket protocol.
 
 Open Foxglove, "Open connection", ``ws://HOST:PORT``, and add a 3D panel: the
 same channels as a recording — ``/scene/tracks`` and ``/scene/cameras``
-(``foxglove.SceneUpdate``), ``/tf`` (``foxglove.FrameTransform``) and
-``/tracks`` (the TrackSet as JSON with its schema). The WebSocket server is
-foxglove-sdk's (subprotocol ``foxglove.sdk.v1``); zenoh callbacks only enqueue
-(common.transport), the bridge's own loop converts and logs.
+(``foxglove.SceneUpdate``), ``/tf`` (``foxglove.FrameTransform``), on
+foxglove-sdk's typed channels, and ``/tracks`` (the TrackSet as JSON with its
+schema). The WebSocket server is foxglove-sdk's (subprotocol
+``foxglove.sdk.v1``); zenoh callbacks only enqueue (common.transport), the
+bridge's own loop converts and logs.
 """
 
 from __future__ import annotations
@@ -14,31 +15,20 @@ import json
 import logging
 from typing import Any
 
+import foxglove as fg
 import msgspec
+from foxglove.channels import FrameTransformChannel, SceneUpdateChannel
 
 from common.codec import decode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
 from common.schema import ManagerStatus, SensorInfo, TrackSet
 from common.transport import Inbox
-from user_agent.foxglove import (
-    FRAME_TRANSFORM_SCHEMA,
-    SCENE_UPDATE_SCHEMA,
-    CameraPlacements,
-    tracks_scene,
-)
+from user_agent.foxglove import CameraPlacements, tracks_scene
 
 __all__ = ["FoxgloveBridge"]
 
 logger = logging.getLogger(__name__)
-
-
-def _foxglove() -> Any:
-    try:
-        import foxglove
-    except ImportError as err:
-        raise ConfigError("agent foxglove needs foxglove-sdk: pip install 'panostereo[foxglove]'") from err
-    return foxglove
 
 
 class FoxgloveBridge:
@@ -53,23 +43,20 @@ class FoxgloveBridge:
     """
 
     def __init__(self, session: Any, keys: Keys, host: str = "127.0.0.1", port: int = 8765) -> None:
-        fg = _foxglove()
         self._session = session
         self._keys = keys
         self._ctx = fg.Context()
-
-        def channel(topic: str, name: str, schema: dict[str, Any]) -> Any:
-            sch = fg.Schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode())
-            return fg.Channel(topic, schema=sch, message_encoding="json", context=self._ctx)
-
         try:
             self.server = fg.start_server(name="panostereo", host=host, port=port, context=self._ctx)
         except Exception as err:  # address in use, bad host
             raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {err}") from err
-        self._tracks = channel("/scene/tracks", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
-        self._cameras = channel("/scene/cameras", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
-        self._tf = channel("/tf", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
-        self._raw = channel("/tracks", "pano.TrackSet", msgspec.json.schema(TrackSet))
+        self._tracks = SceneUpdateChannel("/scene/tracks", context=self._ctx)
+        self._cameras = SceneUpdateChannel("/scene/cameras", context=self._ctx)
+        self._tf = FrameTransformChannel("/tf", context=self._ctx)
+        raw_schema = fg.Schema(
+            name="pano.TrackSet", encoding="jsonschema", data=json.dumps(msgspec.json.schema(TrackSet)).encode()
+        )
+        self._raw = fg.Channel("/tracks", schema=raw_schema, message_encoding="json", context=self._ctx)
         self._placements = CameraPlacements()
         self._in_tracks = Inbox(session, keys.tracks(), TrackSet, capacity=64)
         self._in_info = Inbox(session, keys.all_sensor_info, SensorInfo, capacity=64)

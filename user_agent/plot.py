@@ -13,8 +13,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import U8Image
 from common.errors import ConfigError
 from common.schema import PairChoice, SensorInfo, TrackSet
 from user_agent.colors import id_color_bgr
@@ -23,7 +23,9 @@ from user_agent.messages import placed_pose
 
 __all__ = ["PlotInput", "render_top_view", "save_top_view"]
 
-Image = npt.NDArray[np.uint8]
+PAIR = 2
+"""A track localised by a pair of cameras names both."""
+
 
 _BG = (255, 255, 255)
 _GRID = (230, 230, 230)
@@ -98,7 +100,7 @@ def _extent(inp: PlotInput) -> tuple[float, float, float, float]:
     return (min(xs) - pad, min(ys) - pad, max(xs) + pad, max(ys) + pad)
 
 
-def _panel(view: _View, inp: PlotInput, heading: str) -> Image:
+def _panel(view: _View, inp: PlotInput, heading: str) -> U8Image:
     w, h = view.size
     img = np.full((h, w, 3), _BG, np.uint8)
     for gx in range(math.ceil(view.x0), math.floor(view.x1) + 1):
@@ -114,7 +116,7 @@ def _panel(view: _View, inp: PlotInput, heading: str) -> Image:
     return img
 
 
-def _cameras(img: Image, view: _View, inp: PlotInput) -> None:
+def _cameras(img: U8Image, view: _View, inp: PlotInput) -> None:
     poses = {i.sensor_id: i for i in inp.sensor_infos if placed_pose(i) is not None}
     used: Counter[tuple[str, str]] = Counter()
     for pc in inp.pairs:
@@ -123,7 +125,7 @@ def _cameras(img: Image, view: _View, inp: PlotInput) -> None:
             used[(a, b)] += 1
     for ts in inp.tracksets:
         for tr in ts.tracks:
-            if len(tr.sensors) >= 2 and not inp.pairs:
+            if len(tr.sensors) >= PAIR and not inp.pairs:
                 a, b = sorted(tr.sensors[:2])
                 used[(a, b)] += 1
     top = max(used.values(), default=1)
@@ -147,14 +149,14 @@ def _cameras(img: Image, view: _View, inp: PlotInput) -> None:
         _label(img, sid, (c[0] + r + 2, c[1] - r))
 
 
-def _label(img: Image, text: str, at: tuple[int, int], color: tuple[int, int, int] = _INK) -> None:
+def _label(img: U8Image, text: str, at: tuple[int, int], color: tuple[int, int, int] = _INK) -> None:
     """Text that stays inside the image (moved left of the point near the right edge)."""
     (tw, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
     x = at[0] if at[0] + tw < img.shape[1] - 2 else at[0] - tw - 24
     cv2.putText(img, text, (x, at[1]), cv2.FONT_HERSHEY_SIMPLEX, 0.4, color, 1, cv2.LINE_AA)
 
 
-def _platforms(img: Image, view: _View, paths: dict[str, list[tuple[float, float]]]) -> None:
+def _platforms(img: U8Image, view: _View, paths: dict[str, list[tuple[float, float]]]) -> None:
     for sid, pts in sorted(paths.items()):
         if not pts:
             continue
@@ -165,7 +167,7 @@ def _platforms(img: Image, view: _View, paths: dict[str, list[tuple[float, float
         _label(img, sid, (c[0] + 10, c[1] - 10))
 
 
-def _polyline(img: Image, view: _View, pts: list[tuple[float, float]], ident: str, label: str) -> None:
+def _polyline(img: U8Image, view: _View, pts: list[tuple[float, float]], ident: str, label: str) -> None:
     if not pts:
         return
     col = id_color_bgr(ident)
@@ -177,7 +179,7 @@ def _polyline(img: Image, view: _View, pts: list[tuple[float, float]], ident: st
     _label(img, label, (end[0] + 6, end[1] + 4), col)
 
 
-def render_top_view(inp: PlotInput, max_px: int = 900) -> Image:
+def render_top_view(inp: PlotInput, max_px: int = 900) -> U8Image:
     """The top view as a BGR image: tracks (and ground truth beside, when given)."""
     x0, y0, x1, y1 = _extent(inp)
     if not (x1 > x0 and y1 > y0):

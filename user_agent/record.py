@@ -8,9 +8,10 @@ Per zenoh key the file holds (notes/zenoh.md §7.1):
 * a **JSON** channel (topic ``/json/<key>``) with the message type's JSON
   schema (``pano.TrackSet``, …) so any MCAP tool shows the fields;
 * and, for the 3D view in Foxglove, ``/scene/tracks`` and ``/scene/cameras``
-  (``foxglove.SceneUpdate``) and ``/tf`` (``foxglove.FrameTransform``); mobile
-  cameras are drawn, and their transforms written, where the manager's mutual
-  calibration places them (``ManagerStatus.poses``), each time it does.
+  (``foxglove.SceneUpdate``) and ``/tf`` (``foxglove.FrameTransform``): foxglove-sdk's
+  typed messages (:mod:`user_agent.foxglove`), protobuf-encoded with the schema each
+  carries; mobile cameras are drawn, and their transforms written, where the
+  manager's mutual calibration places them (``ManagerStatus.poses``), each time it does.
 
 Log time is the local arrival time; publish time is the message's own
 ``stamp_ns``. Zenoh's callback only enqueues bytes; a writer thread decodes
@@ -38,12 +39,7 @@ from mcap.writer import CompressionType, Writer
 from common.errors import ConfigError
 from common.keys import VERSION, Keys
 from common.schema import ManagerStatus, SensorInfo, TrackSet, ViewPlan
-from user_agent.foxglove import (
-    FRAME_TRANSFORM_SCHEMA,
-    SCENE_UPDATE_SCHEMA,
-    CameraPlacements,
-    tracks_scene,
-)
+from user_agent.foxglove import CameraPlacements, FoxgloveMessage, tracks_scene
 from user_agent.messages import decode_on_key, type_for_key
 
 __all__ = ["META_NAME", "RAW_ENCODING", "RECORDER_META", "McapSink", "Recorder", "RecorderStatus"]
@@ -110,6 +106,18 @@ class McapSink:
             self._schemas[name] = sid
         return sid
 
+    def _foxglove_channel(self, topic: str, msg: FoxgloveMessage, metadata: dict[str, str]) -> int:
+        """The channel of a Foxglove message type, its schema as foxglove-sdk gives it (protobuf)."""
+        cid = self._channels.get(topic)
+        if cid is not None:
+            return cid
+        schema = msg.get_schema()
+        sid = self._schemas.get(schema.name)
+        if sid is None:
+            sid = self._w.register_schema(name=schema.name, encoding=schema.encoding, data=bytes(schema.data))
+            self._schemas[schema.name] = sid
+        return self._channel(topic, schema.encoding, sid, metadata)
+
     def _channel(self, topic: str, encoding: str, schema_id: int, metadata: dict[str, str]) -> int:
         cid = self._channels.get(topic)
         if cid is None:
@@ -124,13 +132,12 @@ class McapSink:
         self._seq[cid] = seq + 1
         self._w.add_message(channel_id=cid, log_time=log_ns, publish_time=pub_ns, sequence=seq, data=data)
 
-    def add_json(self, topic: str, schema_name: str, schema: dict[str, Any], obj: Any, log_time_ns: int) -> None:
-        """Write one JSON message on a channel of its own (e.g. a ground-truth scene)."""
+    def add_foxglove(self, topic: str, msg: FoxgloveMessage, log_time_ns: int) -> None:
+        """Write one Foxglove message on a channel of its own (e.g. a ground-truth scene)."""
         with self._lock:
             if self._closed:
                 return
-            cid = self._channel(topic, MessageEncoding.JSON, self._schema(schema_name, schema), {"kind": "extra"})
-            self._add(cid, log_time_ns, log_time_ns, json.dumps(obj).encode())
+            self._add(self._foxglove_channel(topic, msg, {"kind": "extra"}), log_time_ns, log_time_ns, msg.encode())
 
     # -- samples ------------------------------------------------------------
     def write(self, key: str, data: bytes, log_time_ns: int) -> None:
@@ -162,23 +169,20 @@ class McapSink:
             if self._foxglove:
                 self._write_scene(msg, log_time_ns, pub_ns)
 
+    def _write_fg(self, topic: str, msg: FoxgloveMessage, log_ns: int, pub_ns: int) -> None:
+        self._add(self._foxglove_channel(topic, msg, {"kind": "foxglove"}), log_ns, pub_ns, msg.encode())
+
     def _write_scene(self, msg: Any, log_ns: int, pub_ns: int) -> None:
-        scene_sid = self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)
         if isinstance(msg, TrackSet):
-            cid = self._channel("/scene/tracks", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
-            self._add(cid, log_ns, pub_ns, json.dumps(tracks_scene(msg, self._cameras.camera_xyz)).encode())
+            self._write_fg("/scene/tracks", tracks_scene(msg, self._cameras.camera_xyz), log_ns, pub_ns)
             return
         if not isinstance(msg, SensorInfo | ManagerStatus):
             return
         scene, tfs = self._cameras.update(msg, pub_ns)
         if scene is not None:
-            cid = self._channel("/scene/cameras", MessageEncoding.JSON, scene_sid, {"kind": "foxglove"})
-            self._add(cid, log_ns, pub_ns, json.dumps(scene).encode())
-        if tfs:
-            tf_sid = self._schema("foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA)
-            tcid = self._channel("/tf", MessageEncoding.JSON, tf_sid, {"kind": "foxglove"})
-            for tf in tfs:
-                self._add(tcid, log_ns, pub_ns, json.dumps(tf).encode())
+            self._write_fg("/scene/cameras", scene, log_ns, pub_ns)
+        for tf in tfs:
+            self._write_fg("/tf", tf, log_ns, pub_ns)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         with self._lock:

@@ -6,17 +6,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-import numpy.typing as npt
-
+from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.schema import TrackSet
 from user_agent.evaluate import HypPoint, MotMetrics, evaluate_positions, hypotheses_from_tracksets, unseen_spans
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
-
-FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["Scored", "plot_recording", "room_of", "score_recording", "score_tracksets", "write_tracks_csv"]
 

@@ -58,6 +58,8 @@ from pathlib import Path
 from typing import Any
 
 ID_RE = re.compile(r"^[a-z0-9][a-z0-9-]*$")
+MAX_ID_LEN = 48
+"""Longest id, as common.schema.MAX_ID_LEN (this script runs without the package installed)."""
 PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
 
 Rule = dict[str, Any]
@@ -256,7 +258,7 @@ def client_usrpwd(name: str, password: str, connect: str) -> dict[str, Any]:
 def _ids(text: str, what: str) -> list[str]:
     ids = text.split()
     for i in ids:
-        if len(i) > 48 or not ID_RE.match(i):
+        if len(i) > MAX_ID_LEN or not ID_RE.match(i):
             raise SystemExit(f"make_configs.py: error: {what} ids must match [a-z0-9][a-z0-9-]*, got {i!r}")
     return ids
 

@@ -30,7 +30,7 @@ from common.codec import encode
 from common.errors import ConfigError, SessionError
 from common.keys import Keys
 from common.schema import ViewPlan
-from common.session import SessionSettings, install_signal_handlers, open_session
+from common.session import SessionSettings, Shutdown, install_signal_handlers, open_session
 from common.site import SiteConfig, load_site
 from panostereo.launcher import (
     EPOCH_ENV,
@@ -50,6 +50,12 @@ logger = logging.getLogger(__name__)
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 DEFAULT_WARMUP_S = 5.0
+WAIT_NOTE_S = 5.0
+"""While processes come up, who is still awaited is printed this often (s)."""
+VIEW_PERIOD_S = 5.0
+"""Without a terminal, a progress line is printed this often (s); the live view refreshes every second."""
+STRAYS_NAMED = 10
+"""The summary's warning names at most this many sensors the demo did not start (and counts the rest)."""
 """Unscored seconds at the start of a simulated site (background models learning, first tracks)."""
 START_LEAD_NS = 500_000_000
 """A dataset site's frame 1 is played this long after the start file is written (every node polls it)."""
@@ -79,8 +85,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int, mobile: set[str]) -> list[Any]:
-    """Goals the simulated robots received, by the one rule the sim nodes use (common.scenario)."""
-    from common.scenario import goals_from_plans as shared
+    """Goals the simulated robots received, by the one rule the sim nodes use (sim.world)."""
+    from sim.driver import goals_from_plans as shared
 
     return list(shared([p for p in plans if p.sensor_id in mobile], epoch_ns))
 
@@ -151,16 +157,13 @@ def _recorder_line(recorder: Any) -> str:
     return f"recording: {st.written} samples, {lost}, {st.lag_s:.1f} s behind (worst {st.max_lag_s:.1f} s){most}"
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the demo; returns 0 when it completed (whatever the scores)."""
-    from common.scenario import site_with_seed
-    from user_agent.client import AgentClient
-    from user_agent.record import McapSink, Recorder
-    from user_agent.views import CLEAR_SCREEN, watch_screen
+def _run_times(site: SiteConfig, args: argparse.Namespace) -> tuple[float, float]:
+    """The run's duration and scoring warm-up (s): the flags, else the dataset's length, else the site's.
 
-    site = site_with_seed(load_site(args.site or default_site()), args.seed)
+    Raises:
+        ConfigError: a duration that is not positive, or a warm-up outside [0, duration).
+    """
     dataset = site.dataset
-    fps = dataset.fps if dataset is not None else site.site.fps
     if args.duration is not None:
         duration = float(args.duration)
     elif dataset is not None and dataset.frames:
@@ -172,6 +175,104 @@ def run(args: argparse.Namespace) -> int:
     warmup = args.warmup if args.warmup is not None else (0.0 if dataset is not None else DEFAULT_WARMUP_S)
     if not 0 <= warmup < duration:
         raise ConfigError(f"--warmup must be in [0, duration={duration:g}) s, got {warmup}")
+    return duration, warmup
+
+
+def _wait_ready(
+    client: Any, procs: Supervisor, sensors: set[str], managers: set[str], *, shutdown: Shutdown, timeout_s: float
+) -> bool:
+    """Wait until every sensor and manager of the site is alive (saying who it waits for now and then)."""
+    t0 = time.monotonic()
+    last_wait_note = t0
+    while not shutdown.is_set() and time.monotonic() - t0 < timeout_s:
+        procs.poll()
+        up_s = {s.sensor_id for s in client.sensors(timeout_s=0.5) if s.alive}
+        up_m = {m.manager_id for m in client.managers(timeout_s=0.5) if m.alive}
+        if sensors <= up_s and managers <= up_m:
+            return True
+        if time.monotonic() - last_wait_note >= WAIT_NOTE_S:
+            last_wait_note = time.monotonic()
+            print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
+        shutdown.sleep(0.5)
+    return False
+
+
+def _watch_run(
+    client: Any,
+    procs: Supervisor,
+    recorder: Any,
+    sensors: set[str],
+    shutdown: Shutdown,
+    *,
+    duration: float,
+    tty: bool,
+    title: str,
+) -> None:
+    """Supervise the run for ``duration`` (or until every source ended), showing the live view or progress."""
+    from user_agent.views import CLEAR_SCREEN, watch_screen
+
+    start = time.monotonic()
+    last_view = last_ended = 0.0
+    while not shutdown.is_set():
+        procs.poll()
+        elapsed = time.monotonic() - start
+        if elapsed >= duration:
+            break
+        if time.monotonic() - last_ended >= 1.0:
+            last_ended = time.monotonic()
+            if _sources_ended(client.sensors(timeout_s=0.3), sensors):
+                print("every sensor's source has ended (end of its file): stopping", flush=True)
+                break
+        if time.monotonic() - last_view >= (1.0 if tty else VIEW_PERIOD_S):
+            last_view = time.monotonic()
+            if tty:
+                head = f"panostereo demo  {elapsed:5.1f}/{duration:.0f} s  {title}"
+                footer = ["", _recorder_line(recorder)]
+                views = client.sensors(timeout_s=0.3)
+                tracks, managers = client.tracks(timeout_s=0), client.managers(0.3)
+                print(CLEAR_SCREEN + watch_screen(tracks, views, managers, head, footer=footer), flush=True)
+            else:
+                print(f"{_progress(elapsed, duration, client)}  {_recorder_line(recorder)}", flush=True)
+        shutdown.sleep(0.2)
+
+
+def _run_facts(site: SiteConfig, epoch_ns: int, fps: float) -> dict[str, str]:
+    """The run's facts, stored in the recording (``panostereo`` metadata)."""
+    meta = {"site": site.site.name, "prefix": site.site.prefix, "epoch_ns": str(epoch_ns), "fps": str(fps),
+            "seed": str(site.site.seed)}  # fmt: skip
+    if site.dataset is None:
+        meta |= {"room_x_m": str(site.world.room_x_m), "room_y_m": str(site.world.room_y_m)}
+    return meta
+
+
+def _mark_start(client: Any, sink: Any, keys: Keys, start_file: Path | None, *, epoch_ns: int, warmup_s: float) -> int:
+    """Once every process is up: record the sensors' poses, start a dataset's playback (``start_file``), and
+    store where scoring starts. Returns the run's epoch (a dataset's: when its frame 1 plays)."""
+    for view in client.sensors(timeout_s=1.0):  # make sure the poses are in the file
+        if view.info is not None:
+            sink.write(keys.sensor_info(view.sensor_id), encode(view.info), time.time_ns())
+    if start_file is not None:
+        epoch_ns = _start_dataset(start_file)
+        sink.add_metadata("panostereo.dataset", {"epoch_ns": str(epoch_ns)})
+    score_from_ns = max(time.time_ns(), epoch_ns) + int(warmup_s * 1e9)
+    sink.add_metadata("panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(warmup_s)})
+    return epoch_ns
+
+
+def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cycle in order, each step a helper
+    """Run the demo; returns 0 when it completed (whatever the scores).
+
+    One sequence, kept whole so its nested clean-up reads in order: router, session, recorder and agent,
+    the site's processes; wait until they are up; watch the run; stop them in reverse; score and report.
+    """
+    from sim.world import site_with_seed
+    from user_agent.client import AgentClient
+    from user_agent.record import McapSink, Recorder
+
+    site = site_with_seed(load_site(args.site or default_site()), args.seed)
+    dataset = site.dataset
+    fps = dataset.fps if dataset is not None else site.site.fps
+    duration, warmup = _run_times(site, args)
     out = Path(args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ids = process_ids(site)
@@ -187,10 +288,7 @@ def run(args: argparse.Namespace) -> int:
     if not plans:
         raise ConfigError(f"{site.path}: no [[process]] to run on localhost")
     keys = Keys(site.site.prefix)
-    meta = {"site": site.site.name, "prefix": site.site.prefix, "epoch_ns": str(epoch_ns), "fps": str(fps),
-            "seed": str(site.site.seed)}  # fmt: skip
-    if dataset is None:
-        meta |= {"room_x_m": str(site.world.room_x_m), "room_y_m": str(site.world.room_y_m)}
+    meta = _run_facts(site, epoch_ns, fps)
 
     shutdown = install_signal_handlers()
     router_log = out / "logs" / "router.log"
@@ -216,61 +314,13 @@ def run(args: argparse.Namespace) -> int:
                 procs.start()
                 sensors = {i for c, i in ids.values() if c == "node"}
                 managers = {i for c, i in ids.values() if c == "manager"}
-                t0 = time.monotonic()
-                last_wait_note = t0
-                ready = False
-                while not shutdown.is_set() and time.monotonic() - t0 < args.ready_timeout:
-                    procs.poll()
-                    up_s = {s.sensor_id for s in client.sensors(timeout_s=0.5) if s.alive}
-                    up_m = {m.manager_id for m in client.managers(timeout_s=0.5) if m.alive}
-                    if sensors <= up_s and managers <= up_m:
-                        ready = True
-                        break
-                    if time.monotonic() - last_wait_note >= 5.0:
-                        last_wait_note = time.monotonic()
-                        print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
-                    shutdown.sleep(0.5)
+                ready = _wait_ready(client, procs, sensors, managers, shutdown=shutdown, timeout_s=args.ready_timeout)
                 if not ready and not shutdown.is_set():
                     logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
-                for view in client.sensors(timeout_s=1.0):  # make sure the poses are in the file
-                    if view.info is not None:
-                        recorder.sink.write(keys.sensor_info(view.sensor_id), encode(view.info), time.time_ns())
-                if dataset is not None:
-                    epoch_ns = _start_dataset(start_file)
-                    recorder.sink.add_metadata("panostereo.dataset", {"epoch_ns": str(epoch_ns)})
-                score_from_ns = max(time.time_ns(), epoch_ns) + int(warmup * 1e9)
-                recorder.sink.add_metadata(
-                    "panostereo.scoring", {"score_from_ns": str(score_from_ns), "warmup_s": str(warmup)}
-                )
-                start = time.monotonic()
-                last_view = last_ended = 0.0
-                sensor_views = client.sensors(timeout_s=0.5)
-                while not shutdown.is_set():
-                    procs.poll()
-                    elapsed = time.monotonic() - start
-                    if elapsed >= duration:
-                        break
-                    if time.monotonic() - last_ended >= 1.0:
-                        last_ended = time.monotonic()
-                        if _sources_ended(client.sensors(timeout_s=0.3), sensors):
-                            print("every sensor's source has ended (end of its file): stopping", flush=True)
-                            break
-                    if time.monotonic() - last_view >= (1.0 if tty else 5.0):
-                        last_view = time.monotonic()
-                        if tty:
-                            sensor_views = client.sensors(timeout_s=0.3)
-                            head = f"panostereo demo  {elapsed:5.1f}/{duration:.0f} s  site {site.site.name}  out {out}"
-                            screen = watch_screen(
-                                client.tracks(timeout_s=0),
-                                sensor_views,
-                                client.managers(0.3),
-                                head,
-                                footer=["", _recorder_line(recorder)],
-                            )
-                            print(CLEAR_SCREEN + screen, flush=True)
-                        else:
-                            print(f"{_progress(elapsed, duration, client)}  {_recorder_line(recorder)}", flush=True)
-                    shutdown.sleep(0.2)
+                start = start_file if dataset is not None else None
+                epoch_ns = _mark_start(client, recorder.sink, keys, start, epoch_ns=epoch_ns, warmup_s=warmup)
+                title = f"site {site.site.name}  out {out}"
+                _watch_run(client, procs, recorder, sensors, shutdown, duration=duration, tty=tty, title=title)
                 t_stop_ns = time.time_ns()
                 last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
                 seen_sensors = {v.sensor_id for v in client.sensors(timeout_s=0.5)}
@@ -319,13 +369,13 @@ def _write_truth_scene(sink: Any, gt: Any, epoch_ns: int, fps: float) -> None:
     Written after the run, on its own channel (``kind=extra``): replay republishes raw channels only, so the
     truth never reaches a pipeline.
     """
-    from user_agent.foxglove import SCENE_UPDATE_SCHEMA, truth_scene
+    from user_agent.foxglove import truth_scene
 
     for k in gt.frame_numbers:
         stamp = epoch_ns + round((k - 1) / fps * 1e9)
         people = [(p.person_id, p.x_m, p.y_m, p.z_m) for p in gt.frames[k]]
         scene = truth_scene(people, stamp, lifetime_s=1.5 / fps)
-        sink.add_json("/scene/ground_truth", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA, scene, stamp)
+        sink.add_foxglove("/scene/ground_truth", scene, stamp)
 
 
 def _finish(
@@ -356,7 +406,7 @@ def _finish(
             raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({src})")
         shutil.copyfile(src, gt_path)
     else:
-        from common.scenario import World, write_gt_csv
+        from sim.world import World, write_gt_csv
 
         world = World.from_site(site).with_goals(
             goals_from_plans(sink.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
@@ -434,7 +484,8 @@ def _warnings(lost: dict[str, Any], strays: list[str], refused: dict[str, int], 
     elif lost["unscored_s"]:
         out.append(f"{lost['unscored_s']} s of the run's tracks never reached the recording and were not scored")
     if strays:
-        shown = ", ".join(strays[:10]) + (f" and {len(strays) - 10} more" if len(strays) > 10 else "")
+        n = STRAYS_NAMED
+        shown = ", ".join(strays[:n]) + (f" and {len(strays) - n} more" if len(strays) > n else "")
         out.append(
             f"sensors this demo did not start were on its network: {shown} "
             f"(the manager fuses only {', '.join(sorted(started))})"

@@ -108,8 +108,8 @@ def detect_video(cfg: Any, *, fps: float | None = None, max_frames: int = 0) -> 
     """
     import cv2
 
+    from common.frames import Frame
     from sensor_node.build import build_node
-    from sensor_node.sources import Frame
 
     path = Path(cfg.source.uri)
     cap = cv2.VideoCapture(str(path))

@@ -195,11 +195,7 @@ def render_error_map(d1_m: float, radius_m: float, cfg: OptimalConfig, px_per_m:
         cv2.line(img, (left - 5, py), (left - 1, py), _BLACK, 1)
         _text(img, f"{yv:g}", (left - 8, py), anchor="right", vcenter=True)
     _text(img, "x (m), along O1 -> T", (left + field.shape[1] // 2, top + field.shape[0] + 45), 0.5, anchor="center")
-    ylab = np.full((22, 120, 3), 255, np.uint8)
-    _text(ylab, "y (m)", (60, 16), 0.5, anchor="center")
-    ylab_rot = np.asarray(cv2.rotate(ylab, cv2.ROTATE_90_COUNTERCLOCKWISE), dtype=np.uint8)
-    yc = top + field.shape[0] // 2 - ylab_rot.shape[0] // 2
-    img[yc : yc + ylab_rot.shape[0], 4 : 4 + ylab_rot.shape[1]] = ylab_rot
+    _y_label(img, top + field.shape[0] // 2)
     _text(
         img,
         f"Fig. 4 error map dD1/(D1 dphi), model M1: D1 = {d1_m:g} m, R = {radius_m:g} m",
@@ -231,14 +227,32 @@ def render_error_map(d1_m: float, radius_m: float, cfg: OptimalConfig, px_per_m:
         label = f"O2* ({ox:.2f}, {oy:+.2f}) m"
         _text(img, label, (p[0] + 14, p[1] + (-12 if k == 0 else 24)), 0.45, boxed=True)
 
-    # Colour bar with tick labels (log scale E* .. 4 E*).
-    bx = left + field.shape[1] + 30
-    bar_h = field.shape[0]
+    _colour_bar(img, (left + field.shape[1] + 30, top), field.shape[0], bar_w, (e_star, e_max))
+    return img
+
+
+def _y_label(img: np.ndarray, centre_row: int) -> None:
+    """The y axis's label, written upwards at the image's left edge, centred on ``centre_row``."""
+    ylab = np.full((22, 120, 3), 255, np.uint8)
+    _text(ylab, "y (m)", (60, 16), 0.5, anchor="center")
+    ylab_rot = np.asarray(cv2.rotate(ylab, cv2.ROTATE_90_COUNTERCLOCKWISE), dtype=np.uint8)
+    yc = centre_row - ylab_rot.shape[0] // 2
+    img[yc : yc + ylab_rot.shape[0], 4 : 4 + ylab_rot.shape[1]] = ylab_rot
+
+
+MIN_TICKS = 4
+"""The colour bar has at least this many labelled ticks (round values where they fit, else log-spaced)."""
+
+
+def _colour_bar(img: np.ndarray, corner: tuple[int, int], bar_h: int, bar_w: int, span: tuple[float, float]) -> None:
+    """The error map's colour bar (log scale E* .. E_max) with tick labels, its top-left corner at ``corner``."""
+    bx, top = corner
+    e_star, e_max = span
     ramp = np.linspace(255, 0, bar_h).astype(np.uint8)[:, None].repeat(bar_w, axis=1)
     img[top : top + bar_h, bx : bx + bar_w] = cv2.applyColorMap(ramp, cv2.COLORMAP_JET)
     cv2.rectangle(img, (bx - 1, top - 1), (bx + bar_w, top + bar_h), _BLACK, 1)
     ticks = [e_star, *(v for v in (15, 20, 25, 30, 35, 40, 50) if e_star * 1.08 < v < e_max * 0.95), e_max]
-    if len(ticks) < 4:
+    if len(ticks) < MIN_TICKS:
         ticks = [float(e_star * (e_max / e_star) ** f) for f in (0, 0.25, 0.5, 0.75, 1.0)]
     for v in ticks:
         f = math.log(v / e_star) / math.log(e_max / e_star)
@@ -247,4 +261,3 @@ def render_error_map(d1_m: float, radius_m: float, cfg: OptimalConfig, px_per_m:
         _text(img, f"{v:.1f}" if v in (e_star, e_max) else f"{v:g}", (bx + bar_w + 8, py), anchor="left", vcenter=True)
     _text(img, "dD1/(D1 dphi)", (bx - 10, top + bar_h + 22), 0.42)
     _text(img, f">= {e_max:.1f} clipped", (bx - 10, top + bar_h + 40), 0.38)
-    return img

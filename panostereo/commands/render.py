@@ -27,9 +27,9 @@ import msgspec
 import numpy as np
 
 from common.errors import ConfigError
-from common.scenario import World, sensor_bearing, site_with_seed, site_with_seed_from_env
 from common.site import load_site
-from sensor_node.render import PanoramicRenderer, PtzRenderer
+from sim.render.cameras import PanoramicRenderer, PtzRenderer
+from sim.world import World, sensor_bearing, site_with_seed, site_with_seed_from_env
 
 __all__ = ["configure", "run"]
 

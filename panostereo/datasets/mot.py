@@ -46,6 +46,8 @@ __all__ = ["ImportResult", "camera_id", "import_mot", "write_site"]
 logger = logging.getLogger(__name__)
 
 _ID_CLEAN = re.compile(r"[^a-z0-9-]+")
+ROOM_VALUES = 4
+"""``--room`` is X0 Y0 X1 Y1."""
 MIN_BOX_PX = 2.0
 """Boxes narrower or lower than this after noise and clipping are dropped (no person is two pixels tall)."""
 
@@ -229,7 +231,7 @@ def write_site(
 def _check_args(fps: float, room: Sequence[float] | None, noise_px: float, drop_rate: float, min_conf: float) -> None:
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"--fps must be > 0 (the dataset's frame rate), got {fps}")
-    if room is not None and (len(room) != 4 or not room[0] < room[2] or not room[1] < room[3]):
+    if room is not None and (len(room) != ROOM_VALUES or not room[0] < room[2] or not room[1] < room[3]):
         raise ConfigError(f"--room must be X0 Y0 X1 Y1 with X0 < X1 and Y0 < Y1, got {list(room)}")
     if noise_px < 0 or not math.isfinite(noise_px):
         raise ConfigError(f"--noise-px must be >= 0, got {noise_px}")

@@ -27,10 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
+from common.arrays import FloatArray
 from common.errors import ConfigError
+from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
 from resource_manager.config import ManagerConfig, load_manager_config
@@ -38,12 +37,9 @@ from resource_manager.fusion import Batch, Fusion
 from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
-from sensor_node.sources import Frame
 from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import read_gt_csv
 from user_agent.report import Scored, score_tracksets
-
-FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
 

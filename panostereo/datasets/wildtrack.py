@@ -121,6 +121,18 @@ def _annotations(root: Path) -> list[tuple[int, list[dict[str, Any]]]]:
     return out
 
 
+def _check_import(src: Path, dst: Path, noise_px: float, drop_rate: float) -> None:
+    """Raises ConfigError for a missing dataset, bad noise or drop rate, or an output inside the dataset."""
+    if not src.is_dir():
+        raise ConfigError(f"{src}: no such dataset folder")
+    if noise_px < 0 or not math.isfinite(noise_px):
+        raise ConfigError(f"--noise-px must be >= 0, got {noise_px}")
+    if not 0.0 <= drop_rate < 1.0:
+        raise ConfigError(f"--drop-rate must be in [0, 1), got {drop_rate}")
+    if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
+        raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
+
+
 def import_wildtrack(
     root: str | Path,
     out: str | Path,
@@ -147,14 +159,7 @@ def import_wildtrack(
     """
     src, dst = Path(root), Path(out)
     g = grid or GridSpec()
-    if not src.is_dir():
-        raise ConfigError(f"{src}: no such dataset folder")
-    if noise_px < 0 or not math.isfinite(noise_px):
-        raise ConfigError(f"--noise-px must be >= 0, got {noise_px}")
-    if not 0.0 <= drop_rate < 1.0:
-        raise ConfigError(f"--drop-rate must be in [0, 1), got {drop_rate}")
-    if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
-        raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
+    _check_import(src, dst, noise_px, drop_rate)
     names = _cameras(src)
     ids = [camera_id(n) for n in names]
     if len(set(ids)) != len(ids):

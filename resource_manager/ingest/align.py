@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from common.clock import interp_angle
+from common.angles import interp_angle
 from common.schema import Blob, Features, Sighting
 from resource_manager.ingest.buffers import SensorBuffer
 

@@ -19,7 +19,7 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   first plan for that camera) unless the held one -- or where the robot stands --
   became infeasible, so the robot can settle, relearn its background and be
   re-calibrated. The held goal is re-published every period (a repeat:
-  the simulated world and :func:`common.scenario.goals_from_plans` ignore it),
+  the simulated world and :func:`sim.world.goals_from_plans` ignore it),
   also while nobody is tracked, until the robot gets there.
 * **Cost of moving**: while the robot drives and settles, its views count for
   nothing (:mod:`resource_manager.views.settling`); on a site where the people it

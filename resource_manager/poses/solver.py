@@ -44,7 +44,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from common.geometry import baseline_from_alpha, sighting_bearing, wrap_angle
+from common.angles import wrap_angle
+from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
 from resource_manager.ingest.align import AlignedSighting
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.geometry import wrap_angle
+from common.angles import wrap_angle
 from common.schema import MAX_SENSORS, Latency, ManagerStatus, Pose, SensorTiming
 from common.schema import PoseEstimate as WirePoseEstimate
 from resource_manager.fusion import TickResult

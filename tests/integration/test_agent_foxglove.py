@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import base64
 import importlib.util
 import json
 import struct
@@ -15,7 +16,7 @@ import pytest
 from common.codec import encode
 from common.keys import Keys
 from common.schema import Track, TrackSet
-from tests.support import client_session, free_port, skip_or_fail, wait_for_liveliness
+from tests.support import client_session, decode_protobuf, free_port, skip_or_fail, wait_for_liveliness
 
 pytestmark = pytest.mark.integration
 
@@ -53,13 +54,15 @@ async def _client(port: int, publish: Any) -> tuple[dict[str, Any], dict[str, An
             if isinstance(frame, bytes) and frame[0] == 1:  # MessageData: opcode, subscription id, log time, payload
                 (sub_id,) = struct.unpack_from("<I", frame, 1)
                 assert sub_id == 1
-                return info | {"channels": channels}, json.loads(frame[1 + 4 + 8 :])
+                payload = frame[1 + 4 + 8 :]
+                assert scene["encoding"] == "protobuf" and scene["schemaEncoding"] == "protobuf"
+                return info | {"channels": channels}, decode_protobuf(
+                    scene["schemaName"], base64.b64decode(scene["schema"]), payload
+                )
         raise AssertionError("no message data from the Foxglove server")
 
 
 def test_foxglove_server_streams_the_track_scene(router: Any, spawn: Any) -> None:
-    if importlib.util.find_spec("foxglove") is None:
-        skip_or_fail("foxglove-sdk (the foxglove extra) is not installed")
     if importlib.util.find_spec("websockets") is None:
         skip_or_fail("websockets is not installed")
     port = free_port()
@@ -72,6 +75,6 @@ def test_foxglove_server_streams_the_track_scene(router: Any, spawn: Any) -> Non
     assert info["name"] == "panostereo"
     schemas = {t: c["schemaName"] for t, c in info["channels"].items()}
     assert schemas["/scene/tracks"] == "foxglove.SceneUpdate" and schemas["/tf"] == "foxglove.FrameTransform"
-    (entity,) = scene["entities"]
-    assert entity["id"] == "track/mgr1-1" and entity["frame_id"] == "world"
-    assert entity["cylinders"][0]["pose"]["position"]["x"] == 1.0
+    (entity,) = scene.entities
+    assert entity.id == "track/mgr1-1" and entity.frame_id == "world"
+    assert entity.cylinders[0].pose.position.x == 1.0

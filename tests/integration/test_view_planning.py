@@ -28,10 +28,11 @@ import pytest
 
 from common.codec import decode
 from common.keys import Keys
-from common.scenario import World, goals_from_plans
 from common.schema import ManagerStatus, TrackSet, ViewPlan
 from common.site import load_site
-from sensor_node.render_bodies import band_z_range
+from sim.driver import goals_from_plans
+from sim.render.bodies import band_z_range
+from sim.world import World
 from tests.support import client_session, wait_for, wait_for_liveliness
 
 pytestmark = pytest.mark.integration

@@ -2,8 +2,11 @@
 
 Rules (contract.md, STYLE.md habit 2):
 
-* ``common`` imports no tier and not ``panostereo``;
+* ``common`` imports no tier, not ``sim`` and not ``panostereo``;
+* ``sim`` (the simulator) imports only ``common``, of the project's packages;
 * a tier (``sensor_node``, ``resource_manager``, ``user_agent``) imports no other tier and not ``panostereo``;
+  of the tiers, only the sensor node's source registry (:data:`SIM_IMPORTERS`) imports ``sim`` (besides
+  ``panostereo``'s tools, the benchmarks and the tests, which are not checked here);
 * only the shells import ``zenoh`` or ``mcap``: the files in :data:`SHELLS` below. Pure stages stay testable
   without a network or a recorder.
 
@@ -23,7 +26,10 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 
 TIERS = ("sensor_node", "resource_manager", "user_agent")
-PACKAGES = ("common", *TIERS, "panostereo")
+PACKAGES = ("common", "sim", *TIERS, "panostereo")
+
+SIM_IMPORTERS = ("sensor_node/build.py",)
+"""The only tier modules that may import ``sim``: the node's source registry builds the simulated camera."""
 
 TRANSPORT_LIBS = ("zenoh", "mcap")
 """Third-party libraries only the shells may import."""
@@ -97,10 +103,14 @@ def check_tree(root: Path) -> tuple[list[Violation], int]:
             tree = ast.parse(path.read_text(encoding="utf-8"), filename=rel)
             for name, line in imported_modules(tree, package):
                 head = name.split(".")[0]
-                if top == "common" and head in (*TIERS, "panostereo"):
-                    violations.append(Violation(rel, line, name, "common imports no tier and not panostereo"))
+                if top == "common" and head in (*TIERS, "sim", "panostereo"):
+                    violations.append(Violation(rel, line, name, "common imports no tier, not sim, not panostereo"))
+                elif top == "sim" and head in (*TIERS, "panostereo"):
+                    violations.append(Violation(rel, line, name, "sim imports only common"))
                 elif top in TIERS and head in (*TIERS, "panostereo") and head != top:
                     violations.append(Violation(rel, line, name, "tiers never import each other nor panostereo"))
+                elif top in TIERS and head == "sim" and rel not in SIM_IMPORTERS:
+                    violations.append(Violation(rel, line, name, "only the node's source registry imports sim"))
                 if head in TRANSPORT_LIBS and not is_shell(rel):
                     violations.append(Violation(rel, line, name, "only shells import zenoh/mcap (see SHELLS)"))
     return violations, files
@@ -109,6 +119,7 @@ def check_tree(root: Path) -> tuple[list[Violation], int]:
 def test_repository_layering() -> None:
     violations, files = check_tree(REPO)
     assert files > 10, "found too few modules: is REPO right?"
+    assert (REPO / "sim" / "world.py").is_file(), "the simulator's package moved: update the rules"
     assert not violations, "layering violations:\n" + "\n".join(map(str, violations))
 
 
@@ -133,6 +144,14 @@ def _write(root: Path, rel: str, text: str) -> None:
         ("user_agent/views.py", "import zenoh.ext\n", "only shells"),
         ("user_agent/views.py", "from panostereo.launcher import x\n", "tiers never import"),
         ("resource_manager/sub/x.py", "from ...sensor_node import blobs\n", "tiers never import"),
+        ("common/geo.py", "from sim.world import World\n", "common imports no tier, not sim"),
+        ("sim/world.py", "from sensor_node.pipeline import ImagePipeline\n", "sim imports only common"),
+        ("sim/render/cameras.py", "def f():\n    import panostereo.cli\n", "sim imports only common"),
+        ("sim/source.py", "import zenoh\n", "only shells"),
+        ("sensor_node/node.py", "from sim.source import SimFrames\n", "only the node's source registry"),
+        ("sensor_node/pipeline.py", "import sim.render.cameras\n", "only the node's source registry"),
+        ("user_agent/views.py", "from sim.world import World\n", "only the node's source registry"),
+        ("resource_manager/plan/p.py", "from sim.driver import goals_from_plans\n", "only the node's source"),
     ],
 )
 def test_checker_flags_violations(tmp_path: Path, rel: str, source: str, rule: str) -> None:
@@ -156,6 +175,9 @@ def test_checker_flags_violations(tmp_path: Path, rel: str, source: str, rule: s
         ("panostereo/commands/up.py", "import zenoh\nimport sensor_node.cli\nimport resource_manager.node\n"),
         ("sensor_node/blobs.py", "from . import background\nfrom .features import x\nimport numpy\n"),
         ("common/geo.py", "from common import schema\nimport zenoh_like_name\n"),
+        ("sim/source.py", "from common.frames import Frame\nfrom sim.world import World\nimport cv2\n"),
+        ("sensor_node/build.py", "def f():\n    from sim.source import SimFrames\n"),
+        ("panostereo/commands/demo.py", "from sim.world import write_gt_csv\n"),
     ],
 )
 def test_checker_allows_shells_and_own_package(tmp_path: Path, rel: str, source: str) -> None:

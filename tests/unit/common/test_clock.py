@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import pwd
 import shutil
@@ -16,7 +15,7 @@ from pathlib import Path
 import ntplib
 import pytest
 
-from common.clock import ClockSettings, NtpClock, interp_angle, interp_linear
+from common.clock import ClockSettings, NtpClock, interp_linear
 from common.config import parse_config
 from common.errors import ConfigError
 from tests.support import REPO, FakeNtpServer, free_port, skip_or_fail, wait_for
@@ -123,24 +122,6 @@ def test_bad_constructor_arguments(bad: dict[str, float]) -> None:
 )
 def test_interp_linear(t0: float, v0: float, t1: float, v1: float, t: float, want: float) -> None:
     assert interp_linear(t0, v0, t1, v1, t) == pytest.approx(want)
-
-
-@pytest.mark.parametrize(
-    ("a0_deg", "a1_deg", "frac", "want_deg"),
-    [
-        (10.0, 30.0, 0.5, 20.0),
-        (170.0, -170.0, 0.5, -180.0),  # across ±180 the short way
-        (-170.0, 170.0, 0.25, -175.0),
-        (350.0, 10.0, 0.5, 0.0),  # unwrapped inputs are fine
-        (0.0, 90.0, 2.0, 180.0 - 360.0),  # extrapolation wraps
-        (45.0, 45.0, 0.7, 45.0),
-    ],
-)
-def test_interp_angle_takes_the_short_arc(a0_deg: float, a1_deg: float, frac: float, want_deg: float) -> None:
-    got = interp_angle(0.0, math.radians(a0_deg), 1.0, math.radians(a1_deg), frac)
-    assert -math.pi <= got < math.pi
-    diff = (got - math.radians(want_deg) + math.pi) % (2 * math.pi) - math.pi
-    assert abs(diff) < 1e-9
 
 
 # -- a real NTP server: Debian's chronyd, unprivileged on a loopback port ----

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from common.angles import wrap_angle
 from common.error_model import (
     MAX_ERROR_M,
     eq5_bound,
@@ -20,7 +21,7 @@ from common.error_model import (
     pair_position_error,
     pair_position_errors,
 )
-from common.geometry import baseline_exact, triangulate, wrap_angle
+from common.geometry import baseline_exact, triangulate
 
 R = 0.18
 D1 = 6.0

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from common.angles import wrap_angle
 from common.errors import GeometryError
 from common.geometry import (
     MAX_SIZE_RATIO_OFFSET_RAD,
@@ -17,7 +18,6 @@ from common.geometry import (
     sighting_bearing,
     size_ratio,
     triangulate,
-    wrap_angle,
 )
 
 
@@ -30,21 +30,6 @@ def _inner_angles(o1: np.ndarray, o2: np.ndarray, t: np.ndarray) -> tuple[float,
     a1 = abs(wrap_angle(_bearing(o1, t) - _bearing(o1, o2)))
     a2 = abs(wrap_angle(_bearing(o2, t) - _bearing(o2, o1)))
     return a1, a2
-
-
-@pytest.mark.parametrize(
-    ("a", "expected"),
-    [
-        (0.0, 0.0),
-        (math.pi, -math.pi),
-        (-math.pi, -math.pi),
-        (3 * math.pi / 2, -math.pi / 2),
-        (-7.0, -7.0 + 2 * math.pi),
-    ],
-)
-def test_wrap_angle(a: float, expected: float) -> None:
-    assert wrap_angle(a) == pytest.approx(expected, abs=1e-12)
-    assert np.allclose(wrap_angle(np.array([a, a])), expected)
 
 
 @pytest.mark.parametrize(

@@ -8,11 +8,13 @@ from pathlib import Path
 
 import pytest
 
+from common.frames import Frame
+from common.schema import ViewPlan
 from common.site import load_site
 from sensor_node.build import build_node
 from sensor_node.config import load_node_config
 from sensor_node.node import LatestSlot
-from sensor_node.sources import Frame
+from sim.source import SimFrames
 from tests.support import REPO
 
 
@@ -38,19 +40,28 @@ def test_sim_example_builds_a_panoramic_node_and_obeys_goals(tmp_path: Path) -> 
     cfg = load_node_config(REPO / "deploy/nodes/examples/sim.toml")
     now = time.time_ns()
     parts = build_node(cfg, lambda: now)
-    assert parts.kind == "panoramic" and parts.sim is not None and parts.pose is None
+    sim = parts.source
+    assert parts.kind == "panoramic" and isinstance(sim, SimFrames) and parts.pose is None
+    assert parts.plans is sim.plans and parts.ptz is None
     site = load_site(REPO / "deploy/sites/demo.toml")
     spec = site.camera_by_id("pano1")
     assert spec.mobile
-    world = parts.sim.world
+    world = sim.world
     start = world.platform_at("pano1", 5.0)
+
+    def plan(sensor_id: str, x_m: float, y_m: float, stamp_ns: int) -> ViewPlan:
+        return ViewPlan(manager_id="mgr", seq=0, stamp_ns=stamp_ns, sensor_id=sensor_id, partner_id="pano2",
+                        track_id="mgr-1", goal_x_m=x_m, goal_y_m=y_m, baseline_m=2.0, phi1_rad=1.0,
+                        predicted_error_m=0.1, current_error_m=0.2)  # fmt: skip
+
     # A view plan for pano1 issued at world time 1 s: the simulated robot drives there.
-    parts.sim.add_goal("pano1", start.x_m + 1.0, start.y_m, parts.sim.epoch_ns + 1_000_000_000)
-    parts.sim.add_goal("nobody", 1.0, 1.0, now)  # not in this world: ignored
+    parts.plans.follow(plan("pano1", start.x_m + 1.0, start.y_m, sim.epoch_ns + 1_000_000_000))
+    parts.plans.follow(plan("nobody", 1.0, 1.0, now))  # not in this world: ignored
     stop = threading.Event()
-    frame = parts.sim.read(stop)
+    frame = sim.read(stop)
     assert frame is not None and frame.image is not None and frame.image.shape == (576, 768, 3)
-    assert parts.sim.goals_applied == 1
+    assert frame.ptz is None
+    assert sim.plans.goals_applied == 1
     later = world.platform_at("pano1", 31.0)
     assert abs(later.x_m - (start.x_m + 1.0)) < 0.05
     features, state = parts.processor.process_frame(frame, 0)
@@ -67,6 +78,6 @@ def test_sim_world_follows_panostereo_seed(seed: int | None, monkeypatch: pytest
     cfg = load_node_config(REPO / "deploy/nodes/examples/sim.toml")
     parts = build_node(cfg, time.time_ns)
     site = load_site(REPO / "deploy/sites/demo.toml")
-    assert parts.sim is not None and parts.sim.world.seed == (site.site.seed if seed is None else seed)
+    assert isinstance(parts.source, SimFrames) and parts.source.world.seed == (site.site.seed if seed is None else seed)
     # The camera height a robot node publishes in SensorInfo (its x, y, yaw come from mutual calibration).
     assert parts.camera_height_m == pytest.approx(site.camera_by_id("pano1").height_m)

@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from common.scenario import PersonState, World, sensor_bearing
 from common.site import load_site
 from sensor_node.config import PipelineSettings
 from sensor_node.features import PanoramicGeometry
 from sensor_node.pipeline import ImagePipeline
-from sensor_node.render import PanoramicRenderer
 from sensor_node.unwarp import Unwarper
+from sim.render.cameras import PanoramicRenderer
+from sim.world import PersonState, World, sensor_bearing
 
 SITE = """
 [site]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from common.errors import SourceError
-from sensor_node.sources import FolderFrames, OpenCvFrames, Pacer
+from sensor_node.sources import FolderFrames, OpenCvFrames
 from tests.support import skip_or_fail
 
 
@@ -22,21 +22,6 @@ class FakeClock:
 
     def __call__(self) -> int:
         return self.t_ns
-
-
-def test_pacer_slots_on_the_epoch_and_skips_missed_ones() -> None:
-    clock = FakeClock(10_000_000_000)
-    go, stop = threading.Event(), threading.Event()
-    stop.set()  # wait() returns None if it would have to sleep
-    assert Pacer(10.0, clock, epoch_ns=10_000_000_000).wait(stop) == (0, 10_000_000_000, 0)  # due now
-    pacer = Pacer(10.0, clock, epoch_ns=9_950_000_000)
-    assert pacer.wait(stop) is None  # next slot (10.05 s) is in the future
-    clock.t_ns = 10_050_000_000
-    assert pacer.wait(go) == (1, 10_050_000_000, 0)  # frames stamp their slot, on the epoch grid
-    clock.t_ns = 10_550_000_000  # the caller was slow: slots 2..5 passed
-    assert pacer.wait(go) == (6, 10_550_000_000, 4)
-    with pytest.raises(SourceError):
-        Pacer(0.0, clock, 0)
 
 
 class FakeCapture:

@@ -78,6 +78,15 @@ def test_reader_returns_every_raw_sample_with_its_key(recorded: tuple[Path, Path
     assert rec.invalid == 1 and len(rec.tracksets) == 80 and set(rec.sensor_infos) == {"pano1", "pano2"}
 
 
+def _foxglove_messages(mcap: Path, topics: list[str]) -> list[tuple[str, Any]]:
+    """(topic, decoded protobuf message) of a recording's Foxglove channels, read with the MCAP reader."""
+    from mcap_protobuf.decoder import DecoderFactory
+
+    with mcap.open("rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        return [(c.topic, msg) for _, c, _, msg in reader.iter_decoded_messages(topics=topics)]
+
+
 def test_file_has_json_schema_and_foxglove_channels(recorded: tuple[Path, Path]) -> None:
     mcap, _ = recorded
     with mcap.open("rb") as fh:
@@ -92,14 +101,20 @@ def test_file_has_json_schema_and_foxglove_channels(recorded: tuple[Path, Path])
         "foxglove.FrameTransform",
     } <= set(schemas)
     assert json.loads(schemas["pano.TrackSet"].data)["$defs"]["TrackSet"]["type"] == "object"
+    # Foxglove's well-known schemas, as foxglove-sdk gives them: protobuf FileDescriptorSets Foxglove recognises.
+    for name in ("foxglove.SceneUpdate", "foxglove.FrameTransform"):
+        assert schemas[name].encoding == "protobuf" and schemas[name].data
     topics = {c.topic: c for c in summary.channels.values()}
-    assert topics["/scene/tracks"].message_encoding == "json"
+    assert {topics[t].message_encoding for t in ("/scene/tracks", "/scene/cameras", "/tf")} == {"protobuf"}
+    assert summary.schemas[topics["/tf"].schema_id].name == "foxglove.FrameTransform"
     assert topics[K.tracks()].metadata["zenoh_key"] == K.tracks()
     assert topics["/json/" + K.tracks()].message_encoding == "json"
-    with mcap.open("rb") as fh:
-        scenes = [json.loads(m.data) for _, _, m in make_reader(fh).iter_messages(topics=["/scene/tracks"])]
-    ent = scenes[0]["entities"][0]
-    assert ent["frame_id"] == "world" and ent["timestamp"]["sec"] > 0 and ent["cylinders"] and ent["lines"]
+    scenes = [m for _, m in _foxglove_messages(mcap, ["/scene/tracks"])]
+    assert len(scenes) == 80
+    ent = scenes[0].entities[0]
+    assert ent.frame_id == "world" and ent.timestamp.seconds > 0 and ent.cylinders and ent.lines
+    assert ent.id == "track/mgr1-1" and {kv.key: kv.value for kv in ent.metadata}["sensors"] == "pano1,pano2"
+    assert len(ent.lines[0].points) == 4  # a ray from each camera of the pair
 
 
 def test_score_of_recording_with_constant_offset(recorded: tuple[Path, Path]) -> None:
@@ -166,17 +181,15 @@ def test_mobile_camera_is_drawn_where_the_manager_places_it(tmp_path: Path) -> N
                            tick_rate_hz=10.0, poses=[est])  # fmt: skip
     sink.write(K.manager_status("mgr1"), encode(status), EPOCH + 10**9)
     sink.close()
-    with (tmp_path / "m.mcap").open("rb") as fh:
-        msgs = [
-            (c.topic, json.loads(m.data)) for _, c, m in make_reader(fh).iter_messages(topics=["/scene/cameras", "/tf"])
-        ]
+    msgs = _foxglove_messages(tmp_path / "m.mcap", ["/scene/cameras", "/tf"])
     cams = [body for topic, body in msgs if topic == "/scene/cameras"]
     # Before the manager placed it the robot is not drawn (never guessed); after, at the estimate, at its own height.
-    assert [e["id"] for e in cams[1]["entities"]] == ["camera/pano1"]
-    robot = next(e for e in cams[-1]["entities"] if e["id"] == "camera/robot")
-    assert robot["cubes"][0]["pose"]["position"] == {"x": 3.0, "y": 2.0, "z": 1.1}
-    tfs = [body for topic, body in msgs if topic == "/tf" and body["child_frame_id"] == "robot"]
-    assert tfs and tfs[-1]["translation"] == {"x": 3.0, "y": 2.0, "z": 1.1}
+    assert [e.id for e in cams[1].entities] == ["camera/pano1"]
+    robot = next(e for e in cams[-1].entities if e.id == "camera/robot")
+    p = robot.cubes[0].pose.position
+    assert (p.x, p.y, p.z) == (3.0, 2.0, 1.1)
+    tfs = [body for topic, body in msgs if topic == "/tf" and body.child_frame_id == "robot"]
+    assert tfs and (tfs[-1].translation.x, tfs[-1].translation.y, tfs[-1].translation.z) == (3.0, 2.0, 1.1)
 
 
 def test_a_pose_the_manager_lost_no_longer_places_the_camera() -> None:

@@ -18,12 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.cameras import PinholeCamera
-from sensor_node.render_bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive, band_colours, is_hair
 
 __all__ = ["RayGrid", "paint_primitives_rays"]
 
-F64 = npt.NDArray[np.float64]
+FLAT_SLOPE = 1e-12
+"""A ray whose slope is below this is horizontal: it never leaves a cylinder's height band."""
+NEAR_M = 1e-3
+"""Surfaces nearer than this along a ray are behind the lens: not seen."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,9 +35,9 @@ class RayGrid:
     """Per-pixel rays of a perspective camera (arrays shaped (height, width))."""
 
     origin_xyz: tuple[float, float, float]
-    dir_x: F64
-    dir_y: F64
-    slope: F64
+    dir_x: FloatArray
+    dir_y: FloatArray
+    slope: FloatArray
     """Rise per metre of horizontal travel."""
     pinhole: PinholeCamera
 
@@ -58,17 +62,9 @@ def _bbox(grid: RayGrid, prim: Primitive) -> tuple[int, int, int, int] | None:
     return None if x1 <= x0 or y1 <= y0 else (x0, x1, y0, y1)
 
 
-def _bands(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt.NDArray[np.float32]:
-    out = np.empty((*z.shape, 3), np.float32)
-    out[:] = np.asarray(bands[0][1], np.float32)
-    for z_from, bgr in bands[1:]:
-        out[z >= z_from] = np.asarray(bgr, np.float32)
-    return out
-
-
 def _cylinder(
-    origin: tuple[float, float, float], dx: F64, dy: F64, slope: F64, c: Cylinder
-) -> tuple[npt.NDArray[np.bool_], F64, npt.NDArray[np.float32]]:
+    origin: tuple[float, float, float], dx: FloatArray, dy: FloatArray, slope: FloatArray, c: Cylinder
+) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.float32]]:
     ox, oy, oz = origin
     ch, sh = math.cos(c.heading_rad), math.sin(c.heading_rad)
     rx, ry = ox - c.x_m, oy - c.y_m
@@ -81,14 +77,14 @@ def _cylinder(
     t_near, t_far = (-b2 - root) / (2.0 * a2), (-b2 + root) / (2.0 * a2)
     with np.errstate(divide="ignore", invalid="ignore"):
         ta, tb = (c.z0_m - oz) / slope, (c.z1_m - oz) / slope
-    flat = np.abs(slope) < 1e-12
+    flat = np.abs(slope) < FLAT_SLOPE
     inside_slab = c.z0_m <= oz <= c.z1_m
     tz0 = np.where(flat, -np.inf if inside_slab else np.inf, np.minimum(ta, tb))
     tz1 = np.where(flat, np.inf if inside_slab else -np.inf, np.maximum(ta, tb))
     entry = np.maximum(t_near, tz0)
-    hit = (disc >= 0.0) & (entry <= np.minimum(t_far, tz1)) & (entry > 1e-3)
+    hit = (disc >= 0.0) & (entry <= np.minimum(t_far, tz1)) & (entry > NEAR_M)
     z = np.clip(oz + entry * slope, c.z0_m, c.z1_m)
-    colour = _bands(c.bands, z)
+    colour = band_colours(c.bands, z)
     hx, hy = qx + t_near * dlx, qy + t_near * dly
     nx, ny = hx / c.b_m, hy / c.a_m
     lam = np.clip(-(nx * dlx * c.b_m + ny * dly * c.a_m) / (np.hypot(nx, ny) + 1e-12), 0.0, 1.0)
@@ -100,8 +96,8 @@ def _cylinder(
 
 
 def _head(
-    origin: tuple[float, float, float], dx: F64, dy: F64, slope: F64, h: Head
-) -> tuple[npt.NDArray[np.bool_], F64, npt.NDArray[np.float32]]:
+    origin: tuple[float, float, float], dx: FloatArray, dy: FloatArray, slope: FloatArray, h: Head
+) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.float32]]:
     ox, oy, oz = origin
     k = h.rh_m / h.rv_m
     cx, cy, cz = ox - h.x_m, oy - h.y_m, (oz - h.zc_m) * k
@@ -110,10 +106,10 @@ def _head(
     b2 = 2.0 * (cx * dx + cy * dy + cz * sz)
     disc = b2 * b2 - 4.0 * a2 * (cx * cx + cy * cy + cz * cz - h.rh_m * h.rh_m)
     t = (-b2 - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * a2)
-    hit = (disc >= 0.0) & (t > 1e-3)
+    hit = (disc >= 0.0) & (t > NEAR_M)
     nx, ny, nz = (cx + t * dx) / h.rh_m, (cy + t * dy) / h.rh_m, (cz + t * sz) / h.rh_m
     facing = nx * math.cos(h.heading_rad) + ny * math.sin(h.heading_rad)
-    hair = (nz > 0.4) | (facing < -0.2) | ((facing < 0.35) & (nz > -0.05))
+    hair = is_hair(nz, facing)
     colour = np.where(hair[..., None], np.asarray(h.hair_bgr, np.float32), np.asarray(h.skin_bgr, np.float32))
     lam = np.clip(-(nx * dx + ny * dy + nz * sz) / np.sqrt(a2), 0.0, 1.0)
     colour *= (0.5 + 0.5 * lam)[..., None].astype(np.float32)

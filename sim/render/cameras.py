@@ -13,7 +13,7 @@ distortion. The camera's own body is not in its own view.
 current pan, tilt and zoom by per-pixel ray casting.
 
 Optionally (``[world.lighting] shadow_gain``, ``sway_m``) soft cast shadows under the people and a plant
-that sways in place (:mod:`sensor_node.render_extras`).
+that sways in place (:mod:`sim.render.extras`).
 
 Then the light: a slow sinusoidal illumination drift, sudden light changes at
 the configured world times (alternately brighter by ``sudden_change_gain`` and
@@ -32,21 +32,21 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import U8Image
 from common.cameras import AnnularModel, CylindricalCamera, PtzCamera, design_pal
 from common.errors import ConfigError
-from common.scenario import World
 from common.site import CameraSpec, LightingSpec
-from sensor_node.render_bodies import Primitive, person_primitives, platform_primitives
-from sensor_node.render_extras import FloorMap, paint_plant, paint_shadows
-from sensor_node.render_pano import PanoView, paint_primitives
-from sensor_node.render_ptz import RayGrid, paint_primitives_rays
-from sensor_node.render_scene import RoomTextures, cast_room, make_textures
+from sim.render.bodies import Primitive, person_primitives, platform_primitives
+from sim.render.extras import FloorMap, paint_plant, paint_shadows
+from sim.render.panoramic import PanoView, paint_primitives
+from sim.render.ptz import RayGrid, paint_primitives_rays
+from sim.render.room import RoomTextures, cast_room, make_textures
+from sim.world import World
 
 __all__ = ["PanoramicRenderer", "PtzRenderer", "light_gain"]
 
 logger = logging.getLogger(__name__)
 
-U8Image = npt.NDArray[np.uint8]
 
 PANO_MARGIN_ROWS = 3
 """Rows rendered beyond each edge of the panorama (the ring's edges interpolate into them)."""
@@ -188,7 +188,7 @@ class PanoramicRenderer:
         """The ideal cylindrical panorama at ``t_s`` (no lighting, no noise) and optionally its label image.
 
         Both have ``PANO_MARGIN_ROWS`` extra rows above and below the panorama's rows; ``[m:-m]`` is the
-        panorama the lens model describes. Labels (see :mod:`sensor_node.render_bodies`) exist for tests and
+        panorama the lens model describes. Labels (see :mod:`sim.render.bodies`) exist for tests and
         debugging only.
         """
         me = self.world.platform_at(self.camera.id, t_s)

@@ -22,7 +22,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from common.scenario import PersonState, PlatformState
+import numpy as np
+
+from common.arrays import BoolArray, Float32Array, FloatArray
+from sim.world import PersonState, PlatformState
 
 __all__ = [
     "PLATFORM_LABEL0",
@@ -78,6 +81,29 @@ class Head:
 
 
 Primitive = Cylinder | Head
+
+HAIR_TOP = 0.4
+"""Above this height on the head (its vertical semi-axis = 1) the head shows hair..."""
+HAIR_BACK = -0.2
+"""...and where it faces away more than this (cosine of the angle to the face's direction)..."""
+HAIR_SIDE = 0.35
+HAIR_SIDE_TOP = -0.05
+"""...and on the sides (facing below HAIR_SIDE) above this height; the face is the rest."""
+
+
+def band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: FloatArray) -> Float32Array:
+    """The BGR colour of a cylinder's bands (``Cylinder.bands``: from each height up) at heights ``z``."""
+    out = np.empty((*z.shape, 3), np.float32)
+    out[:] = np.asarray(bands[0][1], np.float32)
+    for z_from, bgr in bands[1:]:
+        out[z >= z_from] = np.asarray(bgr, np.float32)
+    return out
+
+
+def is_hair(height: FloatArray, facing: FloatArray) -> BoolArray:
+    """Where a head shows hair rather than skin, from the height on it (-1 chin .. 1 crown) and how much
+    that point faces the way the face looks (the cosine)."""
+    return (height > HAIR_TOP) | (facing < HAIR_BACK) | ((facing < HAIR_SIDE) & (height > HAIR_SIDE_TOP))
 
 
 def _bgr(rgb: tuple[int, int, int]) -> BGR:

@@ -12,10 +12,10 @@ import pytest
 
 from common.cameras import AnnularModel
 from common.errors import ConfigError
-from common.scenario import PersonState, World, sensor_bearing
 from common.site import CameraSpec, LightingSpec, SiteConfig, load_site
-from sensor_node.render import PANO_MARGIN_ROWS, PanoramicRenderer, PtzRenderer, light_gain
-from sensor_node.render_bodies import PLATFORM_LABEL0, band_z_range, head_size
+from sim.render.bodies import PLATFORM_LABEL0, band_z_range, head_size
+from sim.render.cameras import PANO_MARGIN_ROWS, PanoramicRenderer, PtzRenderer, light_gain
+from sim.world import PersonState, World, sensor_bearing
 
 REPO = Path(__file__).resolve().parents[3]
 SITES = REPO / "deploy" / "sites"

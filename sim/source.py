@@ -10,9 +10,9 @@ stamps mean the same instant in every process. If rendering falls behind, the
 source skips to the current slot and counts the skipped frames.
 
 Closed loop: mobile robots drive to the goals of the manager's view plans. The
-node feeds every plan it receives to :meth:`SimFrames.add_goal`; the world
-applies goals from their issue time, so every simulated camera renders the
-same robot trajectories.
+node feeds every plan it receives to the source's :attr:`SimFrames.plans`
+(:class:`sim.driver.PlanFollower`); the world applies goals from their issue
+time, so every simulated camera renders the same robot trajectories.
 """
 
 from __future__ import annotations
@@ -26,11 +26,12 @@ from typing import Any
 import numpy as np
 
 from common.cameras import AnnularModel, CylindricalCamera, PtzCamera
-from common.scenario import World
+from common.frames import Clock, Frame, Pacer
 from common.schema import SourceState
 from common.site import CameraSpec, SiteConfig
-from sensor_node.ptz import PtzDriver
-from sensor_node.sources import Clock, Frame, Pacer
+from sim.driver import PlanFollower
+from sim.ptz_head import SimulatedPtz
+from sim.world import World
 
 __all__ = ["SimFrames", "noise_seed"]
 
@@ -52,7 +53,7 @@ class SimFrames:
         epoch_ns: world time 0 on the node clock.
         seed: sensor-noise seed (-1: derived).
         clock: the node clock.
-        ptz: the head's driver (PTZ cameras).
+        ptz: the simulated head (PTZ cameras).
     """
 
     def __init__(
@@ -64,9 +65,9 @@ class SimFrames:
         epoch_ns: int,
         seed: int,
         clock: Clock,
-        ptz: PtzDriver | None = None,
+        ptz: SimulatedPtz | None = None,
     ) -> None:
-        from sensor_node.render import PanoramicRenderer, PtzRenderer
+        from sim.render.cameras import PanoramicRenderer, PtzRenderer
 
         self.site = site
         self.spec: CameraSpec = site.camera_by_id(camera_id)
@@ -82,11 +83,10 @@ class SimFrames:
         else:
             self._renderer = PtzRenderer(self.world, self.spec)
         self._pacer = Pacer(self.fps, clock, epoch_ns)
-        self._goals: list[tuple[str, float, float, float]] = []
-        self._lock = threading.Lock()
+        self.plans = PlanFollower(self.world, site, epoch_ns)
+        """Takes the manager's view plans: the mobile robots of this world drive to their goals."""
         self.state: SourceState = "starting"
         self.message = ""
-        self.goals_applied = 0
 
     @property
     def kind(self) -> str:
@@ -113,38 +113,22 @@ class SimFrames:
             self.spec.zoom,
         )
 
-    def add_goal(self, sensor_id: str, x_m: float, y_m: float, issued_ns: int) -> None:
-        """Queue a view-plan goal (thread-safe); applied before the next render."""
-        with self._lock:
-            self._goals.append((sensor_id, x_m, y_m, (issued_ns - self.epoch_ns) / 1e9))
-
-    def _apply_goals(self) -> None:
-        with self._lock:
-            goals, self._goals = self._goals, []
-        for sensor_id, x, y, issued_s in goals:
-            cam = next((c for c in self.site.camera if c.id == sensor_id), None)
-            if cam is None or not cam.mobile:
-                continue  # a plan for a camera this world does not move
-            self.world.set_goal(sensor_id, x, y, issued_s)
-            self.goals_applied += 1
-
     def read(self, stop: threading.Event) -> Frame | None:
         slot = self._pacer.wait(stop)
         if slot is None:
             return None
         k, stamp, skipped = slot
-        self._apply_goals()
+        self.plans.apply()
         t_s = k / self.fps
-        extra: dict[str, Any] = {}
+        pose = None
         if self.spec.kind == "panoramic":
             image = self._renderer.render(t_s, self.rng)
         else:
             assert self.ptz is not None
             pose = self.ptz.pose(stamp)
             image = self._renderer.render(t_s, pose.pan_rad, pose.tilt_rad, pose.zoom, self.rng)
-            extra["ptz"] = pose
         self.state, self.message = "ok", ""
-        return Frame(index=k, stamp_ns=stamp, image=image, skipped=skipped, extra=extra)
+        return Frame(index=k, stamp_ns=stamp, image=image, skipped=skipped, ptz=pose)
 
     def close(self) -> None:
         """Nothing is held open."""

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from sensor_node.ptz import SimulatedPtz
+from sim.ptz_head import SimulatedPtz
 
 
 def test_slews_at_bounded_rates_and_arrives() -> None:

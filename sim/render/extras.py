@@ -1,6 +1,6 @@
 """What real cameras see besides people: soft cast shadows on the floor and a distractor swaying in place.
 
-Used by :class:`sensor_node.render.PanoramicRenderer` when ``[world.lighting]`` asks for them
+Used by :class:`sim.render.cameras.PanoramicRenderer` when ``[world.lighting]`` asks for them
 (``shadow_gain`` < 1, ``sway_m`` > 0), so the simulated sites exercise what PETS 2009 showed (issue 14):
 
 * **shadows** -- each present person darkens the floor around and a little beside their feet to
@@ -35,6 +35,8 @@ PLANT_INSET_M = 0.4
 
 SWAY_HZ = 0.7
 """Sway frequency (a draught); the leaves flutter at 3.1 times it."""
+PLANT_NEAR_M = 0.5
+"""A camera closer than this to the plant does not draw it (it would fill the view)."""
 
 
 class FloorMap:
@@ -99,7 +101,7 @@ def paint_plant(
     vx, vy, vz, yaw = view
     px, py = PLANT_INSET_M, room_y_m - PLANT_INSET_M
     d = math.hypot(px - vx, py - vy)
-    if d < 0.5:
+    if d < PLANT_NEAR_M:
         return
     lean = sway_m * math.sin(2 * math.pi * SWAY_HZ * t_s)
     flutter = 0.3 * sway_m * math.sin(2 * math.pi * 3.1 * SWAY_HZ * t_s + 1.0)

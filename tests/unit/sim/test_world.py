@@ -12,16 +12,14 @@ import numpy as np
 import pytest
 
 from common.errors import ConfigError
-from common.scenario import (
+from common.site import CameraSpec, SiteConfig, SiteSection, WorldSpec, load_site
+from sim.world import (
     Goal,
     World,
-    goals_from_plans,
     sensor_bearing,
     site_with_seed_from_env,
-    world_time_s,
     write_gt_csv,
 )
-from common.site import CameraSpec, SiteConfig, SiteSection, WorldSpec, load_site
 
 REPO = Path(__file__).resolve().parents[3]
 SITES = REPO / "deploy" / "sites"
@@ -221,11 +219,11 @@ def test_sensor_bearing_is_relative_to_the_camera_heading() -> None:
 
 
 def test_old_times_are_recomputed_after_the_kept_window(monkeypatch: pytest.MonkeyPatch) -> None:
-    import common.paths
+    import sim.walkers
 
     ref = World.from_site(_site())
     expect = [ref.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)]
-    monkeypatch.setattr(common.paths, "KEEP_S", 10.0)
+    monkeypatch.setattr(sim.walkers, "KEEP_S", 10.0)
     small = World.from_site(_site())
     small.people_at(80.0)  # frames before ~70 s are dropped, checkpoints thinned
     assert [small.people_at(float(t)) for t in np.arange(0.0, 80.0, 3.1)] == expect
@@ -237,29 +235,6 @@ def test_old_times_are_recomputed_after_the_kept_window(monkeypatch: pytest.Monk
 def test_a_wrong_epoch_is_reported_not_simulated() -> None:
     with pytest.raises(ConfigError, match="epoch"):
         World.from_site(_site()).people_at(1.7e9)
-
-
-def test_goals_from_plans_order_and_dedup() -> None:
-    from common.schema import ViewPlan
-
-    def plan(seq: int, stamp_s: float, sid: str, x: float, y: float) -> ViewPlan:
-        return ViewPlan(
-            manager_id="m", seq=seq, stamp_ns=int(1e9 * (100.0 + stamp_s)), sensor_id=sid, partner_id="p",
-            track_id="t1", goal_x_m=x, goal_y_m=y, baseline_m=2.0, phi1_rad=1.0, predicted_error_m=0.1,
-            current_error_m=0.2,
-        )  # fmt: skip
-
-    plans = [plan(3, 12.0, "r1", 4.0, 2.0), plan(1, 10.0, "r1", 4.0, 2.0), plan(2, 11.0, "r1", 4.004, 2.0)]
-    plans += [plan(4, 13.0, "r1", 5.0, 2.0), plan(5, 14.0, "r1", 4.0, 2.0), plan(1, 10.5, "r2", 1.0, 1.0)]
-    goals = goals_from_plans(plans, epoch_ns=int(100e9))
-    assert goals == [
-        Goal("r1", 4.0, 2.0, 10.0),
-        Goal("r2", 1.0, 1.0, 10.5),
-        Goal("r1", 5.0, 2.0, 13.0),
-        Goal("r1", 4.0, 2.0, 14.0),
-    ]
-    assert goals_from_plans(reversed(plans), epoch_ns=int(100e9)) == goals
-    assert world_time_s(int(101.5e9), int(100e9)) == pytest.approx(1.5)
 
 
 def test_seed_from_environment() -> None:

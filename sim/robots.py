@@ -23,6 +23,11 @@ __all__ = ["ROBOT_CLEARANCE_M", "RobotMotion", "stop_short"]
 ROBOT_CLEARANCE_M = 0.1
 """Gap a driving robot keeps from another platform's body."""
 
+AT_GOAL_M = 1e-9
+"""A drive (or waypoint loop) shorter than this goes nowhere."""
+EMPTY_SEGMENT_M = 1e-12
+"""A waypoint segment shorter than this is passed at once."""
+
 
 class RobotMotion:
     """Trajectory of one platform: waypoint loop (or parked), overridden by goals from their issue time."""
@@ -40,13 +45,13 @@ class RobotMotion:
         """(issued_s, from_xy, to_xy) in issue order."""
 
     def _loop_xy(self, t_s: float) -> tuple[float, float]:
-        if self.loop_len <= 1e-9 or self.speed <= 0.0:
+        if self.loop_len <= AT_GOAL_M or self.speed <= 0.0:
             return self.start
         s = (self.speed * max(t_s, 0.0)) % self.loop_len
         for i, seg in enumerate(self.seg_len):
             if s <= seg or i == len(self.seg_len) - 1:
                 a, b = self.loop[i], self.loop[(i + 1) % len(self.loop)]
-                f = 0.0 if seg <= 1e-12 else min(s / seg, 1.0)
+                f = 0.0 if seg <= EMPTY_SEGMENT_M else min(s / seg, 1.0)
                 return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
             s -= seg
         return self.start  # pragma: no cover - the loop above always returns
@@ -58,7 +63,7 @@ class RobotMotion:
             return self._loop_xy(t_s)
         issued, a, b = self.goals[k]
         d = math.dist(a, b)
-        f = 1.0 if d <= 1e-9 else min(1.0, self.speed * (t_s - issued) / d)
+        f = 1.0 if d <= AT_GOAL_M else min(1.0, self.speed * (t_s - issued) / d)
         return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
 
     def destination(self, t_s: float) -> tuple[float, float] | None:
@@ -87,7 +92,7 @@ def stop_short(
     sx, sy = start_xy
     dx, dy = goal_xy[0] - sx, goal_xy[1] - sy
     length = math.hypot(dx, dy)
-    if length < 1e-9:
+    if length < AT_GOAL_M:
         return goal_xy
     ux, uy = dx / length, dy / length
     stop = length

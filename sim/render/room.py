@@ -20,22 +20,23 @@ x = 0; rows are heights (row = z * px_per_m).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
-from common.scenario import World
+from common.arrays import Float32Array, FloatArray, U8Image
+from sim.world import World
 
 __all__ = ["PX_PER_M", "RoomTextures", "cast_room", "make_textures"]
 
+WALLS = 4
+"""The room's walls, unrolled side by side into one texture (the last one runs to its end)."""
+
 PX_PER_M = 50.0
 """Texture resolution (texels per metre): 2 cm, finer than a panorama pixel at 2 m."""
-
-U8Image = npt.NDArray[np.uint8]
-F32 = npt.NDArray[np.float32]
-F64 = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,7 +53,7 @@ class RoomTextures:
     wall_height_m: float
 
 
-def _blotches(rng: np.random.Generator, h: int, w: int, cell_px: int, amp: float) -> F32:
+def _blotches(rng: np.random.Generator, h: int, w: int, cell_px: int, amp: float) -> Float32Array:
     """Smooth random field (low-frequency noise) of amplitude ``amp``."""
     small = rng.normal(0.0, 1.0, (max(2, h // cell_px + 2), max(2, w // cell_px + 2))).astype(np.float32)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC) * np.float32(amp)
@@ -115,8 +116,8 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
     paints = [(168, 178, 186), (150, 172, 182), (182, 176, 160), (160, 184, 166), (186, 170, 156)]
     order = rng.permutation(len(paints))
     light = [1.0, 0.9, 0.96, 0.86]  # each wall faces the lights differently
-    for k in range(4):
-        c0, c1 = round(starts[k] * ppm), (round(starts[k + 1] * ppm) + 1 if k < 3 else ww)
+    for k in range(WALLS):
+        c0, c1 = round(starts[k] * ppm), (round(starts[k + 1] * ppm) + 1 if k < WALLS - 1 else ww)
         img[:, c0:c1] = np.array(paints[order[k]], np.float32) * light[k]
     img += _blotches(rng, wh, ww, 25, 7.0)[..., None] + rng.normal(0, 3.0, (wh, ww, 1)).astype(np.float32)
 
@@ -128,7 +129,7 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
 
     # Items on each wall: (wall, start along wall, width, z0, z1); avoid overlaps crudely by slots.
     door = world.door
-    for k in range(4):
+    for k in range(WALLS):
         length = lengths[k]
         slots = np.arange(0.3, length - 1.2, 1.6)
         rng.shuffle(slots)
@@ -137,33 +138,7 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
                 continue
             kind = rng.choice(["poster", "poster", "window", "cabinet", "board"])
             w = float(rng.uniform(0.5, 1.3))
-            if kind == "poster":
-                z0 = float(rng.uniform(1.1, 1.5))
-                z1 = z0 + float(rng.uniform(0.4, 0.8))
-                ph, pw = max(2, row(z1) - row(z0)), max(2, col(k, s0 + w) - col(k, s0))
-                img[row(z0) : row(z0) + ph, col(k, s0) : col(k, s0) + pw] = _picture(rng, ph, pw)
-            elif kind == "window":
-                z0, z1 = 0.9, min(2.3, hz - 0.3)
-                cv2.rectangle(img, (col(k, s0), row(z0)), (col(k, s0 + w), row(z1)), (120, 110, 100), -1)
-                sh, sw = row(z1) - row(z0) - 4, col(k, s0 + w) - col(k, s0) - 4
-                sky = np.array([235, 225, 200], np.float32) + _blotches(rng, sh, sw, 8, 12.0)[..., None]
-                img[row(z0) + 2 : row(z1) - 2, col(k, s0) + 2 : col(k, s0 + w) - 2] = sky
-                cv2.line(img, (col(k, s0 + w / 2), row(z0)), (col(k, s0 + w / 2), row(z1)), (120, 110, 100), 2)
-            elif kind == "cabinet":
-                z1 = float(rng.uniform(0.7, 1.0))
-                colour = tuple(float(c) for c in rng.integers(60, 200, 3))
-                cv2.rectangle(img, (col(k, s0), 0), (col(k, s0 + w), row(z1)), colour, -1)
-                for j in range(1, 3):
-                    x = col(k, s0 + w * j / 3)
-                    cv2.line(img, (x, 0), (x, row(z1)), tuple(0.6 * c for c in colour), 1)
-            else:  # whiteboard with equal black/white bars (the paper's Fig. 1 board)
-                z0, z1 = 0.9, 1.9
-                cv2.rectangle(img, (col(k, s0), row(z0)), (col(k, s0 + w), row(z1)), (160, 160, 165), -1)
-                img[row(z0) + 2 : row(z1) - 2, col(k, s0) + 2 : col(k, s0 + w) - 2] = 245
-                n = 8
-                for j in range(0, n, 2):
-                    za, zb = z0 + 0.1 + 0.8 * j / n, z0 + 0.1 + 0.8 * (j + 1) / n
-                    cv2.rectangle(img, (col(k, s0 + 0.1), row(za)), (col(k, s0 + 0.35), row(zb)), (25, 25, 25), -1)
+            _paint_item(img, kind, s0=s0, w=w, hz=hz, rng=rng, col=functools.partial(col, k), row=row)
     # Door (wall y = 0): wood with a frame and a handle.
     d0, d1, dz = col(0, door.x0_m), col(0, door.x1_m), row(door.height_m)
     cv2.rectangle(img, (d0 - 3, 0), (d1 + 3, dz + 3), (200, 200, 200), -1)
@@ -180,10 +155,10 @@ def _walls(world: World, rng: np.random.Generator) -> U8Image:
 def cast_room(
     tex: RoomTextures,
     origin_xyz: tuple[float, float, float],
-    dir_x: F64,
-    dir_y: F64,
-    slope: F64,
-) -> tuple[U8Image, F32]:
+    dir_x: FloatArray,
+    dir_y: FloatArray,
+    slope: FloatArray,
+) -> tuple[U8Image, Float32Array]:
     """Colour and depth of the room surface each ray hits.
 
     Args:
@@ -231,3 +206,47 @@ def cast_room(
         img[hit] = part[hit]
         depth[hit] = t_b[hit]
     return np.asarray(img, dtype=np.uint8), depth
+
+
+def _paint_item(
+    img: Float32Array,
+    kind: str,
+    *,
+    s0: float,
+    w: float,
+    hz: float,
+    rng: np.random.Generator,
+    col: Callable[[float], int],
+    row: Callable[[float], int],
+) -> None:
+    """Paint one wall item (poster, window, cabinet or whiteboard) ``w`` m wide from ``s0`` m along its wall.
+
+    ``col`` maps metres along the wall to texture columns, ``row`` heights to rows.
+    """
+    if kind == "poster":
+        z0 = float(rng.uniform(1.1, 1.5))
+        z1 = z0 + float(rng.uniform(0.4, 0.8))
+        ph, pw = max(2, row(z1) - row(z0)), max(2, col(s0 + w) - col(s0))
+        img[row(z0) : row(z0) + ph, col(s0) : col(s0) + pw] = _picture(rng, ph, pw)
+    elif kind == "window":
+        z0, z1 = 0.9, min(2.3, hz - 0.3)
+        cv2.rectangle(img, (col(s0), row(z0)), (col(s0 + w), row(z1)), (120, 110, 100), -1)
+        sh, sw = row(z1) - row(z0) - 4, col(s0 + w) - col(s0) - 4
+        sky = np.array([235, 225, 200], np.float32) + _blotches(rng, sh, sw, 8, 12.0)[..., None]
+        img[row(z0) + 2 : row(z1) - 2, col(s0) + 2 : col(s0 + w) - 2] = sky
+        cv2.line(img, (col(s0 + w / 2), row(z0)), (col(s0 + w / 2), row(z1)), (120, 110, 100), 2)
+    elif kind == "cabinet":
+        z1 = float(rng.uniform(0.7, 1.0))
+        colour = tuple(float(c) for c in rng.integers(60, 200, 3))
+        cv2.rectangle(img, (col(s0), 0), (col(s0 + w), row(z1)), colour, -1)
+        for j in range(1, 3):
+            x = col(s0 + w * j / 3)
+            cv2.line(img, (x, 0), (x, row(z1)), tuple(0.6 * c for c in colour), 1)
+    else:  # whiteboard with equal black/white bars (the paper's Fig. 1 board)
+        z0, z1 = 0.9, 1.9
+        cv2.rectangle(img, (col(s0), row(z0)), (col(s0 + w), row(z1)), (160, 160, 165), -1)
+        img[row(z0) + 2 : row(z1) - 2, col(s0) + 2 : col(s0 + w) - 2] = 245
+        n = 8
+        for j in range(0, n, 2):
+            za, zb = z0 + 0.1 + 0.8 * j / n, z0 + 0.1 + 0.8 * (j + 1) / n
+            cv2.rectangle(img, (col(s0 + 0.1), row(za)), (col(s0 + 0.35), row(zb)), (25, 25, 25), -1)

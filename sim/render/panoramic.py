@@ -20,12 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
+from common.arrays import FloatArray
 from common.cameras import CylindricalCamera
-from sensor_node.render_bodies import Cylinder, Head, Primitive
+from sim.render.bodies import Cylinder, Head, Primitive, band_colours, is_hair
 
 __all__ = ["PanoView", "paint_primitives"]
 
-F64 = npt.NDArray[np.float64]
+LABEL_COVERAGE = 0.5
+"""A pixel's label is a primitive's when it covers at least this fraction of the pixel."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,7 +47,9 @@ def _to_sensor(view: PanoView, x_m: float, y_m: float) -> tuple[float, float]:
     return (c * dx + s * dy, -s * dx + c * dy)
 
 
-def _columns(cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float) -> tuple[F64, F64] | None:
+def _columns(
+    cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float
+) -> tuple[FloatArray, FloatArray] | None:
     """Integer columns touched by bearings [bearing_c + d_lo, bearing_c + d_hi] and their coverage."""
     f = cam.f_h_px * cam.direction
     u_c = float(cam.col_from_bearing(bearing_c))
@@ -61,7 +66,7 @@ def _columns(cam: CylindricalCamera, bearing_c: float, d_lo: float, d_hi: float)
 def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
     pano: npt.NDArray[np.uint8],
     labels: npt.NDArray[np.int32] | None,
-    cols: F64,
+    cols: FloatArray,
     r0: int,
     alpha: npt.NDArray[np.float32],
     colour: npt.NDArray[np.float32],
@@ -80,12 +85,12 @@ def _blend(  # noqa: PLR0917 - one call site, arguments in painting order
     pano[r0:r1, sl] = (old + a * (colour - old) + 0.5).astype(np.uint8)
     if labels is not None:
         sub = labels[r0:r1, sl]
-        labels[r0:r1, sl] = np.where(alpha >= 0.5, label, sub)
+        labels[r0:r1, sl] = np.where(alpha >= LABEL_COVERAGE, label, sub)
 
 
 def _coverage(
-    cam: CylindricalCamera, v_top: F64, v_bot: F64, cover: F64
-) -> tuple[int, F64, npt.NDArray[np.float32]] | None:
+    cam: CylindricalCamera, v_top: FloatArray, v_bot: FloatArray, cover: FloatArray
+) -> tuple[int, FloatArray, npt.NDArray[np.float32]] | None:
     """The rows a shape spans per column, and each pixel's coverage (vertical overlap × column cover).
 
     Returns ``(r0, v, alpha)``: the first row, the row centres as a column vector, and alpha of shape
@@ -98,14 +103,6 @@ def _coverage(
     v = np.arange(r0, r1 + 1, dtype=np.float64)[:, None]
     cov_v = np.clip(np.minimum(v + 0.5, v_bot[None, :]) - np.maximum(v - 0.5, v_top[None, :]), 0.0, 1.0)
     return r0, v, (cov_v * cover[None, :]).astype(np.float32)
-
-
-def _band_colours(bands: tuple[tuple[float, tuple[int, int, int]], ...], z: F64) -> npt.NDArray[np.float32]:
-    out = np.empty((*z.shape, 3), np.float32)
-    out[:] = np.asarray(bands[0][1], np.float32)
-    for z_from, bgr in bands[1:]:
-        out[z >= z_from] = np.asarray(bgr, np.float32)
-    return out
 
 
 def _paint_cylinder(
@@ -131,7 +128,7 @@ def _paint_cylinder(
     for sgn in (-1.0, 1.0):
         tx, ty = c.b_m * math.cos(phi + sgn * delta), c.a_m * math.sin(phi + sgn * delta)
         wx, wy = sx + ch * tx - sh * ty, sy + sh * tx + ch * ty
-        spans.append((math.atan2(wy, wx) - bearing_c + math.pi) % (2 * math.pi) - math.pi)
+        spans.append(angle_diff(math.atan2(wy, wx), bearing_c))
     got = _columns(cam, bearing_c, min(spans), max(spans))
     if got is None:
         return
@@ -162,7 +159,7 @@ def _paint_cylinder(
     z = oz + (v0 - v) * t_near[None, :] / fv
     cap = (z > c.z1_m) | (z < c.z0_m)
     zc = np.clip(z, c.z0_m, c.z1_m)
-    colour = _band_colours(c.bands, zc)
+    colour = band_colours(c.bands, zc)
     span = max(c.z1_m - c.z0_m, 1e-6)
     shade = (1.0 - c.shade_depth + c.shade_depth * np.sqrt(lam))[None, :] * (0.88 + 0.12 * (zc - c.z0_m) / span)
     shade = np.where(cap, 0.8, shade)
@@ -184,7 +181,7 @@ def _paint_head(
         return
     cols, cover = got
     theta = np.asarray(cam.bearing_from_col(cols), dtype=np.float64)
-    dth = (theta - bearing_c + math.pi) % (2 * math.pi) - math.pi
+    dth = wrap_angle(theta - bearing_c)
     p = d * np.sin(dth) / h.rh_m
     f = np.sqrt(np.clip(1.0 - p * p, 0.0, 1.0))
     dist = d * np.cos(dth)
@@ -202,7 +199,7 @@ def _paint_head(
     hd = h.heading_rad - view.yaw_rad
     facing = (hx * math.cos(hd) + hy * math.sin(hd))[None, :]
     zeta = (oz + (v0 - v) * dist[None, :] / fv - h.zc_m) / h.rv_m
-    hair = (zeta > 0.4) | (facing < -0.2) | ((facing < 0.35) & (zeta > -0.05))
+    hair = is_hair(zeta, facing)
     colour = np.where(hair[..., None], np.asarray(h.hair_bgr, np.float32), np.asarray(h.skin_bgr, np.float32))
     shade = 0.55 + 0.45 * f[None, :] * np.sqrt(np.clip(1.0 - 0.7 * zeta * zeta, 0.0, 1.0))
     _blend(pano, labels, cols, r0, alpha, (colour * shade[..., None]).astype(np.float32), h.label)

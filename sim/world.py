@@ -12,7 +12,7 @@ answers "where is everything at world time t?" for any t >= 0:
   loop at ``max_speed_mps``, or, once given a goal (:meth:`World.set_goal`),
   drive straight to it at that speed and stop. A robot base is holonomic: its
   heading (the camera's sensor frame) stays at ``yaw_deg``;
-* people (:meth:`World.people_at`), walking as described in :mod:`common.paths`.
+* people (:meth:`World.people_at`), walking as described in :mod:`sim.walkers`.
 
 World time t = (capture_stamp_ns - epoch_ns) / 1e9, with the common epoch set by
 the launcher. Everything here is deterministic: the same site, seed, goals and
@@ -37,14 +37,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
-import numpy as np
 
+from common.angles import angle_diff
 from common.errors import ConfigError
-from common.paths import WalkerSim
-from common.people import Door, WalkerLook
-from common.robots import ROBOT_CLEARANCE_M, RobotMotion, stop_short
-from common.schema import ViewPlan
 from common.site import CameraSpec, SiteConfig, WorldSpec
+from sim.people import Door, WalkerLook
+from sim.robots import ROBOT_CLEARANCE_M, RobotMotion, stop_short
+from sim.walkers import WalkerSim
 
 __all__ = [
     "SEED_ENV",
@@ -53,7 +52,6 @@ __all__ = [
     "PersonState",
     "PlatformState",
     "World",
-    "goals_from_plans",
     "sensor_bearing",
     "site_with_seed",
     "site_with_seed_from_env",
@@ -68,6 +66,7 @@ ROBOT_WALL_CLEARANCE_M = 0.05
 SEED_ENV = "PANOSTEREO_SEED"
 """Environment variable that overrides the site's seed (``panostereo demo --seed N`` sets it for every process)."""
 SAME_GOAL_M = 0.01
+"""A goal within this distance of the same robot's previous one is a repeat (a re-published plan)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -375,8 +374,7 @@ def write_gt_csv(world: World, path: str | Path, fps: float, duration_s: float) 
 
 def sensor_bearing(platform: PlatformState, x_m: float, y_m: float) -> float:
     """Sensor-frame bearing (rad, wrapped to [-pi, pi)) of a world point seen from a platform."""
-    b = math.atan2(y_m - platform.y_m, x_m - platform.x_m) - platform.yaw_rad
-    return float(np.mod(b + math.pi, 2.0 * math.pi) - math.pi)
+    return angle_diff(math.atan2(y_m - platform.y_m, x_m - platform.x_m), platform.yaw_rad)
 
 
 def _goal_key(g: Goal) -> tuple[float, str, float, float]:
@@ -410,24 +408,3 @@ def site_with_seed(site: SiteConfig, seed: int | None) -> SiteConfig:
     if seed is None:
         return site
     return msgspec.structs.replace(site, site=msgspec.structs.replace(site.site, seed=int(seed)))
-
-
-def goals_from_plans(plans: Iterable[ViewPlan], epoch_ns: int) -> list[Goal]:
-    """Run-time goals from the manager's view plans, the one way every process turns plans into goals.
-
-    Plans are taken in (stamp_ns, sensor_id, seq) order; a plan becomes
-    ``Goal(sensor_id, goal_x_m, goal_y_m, issued_s=(stamp_ns - epoch_ns) / 1e9)`` unless the previous goal of
-    the same sensor is within 1 cm of it (a re-published plan is not a new goal). Sim nodes apply the goals
-    as plans arrive; the ground-truth writer applies the recorded ones after the run: both get the same
-    trajectories.
-    """
-    goals: list[Goal] = []
-    last: dict[str, tuple[float, float]] = {}
-    for plan in sorted(plans, key=lambda p: (p.stamp_ns, p.sensor_id, p.seq)):
-        xy = (float(plan.goal_x_m), float(plan.goal_y_m))
-        prev = last.get(plan.sensor_id)
-        if prev is not None and math.dist(prev, xy) < SAME_GOAL_M:
-            continue
-        last[plan.sensor_id] = xy
-        goals.append(Goal(plan.sensor_id, xy[0], xy[1], max(0.0, world_time_s(plan.stamp_ns, epoch_ns))))
-    return goals

@@ -37,9 +37,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff, wrap_angle
 from common.errors import ConfigError
-from common.people import Door, WalkerLook, make_look
 from common.site import WorldSpec
+from sim.people import Door, WalkerLook, make_look
 
 __all__ = ["DT_S", "WalkerSample", "WalkerSim"]
 
@@ -66,6 +67,27 @@ STRIDE_M = 1.4
 ARRIVE_M = 0.3
 STUCK_S = 25.0
 """A walker that has not reached its target after this long picks another."""
+
+AVOID_RANGE_M = 1.6
+"""People steer away from others closer than this, the more the nearer and the more ahead."""
+VEER_RANGE_M = 1.5
+"""...and round a platform whose surface is closer than this on their way."""
+PASS_MARGIN_M = 0.15
+"""A platform is on a person's way when its centre is within its radius + PERSON_RADIUS_M + this of it."""
+KEEP_CLEAR_M = 0.25
+"""A person closer than this to a platform's clearance steps away from it."""
+SAME_SPOT_M = 1e-6
+"""Two centres closer than this are at one spot: no direction between them."""
+START_SPACING_M = 0.9
+"""People placed in the room at the start stand at least this far apart."""
+ROUTE_ENDS = 2
+"""A route of two points is walked back and forth; a longer one, round."""
+JUMP_M = 0.5
+"""A move this large between two simulation steps is a jump (entering from outside): not interpolated."""
+FLAG_TRUE = 0.5
+"""The state arrays hold flags as 0.0 / 1.0: above this is true."""
+HALF = 0.5
+"""A sample takes the flags of the nearer of its two steps."""
 
 _WALK, _PAUSE, _OUTSIDE = 0, 1, 2
 _WANDER, _ENTER, _EXIT_IN, _EXIT_OUT, _ROUTE = 0, 1, 2, 3, 4
@@ -108,10 +130,6 @@ class _Walker:
     def restore(self, snap: tuple[float | int, ...]) -> None:
         for k, v in zip(self.__slots__, snap, strict=True):
             setattr(self, k, v)
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class WalkerSim:
@@ -196,7 +214,7 @@ class WalkerSim:
                     w.x = rng.uniform(m, self.spec.room_x_m - m)
                     w.y = rng.uniform(m, self.spec.room_y_m - m)
                     if self._clear_of(w.x, w.y, 0.0, m) and all(
-                        math.hypot(w.x - px, w.y - py) > 0.9 for px, py in placed
+                        math.hypot(w.x - px, w.y - py) > START_SPACING_M for px, py in placed
                     ):
                         break
                 w.tx, w.ty = self._random_target(i, w, 0.0, rng)
@@ -220,7 +238,7 @@ class WalkerSim:
         w.leg_start = t_s
         if w.tkind == _ROUTE:
             npts = len(self._route)
-            if npts == 2:
+            if npts == ROUTE_ENDS:
                 w.route_idx = 1 - w.route_idx
             else:
                 w.route_idx = (w.route_idx + w.route_dir) % npts
@@ -260,15 +278,15 @@ class WalkerSim:
         hx, hy = math.cos(w.heading), math.sin(w.heading)
         px = py = 0.0
         for j in range(others.shape[0]):
-            if j == i or others[j, 6] < 0.5:
+            if j == i or others[j, 6] < FLAG_TRUE:
                 continue
             rx, ry = others[j, 0] - w.x, others[j, 1] - w.y
             d = math.hypot(rx, ry)
-            if d > 1.6 or d < 1e-6:
+            if d > AVOID_RANGE_M or d < SAME_SPOT_M:
                 continue
             ux, uy = rx / d, ry / d
             ahead = max(0.0, ux * hx + uy * hy)
-            k = (1.6 - d) / 1.6 * (0.4 + ahead)
+            k = (AVOID_RANGE_M - d) / AVOID_RANGE_M * (0.4 + ahead)
             px -= ux * k * 1.2
             py -= uy * k * 1.2
             px += uy * k * ahead * 0.9  # sidestep: keep the other person on the left
@@ -277,20 +295,20 @@ class WalkerSim:
             rx, ry = ox - w.x, oy - w.y
             d = math.hypot(rx, ry)
             gap = d - r - PERSON_RADIUS_M
-            if gap > 1.5 or d < 1e-6:
+            if gap > VEER_RANGE_M or d < SAME_SPOT_M:
                 continue
             ux, uy = rx / d, ry / d
             along = rx * gx + ry * gy  # how far ahead on the way to the target
             lateral = ux * gy - uy * gx  # > 0: the platform is to the right of the way
             beside = abs(rx * gy - ry * gx)  # distance of its centre from the straight way
-            if along > 0.0 and along < dist + r and beside < r + PERSON_RADIUS_M + 0.15:
+            if along > 0.0 and along < dist + r and beside < r + PERSON_RADIUS_M + PASS_MARGIN_M:
                 # On a collision course: veer round it, on the side away from its centre.
-                k = (1.5 - max(gap, 0.0)) / 1.5 * 2.0
+                k = (VEER_RANGE_M - max(gap, 0.0)) / VEER_RANGE_M * 2.0
                 side = 1.0 if lateral > 0 else -1.0  # +1: veer left (counter-clockwise), away from it
                 px -= side * uy * k
                 py += side * ux * k
-            if gap < 0.25:
-                k = (0.25 - max(gap, 0.0)) / 0.25 * 1.5  # too close: step away
+            if gap < KEEP_CLEAR_M:
+                k = (KEEP_CLEAR_M - max(gap, 0.0)) / KEEP_CLEAR_M * 1.5  # too close: step away
                 px -= ux * k
                 py -= uy * k
         return math.atan2(gy + py, gx + px)
@@ -300,7 +318,7 @@ class WalkerSim:
         hx, hy = math.cos(w.heading), math.sin(w.heading)
         k = 1.0
         for j in range(others.shape[0]):
-            if j == i or others[j, 6] < 0.5:
+            if j == i or others[j, 6] < FLAG_TRUE:
                 continue
             rx, ry = others[j, 0] - w.x, others[j, 1] - w.y
             d = math.hypot(rx, ry)
@@ -314,12 +332,12 @@ class WalkerSim:
         # People do not walk through each other: step out of anyone closer than PERSON_GAP_M (both do,
         # against the other's position at the start of the step, so each corrects half the overlap).
         for j in range(others.shape[0]):
-            if j == i or others[j, 6] < 0.5 or w.mode == _OUTSIDE:
+            if j == i or others[j, 6] < FLAG_TRUE or w.mode == _OUTSIDE:
                 continue
             rx, ry = w.x - others[j, 0], w.y - others[j, 1]
             d = math.hypot(rx, ry)
             if d < PERSON_GAP_M:
-                if d < 1e-6:
+                if d < SAME_SPOT_M:
                     rx, ry, d = (1.0, 0.0, 1.0) if i < j else (-1.0, 0.0, 1.0)
                 push = min(0.5 * (PERSON_GAP_M - d), MAX_PUSH_M)
                 w.x += rx / d * push
@@ -341,7 +359,7 @@ class WalkerSim:
             d = math.hypot(rx, ry)
             need = r + PERSON_RADIUS_M
             if d < need:
-                if d < 1e-6:
+                if d < SAME_SPOT_M:
                     rx, ry, d = 1.0, 0.0, 1.0
                 w.x, w.y = ox + rx / d * need, oy + ry / d * need
 
@@ -362,9 +380,9 @@ class WalkerSim:
             return
         pref = self.looks[i].speed_mps
         want = self._steer(i, w, others, obst)
-        err = _wrap(want - w.heading)
+        err = angle_diff(want, w.heading)
         rate = TURN_RATE_RADPS * (0.5 if w.mode == _PAUSE else 1.0)
-        w.heading = _wrap(w.heading + max(-rate * DT_S, min(rate * DT_S, err)))
+        w.heading = wrap_angle(w.heading + max(-rate * DT_S, min(rate * DT_S, err)))
         if w.mode == _PAUSE:
             v_goal = 0.0
             if t_s >= w.timer:
@@ -466,10 +484,10 @@ class WalkerSim:
                 a, b = self._frames[k0 - self._base], self._frames[k0 + 1 - self._base]
             else:
                 a, b = self._old_pair(k0)
-        dh = (b[:, 2] - a[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
-        heading = (a[:, 2] + frac * dh + math.pi) % (2.0 * math.pi) - math.pi
+        dh = wrap_angle(b[:, 2] - a[:, 2])
+        heading = wrap_angle(a[:, 2] + frac * dh)
         # A jump (entering through the door from outside) is not interpolated.
-        jump = np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]) > 0.5
+        jump = np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]) > JUMP_M
         f = np.where(jump, 0.0, frac)
         return WalkerSample(
             x_m=a[:, 0] + f * (b[:, 0] - a[:, 0]),
@@ -477,5 +495,5 @@ class WalkerSim:
             heading_rad=heading,
             speed_mps=a[:, 3] + f * (b[:, 3] - a[:, 3]),
             gait_phase_rad=a[:, 4] + f * (b[:, 4] - a[:, 4]),
-            present=(a[:, 5] if frac < 0.5 else b[:, 5]) > 0.5,
+            present=(a[:, 5] if frac < HALF else b[:, 5]) > FLAG_TRUE,
         )
