@@ -158,6 +158,8 @@ class Fusion:
             self.schedule.declare(info.sensor_id, info.fps)
             self.poses.update_info(info)
             self.ptz.update_info(info)
+        # Sensors that came first, their frames next, sensors that went last: the frames a batch holds arrived
+        # before the liveliness change that ends it (a node stops publishing, then its token goes).
         for sid, alive in batch.presence.items():
             if alive:
                 if sid not in self.present and len(self.present) >= 4 * MAX_SENSORS:
@@ -167,24 +169,26 @@ class Fusion:
                     if len(self.present) >= 4 * MAX_SENSORS:
                         continue
                 self.present[sid] = True
-            elif sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos:
-                self.present[sid] = False
-                self.ingest.forget(sid)
-                self.schedule.forget(sid)
-                self.poses.forget(sid)
-                self.ptz.forget(sid)
         for f in batch.features:  # in arrival order: the buffers sort, and count what came out of order
             sid = f.sensor_id
-            if not self.present.get(sid, True):
-                continue
-            if sid not in self.ingest.buffers and len(self.ingest.buffers) >= MAX_SENSORS:
-                # Bounded memory: ids nobody announced cannot grow the buffers without limit.
+            if not self.present.get(sid, True) or (
+                sid not in self.ingest.buffers and len(self.ingest.buffers) >= MAX_SENSORS
+            ):
+                # A frame of a sensor gone before this batch; or bounded memory: ids nobody announced cannot grow
+                # the buffers without limit.
                 self.ingest.counters.dropped += 1
                 continue
             kind = self.ingest.add(f)
             processing_ns = int(f.processing_ms * 1e6)
             arrival = batch.received_ns or f.stamp_ns + processing_ns
             self.schedule.arrived(sid, f.stamp_ns, arrival, processing_ns, kind)
+        for sid, alive in batch.presence.items():
+            if not alive and (sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos):
+                self.present[sid] = False
+                self.ingest.forget(sid)
+                self.schedule.forget(sid)
+                self.poses.forget(sid)
+                self.ptz.forget(sid)
         for aid, alive in batch.agents.items():
             if not alive:
                 self.ptz.agent_gone(aid)
