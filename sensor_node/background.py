@@ -3,7 +3,12 @@
 The paper ("Moving object detection and extraction", after its ref. [9])
 integrates four parts, all here:
 
-* **background subtraction** -- ``|I - B| > fg_threshold`` marks changed pixels;
+* **background subtraction** -- ``|I - B|`` beyond a per-pixel threshold (``fg_sigmas`` of the
+  pixel's own swing or of the image's noise, at least ``fg_threshold``) marks changed pixels; beside
+  them (connected), pixels beyond the level the image's own noise rarely reaches join them
+  (hysteresis, :meth:`BackgroundModel.apply`): the faint parts of a person (a face or a shirt near
+  the wall's grey) come with the parts that stand out, so the clean-up that follows does not erase
+  the thin, sparse links between them;
 * **frame differencing** -- ``|I_t - I_{t-1}| > diff_threshold`` marks moving
   pixels; it tells a *sudden* global change (every pixel jumps between two
   frames) from people, and gives each blob its motion evidence;
@@ -103,6 +108,15 @@ class BackgroundModel:
         what moves in place (a flapping tape, leaves, a screen)."""
         self._thr: Mask | None = None
         """Per-pixel changed threshold (8-bit): ``fg_threshold``, or more where the image is noisy or swings."""
+        self._thr_weak: Mask | None = None
+        """Per-pixel threshold (8-bit, at most ``_thr``) beyond which a pixel connected to changed pixels
+        changed too (None: the noise tail is not measured yet)."""
+        self._sigma: npt.NDArray[np.float32] | None = None
+        """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
+        self.tail_sigmas: float | None = None
+        """The image's noise tail: how many of their own sigmas the background pixels' differences pass in a
+        fraction ``WEAK_FALSE_RATE`` of them (measured outside objects at each update, smoothed). About 3.7
+        for Gaussian noise; more for compressed video (blocks, ringing)."""
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
         self._colour_now: Mask | None = None
@@ -166,14 +180,26 @@ class BackgroundModel:
         logger.debug("background initialised from %d frames (noise sigma %.1f)", stack.shape[0], self.noise_sigma)
 
     def _refresh_threshold(self) -> None:
-        """Per-pixel changed threshold from the deviation map: ``fg_sigmas`` of the pixel's own swing or of the
-        image's noise, whichever is larger, and never below ``fg_threshold``."""
+        """Per-pixel thresholds from the deviation map.
+
+        Changed: beyond ``fg_sigmas`` of the pixel's own swing or of the image's noise, whichever is larger,
+        and never below ``fg_threshold``. Joining changed pixels it touches (:func:`_hysteresis`): beyond the
+        level of the image's noise tail (:attr:`tail_sigmas`, at least ``fg_sigmas``) without the
+        ``fg_threshold`` floor: on a clean image what passes it beside an object is part of the object; on
+        compressed video, whose noise has long tails, it rises to the changed threshold and changes nothing.
+        """
         assert self._dev is not None
         s = self.settings
         self.noise_sigma = MAD_TO_SIGMA * float(np.median(self._dev[::4, ::4]))
-        floor = max(float(s.fg_threshold), s.fg_sigmas * self.noise_sigma)
-        thr = np.maximum(self._dev * np.float32(s.fg_sigmas * MAD_TO_SIGMA), np.float32(floor))
-        self._thr = cv2.convertScaleAbs(np.minimum(thr, 254.0))
+        sigma = np.maximum(self._dev * np.float32(MAD_TO_SIGMA), np.float32(max(self.noise_sigma, MIN_SIGMA)))
+        self._sigma = sigma
+        thr = np.minimum(np.maximum(sigma * np.float32(s.fg_sigmas), np.float32(s.fg_threshold)), np.float32(254.0))
+        self._thr = cv2.convertScaleAbs(thr)
+        if self.tail_sigmas is None:
+            self._thr_weak = None
+        else:
+            weak = np.minimum(sigma * np.float32(max(s.fg_sigmas, self.tail_sigmas)), thr)
+            self._thr_weak = cv2.convertScaleAbs(weak)
 
     def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
         """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
@@ -230,11 +256,14 @@ class BackgroundModel:
             return Motion(empty, moving, "moving", 1.0)
         bg_u8 = self._bg_u8
         assert bg_u8 is not None and self._thr is not None
-        fg = cv2.compare(cv2.absdiff(grey, bg_u8), self._thr, cv2.CMP_GT)
+        diff = cv2.absdiff(grey, bg_u8)
+        fg = cv2.compare(diff, self._thr, cv2.CMP_GT)
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
             assert self._bg is not None
+            if self._thr_weak is not None:
+                fg = _hysteresis(fg, cv2.compare(diff, self._thr_weak, cv2.CMP_GT))
             if self.still.update(grey, fg, moving, bg=self._bg, bg_u8=bg_u8, frame=self._frames):
                 self._bg_u8 = cv2.convertScaleAbs(self._bg)
             self._last_fg = fg
@@ -296,7 +325,7 @@ class BackgroundModel:
         """
         self._bg = None
         self._bg_u8 = None
-        self._dev = self._thr = self._colour_bg = None
+        self._dev = self._thr = self._thr_weak = self._sigma = self._colour_bg = None
         self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
         self._fast = True
         self.still.reset()
@@ -331,8 +360,8 @@ class BackgroundModel:
         if self._updates % k:
             return
         alpha = min(1.0, self.settings.learning_rate * k)
-        self._update_dev(grey, boxes or [], alpha)
         objects = _object_mask(grey.shape, fg, boxes or [])
+        self._update_dev(grey, boxes or [], alpha, objects)
         self._update_colour(objects, alpha)
         if objects is None:
             cv2.accumulateWeighted(grey, self._bg, alpha)
@@ -346,15 +375,40 @@ class BackgroundModel:
                 cv2.copyTo(drift, objects, self._bg)
         self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
-    def _update_dev(self, grey: Mask, boxes: list[tuple[int, int, int, int]], alpha: float) -> None:
+    def _update_dev(
+        self, grey: Mask, boxes: list[tuple[int, int, int, int]], alpha: float, objects: Mask | None
+    ) -> None:
         if self._dev is None or self._bg_u8 is None:
             return
         diff = cv2.absdiff(grey, self._bg_u8).astype(np.float32)
+        self._update_tail(diff, objects, alpha)
         cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
         sample = np.minimum(diff, cap)
         people = _object_mask(grey.shape, None, boxes)
         cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
         self._refresh_threshold()
+
+    def _update_tail(self, diff: npt.NDArray[np.float32], objects: Mask | None, alpha: float) -> None:
+        """Measure the image's noise tail (:attr:`tail_sigmas`) on the background pixels of this frame.
+
+        The differences outside objects, each in its own pixel's sigmas, are histogrammed; the level that
+        a fraction ``WEAK_FALSE_RATE`` of them pass is blended into the estimate at the update's rate.
+        What passes the changed threshold is in ``objects``, so the estimate stays below it.
+        """
+        if self._sigma is None:
+            return
+        z = cv2.divide(diff, self._sigma)
+        outside = None if objects is None else cv2.bitwise_not(objects)
+        n = z.size if outside is None else cv2.countNonZero(outside)
+        if n * WEAK_FALSE_RATE < TAIL_MIN_PX:
+            return
+        hist = cv2.calcHist([z], [0], outside, [TAIL_BINS], [0.0, TAIL_MAX_SIGMAS]).ravel()
+        # Pixels beyond the histogram's range are in the tail too: count down from the top.
+        above = n - np.cumsum(hist)
+        k = int(np.argmax(above <= WEAK_FALSE_RATE * n))
+        level = (k + 1) * TAIL_MAX_SIGMAS / TAIL_BINS if above[k] <= WEAK_FALSE_RATE * n else TAIL_MAX_SIGMAS
+        prev = self.tail_sigmas
+        self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
 
     def _update_colour(self, objects: Mask | None, alpha: float) -> None:
         colour = self._colour_now
@@ -374,6 +428,21 @@ WARM_SLACK_NS = 2_000_000
 MAD_TO_SIGMA = 1.4826
 """Median absolute deviation -> standard deviation of Gaussian noise."""
 
+MIN_SIGMA = 0.5
+"""Least noise sigma (grey levels) a pixel is given: 8-bit quantisation alone is about 0.3."""
+
+WEAK_FALSE_RATE = 1e-4
+"""Fraction of the background's pixels whose difference may pass the joining threshold (the level of the noise
+tail that :attr:`BackgroundModel.tail_sigmas` measures). Lower: hysteresis joins less, on clean images too;
+higher: noise beside people joins them (their boxes grow on compressed video)."""
+
+TAIL_MIN_PX = 4.0
+"""Least expected number of background pixels beyond the tail level for a measurement of it to count."""
+
+TAIL_BINS = 256
+TAIL_MAX_SIGMAS = 32.0
+"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS)."""
+
 DEV_STEP = 1.0
 """Largest relative rise of a pixel's deviation from one update sample (1: it may double)."""
 
@@ -386,6 +455,7 @@ EGO_SECTOR_PX = 10
 MIN_LIGHT_STEP = 0.04
 """A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
 
+_K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
 _K9 = np.ones((9, 9), np.uint8)
 
@@ -408,6 +478,28 @@ def _object_mask(shape: tuple[int, ...], fg: Mask | None, boxes: list[tuple[int,
             mask[rows, : b - width] = 255
         mask[rows, max(a, 0) : min(b, width)] = 255
     return mask
+
+
+def _hysteresis(strong: Mask, weak: Mask) -> Mask:
+    """``strong`` and the pixels of ``weak`` connected to it (8-neighbours, through ``weak``), but for those
+    touching ``strong``.
+
+    The ring of pixels touching ``strong`` is left to the clean-up's majority vote: along the edge of
+    something contrasted it is the partly covered fringe (blur), with the object on one side only, and
+    stays out, as it would without hysteresis; between the contrasted part and a faint one (hair and a face
+    of the wall's grey) both sides are set and the vote fills it.
+    """
+    if cv2.countNonZero(weak) == cv2.countNonZero(strong):
+        return strong
+    n, labels = cv2.connectedComponents(weak, connectivity=8, ltype=cv2.CV_32S)
+    seeded = np.zeros(n, np.uint8)
+    seeded[labels[strong > 0]] = 255
+    seeded[0] = 0
+    joined = seeded[labels]
+    near = cv2.dilate(strong, _K3)
+    beyond = cv2.subtract(joined, near)  # faint parts, not touching the contrasted ones
+    ring = cv2.bitwise_and(cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)), near)
+    return cv2.bitwise_or(cv2.bitwise_or(strong, beyond), ring)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

@@ -11,6 +11,12 @@ the difference image have changed inside each region".
   each other merge into one blob -- a body split by clothing that matches
   the wall rejoins; on a panorama columns wrap around (column W-1 touches
   column 0), so a person standing on the seam is one blob;
+* given the changed pixels before the clean-up that made ``fg`` (``links``),
+  a region above another in the same columns joins it when those pixels
+  bridge the rows between them with no gap over ``merge_gap_px`` rows: people
+  stand upright, and the clean-up erases the thin, sparse parts (a neck, the
+  outline of a shirt of the wall's grey) that join a person's head to their
+  body; their head alone would be one blob and the rest, wider, another;
 * a blob is kept if it has at least ``min_blob_px`` changed pixels, is at
   least ``min_blob_height_px`` tall, and at least ``min_changed_frac`` of its
   bounding box changed.
@@ -98,7 +104,13 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
 
 
 def find_blobs(
-    fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True, *, check_frac: bool = True
+    fg: Mask,
+    moving: Mask,
+    settings: PipelineSettings,
+    wrap: bool = True,
+    *,
+    check_frac: bool = True,
+    links: Mask | None = None,
 ) -> list[RawBlob]:
     """Group the foreground pixels of one frame into validated blobs.
 
@@ -117,6 +129,9 @@ def find_blobs(
             caller checks that after splitting (a person beside a ghost makes a wide, sparse box
             whose parts pass it; dropping the whole would also leave the person unprotected from
             the background update).
+        links: (H, W) the changed pixels before the clean-up that made ``fg`` (a superset of its
+            evidence): regions one above the other join through them (the module docstring). None: no
+            such joins.
     """
     height, width = fg.shape
     k = settings.group_scale
@@ -142,6 +157,8 @@ def find_blobs(
             gap_x = np.minimum(gap_x, g)
     gap_y = np.maximum(b0[:, None], b0[None, :]) - np.minimum(b1[:, None], b1[None, :]) - 1
     adj = (gap_x <= gx) & (gap_y <= gy)
+    if links is not None:
+        adj |= _bridged(links, k, (a0, a1, b0, b1), (gap_x, gap_y), gy)
     out: list[RawBlob] = []
     for members in _groups(adj):
         m = np.asarray(members)
@@ -164,6 +181,36 @@ def find_blobs(
         if check_frac and blob.changed_frac < settings.min_changed_frac:
             continue
         out.append(blob)
+    return out
+
+
+def _bridged(
+    links: Mask, k: int, boxes: tuple[IntArray, IntArray, IntArray, IntArray], gaps: tuple[IntArray, IntArray], gy: int
+) -> npt.NDArray[np.bool_]:
+    """Pairs of regions (reduced boxes ``a0, a1, b0, b1``) one above the other whose shared columns hold
+    ``links`` pixels on the rows between them, with no run of empty rows longer than ``gy``."""
+    gap_x, gap_y = gaps
+    n = gap_x.shape[0]
+    out = np.zeros((n, n), bool)
+    pairs = np.argwhere(np.triu((gap_x < 0) & (gap_y > gy)))
+    if pairs.size == 0:
+        return out
+    a0, a1, b0, b1 = boxes
+    height, width = links.shape
+    small = links if k == 1 else cv2.resize(links, (width // k, height // k), interpolation=cv2.INTER_AREA)
+    width_s = small.shape[1]
+    for i, j in pairs.tolist():
+        up, lo = (i, j) if b1[i] < b0[j] else (j, i)
+        # Shared columns, across the seam if that is where they overlap.
+        for shift in (0, width_s, -width_s):
+            c0, c1 = max(a0[up], a0[lo] + shift), min(a1[up], a1[lo] + shift)
+            if c0 <= c1:
+                break
+        cols = np.arange(c0, c1 + 1) % width_s
+        rows = small[b1[up] + 1 : b0[lo]][:, cols].any(axis=1)
+        empty = np.diff(np.flatnonzero(np.concatenate([[True], rows, [True]]))) - 1
+        if int(empty.max()) <= gy:
+            out[i, j] = out[j, i] = True
     return out
 
 
