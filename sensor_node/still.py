@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.components import components
 from sensor_node.config import PipelineSettings
 from sensor_node.ghosts import UnderGhosts, start_up_hole, surround_deviation
 
@@ -156,7 +157,7 @@ class StillRegions:
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
         # would measure texture, not the silhouette.
         old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
+        n, labels, stats = components(old)
         long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
         keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
         for k in range(1, n):
