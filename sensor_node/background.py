@@ -43,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
-from sensor_node.shadows import shadow_mask
+from sensor_node.shadows import local_spread, shadow_mask
 from sensor_node.still import StillRegions
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
@@ -120,6 +120,9 @@ class BackgroundModel:
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
         self._colour_now: Mask | None = None
+        self._bg_spread: npt.NDArray[np.float32] | None = None
+        """The colour background's local texture (:func:`sensor_node.shadows.local_spread`), computed when the
+        shadow test first needs it after the colour background changed."""
         self.noise_sigma = 0.0
         """The image's own noise: robust sigma of |frame - background| over the background (grey levels)."""
         self.still = StillRegions(settings)
@@ -176,6 +179,7 @@ class BackgroundModel:
         self._refresh_threshold()
         if self._warm_colour and len(self._warm_colour) == len(self._warm):
             self._colour_bg = np.median(np.stack(self._warm_colour), axis=0).astype(np.float32)
+            self._bg_spread = None
         self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
         logger.debug("background initialised from %d frames (noise sigma %.1f)", stack.shape[0], self.noise_sigma)
 
@@ -191,15 +195,16 @@ class BackgroundModel:
         assert self._dev is not None
         s = self.settings
         self.noise_sigma = MAD_TO_SIGMA * float(np.median(self._dev[::4, ::4]))
-        sigma = np.maximum(self._dev * np.float32(MAD_TO_SIGMA), np.float32(max(self.noise_sigma, MIN_SIGMA)))
+        # Each operation by whichever of numpy and OpenCV is faster at it (numpy: float products and sums
+        # with a scalar; OpenCV: maxima and minima with one, saturating 8-bit conversion).
+        sigma = cv2.max(self._dev * np.float32(MAD_TO_SIGMA), max(self.noise_sigma, MIN_SIGMA))  # type: ignore[call-overload]
         self._sigma = sigma
-        thr = np.minimum(np.maximum(sigma * np.float32(s.fg_sigmas), np.float32(s.fg_threshold)), np.float32(254.0))
-        self._thr = cv2.convertScaleAbs(thr)
+        thr = cv2.min(cv2.max(cv2.convertScaleAbs(sigma, alpha=s.fg_sigmas), s.fg_threshold), 254)  # type: ignore[call-overload]
+        self._thr = thr
         if self.tail_sigmas is None:
             self._thr_weak = None
         else:
-            weak = np.minimum(sigma * np.float32(max(s.fg_sigmas, self.tail_sigmas)), thr)
-            self._thr_weak = cv2.convertScaleAbs(weak)
+            self._thr_weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
 
     def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
         """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
@@ -214,7 +219,11 @@ class BackgroundModel:
         small = self._colour_now
         if small.shape[:2] != self._colour_bg.shape[:2]:
             return None
-        return shadow_mask(small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor)
+        if self._bg_spread is None:
+            self._bg_spread = local_spread(self._colour_bg)
+        return shadow_mask(
+            small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
+        )
 
     def apply(self, grey: Mask, stamp_ns: int | None = None, colour: Mask | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
@@ -285,6 +294,7 @@ class BackgroundModel:
             ch, cw = self._colour_bg.shape[:2]
             small_gain = cv2.resize(new_bg / np.maximum(self._bg, 1.0), (cw, ch), interpolation=cv2.INTER_AREA)
             self._colour_bg = np.minimum(self._colour_bg * small_gain[..., None], 255.0).astype(np.float32)
+            self._bg_spread = None
         fg2 = _threshold(cv2.absdiff(grey, cv2.convertScaleAbs(new_bg)), s.fg_threshold)
         frac2 = cv2.countNonZero(fg2) / n
         if frac2 <= s.abnormal_frac:
@@ -325,7 +335,7 @@ class BackgroundModel:
         """
         self._bg = None
         self._bg_u8 = None
-        self._dev = self._thr = self._thr_weak = self._sigma = self._colour_bg = None
+        self._dev = self._thr = self._thr_weak = self._sigma = self._colour_bg = self._bg_spread = None
         self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
         self._fast = True
         self.still.reset()
@@ -380,15 +390,15 @@ class BackgroundModel:
     ) -> None:
         if self._dev is None or self._bg_u8 is None:
             return
-        diff = cv2.absdiff(grey, self._bg_u8).astype(np.float32)
+        diff = cv2.absdiff(grey, self._bg_u8)
         self._update_tail(diff, objects, alpha)
         cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
-        sample = np.minimum(diff, cap)
+        sample = cv2.min(diff.astype(np.float32), cap)
         people = _object_mask(grey.shape, None, boxes)
         cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
         self._refresh_threshold()
 
-    def _update_tail(self, diff: npt.NDArray[np.float32], objects: Mask | None, alpha: float) -> None:
+    def _update_tail(self, diff: Mask, objects: Mask | None, alpha: float) -> None:
         """Measure the image's noise tail (:attr:`tail_sigmas`) on the background pixels of this frame.
 
         The differences outside objects, each in its own pixel's sigmas, are histogrammed; the level that
@@ -397,16 +407,20 @@ class BackgroundModel:
         """
         if self._sigma is None:
             return
-        z = cv2.divide(diff, self._sigma)
-        outside = None if objects is None else cv2.bitwise_not(objects)
-        n = z.size if outside is None else cv2.countNonZero(outside)
+        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond): 8-bit images
+        # are what calcHist counts fast; objects' pixels are put in bin 0 and taken out of it.
+        z = cv2.convertScaleAbs(diff / self._sigma, alpha=TAIL_BINS / TAIL_MAX_SIGMAS)
+        n = diff.size
+        if objects is not None:
+            z = cv2.bitwise_and(z, cv2.bitwise_not(objects))
+            n -= cv2.countNonZero(objects)
         if n * WEAK_FALSE_RATE < TAIL_MIN_PX:
             return
-        hist = cv2.calcHist([z], [0], outside, [TAIL_BINS], [0.0, TAIL_MAX_SIGMAS]).ravel()
-        # Pixels beyond the histogram's range are in the tail too: count down from the top.
-        above = n - np.cumsum(hist)
+        hist = cv2.calcHist([z], [0], None, [TAIL_BINS], [0, TAIL_BINS]).ravel()
+        hist[0] -= diff.size - n
+        above = n - np.cumsum(hist)  # pixels in the bins above each
         k = int(np.argmax(above <= WEAK_FALSE_RATE * n))
-        level = (k + 1) * TAIL_MAX_SIGMAS / TAIL_BINS if above[k] <= WEAK_FALSE_RATE * n else TAIL_MAX_SIGMAS
+        level = (k + 0.5) * TAIL_MAX_SIGMAS / TAIL_BINS
         prev = self.tail_sigmas
         self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
 
@@ -414,6 +428,7 @@ class BackgroundModel:
         colour = self._colour_now
         if self._colour_bg is None or colour is None or colour.shape[:2] != self._colour_bg.shape[:2]:
             return
+        self._bg_spread = None
         if objects is None:
             cv2.accumulateWeighted(colour, self._colour_bg, alpha)
             return

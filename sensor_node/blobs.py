@@ -222,14 +222,12 @@ def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> 
     h = min(h, height - v0)
     if not wrap:
         w = min(w, width - u0)
-    mask: npt.NDArray[np.bool_] = np.asarray(roi(fg, u0, v0, w, h)) > 0
-    cols = np.flatnonzero(mask.any(axis=0))
-    rows = np.flatnonzero(mask.any(axis=1))
-    if cols.size == 0:
+    sub = np.asarray(roi(fg, u0, v0, w, h))
+    c0, r0, w, h = cv2.boundingRect(sub)  # of its set pixels
+    if w == 0:
         return None
-    c0, c1, r0, r1 = int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1])
-    mask = mask[r0 : r1 + 1, c0 : c1 + 1]
-    u0, v0, w, h = (u0 + c0) % width, v0 + r0, c1 - c0 + 1, r1 - r0 + 1
-    area = int(np.count_nonzero(mask))
-    moving_px = int(np.count_nonzero(roi(moving, u0, v0, w, h)[mask]))
-    return RawBlob(u0, v0, w, h, mask, area, area / float(w * h), moving_px / max(area, 1))
+    sub = sub[r0 : r0 + h, c0 : c0 + w]
+    u0, v0 = (u0 + c0) % width, v0 + r0
+    area = cv2.countNonZero(sub)
+    moving_px = cv2.countNonZero(cv2.bitwise_and(np.asarray(roi(moving, u0, v0, w, h)), sub))
+    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h), moving_px / max(area, 1))

@@ -26,11 +26,19 @@ def components(mask: Mask) -> tuple[int, Mask, npt.NDArray[np.int32]]:
     if n <= 1:
         return n, labels, stats
     contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
-    for contour, (_, _, _, parent) in zip(contours, hierarchy[0].tolist(), strict=True):
-        if parent >= 0:
-            continue  # the boundary of a hole
+    outer = [c for c, h in zip(contours, hierarchy[0].tolist(), strict=True) if h[3] < 0]  # not a hole's
+    for contour in outer:
         x, y = contour[0, 0].tolist()
-        k = int(labels[y, x])
-        u, v, w, h = cv2.boundingRect(contour)
-        stats[k] = (u, v, w, h, np.count_nonzero(labels[v : v + h, u : u + w] == k))
+        stats[labels[y, x], :4] = cv2.boundingRect(contour)
+    if n > MANY_REGIONS:
+        stats[:, 4] = np.bincount(labels.ravel(), minlength=n)
+    else:
+        for k in range(1, n):
+            u, v, w, h = stats[k, :4].tolist()
+            stats[k, 4] = np.count_nonzero(labels[v : v + h, u : u + w] == k)
+    stats[0] = 0
     return n, labels, stats
+
+
+MANY_REGIONS = 12
+"""Regions beyond which areas come from one count over the whole label image, not one per region's box."""
