@@ -165,7 +165,8 @@ def find_blobs(
         m = np.asarray(members)
         if int(st[m, cv2.CC_STAT_AREA].sum()) * k * k < settings.min_blob_px:
             continue
-        if wrap and len(m) > 1:
+        if wrap and len(m) > 1 and int(a1[m].max() - a0[m].min()) >= width_s // 2:
+            # Only a group spanning half the panorama or more may be shorter across the seam.
             u0 = _circular_start(a0[m], a1[m], width_s)
             s0 = np.where(a0[m] < u0, a0[m] + width_s, a0[m])
             ws = int((s0 + (a1[m] - a0[m])).max()) - u0 + 1
@@ -193,9 +194,11 @@ def _bridged(
     gap_x, gap_y = gaps
     n = gap_x.shape[0]
     out = np.zeros((n, n), bool)
-    pairs = np.argwhere(np.triu((gap_x < 0) & (gap_y > gy)))
-    if pairs.size == 0:
+    stacked = (gap_x < 0) & (gap_y > gy)
+    if not stacked.any():
         return out
+    pairs = np.argwhere(stacked)
+    pairs = pairs[pairs[:, 0] < pairs[:, 1]]
     a0, a1, b0, b1 = boxes
     height, width = links.shape
     small = links if k == 1 else cv2.resize(links, (width // k, height // k), interpolation=cv2.INTER_AREA)
@@ -208,9 +211,12 @@ def _bridged(
             if c0 <= c1:
                 break
         cols = np.arange(c0, c1 + 1) % width_s
-        rows = small[b1[up] + 1 : b0[lo]][:, cols].any(axis=1)
-        empty = np.diff(np.flatnonzero(np.concatenate([[True], rows, [True]]))) - 1
-        if int(empty.max()) <= gy:
+        longest = run = 0
+        filled_rows: list[bool] = np.any(small[b1[up] + 1 : b0[lo]][:, cols], axis=1).tolist()
+        for filled in filled_rows:
+            run = 0 if filled else run + 1
+            longest = max(longest, run)
+        if longest <= gy:
             out[i, j] = out[j, i] = True
     return out
 
