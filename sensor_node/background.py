@@ -3,7 +3,12 @@
 The paper ("Moving object detection and extraction", after its ref. [9])
 integrates four parts, all here:
 
-* **background subtraction** -- ``|I - B| > fg_threshold`` marks changed pixels;
+* **background subtraction** -- ``|I - B|`` beyond a per-pixel threshold (``fg_sigmas`` of the
+  pixel's own swing or of the image's noise, at least ``fg_threshold``) marks changed pixels; beside
+  them (connected), pixels beyond the level the image's own noise rarely reaches join them
+  (hysteresis, :meth:`BackgroundModel.apply`): the faint parts of a person (a face or a shirt near
+  the wall's grey) come with the parts that stand out, so the clean-up that follows does not erase
+  the thin, sparse links between them;
 * **frame differencing** -- ``|I_t - I_{t-1}| > diff_threshold`` marks moving
   pixels; it tells a *sudden* global change (every pixel jumps between two
   frames) from people, and gives each blob its motion evidence;
@@ -38,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
-from sensor_node.shadows import shadow_mask
+from sensor_node.shadows import local_spread, shadow_mask
 from sensor_node.still import StillRegions
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
@@ -103,9 +108,21 @@ class BackgroundModel:
         what moves in place (a flapping tape, leaves, a screen)."""
         self._thr: Mask | None = None
         """Per-pixel changed threshold (8-bit): ``fg_threshold``, or more where the image is noisy or swings."""
+        self._thr_weak: Mask | None = None
+        """Per-pixel threshold (8-bit, at most ``_thr``) beyond which a pixel connected to changed pixels
+        changed too (None: the noise tail is not measured yet)."""
+        self._sigma: npt.NDArray[np.float32] | None = None
+        """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
+        self.tail_sigmas: float | None = None
+        """The image's noise tail: how many of their own sigmas the background pixels' differences pass in a
+        fraction ``WEAK_FALSE_RATE`` of them (measured outside objects at each update, smoothed). About 3.7
+        for Gaussian noise; more for compressed video (blocks, ringing)."""
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
         self._colour_now: Mask | None = None
+        self._bg_spread: npt.NDArray[np.float32] | None = None
+        """The colour background's local texture (:func:`sensor_node.shadows.local_spread`), computed when the
+        shadow test first needs it after the colour background changed."""
         self.noise_sigma = 0.0
         """The image's own noise: robust sigma of |frame - background| over the background (grey levels)."""
         self.still = StillRegions(settings)
@@ -162,18 +179,32 @@ class BackgroundModel:
         self._refresh_threshold()
         if self._warm_colour and len(self._warm_colour) == len(self._warm):
             self._colour_bg = np.median(np.stack(self._warm_colour), axis=0).astype(np.float32)
+            self._bg_spread = None
         self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
         logger.debug("background initialised from %d frames (noise sigma %.1f)", stack.shape[0], self.noise_sigma)
 
     def _refresh_threshold(self) -> None:
-        """Per-pixel changed threshold from the deviation map: ``fg_sigmas`` of the pixel's own swing or of the
-        image's noise, whichever is larger, and never below ``fg_threshold``."""
+        """Per-pixel thresholds from the deviation map.
+
+        Changed: beyond ``fg_sigmas`` of the pixel's own swing or of the image's noise, whichever is larger,
+        and never below ``fg_threshold``. Joining changed pixels it touches (:func:`_hysteresis`): beyond the
+        level of the image's noise tail (:attr:`tail_sigmas`, at least ``fg_sigmas``) without the
+        ``fg_threshold`` floor: on a clean image what passes it beside an object is part of the object; on
+        compressed video, whose noise has long tails, it rises to the changed threshold and changes nothing.
+        """
         assert self._dev is not None
         s = self.settings
         self.noise_sigma = MAD_TO_SIGMA * float(np.median(self._dev[::4, ::4]))
-        floor = max(float(s.fg_threshold), s.fg_sigmas * self.noise_sigma)
-        thr = np.maximum(self._dev * np.float32(s.fg_sigmas * MAD_TO_SIGMA), np.float32(floor))
-        self._thr = cv2.convertScaleAbs(np.minimum(thr, 254.0))
+        # Each operation by whichever of numpy and OpenCV is faster at it (numpy: float products and sums
+        # with a scalar; OpenCV: maxima and minima with one, saturating 8-bit conversion).
+        sigma = cv2.max(self._dev * np.float32(MAD_TO_SIGMA), max(self.noise_sigma, MIN_SIGMA))  # type: ignore[call-overload]
+        self._sigma = sigma
+        thr = cv2.min(cv2.max(cv2.convertScaleAbs(sigma, alpha=s.fg_sigmas), s.fg_threshold), 254)  # type: ignore[call-overload]
+        self._thr = thr
+        if self.tail_sigmas is None:
+            self._thr_weak = None
+        else:
+            self._thr_weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
 
     def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
         """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
@@ -188,7 +219,11 @@ class BackgroundModel:
         small = self._colour_now
         if small.shape[:2] != self._colour_bg.shape[:2]:
             return None
-        return shadow_mask(small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor)
+        if self._bg_spread is None:
+            self._bg_spread = local_spread(self._colour_bg)
+        return shadow_mask(
+            small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
+        )
 
     def apply(self, grey: Mask, stamp_ns: int | None = None, colour: Mask | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
@@ -230,11 +265,14 @@ class BackgroundModel:
             return Motion(empty, moving, "moving", 1.0)
         bg_u8 = self._bg_u8
         assert bg_u8 is not None and self._thr is not None
-        fg = cv2.compare(cv2.absdiff(grey, bg_u8), self._thr, cv2.CMP_GT)
+        diff = cv2.absdiff(grey, bg_u8)
+        fg = cv2.compare(diff, self._thr, cv2.CMP_GT)
         n = grey.size
         frac = cv2.countNonZero(fg) / n
         if frac <= s.abnormal_frac:
             assert self._bg is not None
+            if self._thr_weak is not None:
+                fg = _hysteresis(fg, cv2.compare(diff, self._thr_weak, cv2.CMP_GT))
             if self.still.update(grey, fg, moving, bg=self._bg, bg_u8=bg_u8, frame=self._frames):
                 self._bg_u8 = cv2.convertScaleAbs(self._bg)
             self._last_fg = fg
@@ -256,6 +294,7 @@ class BackgroundModel:
             ch, cw = self._colour_bg.shape[:2]
             small_gain = cv2.resize(new_bg / np.maximum(self._bg, 1.0), (cw, ch), interpolation=cv2.INTER_AREA)
             self._colour_bg = np.minimum(self._colour_bg * small_gain[..., None], 255.0).astype(np.float32)
+            self._bg_spread = None
         fg2 = _threshold(cv2.absdiff(grey, cv2.convertScaleAbs(new_bg)), s.fg_threshold)
         frac2 = cv2.countNonZero(fg2) / n
         if frac2 <= s.abnormal_frac:
@@ -296,7 +335,7 @@ class BackgroundModel:
         """
         self._bg = None
         self._bg_u8 = None
-        self._dev = self._thr = self._colour_bg = None
+        self._dev = self._thr = self._thr_weak = self._sigma = self._colour_bg = self._bg_spread = None
         self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
         self._fast = True
         self.still.reset()
@@ -331,35 +370,68 @@ class BackgroundModel:
         if self._updates % k:
             return
         alpha = min(1.0, self.settings.learning_rate * k)
-        self._update_dev(grey, boxes or [], alpha)
         objects = _object_mask(grey.shape, fg, boxes or [])
+        self._update_dev(grey, boxes or [], alpha, objects)
         self._update_colour(objects, alpha)
         if objects is None:
             cv2.accumulateWeighted(grey, self._bg, alpha)
         else:
             outside = cv2.bitwise_not(objects)
-            before = cv2.mean(self._bg, mask=outside)[0]
+            # Means over the outside as dot products with its 0/1 weights (cv2.mean with a mask costs 10x).
+            weights = np.float32(outside.ravel()) * np.float32(1.0 / 255.0)
+            n_out = max(float(weights.sum()), 1.0)
+            before = float(np.dot(self._bg.ravel(), weights)) / n_out
             cv2.accumulateWeighted(grey, self._bg, alpha, mask=outside)
-            after = cv2.mean(self._bg, mask=outside)[0]
+            after = float(np.dot(self._bg.ravel(), weights)) / n_out
             if before > 1.0:
                 drift = self._bg * np.float32(after / before)
                 cv2.copyTo(drift, objects, self._bg)
         self._bg_u8 = cv2.convertScaleAbs(self._bg)
 
-    def _update_dev(self, grey: Mask, boxes: list[tuple[int, int, int, int]], alpha: float) -> None:
+    def _update_dev(
+        self, grey: Mask, boxes: list[tuple[int, int, int, int]], alpha: float, objects: Mask | None
+    ) -> None:
         if self._dev is None or self._bg_u8 is None:
             return
-        diff = cv2.absdiff(grey, self._bg_u8).astype(np.float32)
+        diff = cv2.absdiff(grey, self._bg_u8)
+        self._update_tail(diff, objects, alpha)
         cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
-        sample = np.minimum(diff, cap)
+        sample = cv2.min(diff.astype(np.float32), cap)
         people = _object_mask(grey.shape, None, boxes)
         cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
         self._refresh_threshold()
+
+    def _update_tail(self, diff: Mask, objects: Mask | None, alpha: float) -> None:
+        """Measure the image's noise tail (:attr:`tail_sigmas`) on the background pixels of this frame.
+
+        The differences outside objects, each in its own pixel's sigmas, are histogrammed; the level that
+        a fraction ``WEAK_FALSE_RATE`` of them pass is blended into the estimate at the update's rate.
+        What passes the changed threshold is in ``objects``, so the estimate stays below it.
+        """
+        if self._sigma is None:
+            return
+        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond): 8-bit images
+        # are what calcHist counts fast; objects' pixels are put in bin 0 and taken out of it.
+        z = cv2.convertScaleAbs(diff / self._sigma, alpha=TAIL_BINS / TAIL_MAX_SIGMAS)
+        n = diff.size
+        if objects is not None:
+            z = cv2.bitwise_and(z, cv2.bitwise_not(objects))
+            n -= cv2.countNonZero(objects)
+        if n * WEAK_FALSE_RATE < TAIL_MIN_PX:
+            return
+        hist = cv2.calcHist([z], [0], None, [TAIL_BINS], [0, TAIL_BINS]).ravel()
+        hist[0] -= diff.size - n
+        above = n - np.cumsum(hist)  # pixels in the bins above each
+        k = int(np.argmax(above <= WEAK_FALSE_RATE * n))
+        level = (k + 0.5) * TAIL_MAX_SIGMAS / TAIL_BINS
+        prev = self.tail_sigmas
+        self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
 
     def _update_colour(self, objects: Mask | None, alpha: float) -> None:
         colour = self._colour_now
         if self._colour_bg is None or colour is None or colour.shape[:2] != self._colour_bg.shape[:2]:
             return
+        self._bg_spread = None
         if objects is None:
             cv2.accumulateWeighted(colour, self._colour_bg, alpha)
             return
@@ -374,6 +446,24 @@ WARM_SLACK_NS = 2_000_000
 MAD_TO_SIGMA = 1.4826
 """Median absolute deviation -> standard deviation of Gaussian noise."""
 
+MIN_SIGMA = 0.5
+"""Least noise sigma (grey levels) a pixel is given: 8-bit quantisation alone is about 0.3."""
+
+WEAK_FALSE_RATE = 1e-4
+"""Fraction of the background's pixels whose difference may pass the joining threshold (the level of the noise
+tail that :attr:`BackgroundModel.tail_sigmas` measures). Lower: hysteresis joins less, on clean images too;
+higher: noise beside people joins them (their boxes grow on compressed video)."""
+
+HYSTERESIS_CELL_PX = 2
+"""Side of the cells on which hysteresis judges connectivity (:func:`_hysteresis`)."""
+
+TAIL_MIN_PX = 4.0
+"""Least expected number of background pixels beyond the tail level for a measurement of it to count."""
+
+TAIL_BINS = 256
+TAIL_MAX_SIGMAS = 32.0
+"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS)."""
+
 DEV_STEP = 1.0
 """Largest relative rise of a pixel's deviation from one update sample (1: it may double)."""
 
@@ -386,6 +476,7 @@ EGO_SECTOR_PX = 10
 MIN_LIGHT_STEP = 0.04
 """A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
 
+_K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
 _K9 = np.ones((9, 9), np.uint8)
 
@@ -408,6 +499,36 @@ def _object_mask(shape: tuple[int, ...], fg: Mask | None, boxes: list[tuple[int,
             mask[rows, : b - width] = 255
         mask[rows, max(a, 0) : min(b, width)] = 255
     return mask
+
+
+def _hysteresis(strong: Mask, weak: Mask) -> Mask:
+    """``strong`` and the pixels of ``weak`` connected to it through ``weak``, but for those touching ``strong``.
+
+    Connectivity is judged on 2 x 2 cells (a cell is weak or strong if any of its pixels is): the labelling
+    costs a quarter, and a faint part one pixel from a contrasted one is still the same object.
+
+    The ring of pixels touching ``strong`` is left to the clean-up's majority vote: along the edge of
+    something contrasted it is the partly covered fringe (blur), with the object on one side only, and
+    stays out, as it would without hysteresis; between the contrasted part and a faint one (hair and a face
+    of the wall's grey) both sides are set and the vote fills it.
+    """
+    if cv2.countNonZero(weak) == cv2.countNonZero(strong):
+        return strong
+    height, width = weak.shape
+    size = (max(1, width // HYSTERESIS_CELL_PX), max(1, height // HYSTERESIS_CELL_PX))
+    weak_cells = cv2.resize(weak, size, interpolation=cv2.INTER_AREA)
+    strong_cells = cv2.resize(strong, size, interpolation=cv2.INTER_AREA)
+    n, labels = cv2.connectedComponents(weak_cells, connectivity=8, ltype=cv2.CV_32S)
+    seeded = np.zeros(n, np.uint8)
+    seeded[labels[strong_cells > 0]] = 255
+    seeded[0] = 0
+    # The seeded labels' cells: an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
+    cells = cv2.LUT(cv2.convertScaleAbs(labels), np.resize(seeded, 256)) if n <= 256 else seeded[labels]
+    joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
+    near = cv2.dilate(strong, _K3)
+    beyond = cv2.subtract(joined, near)  # faint parts, not touching the contrasted ones
+    ring = cv2.bitwise_and(cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)), near)
+    return cv2.bitwise_or(cv2.bitwise_or(strong, beyond), ring)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

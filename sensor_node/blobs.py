@@ -11,6 +11,12 @@ the difference image have changed inside each region".
   each other merge into one blob -- a body split by clothing that matches
   the wall rejoins; on a panorama columns wrap around (column W-1 touches
   column 0), so a person standing on the seam is one blob;
+* given the changed pixels before the clean-up that made ``fg`` (``links``),
+  a region above another in the same columns joins it when those pixels
+  bridge the rows between them with no gap over ``merge_gap_px`` rows: people
+  stand upright, and the clean-up erases the thin, sparse parts (a neck, the
+  outline of a shirt of the wall's grey) that join a person's head to their
+  body; their head alone would be one blob and the rest, wider, another;
 * a blob is kept if it has at least ``min_blob_px`` changed pixels, is at
   least ``min_blob_height_px`` tall, and at least ``min_changed_frac`` of its
   bounding box changed.
@@ -28,6 +34,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.components import components
 from sensor_node.config import PipelineSettings
 
 __all__ = ["RawBlob", "find_blobs", "roi"]
@@ -98,7 +105,13 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
 
 
 def find_blobs(
-    fg: Mask, moving: Mask, settings: PipelineSettings, wrap: bool = True, *, check_frac: bool = True
+    fg: Mask,
+    moving: Mask,
+    settings: PipelineSettings,
+    wrap: bool = True,
+    *,
+    check_frac: bool = True,
+    links: Mask | None = None,
 ) -> list[RawBlob]:
     """Group the foreground pixels of one frame into validated blobs.
 
@@ -117,11 +130,14 @@ def find_blobs(
             caller checks that after splitting (a person beside a ghost makes a wide, sparse box
             whose parts pass it; dropping the whole would also leave the person unprotected from
             the background update).
+        links: (H, W) the changed pixels before the clean-up that made ``fg`` (a superset of its
+            evidence): regions one above the other join through them (the module docstring). None: no
+            such joins.
     """
     height, width = fg.shape
     k = settings.group_scale
     small = fg if k == 1 else cv2.resize(fg, (width // k, height // k), interpolation=cv2.INTER_AREA)
-    n, _, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=cv2.CV_32S)
+    n, _, stats = components(small)
     if n <= 1:
         return []
     width_s = small.shape[1]
@@ -142,12 +158,15 @@ def find_blobs(
             gap_x = np.minimum(gap_x, g)
     gap_y = np.maximum(b0[:, None], b0[None, :]) - np.minimum(b1[:, None], b1[None, :]) - 1
     adj = (gap_x <= gx) & (gap_y <= gy)
+    if links is not None:
+        adj |= _bridged(links, k, (a0, a1, b0, b1), (gap_x, gap_y), gy)
     out: list[RawBlob] = []
     for members in _groups(adj):
         m = np.asarray(members)
         if int(st[m, cv2.CC_STAT_AREA].sum()) * k * k < settings.min_blob_px:
             continue
-        if wrap and len(m) > 1:
+        if wrap and len(m) > 1 and int(a1[m].max() - a0[m].min()) >= width_s // 2:
+            # Only a group spanning half the panorama or more may be shorter across the seam.
             u0 = _circular_start(a0[m], a1[m], width_s)
             s0 = np.where(a0[m] < u0, a0[m] + width_s, a0[m])
             ws = int((s0 + (a1[m] - a0[m])).max()) - u0 + 1
@@ -167,6 +186,41 @@ def find_blobs(
     return out
 
 
+def _bridged(
+    links: Mask, k: int, boxes: tuple[IntArray, IntArray, IntArray, IntArray], gaps: tuple[IntArray, IntArray], gy: int
+) -> npt.NDArray[np.bool_]:
+    """Pairs of regions (reduced boxes ``a0, a1, b0, b1``) one above the other whose shared columns hold
+    ``links`` pixels on the rows between them, with no run of empty rows longer than ``gy``."""
+    gap_x, gap_y = gaps
+    n = gap_x.shape[0]
+    out = np.zeros((n, n), bool)
+    stacked = (gap_x < 0) & (gap_y > gy)
+    if not stacked.any():
+        return out
+    pairs = np.argwhere(stacked)
+    pairs = pairs[pairs[:, 0] < pairs[:, 1]]
+    a0, a1, b0, b1 = boxes
+    height, width = links.shape
+    small = links if k == 1 else cv2.resize(links, (width // k, height // k), interpolation=cv2.INTER_AREA)
+    width_s = small.shape[1]
+    for i, j in pairs.tolist():
+        up, lo = (i, j) if b1[i] < b0[j] else (j, i)
+        # Shared columns, across the seam if that is where they overlap.
+        for shift in (0, width_s, -width_s):
+            c0, c1 = max(a0[up], a0[lo] + shift), min(a1[up], a1[lo] + shift)
+            if c0 <= c1:
+                break
+        cols = np.arange(c0, c1 + 1) % width_s
+        longest = run = 0
+        filled_rows: list[bool] = np.any(small[b1[up] + 1 : b0[lo]][:, cols], axis=1).tolist()
+        for filled in filled_rows:
+            run = 0 if filled else run + 1
+            longest = max(longest, run)
+        if longest <= gy:
+            out[i, j] = out[j, i] = True
+    return out
+
+
 def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
     """The blob in a full-resolution box (u0, v0, w, h): its changed pixels, the box trimmed to them."""
     height, width = fg.shape
@@ -174,14 +228,12 @@ def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> 
     h = min(h, height - v0)
     if not wrap:
         w = min(w, width - u0)
-    mask: npt.NDArray[np.bool_] = np.asarray(roi(fg, u0, v0, w, h)) > 0
-    cols = np.flatnonzero(mask.any(axis=0))
-    rows = np.flatnonzero(mask.any(axis=1))
-    if cols.size == 0:
+    sub = np.asarray(roi(fg, u0, v0, w, h))
+    c0, r0, w, h = cv2.boundingRect(sub)  # of its set pixels
+    if w == 0:
         return None
-    c0, c1, r0, r1 = int(cols[0]), int(cols[-1]), int(rows[0]), int(rows[-1])
-    mask = mask[r0 : r1 + 1, c0 : c1 + 1]
-    u0, v0, w, h = (u0 + c0) % width, v0 + r0, c1 - c0 + 1, r1 - r0 + 1
-    area = int(np.count_nonzero(mask))
-    moving_px = int(np.count_nonzero(roi(moving, u0, v0, w, h)[mask]))
-    return RawBlob(u0, v0, w, h, mask, area, area / float(w * h), moving_px / max(area, 1))
+    sub = sub[r0 : r0 + h, c0 : c0 + w]
+    u0, v0 = (u0 + c0) % width, v0 + r0
+    area = cv2.countNonZero(sub)
+    moving_px = cv2.countNonZero(cv2.bitwise_and(np.asarray(roi(moving, u0, v0, w, h)), sub))
+    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h), moving_px / max(area, 1))

@@ -149,12 +149,13 @@ def colour_histogram(
 ) -> list[float]:
     """L1-normalised hue x saturation histogram of the masked pixels (the paper's I)."""
     hsv = cv2.cvtColor(np.ascontiguousarray(bgr_roi), cv2.COLOR_BGR2HSV)
-    m8 = mask.astype(np.uint8)
+    m8 = mask.view(np.uint8) if mask.flags.c_contiguous else mask.astype(np.uint8)
     hist = cv2.calcHist([hsv], [0, 1], m8, [int(bins[0]), int(bins[1])], [0, 180, 0, 256]).ravel()
     total = float(hist.sum())
     if total <= 0:
         return []
-    return [float(x) for x in hist / total]
+    out: list[float] = (hist / total).tolist()
+    return out
 
 
 def _small_box(frame: PanoFrame, raw: RawBlob) -> tuple[Image, npt.NDArray[np.bool_]] | None:
@@ -165,9 +166,8 @@ def _small_box(frame: PanoFrame, raw: RawBlob) -> tuple[Image, npt.NDArray[np.bo
     if r1 < r0 or c1 < c0:
         return None
     img = frame.small_box(c0, r0, c1 - c0 + 1, r1 - r0 + 1)
-    rows = np.arange(r0, r1 + 1) * s - raw.v0
-    cols = np.arange(c0, c1 + 1) * s - raw.u0
-    return img, raw.mask[np.ix_(rows, cols)]
+    # The mask's pixels at the reduced pixels' rows and columns (every s-th, from the first inside it).
+    return img, raw.mask[r0 * s - raw.v0 :: s, c0 * s - raw.u0 :: s][: r1 - r0 + 1, : c1 - c0 + 1]
 
 
 def annotate(

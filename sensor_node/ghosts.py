@@ -22,6 +22,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.components import components
+
 __all__ = ["UnderGhosts", "start_up_hole", "surround_deviation"]
 
 logger = logging.getLogger(__name__)
@@ -184,7 +186,7 @@ class UnderGhosts:
         if cv2.countNonZero(cand) < least_px:
             return None, 0
         near = cv2.absdiff(grey, self._under_u8) <= match_level
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(cand, connectivity=8)
+        n, labels, stats = components(cand)
         done: Mask | None = None
         regions = 0
         for k in range(1, n):

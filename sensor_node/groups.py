@@ -135,12 +135,17 @@ def _extent(top: npt.NDArray[np.int64], p: int) -> tuple[int, int]:
     return a, b
 
 
-def _runs(top: npt.NDArray[np.int64]) -> list[tuple[int, int]]:
-    """First and last column of each run of equal top."""
+def _local_tops(top: npt.NDArray[np.int64], image_top: int) -> list[tuple[int, int]]:
+    """The runs of equal top (first and last column) that are local tops below ``image_top``: the profile
+    is lower on both sides (a step beside a near shoulder is too often that shoulder)."""
     edges = np.flatnonzero(np.diff(top)) + 1
-    starts = [0, *edges.tolist()]
-    ends = [*(edges - 1).tolist(), top.size - 1]
-    return list(zip(starts, ends, strict=True))
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges - 1, [top.size - 1]])
+    level = top[starts]
+    left = np.concatenate([[True], top[starts[1:] - 1] > level[1:]])
+    right = np.concatenate([top[ends[:-1] + 1] > level[:-1], [True]])
+    keep = np.flatnonzero(left & right & (level > image_top))
+    return list(zip(starts[keep].tolist(), ends[keep].tolist(), strict=True))
 
 
 def _head_bumps(
@@ -159,10 +164,8 @@ def _head_bumps(
     """
     found: list[tuple[int, int, int]] = []
     vals, pl = top.tolist(), preds.tolist()
-    for c, e in _runs(top):
+    for c, e in _local_tops(top, image_top):
         p, tp = (c + e) // 2, vals[c]
-        if tp <= image_top or not ((c == 0 or vals[c - 1] > tp) and (e + 1 == len(vals) or vals[e + 1] > tp)):
-            continue  # not a local top (a step beside a near shoulder is too often that shoulder)
         near_f = min(pl, key=lambda q: abs(q - p))
         if abs(near_f - p) < MIN_SEPARATION_PX:
             continue

@@ -70,15 +70,20 @@ class FrameResult:
     """The processed frame (grey panorama, reduced colour)."""
 
 
-def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None = None) -> Mask:
-    """The changed pixels that may be objects: shadows and highlights removed (:mod:`sensor_node.shadows`),
-    then a 3 x 3 majority vote, so isolated pixels (compression noise, a frame-difference trail, the edge
-    of something swinging) neither chain blobs together nor stretch their boxes, and one-pixel holes close."""
+def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None = None) -> tuple[Mask, Mask]:
+    """The changed pixels that may be objects, and the same before the vote.
+
+    Shadows and highlights are removed (:mod:`sensor_node.shadows`), then a 3 x 3 majority vote, so
+    isolated pixels (compression noise, a frame-difference trail, the edge of something swinging) neither
+    chain blobs together nor stretch their boxes, and one-pixel holes close. The vote also erases what is
+    thin or sparse in a person (a neck, the outline of a shirt of the wall's grey): grouping joins the
+    parts above one another through the mask before it (:func:`sensor_node.blobs.find_blobs`).
+    """
     fg = motion.fg
     shade = background.shadows(fg, floor)
     if shade is not None:
         fg = cv2.subtract(fg, shade)
-    return cv2.medianBlur(fg, 3)
+    return cv2.medianBlur(fg, 3), fg
 
 
 def below_horizon(geometry: ImageGeometry, width: int, height: int, scale: int) -> Mask:
@@ -168,13 +173,17 @@ class ImagePipeline:
         grey = pf.grey
         motion = self.background.apply(grey, stamp_ns, pf.small if s.shadows else None)
         width = grey.shape[1]
-        fg = objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else motion.fg
+        fg, before_vote = (
+            objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else (motion.fg, motion.fg)
+        )
         if self.bands is not None and self._frames % s.sighting_every == 0:
             self._last_sightings = self.bands.find(pf)
         self._frames += 1
         sightings = self._last_sightings
         raws_found = (
-            find_blobs(fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False) if motion.reportable else []
+            find_blobs(fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False, links=before_vote)
+            if motion.reportable
+            else []
         )
         if self._tracker is None:
             self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)

@@ -29,7 +29,14 @@ import numpy.typing as npt
 
 from sensor_node.config import PipelineSettings
 
-__all__ = ["CHROMA_SIGMAS", "CHROMA_TOLERANCE", "HIGHLIGHT_MAX_RATIO", "SHADOW_MIN_RATIO", "shadow_mask"]
+__all__ = [
+    "CHROMA_SIGMAS",
+    "CHROMA_TOLERANCE",
+    "HIGHLIGHT_MAX_RATIO",
+    "SHADOW_MIN_RATIO",
+    "local_spread",
+    "shadow_mask",
+]
 
 Mask = npt.NDArray[Any]
 
@@ -64,13 +71,12 @@ TEXTURE_KEPT = 0.5
 ratio); cloth of the floor's colour shows little of it."""
 
 
-def _local_spread(small: Mask, colour_bg: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], ...]:
-    """Per pixel: grey-level variance of the frame and of the background over ``TEXTURE_WINDOW`` pixels."""
-    f = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    b = cv2.cvtColor(colour_bg, cv2.COLOR_BGR2GRAY)
+def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
+    """Per pixel: grey-level variance over ``TEXTURE_WINDOW`` pixels (the texture a shadow keeps)."""
+    g = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
     k = (TEXTURE_WINDOW, TEXTURE_WINDOW)
-    mf, mb = cv2.blur(f, k), cv2.blur(b, k)
-    return cv2.blur(f * f, k) - mf * mf, cv2.blur(b * b, k) - mb * mb
+    m = cv2.blur(g, k)
+    return cv2.blur(g * g, k) - m * m
 
 
 def shadow_mask(
@@ -81,6 +87,7 @@ def shadow_mask(
     settings: PipelineSettings,
     *,
     floor: Mask | None = None,
+    bg_spread: npt.NDArray[np.float32] | None = None,
 ) -> Mask | None:
     """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
 
@@ -93,6 +100,7 @@ def shadow_mask(
         floor: 255 on the reduced pixels whose ray points below the horizon (where a person's cast
             shadow falls: the floor); None: everywhere. Above it are heads, which dark hair against a
             pale wall of the same hue would otherwise pass for a shadow of.
+        bg_spread: :func:`local_spread` of ``colour_bg`` (None: computed here, around the candidates).
     """
     if not settings.shadows:
         return None
@@ -101,38 +109,49 @@ def shadow_mask(
     fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)
     if floor is not None and floor.shape == fg_small.shape:
         fg_small = cv2.bitwise_and(fg_small, floor)
-    ys, xs = np.nonzero(fg_small)
-    if ys.size == 0:
+    points = cv2.findNonZero(fg_small)  # a tenth of np.nonzero's time
+    if points is None:
         return None
+    xs, ys = points.reshape(-1, 2).T
     frame_px = small[ys, xs].astype(np.float32)
     bg_px = colour_bg[ys, xs]
     bb = np.einsum("ij,ij->i", bg_px, bg_px)
     ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
-    resid = np.linalg.norm(frame_px - ratio[:, None] * bg_px, axis=1)
+    chroma = frame_px - ratio[:, None] * bg_px
+    resid2 = np.einsum("ij,ij->i", chroma, chroma)
     sigma = max(noise_sigma, 1.0)
     norm_bg = np.sqrt(bb)
     lit = (ratio >= SHADOW_MIN_RATIO) & (ratio <= HIGHLIGHT_MAX_RATIO) & (norm_bg >= MIN_BRIGHTNESS_SIGMAS * sigma)
     tol = CHROMA_SIGMAS * sigma * np.sqrt(3.0) + CHROMA_TOLERANCE * ratio * norm_bg
-    is_shadow = lit & (resid <= tol)
+    is_shadow = lit & (resid2 <= tol * tol)
     if not is_shadow.any():
         return None
     # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
-    # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell.
-    # Only around the candidates (the window's reach beyond their bounding box).
-    cy, cx = ys[is_shadow], xs[is_shadow]
-    m = TEXTURE_WINDOW // 2
-    r0, r1 = max(int(cy.min()) - m, 0), min(int(cy.max()) + m + 1, sh)
-    c0, c1 = max(int(cx.min()) - m, 0), min(int(cx.max()) + m + 1, sw)
-    box = (slice(r0, r1), slice(c0, c1))
-    var_f, var_b = _local_spread(np.ascontiguousarray(small[box]), np.ascontiguousarray(colour_bg[box]))
-    ys, xs, ratio = cy, cx, ratio[is_shadow]
-    vf, vb = var_f[ys - r0, xs - c0], var_b[ys - r0, xs - c0]
+    # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell;
+    # the frame's texture is measured around the other candidates only (the window's reach beyond them).
+    ys, xs, ratio = ys[is_shadow], xs[is_shadow], ratio[is_shadow]
+    if bg_spread is None:
+        bg_spread = local_spread(colour_bg)
+    vb = bg_spread[ys, xs]
     textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
-    lost = vf < (TEXTURE_KEPT * ratio) ** 2 * vb
-    is_shadow = ~(textured & lost)
-    if not is_shadow.any():
+    if textured.any():
+        ty, tx = ys[textured], xs[textured]
+        m = TEXTURE_WINDOW // 2
+        r0, r1 = max(int(ty.min()) - m, 0), min(int(ty.max()) + m + 1, sh)
+        c0, c1 = max(int(tx.min()) - m, 0), min(int(tx.max()) + m + 1, sw)
+        var_f = local_spread(np.ascontiguousarray(small[r0:r1, c0:c1]))
+        lost = var_f[ty - r0, tx - c0] < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
+        keep = np.ones(ys.size, bool)
+        keep[np.flatnonzero(textured)[lost]] = False
+        ys, xs = ys[keep], xs[keep]
+    if ys.size == 0:
         return None
-    out_small = np.zeros((sh, sw), np.uint8)
-    out_small[ys[is_shadow], xs[is_shadow]] = 255
-    full = cv2.resize(out_small, (w, h), interpolation=cv2.INTER_NEAREST)
+    # Back to full resolution over the shadow pixels' box only (nearest: each reduced pixel's block).
+    r0, r1, c0, c1 = int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1
+    box_small = np.zeros((r1 - r0, c1 - c0), np.uint8)
+    box_small[ys - r0, xs - c0] = 255
+    sy, sx = h / sh, w / sw
+    fr0, fr1, fc0, fc1 = round(r0 * sy), round(r1 * sy), round(c0 * sx), round(c1 * sx)
+    full = np.zeros((h, w), np.uint8)
+    full[fr0:fr1, fc0:fc1] = cv2.resize(box_small, (fc1 - fc0, fr1 - fr0), interpolation=cv2.INTER_NEAREST)
     return cv2.bitwise_and(full, fg)

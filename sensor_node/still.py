@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.components import components
 from sensor_node.config import PipelineSettings
 from sensor_node.ghosts import UnderGhosts, start_up_hole, surround_deviation
 
@@ -61,6 +62,9 @@ GHOST_RING_CHANGED = 0.35
 
 PERSON_SCORE = 1.5
 """Frame-outline / background-outline edge ratio above which a still region is a paused object, kept."""
+
+CLOSE_REACH_PX = 4
+"""Margin around the still pixels within which the 5 x 5 closing can change or consult pixels."""
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
@@ -154,14 +158,19 @@ class StillRegions:
         if cv2.countNonZero(old) == 0:
             return changed
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
-        # would measure texture, not the silhouette.
-        old = cv2.morphologyEx(old, cv2.MORPH_CLOSE, _K5)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(old, connectivity=8)
+        # would measure texture, not the silhouette. Closing and labelling work on the box around the
+        # still pixels (with the closing's reach): they are a few regions of a large image.
+        bx, by, bw, bh = cv2.boundingRect(old)
+        x0, y0 = max(bx - CLOSE_REACH_PX, 0), max(by - CLOSE_REACH_PX, 0)
+        x1, y1 = min(bx + bw + CLOSE_REACH_PX, old.shape[1]), min(by + bh + CLOSE_REACH_PX, old.shape[0])
+        n, labels, stats = components(cv2.morphologyEx(old[y0:y1, x0:x1], cv2.MORPH_CLOSE, _K5))
+        stats[1:, 0] += x0
+        stats[1:, 1] += y0
         long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
         keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
-            mask = labels[y : y + h, x : x + w] == k
+            mask = labels[y - y0 : y - y0 + h, x - x0 : x - x0 + w] == k
             if area < s.min_blob_px or area < 0.3 * w * h:
                 # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
                 # left by an absorption (the model there still holds the person's outline, a few grey

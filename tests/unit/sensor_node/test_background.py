@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -369,3 +371,62 @@ def test_someone_at_a_window_when_the_young_model_is_reseeded_is_still_put_back(
     fracs = _still_run(model, wall, rng, 16)  # they walk on: the window is put back at once
     assert fracs[0] > 0.003
     assert fracs[-1] < 0.001 and model.still.restored >= 1
+
+
+def _with_tail(noise: Callable[[np.ndarray], np.ndarray], updates: int = 40) -> tuple[BackgroundModel, np.ndarray]:
+    """A model learnt on a flat grey wall whose noise tail has been measured over ``updates`` updates."""
+    wall = np.full((H, W), 120, np.uint8)
+    model = BackgroundModel(PipelineSettings(warmup_frames=5, warmup_stride=1, update_every=1))
+    while not model.ready:
+        model.apply(noise(wall))
+    assert model.tail_sigmas is None  # not measured yet: no joining
+    for _ in range(updates):
+        g = noise(wall)
+        m = model.apply(g)
+        model.update(g, m.fg, [])
+    assert model.tail_sigmas is not None
+    return model, wall
+
+
+def _faint_person(wall: np.ndarray) -> np.ndarray:
+    """Hair 60 grey levels darker than the wall over a body 12 levels lighter (under fg_threshold: 4 % of its
+    pixels pass it with the noise), and beside the hair a patch only 6 levels lighter (within the noise)."""
+    f = wall.astype(np.int16)
+    f[40:50, 300:312] -= 60  # hair
+    f[50:140, 296:316] += 12  # face, body: a shirt of about the wall's grey
+    f[40:50, 312:330] += 6
+    return np.clip(f, 0, 255).astype(np.uint8)
+
+
+def test_faint_parts_join_the_contrasted_ones_they_touch() -> None:
+    rng = np.random.default_rng(21)
+
+    def gauss(img: np.ndarray) -> np.ndarray:
+        return np.clip(img + rng.normal(0, 2.0, img.shape), 0, 255).astype(np.uint8)
+
+    model, wall = _with_tail(gauss)
+    # Gaussian noise: its 1e-4 tail is 3.9 sigmas (of the difference to a median of noisy frames: 2.3 levels)
+    assert 3.0 < model.tail_sigmas < 5.0 and model.tail_sigmas * model.noise_sigma < 11.0
+    m = model.apply(gauss(_faint_person(wall)))
+    assert (m.fg[40:50, 300:312] > 0).mean() > 0.95  # the hair
+    assert (m.fg[60:140, 298:314] > 0).mean() > 0.6  # the faint body joins it (the vote fills the rest)
+    assert (m.fg[40:50, 314:330] > 0).mean() < 0.05  # within the noise: not joined
+    # The ring around the hair is left to the vote: where the wall is beyond it, it stays out.
+    assert not m.fg[39, 300:312].any()
+
+
+def test_noise_with_long_tails_raises_the_joining_level() -> None:
+    rng = np.random.default_rng(22)
+
+    def blocky(img: np.ndarray) -> np.ndarray:
+        # Compressed video: mostly quiet, with 1 % of pixels off by up to 14 grey levels.
+        out = img + rng.normal(0, 2.0, img.shape)
+        hit = rng.random(img.shape) < 0.01
+        out[hit] += rng.choice([-14.0, 14.0], int(hit.sum()))
+        return np.clip(out, 0, 255).astype(np.uint8)
+
+    model, wall = _with_tail(blocky)
+    assert model.tail_sigmas * model.noise_sigma > 12.0
+    m = model.apply(blocky(_faint_person(wall)))
+    assert (m.fg[40:50, 300:312] > 0).mean() > 0.95
+    assert (m.fg[60:140, 298:314] > 0).mean() < 0.2  # 12 levels is within this camera's noise: no joining

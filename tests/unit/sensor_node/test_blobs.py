@@ -61,3 +61,23 @@ def test_noise_and_sparse_regions_are_rejected() -> None:
 def test_small_blob_rejected() -> None:
     fg = _mask((100, 40, 5, 5))
     assert find_blobs(fg, fg, PipelineSettings()) == []
+
+
+@pytest.mark.parametrize(
+    ("bridge", "joined"),
+    [
+        ([(104, 56, 1, 4), (105, 62, 1, 6), (100, 70, 1, 3)], True),  # a 1-px neck and shoulder outline
+        ([(104, 56, 1, 3)], False),  # 14 rows of nothing on the way down: apart
+        ([(140, 56, 1, 20)], False),  # beside them, not in the columns they share
+        ([], False),
+    ],
+)
+def test_a_head_joins_the_body_below_through_the_pixels_the_vote_erased(
+    bridge: list[tuple[int, int, int, int]], joined: bool
+) -> None:
+    # Head rows 40-54, body from row 74: 19 rows apart, more than merge_gap_px (8).
+    fg = _mask((100, 40, 10, 15), (94, 74, 22, 70))
+    before_vote = np.maximum(fg, _mask(*bridge)) if bridge else fg
+    blobs = find_blobs(fg, fg, PipelineSettings(merge_gap_px=[4, 8]), links=before_vote)
+    assert len(blobs) == (1 if joined else 2)
+    assert len(find_blobs(fg, fg, PipelineSettings(merge_gap_px=[4, 8]))) == 2  # without links: apart
