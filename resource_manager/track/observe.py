@@ -34,7 +34,7 @@ from resource_manager.track.motion import MIN_RANGE_M, Observation
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["Spread", "TrackTable", "ViewScores", "observation", "score_view", "visibility"]
+__all__ = ["Spread", "TrackTable", "ViewScores", "observation", "observation_rows", "score_view", "visibility"]
 
 FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
@@ -318,3 +318,24 @@ def observation(v: ViewBlobs, j: int, xy: FloatArray, spread: Spread, weight: fl
         rng = float(v.mono_range_m[j])
         rvar = (float(v.mono_sigma_m[j]) ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
     return Observation((float(v.origin_xy[0]), float(v.origin_xy[1])), float(v.bearing_rad[j]), var, rng, rvar)
+
+
+def observation_rows(
+    v: ViewBlobs, blobs: npt.NDArray[np.int64], xy: FloatArray, spread: Spread, weight: float = 1.0
+) -> FloatArray:
+    """:func:`observation` of many blobs of one view at once, each of a person near its row of ``xy`` (n, 2): (n, 6)
+    rows of origin x, y, bearing, its variance, floor distance (NaN: none), its variance, as
+    :meth:`~resource_manager.track.motion.ObservationBatch.padded` takes them."""
+    n = len(blobs)
+    out = np.empty((n, 6))
+    out[:, 0], out[:, 1] = v.origin_xy[0], v.origin_xy[1]
+    out[:, 2] = v.bearing_rad[blobs]
+    d = np.hypot(xy[:, 0] - v.origin_xy[0], xy[:, 1] - v.origin_xy[1])
+    out[:, 3] = bearing_var(v, d, spread) / weight
+    out[:, 4:] = math.nan
+    if v.mono_range_m is not None and v.mono_sigma_m is not None:
+        rng = v.mono_range_m[blobs]
+        has = np.isfinite(rng)
+        out[has, 4] = rng[has]
+        out[has, 5] = (v.mono_sigma_m[blobs][has] ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
+    return out

@@ -21,7 +21,6 @@ Only this package changes a track's state; :meth:`Tracker.step` returns what the
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -30,16 +29,23 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from common.errors import GeometryError
-from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, size_ratio
 from common.schema import Method, PairEntry
-from resource_manager.stereo.localize import Measurement, localize_best_pair, wide_blob
+from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
+from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.looks import learn_look
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import LineObservation, MotionModel, Observation, predict, update
-from resource_manager.track.observe import Spread, TrackTable, ViewScores, observation, score_view, visibility
+from resource_manager.track.motion import MotionModel, Observation, ObservationBatch, predict, update, update_many
+from resource_manager.track.observe import (
+    Spread,
+    TrackTable,
+    ViewScores,
+    observation,
+    observation_rows,
+    score_view,
+    visibility,
+)
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 
@@ -151,8 +157,11 @@ class Tracker:
             for i, j in _assign(scores):
                 assigned[i].append(_Assigned(sid, j, float(scores.ln_lr[i, j])))
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
+        # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
+        fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
+        weights = dict(zip(fused, self._fuse(fused, assigned, tick), strict=True))
         for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            for a in self._update(tr, got, tick, out):
+            for a in self._update(tr, got, tick, out, weights.get(i)):
                 hits[a.sensor_id][i] = a.blob
         for sid, scores in scored.items():
             self._existence(scores, hits[sid], tick.weights[sid][1])
@@ -189,23 +198,27 @@ class Tracker:
                 delta = float(scores.ln_miss[i])
             tr.logodds = min(tr.logodds + weight * delta, logit(self.model.p_max))
 
-    def _update(self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome) -> list[_Assigned]:
+    def _update(
+        self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
+    ) -> list[_Assigned]:
         """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
-        someone else's, in ``model`` mode, goes back to the unexplained ones)."""
+        someone else's, in ``model`` mode, goes back to the unexplained ones).
+
+        ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
+        """
         views = tick.views
-        ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if got and self.model.mode == "paper" else []
+        paper = got and weight is None and self.model.mode == "paper"
+        ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else []
         fix: Measurement | None = None
-        if got and self.model.mode == "paper" and ranked:
+        if paper and ranked:
             fix = self._pair_fix(ranked[0], {a.sensor_id: a.blob for a in got}, tick)
         method: Method = "predicted"
         if fix is not None:
             tr.x, tr.p = _position_update(tr.x, tr.p, fix)
             method = fix.method
         elif got:
-            m = self.model
-            obs = [self._observe(a.sensor_id, a.blob, tr.x[:2], tick) for a in got]
-            lines = self._size_ratio_lines(got, tick)
-            tr.x, tr.p, weight = update(tr.x, tr.p, obs, (m.outlier_prob, m.outlier_scale), lines)
+            if weight is None:
+                (weight,) = self._fuse([0], [got], tick, [tr])
             got = [a for a, w in zip(got, weight.tolist(), strict=True) if w >= OUTLIER_RELEASE]
             method = "least_squares"
         tr.detected = bool(got)
@@ -225,49 +238,52 @@ class Tracker:
         self._report(tr, ranked, by_sid, tick, out)
         return got
 
-    def _size_ratio_lines(self, got: list[_Assigned], tick: _Tick) -> list[LineObservation]:
-        """Where two of the views and the person are nearly colinear, bearings say little about where along the
-        baseline the person is; the size-ratio method (Eq. 2) says it from the two blob widths: each such pair
-        gives a measurement along its baseline, fused with the bearings (its error, 2 eps D1 D2 / B with eps the
-        relative width error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is then the
-        point where each counts as much as the other, not a switch).
-
-        Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's
-        line qualify (with many cameras, pairs among ``2 * MAX_PAIR_CAMERAS`` of them); a blob wider than one
-        person (a merged group) gives no width to use.
-        """
-        out: list[LineObservation] = []
-        eps = self.birth_params.width_rel_sigma
-        by_sid = {a.sensor_id: a.blob for a in got}
-        for sa, sb in itertools.combinations(sorted(by_sid)[: 2 * MAX_PAIR_CAMERAS], 2):
-            va, vb = tick.views[sa], tick.views[sb]
-            ia, ib = by_sid[sa], by_sid[sb]
-            ta, tb = float(va.bearing_rad[ia]), float(vb.bearing_rad[ib])
-            base = vb.origin_xy - va.origin_xy
-            length = float(np.hypot(*base))
-            if length <= 0:
-                continue
-            psi = math.atan2(float(base[1]), float(base[0]))
-            if max(_off_line(ta - psi), _off_line(tb - psi)) >= MAX_SIZE_RATIO_OFFSET_RAD:
-                continue
-            c1 = 1.0 if abs(math.remainder(ta - psi, 2 * math.pi)) < math.pi / 2 else -1.0
-            c2 = 1.0 if abs(math.remainder(tb - psi - math.pi, 2 * math.pi)) < math.pi / 2 else -1.0
-            wa, wb = float(va.width_rad[ia]), float(vb.width_rad[ib])
-            try:
-                d1, d2 = size_ratio(length, math.sin(wa / 2), math.sin(wb / 2), c1, c2)
-            except GeometryError:
-                continue
-            if wide_blob(va, ia, d1) or wide_blob(vb, ib, d2):
-                continue
-            u = base / length
-            sigma = 2.0 * eps * d1 * d2 / length
-            out.append(LineObservation((float(u[0]), float(u[1])), float(u @ va.origin_xy) + c1 * d1, sigma * sigma))
-        return out
-
-    def _observe(self, sid: str, blob: int, xy: FloatArray, tick: _Tick) -> Observation:
-        """A view's blob as an observation of a person near ``xy`` (its spread, this tick's weight)."""
-        v = tick.views[sid]
-        return observation(v, blob, xy, self._spread(v), tick.weights[sid][0])
+    def _fuse(
+        self, rows: list[int], assigned: list[list[_Assigned]], tick: _Tick, tracks: list[TrackRecord] | None = None
+    ) -> list[FloatArray]:
+        """Update tracks ``rows`` (of ``tracks``, default all) with every view assigned to each (``assigned``, per
+        row), all at once (:func:`~resource_manager.track.motion.update_many`): the bearings, the feet distances
+        and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`). Returns each updated
+        track's weight of each of its assigned blobs (low: an outlier)."""
+        if not rows:
+            return []
+        tracks = self.tracks if tracks is None else tracks
+        trs = [tracks[i] for i in rows]
+        gots = [assigned[i] for i in rows]
+        xs = np.array([tr.x for tr in trs], dtype=np.float64)
+        ps = np.array([tr.p for tr in trs], dtype=np.float64)
+        width = max(len(got) for got in gots)
+        obs = np.zeros((len(trs), width, 6))
+        valid = np.zeros((len(trs), width), dtype=bool)
+        # Per view, the (track, slot, blob) it gives: each view's rows computed at once.
+        per_view: dict[str, list[tuple[int, int, int]]] = {}
+        for k, got in enumerate(gots):
+            for c, a in enumerate(got):
+                per_view.setdefault(a.sensor_id, []).append((k, c, a.blob))
+                valid[k, c] = True
+        for sid, entries in per_view.items():
+            v = tick.views[sid]
+            ks, cs, js = (np.array(col, dtype=np.int64) for col in zip(*entries, strict=True))
+            obs[ks, cs] = observation_rows(v, js, xs[ks, :2], self._spread(v), tick.weights[sid][0])
+        lines = size_ratio_lines(
+            tick.views,
+            [{a.sensor_id: a.blob for a in got} for got in gots],
+            self.birth_params.width_rel_sigma,
+            2 * MAX_PAIR_CAMERAS,
+        )
+        nl = max(len(ln) for ln in lines)
+        line_rows = np.zeros((len(trs), nl, 4))
+        line_valid = np.zeros((len(trs), nl), dtype=bool)
+        for k, track_lines in enumerate(lines):
+            for c, ln in enumerate(track_lines):
+                line_rows[k, c] = (*ln.direction, ln.value, ln.var)
+                line_valid[k, c] = True
+        m = self.model
+        batch = ObservationBatch.padded(obs, valid, line_rows, line_valid)
+        xs, ps, weight = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
+        for k, tr in enumerate(trs):
+            tr.x, tr.p = xs[k].copy(), ps[k].copy()
+        return [weight[k, : len(got)] for k, got in enumerate(gots)]
 
     def _spread(self, v: ViewBlobs) -> Spread:
         """The spread of a view's points around a person: what its sensor states, else the model's default."""
@@ -460,12 +476,6 @@ def _same_person(a: TrackRecord, b: TrackRecord) -> bool:
         return True
     d2 = (float(s[1, 1]) * dx * dx - 2.0 * float(s[0, 1]) * dx * dy + float(s[0, 0]) * dy * dy) / det
     return d2 < SAME_PERSON_CHI2
-
-
-def _off_line(angle_rad: float) -> float:
-    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
-    a = abs(math.remainder(angle_rad, math.pi))
-    return min(a, math.pi - a)
 
 
 OUTLIER_RELEASE = 0.5
