@@ -26,7 +26,7 @@ import numpy.typing as npt
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
-from resource_manager.track.observe import Spread, TrackTable, score_view, visibility
+from resource_manager.track.observe import Spread, TrackTable, ViewStack, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import subset_view
@@ -137,22 +137,20 @@ def find_births(
             if hs is not None:
                 tr.looks[sid] = hs[j].copy()
                 tr.look_s[sid] = model.look_min_s
-    n_old = len(tracks)
-    table = TrackTable.of(tracks + cands)
-    occluders = np.arange(n_old + len(cands)) < n_old
     cand_table = TrackTable.of(cands)
     sids = sorted(views)
-    # Per view: each hypothesis' gain for each unexplained blob, and its miss term.
-    gains: dict[str, FloatArray] = {}
+    # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
+    every = ViewStack.of([views[sid] for sid in sids], [spread(sid) for sid in sids])
+    pd = visibility_many(every, cand_table, model, blockers=TrackTable.of(tracks))
     misses = np.zeros(len(cands))
-    for sid in sids:
-        v = views[sid]
-        pd = visibility(v, table, model, occluders)[n_old:]
-        idx = free.get(sid, [])
-        sc = score_view(subset_view(v, idx), cands, cand_table, pd, model=model, spread=spread(sid)) if idx else None
-        misses += np.log1p(-np.minimum(pd, 1.0 - 1e-9))
-        if sc is not None:
-            gains[sid] = sc.gain
+    for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
+        misses += row
+    with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
+    unexplained = ViewStack.of(
+        [subset_view(views[sids[i]], free[sids[i]]) for i in with_free], [spread(sids[i]) for i in with_free]
+    )
+    scores = score_views(unexplained, cands, cand_table, pd[with_free], model=model)
+    gains: dict[str, FloatArray] = {sids[i]: sc.gain for i, sc in zip(with_free, scores, strict=True)}
     taken: dict[str, set[int]] = {s: set() for s in sids}
     alive = np.ones(len(cands), dtype=bool)
     track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)

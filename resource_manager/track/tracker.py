@@ -41,10 +41,11 @@ from resource_manager.track.observe import (
     Spread,
     TrackTable,
     ViewScores,
+    ViewStack,
     observation,
     observation_rows,
-    score_view,
-    visibility,
+    score_views,
+    visibility_many,
 )
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -146,14 +147,12 @@ class Tracker:
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         free: dict[str, list[int]] = {}
         tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
-        scored: dict[str, ViewScores] = {}
-        for sid in sorted(views):
-            v = views[sid]
-            pd = visibility(v, table, self.model)
-            if sid in blind:
-                pd = np.zeros_like(pd)
-            scores = score_view(v, self.tracks, table, pd, model=self.model, spread=self._spread(v))
-            scored[sid] = scores
+        sids = sorted(views)
+        stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
+        pd = visibility_many(stack, table, self.model)
+        pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
+        scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
+        for sid, scores in scored.items():
             for i, j in _assign(scores):
                 assigned[i].append(_Assigned(sid, j, float(scores.ln_lr[i, j])))
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}

@@ -1,0 +1,122 @@
+"""The views of one tick stacked into arrays: every per-view and per-blob quantity the track stages score with.
+
+A tick has a dozen views with a dozen blobs each. Working on them one view at a time costs a few dozen small array
+operations per view; stacked (one row per view, one entry per blob of every view, in view order) the same
+arithmetic runs once per tick. :class:`ViewStack` is built once per tick (and once for the unexplained blobs of
+births) and read by :mod:`.observe`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from resource_manager.views.blobs import ViewBlobs
+
+__all__ = ["Spread", "ViewStack"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True, slots=True)
+class Spread:
+    """Variances (m²) of a camera's measured points around a person: across its rays, and along them (feet)."""
+
+    cross_var: float
+    range_var: float
+
+
+@dataclass(frozen=True, slots=True)
+class ViewStack:
+    """Several views' blobs along one axis (view after view), with each view's own quantities per row."""
+
+    views: tuple[ViewBlobs, ...]
+    offsets: IntArray
+    """(s + 1,) view ``i``'s blobs are entries ``offsets[i]:offsets[i + 1]``."""
+    view_of: IntArray
+    """(m,) the view (row) of each blob."""
+    origin: FloatArray
+    """(s, 2) optical centres on the floor."""
+    z_m: FloatArray
+    """(s,) optical centre heights."""
+    sigma_rad: FloatArray
+    """(s,) bearing errors."""
+    sigma_xy_m: FloatArray
+    """(s,) the cameras' own position errors."""
+    cross_var: FloatArray
+    """(s,) :attr:`Spread.cross_var` of each view."""
+    range_var: FloatArray
+    """(s,) :attr:`Spread.range_var` of each view."""
+    fov_width_rad: FloatArray
+    """(s,) horizontal extent of each view's bearings."""
+    bearing_rad: FloatArray
+    """(m,) the blobs' world azimuths."""
+    top_elev_rad: FloatArray
+    """(m,) elevations of the blob tops."""
+    top_cut: npt.NDArray[np.bool_]
+    """(m,) blobs whose head-top height is only a lower bound."""
+    mono_range_m: FloatArray
+    """(m,) floor distances from the feet (NaN: none)."""
+    mono_sigma_m: FloatArray
+    """(m,) their 1-sigma (NaN: none)."""
+    local_id: IntArray
+    """(m,) the nodes' 2D track ids."""
+
+    @property
+    def n_views(self) -> int:
+        return len(self.views)
+
+    @staticmethod
+    def of(views: Sequence[ViewBlobs], spreads: Sequence[Spread]) -> ViewStack:
+        """The stack of ``views``, each with its spread of points around a person."""
+        counts = np.array([v.n for v in views], dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+        def cat(get: str, fill: float) -> FloatArray:
+            parts = [
+                np.full(v.n, fill) if getattr(v, get) is None else np.asarray(getattr(v, get), dtype=np.float64)
+                for v in views
+            ]
+            return np.concatenate(parts) if parts else np.zeros(0)
+
+        ranges = [_ranges(v) for v in views]
+        return ViewStack(
+            views=tuple(views),
+            offsets=offsets,
+            view_of=np.repeat(np.arange(len(views), dtype=np.int64), counts),
+            origin=np.array([v.origin_xy for v in views], dtype=np.float64).reshape(-1, 2),
+            z_m=np.array([v.z_m for v in views], dtype=np.float64),
+            sigma_rad=np.array([v.sigma_rad for v in views], dtype=np.float64),
+            sigma_xy_m=np.array([v.sigma_xy_m for v in views], dtype=np.float64),
+            cross_var=np.array([s.cross_var for s in spreads], dtype=np.float64),
+            range_var=np.array([s.range_var for s in spreads], dtype=np.float64),
+            fov_width_rad=np.array([fov_width(v) for v in views], dtype=np.float64),
+            bearing_rad=cat("bearing_rad", 0.0),
+            top_elev_rad=cat("top_elev_rad", 0.0),
+            top_cut=cat("top_cut", 0.0) > 0,
+            mono_range_m=np.concatenate([r for r, _ in ranges]) if ranges else np.zeros(0),
+            mono_sigma_m=np.concatenate([s for _, s in ranges]) if ranges else np.zeros(0),
+            local_id=np.concatenate([v.local_id for v in views]).astype(np.int64) if views else np.zeros(0, np.int64),
+        )
+
+    def split(self, a: FloatArray) -> list[FloatArray]:
+        """(n, m) per-blob columns ``a`` cut into each view's (n, m_i)."""
+        return [a[:, self.offsets[i] : self.offsets[i + 1]] for i in range(self.n_views)]
+
+
+def _ranges(v: ViewBlobs) -> tuple[FloatArray, FloatArray]:
+    """A view's feet distances and their sigmas (NaN: none)."""
+    if v.mono_range_m is None or v.mono_sigma_m is None:
+        return np.full(v.n, math.nan), np.full(v.n, math.nan)
+    return np.asarray(v.mono_range_m, dtype=np.float64), np.asarray(v.mono_sigma_m, dtype=np.float64)
+
+
+def fov_width(v: ViewBlobs) -> float:
+    """Horizontal extent of the view's bearings (rad)."""
+    return TWO_PI if v.fov is None else min(2.0 * v.fov[1], TWO_PI)
