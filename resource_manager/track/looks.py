@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from resource_manager.track.state import TrackRecord
     from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["bhattacharyya", "learn_look", "mean_similarity"]
+__all__ = ["bhattacharyya", "learn_look", "learn_looks", "mean_similarity"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -54,14 +54,26 @@ def mean_similarity(pairs: Iterable[tuple[FloatArray | None, FloatArray | None]]
 def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs], alpha: float) -> None:
     """Fold the colours of the blobs assigned to ``tr`` into its per-view looks (running mean of weight
     ``alpha``, renormalised)."""
-    for sid, i in used_blobs.items():
-        hs = views[sid].hist_sqrt
-        if hs is None:
-            continue
-        h = hs[i]
-        old = tr.looks.get(sid)
-        if old is None or old.shape != h.shape:
-            tr.looks[sid] = h.copy()
-        else:
-            mixed = (1.0 - alpha) * old + alpha * h
-            tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)
+    learn_looks([(tr, used_blobs, alpha)], views)
+
+
+def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], views: dict[str, ViewBlobs]) -> None:
+    """:func:`learn_look` of many tracks at once: (track, sensor id -> blob, alpha) each."""
+    mixed: dict[int, list[tuple[TrackRecord, str, FloatArray, FloatArray, float]]] = {}
+    for tr, used_blobs, alpha in learnt:
+        for sid, i in used_blobs.items():
+            hs = views[sid].hist_sqrt
+            if hs is None:
+                continue
+            h = hs[i]
+            old = tr.looks.get(sid)
+            if old is None or old.shape != h.shape:
+                tr.looks[sid] = h.copy()
+            else:
+                mixed.setdefault(h.shape[0], []).append((tr, sid, old, h, alpha))
+    for rows in mixed.values():
+        weight = np.array([r[4] for r in rows])[:, None]
+        mix = (1.0 - weight) * np.array([r[2] for r in rows]) + weight * np.array([r[3] for r in rows])
+        mix = mix / np.maximum(np.linalg.norm(mix, axis=1), 1e-12)[:, None]
+        for (tr, sid, *_), look in zip(rows, mix, strict=True):
+            tr.looks[sid] = look

@@ -315,10 +315,10 @@ def _colour_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackMo
 
     0 where the track has no look to compare, or the view no histograms.
     """
-    out = np.zeros((len(tracks), stack.view_of.shape[0]))
+    n, m = len(tracks), stack.view_of.shape[0]
+    out = np.zeros((n, m))
     sizes = {v.hist_sqrt.shape[1] for v in stack.views if v.hist_sqrt is not None}
     for bins in sorted(sizes):
-        rows = [i for i, v in enumerate(stack.views) if v.hist_sqrt is not None and v.hist_sqrt.shape[1] == bins]
         own, own_ok, total, count = _look_arrays(tracks, stack, bins, model.look_min_s)
         # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's
         # direction).
@@ -326,12 +326,19 @@ def _colour_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackMo
         others_ok = count[:, None] - own_ok > 0
         norm = np.linalg.norm(others, axis=2)
         others = others / np.maximum(norm, 1e-12)[:, :, None]
-        for i in rows:
-            hist = stack.views[i].hist_sqrt
-            assert hist is not None
-            sl = slice(int(stack.offsets[i]), int(stack.offsets[i + 1]))
-            term = np.where(own_ok[:, i, None] > 0, _colour_ln_lr(own[:, i], hist, model), 0.0)
-            out[:, sl] = term + np.where(others_ok[:, i, None], _colour_ln_lr(others[:, i], hist, model), 0.0)
+        # Bhattacharyya coefficients of each blob with the looks of its own view (NaN: another histogram size).
+        bc_own = np.full((n, m), math.nan)
+        bc_others = np.full((n, m), math.nan)
+        for i, v in enumerate(stack.views):
+            if v.hist_sqrt is not None and v.hist_sqrt.shape[1] == bins:
+                sl = slice(int(stack.offsets[i]), int(stack.offsets[i + 1]))
+                bc_own[:, sl] = own[:, i] @ v.hist_sqrt.T
+                bc_others[:, sl] = others[:, i] @ v.hist_sqrt.T
+        here = ~np.isnan(bc_own)
+        col = stack.view_of
+        term = np.where(here & (own_ok[:, col] > 0), _colour_ln_lr(bc_own, model), 0.0)
+        term = term + np.where(here & others_ok[:, col], _colour_ln_lr(bc_others, model), 0.0)
+        out = np.where(here, term, out)
     return out
 
 
@@ -341,27 +348,34 @@ def _look_arrays(
     """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``stack`` and (n, s) 1/0
     whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
     column = {v.sensor_id: i for i, v in enumerate(stack.views)}
+    rows: list[int] = []
+    cols: list[int] = []
+    looks: list[FloatArray] = []
+    for i, tr in enumerate(tracks):
+        for sid, look in tr.looks.items():
+            if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s:
+                rows.append(i)
+                cols.append(column.get(sid, -1))
+                looks.append(look)
     n = len(tracks)
     own = np.zeros((n, stack.n_views, bins))
     own_ok = np.zeros((n, stack.n_views))
     total = np.zeros((n, bins))
     count = np.zeros(n)
-    for i, tr in enumerate(tracks):
-        for sid, look in tr.looks.items():
-            if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s:
-                total[i] += look
-                count[i] += 1.0
-                c = column.get(sid)
-                if c is not None:
-                    own[i, c] = look
-                    own_ok[i, c] = 1.0
+    if looks:
+        r, c, mat = np.array(rows), np.array(cols), np.array(looks)
+        np.add.at(total, r, mat)  # each track's looks summed in its own order
+        np.add.at(count, r, 1.0)
+        here = c >= 0
+        own[r[here], c[here]] = mat[here]
+        own_ok[r[here], c[here]] = 1.0
     return own, own_ok, total, count
 
 
-def _colour_ln_lr(looks: FloatArray, hist_sqrt: FloatArray, model: TrackModel) -> FloatArray:
-    """(n, m) ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an
-    outlier floor, against a uniform distance for anyone else; ``looks`` (n, k), ``hist_sqrt`` (m, k)."""
-    dist = 1.0 - np.clip(looks @ hist_sqrt.T, 0.0, 1.0)
+def _colour_ln_lr(coefficient: FloatArray, model: TrackModel) -> FloatArray:
+    """ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an outlier
+    floor, against a uniform distance for anyone else, at Bhattacharyya coefficients ``coefficient``."""
+    dist = 1.0 - np.clip(coefficient, 0.0, 1.0)
     sig, eps = model.colour_sigma, model.outlier_prob
     same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
     return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)

@@ -34,7 +34,7 @@ from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.lines import size_ratio_lines
-from resource_manager.track.looks import learn_look
+from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
 from resource_manager.track.motion import MotionModel, Observation, ObservationBatch, predict, update, update_many
 from resource_manager.track.observe import (
@@ -159,9 +159,16 @@ class Tracker:
         # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
         fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
         weights = dict(zip(fused, self._fuse(fused, assigned, tick), strict=True))
+        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
         for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            for a in self._update(tr, got, tick, out, weights.get(i)):
+            kept = self._update(tr, got, tick, out, weights.get(i))
+            for a in kept:
                 hits[a.sensor_id][i] = a.blob
+            if kept:
+                learnt.append(
+                    (tr, {a.sensor_id: a.blob for a in kept}, min(tick.weights[a.sensor_id][0] for a in kept))
+                )
+        self._learn(learnt, views)
         for sid, scores in scored.items():
             self._existence(scores, hits[sid], tick.weights[sid][1])
             taken = set(hits[sid].values())
@@ -201,7 +208,7 @@ class Tracker:
         self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
     ) -> list[_Assigned]:
         """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
-        someone else's, in ``model`` mode, goes back to the unexplained ones).
+        someone else's, in ``model`` mode, goes back to the unexplained ones), whose looks the caller learns.
 
         ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
         """
@@ -232,7 +239,6 @@ class Tracker:
         if fix is None:
             ranked = self._rank(tr.x[:2], sorted(by_sid), tick)
         self._height(tr, got, views)
-        self._learn(tr, by_sid, views, min(tick.weights[a.sensor_id][0] for a in got))
         tr.method = method
         self._report(tr, ranked, by_sid, tick, out)
         return got
@@ -351,16 +357,19 @@ class Tracker:
             tr.height_m += k * (z - tr.height_m)
             tr.height_var *= 1.0 - k
 
-    def _learn(self, tr: TrackRecord, by_sid: dict[str, int], views: dict[str, ViewBlobs], weight: float) -> None:
-        """Links to the nodes' 2D tracks and the per-view colour looks of the assigned blobs."""
-        for sid, j in by_sid.items():
-            tr.links[sid] = int(views[sid].local_id[j])
-        dt = weight * self.model.evidence_time_s
-        alpha = 1.0 - math.exp(-dt / self.model.look_time_s)
-        learn_look(tr, by_sid, views, alpha)
-        for sid in by_sid:
-            if views[sid].hist_sqrt is not None:
-                tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
+    def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], views: dict[str, ViewBlobs]) -> None:
+        """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
+        (track, sensor id -> blob, the evidence weight of those views), all tracks' looks at once."""
+        looks: list[tuple[TrackRecord, dict[str, int], float]] = []
+        for tr, by_sid, weight in learnt:
+            for sid, j in by_sid.items():
+                tr.links[sid] = int(views[sid].local_id[j])
+            dt = weight * self.model.evidence_time_s
+            looks.append((tr, by_sid, 1.0 - math.exp(-dt / self.model.look_time_s)))
+            for sid in by_sid:
+                if views[sid].hist_sqrt is not None:
+                    tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
+        learn_looks(looks, views)
 
     # -- births and deaths ----------------------------------------------------------------------------
     def _births(self, tick: _Tick, free: dict[str, list[int]], t_ns: int) -> int:
@@ -416,7 +425,7 @@ class Tracker:
         )
         got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
         self._height(tr, got, views)
-        self._learn(tr, h.blobs, views, min(weights[s][0] for s in h.blobs))
+        self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
         if ranked:
             tr.sensors = (ranked[0].a, ranked[0].b)
             tr.predicted_error_m = ranked[0].error_m
