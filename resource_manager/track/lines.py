@@ -8,8 +8,7 @@ much as the other, not a switch).
 
 Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's line
 qualify (with many cameras, pairs among the first ``max_views`` of them by sensor id); a blob wider than one person
-(a merged group) gives no width to use. Few pairs ever qualify: every pair of every track is screened at once with
-arrays, and only those that may qualify are worked out one by one.
+(a merged group) gives no width to use. Every pair of every track is worked out at once, with arrays.
 """
 
 from __future__ import annotations
@@ -19,87 +18,92 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from common.errors import GeometryError
-from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, size_ratio
-from resource_manager.stereo.localize import wide_blob
-from resource_manager.track.motion import LineObservation
+from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
+from resource_manager.stereo.localize import MAX_PERSON_WIDTH_M
 from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["size_ratio_lines"]
 
 FloatArray = npt.NDArray[np.float64]
-SCREEN_MARGIN_RAD = 1e-9
-"""The array screen keeps pairs this much beyond the limit too: its rounding differs from the exact test's."""
+BoolArray = npt.NDArray[np.bool_]
 
 
 def size_ratio_lines(
     views: dict[str, ViewBlobs], blobs: list[dict[str, int]], width_rel_sigma: float, max_views: int
-) -> list[list[LineObservation]]:
+) -> tuple[FloatArray, BoolArray]:
     """Each track's line observations from the blobs assigned to it (``blobs``: per track, sensor id -> blob),
-    pairs taken in order of sensor ids; ``width_rel_sigma``: the relative width error eps."""
-    out: list[list[LineObservation]] = [[] for _ in blobs]
-    sids = sorted(views)
-    if len(sids) < 2 or not blobs:
-        return out
-    column = {s: c for c, s in enumerate(sids)}
-    origin = np.array([views[s].origin_xy for s in sids], dtype=np.float64)
+    pairs taken in order of sensor ids; ``width_rel_sigma``: the relative width error eps.
+
+    Returns:
+        (k, l, 4) rows of direction x, y, value and variance (the
+        :class:`~resource_manager.track.motion.LineObservation` of each, as
+        :meth:`~resource_manager.track.motion.ObservationBatch.padded` takes them), and (k, l) which are there.
+    """
+    k = len(blobs)
     chosen = [sorted(by_sid)[:max_views] for by_sid in blobs]
-    width = max(len(c) for c in chosen)
+    width = max((len(c) for c in chosen), default=0)
     if width < 2:
-        return out
-    cam = np.zeros((len(blobs), width), dtype=np.int64)
-    bearing = np.zeros((len(blobs), width))
-    used = np.zeros((len(blobs), width), dtype=bool)
-    for k, (by_sid, ids) in enumerate(zip(blobs, chosen, strict=True)):
+        return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
+    # Per track and slot: the camera's position and the blob's bearing and width.
+    cam = np.zeros((k, width, 2))
+    blob = np.zeros((k, width, 2))
+    used = np.zeros((k, width), dtype=bool)
+    for i, (by_sid, ids) in enumerate(zip(blobs, chosen, strict=True)):
         for c, sid in enumerate(ids):
-            cam[k, c] = column[sid]
-            bearing[k, c] = views[sid].bearing_rad[by_sid[sid]]
-            used[k, c] = True
+            v, j = views[sid], by_sid[sid]
+            cam[i, c] = v.origin_xy
+            blob[i, c] = v.bearing_rad[j], v.width_rad[j]
+            used[i, c] = True
     ia, ib = np.triu_indices(width, 1)  # the order of itertools.combinations
-    base = origin[cam[:, ib]] - origin[cam[:, ia]]
+    oa, ta, wa = cam[:, ia], blob[:, ia, 0], blob[:, ia, 1]
+    tb, wb = blob[:, ib, 0], blob[:, ib, 1]
+    base = cam[:, ib] - oa
+    length = np.hypot(base[:, :, 0], base[:, :, 1])
     psi = np.arctan2(base[:, :, 1], base[:, :, 0])
-    off = np.maximum(_off_line(bearing[:, ia] - psi), _off_line(bearing[:, ib] - psi))
-    maybe = used[:, ia] & used[:, ib] & (off < MAX_SIZE_RATIO_OFFSET_RAD + SCREEN_MARGIN_RAD)
-    for k, q in zip(*np.nonzero(maybe), strict=True):
-        sa, sb = chosen[k][ia[q]], chosen[k][ib[q]]
-        line = _line(views[sa], blobs[k][sa], views[sb], blobs[k][sb], width_rel_sigma)
-        if line is not None:
-            out[k].append(line)
-    return out
+    ok = used[:, ia] & used[:, ib] & (length > 0)
+    ok &= np.maximum(_off_line(ta - psi), _off_line(tb - psi)) < MAX_SIZE_RATIO_OFFSET_RAD
+    # Eq. (2): the cosines' signs say whether the person is between the cameras or beyond one of them.
+    c1 = np.where(np.abs(_wrap(ta - psi)) < math.pi / 2, 1.0, -1.0)
+    c2 = np.where(np.abs(_wrap(tb - psi - math.pi)) < math.pi / 2, 1.0, -1.0)
+    w1, w2 = np.sin(wa / 2), np.sin(wb / 2)
+    ok &= (w1 > 0) & (w2 > 0)
+    den = w1 * c1 + w2 * c2
+    ok &= np.abs(den) >= 1e-15
+    den = np.where(ok, den, 1.0)
+    d1 = length * w2 * c2 / den * c1
+    d2 = length * w1 * c1 / den * c2
+    ok &= (d1 > 0) & (d2 > 0)
+    # A blob wider than one person at its distance (a merged group) gives no width to use.
+    ok &= ~(_wide(d1, wa) | _wide(d2, wb))
+    length = np.where(ok, length, 1.0)
+    u = base / length[:, :, None]
+    sigma = 2.0 * width_rel_sigma * d1 * d2 / length
+    value = u[:, :, 0] * oa[:, :, 0] + u[:, :, 1] * oa[:, :, 1] + c1 * d1
+    # Each track's lines moved to its first slots, in order.
+    count = ok.sum(axis=1)
+    rows = np.zeros((k, int(count.max(initial=0)), 4))
+    valid = np.zeros(rows.shape[:2], dtype=bool)
+    track, pair = np.nonzero(ok)
+    slot = (np.cumsum(ok, axis=1) - 1)[track, pair]
+    rows[track, slot] = np.stack(
+        [u[track, pair, 0], u[track, pair, 1], value[track, pair], sigma[track, pair] ** 2], axis=1
+    )
+    valid[track, slot] = True
+    return rows, valid
 
 
-def _line(va: ViewBlobs, ia: int, vb: ViewBlobs, ib: int, eps: float) -> LineObservation | None:
-    """The size-ratio measurement of blobs ``ia`` of ``va`` and ``ib`` of ``vb`` along their baseline, if the pair
-    qualifies."""
-    ta, tb = float(va.bearing_rad[ia]), float(vb.bearing_rad[ib])
-    base = vb.origin_xy - va.origin_xy
-    length = float(np.hypot(*base))
-    if length <= 0:
-        return None
-    psi = math.atan2(float(base[1]), float(base[0]))
-    if max(_off_line_f(ta - psi), _off_line_f(tb - psi)) >= MAX_SIZE_RATIO_OFFSET_RAD:
-        return None
-    c1 = 1.0 if abs(math.remainder(ta - psi, 2 * math.pi)) < math.pi / 2 else -1.0
-    c2 = 1.0 if abs(math.remainder(tb - psi - math.pi, 2 * math.pi)) < math.pi / 2 else -1.0
-    wa, wb = float(va.width_rad[ia]), float(vb.width_rad[ib])
-    try:
-        d1, d2 = size_ratio(length, math.sin(wa / 2), math.sin(wb / 2), c1, c2)
-    except GeometryError:
-        return None
-    if wide_blob(va, ia, d1) or wide_blob(vb, ib, d2):
-        return None
-    u = base / length
-    sigma = 2.0 * eps * d1 * d2 / length
-    return LineObservation((float(u[0]), float(u[1])), float(u @ va.origin_xy) + c1 * d1, sigma * sigma)
+def _wide(distance_m: FloatArray, width_rad: FloatArray) -> BoolArray:
+    """Whether blobs of angular widths ``width_rad`` are plainly wider than one person at ``distance_m``
+    (:func:`~resource_manager.stereo.localize.wide_blob`)."""
+    return np.asarray(2.0 * distance_m * np.tan(0.5 * width_rad) > MAX_PERSON_WIDTH_M, dtype=bool)
 
 
-def _off_line_f(angle_rad: float) -> float:
-    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
-    a = abs(math.remainder(angle_rad, math.pi))
-    return min(a, math.pi - a)
+def _wrap(angle_rad: FloatArray) -> FloatArray:
+    """Angles in [-pi, pi)."""
+    return np.asarray(np.remainder(angle_rad + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
 
 
 def _off_line(angle_rad: FloatArray) -> FloatArray:
-    """:func:`_off_line_f` of many angles."""
+    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
     a = np.remainder(angle_rad, math.pi)
     return np.asarray(np.minimum(a, math.pi - a), dtype=np.float64)

@@ -25,7 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["LineObservation", "MotionModel", "Observation", "ObservationBatch", "predict", "update", "update_many"]
+__all__ = [
+    "LineObservation",
+    "MotionModel",
+    "Observation",
+    "ObservationBatch",
+    "predict",
+    "predict_many",
+    "update",
+    "update_many",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IEKF_ITERATIONS = 4
@@ -63,6 +72,18 @@ def predict(x: FloatArray, p: FloatArray, dt_s: float, model: MotionModel) -> tu
         return x, p
     f, q = model.transition(dt_s)
     return f @ x, f @ p @ f.T + q
+
+
+def predict_many(x: FloatArray, p: FloatArray, dt_s: FloatArray, model: MotionModel) -> tuple[FloatArray, FloatArray]:
+    """:func:`predict` of many tracks at once: states ``x`` (k, 4), covariances ``p`` (k, 4, 4), each ``dt_s``
+    (k,) later (tracks predicted to one instant share one transition)."""
+    x_new, p_new = x.copy(), p.copy()
+    for dt in np.unique(dt_s[dt_s > 0]):
+        rows = dt_s == dt
+        f, q = model.transition(float(dt))
+        x_new[rows] = x[rows] @ f.T
+        p_new[rows] = f @ p[rows] @ f.T + q
+    return x_new, p_new
 
 
 @dataclass(frozen=True, slots=True)

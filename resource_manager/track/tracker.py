@@ -36,7 +36,7 @@ from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import MotionModel, Observation, ObservationBatch, predict, update, update_many
+from resource_manager.track.motion import MotionModel, Observation, ObservationBatch, predict_many, update, update_many
 from resource_manager.track.observe import (
     Spread,
     TrackTable,
@@ -138,11 +138,18 @@ class Tracker:
         self._t_ns = t_ns
         self._tick += 1
         out = TrackerOutcome()
-        for tr in self.tracks:
-            gap_s = (t_ns - tr.t_ns) / 1e9
-            tr.x, tr.p = predict(tr.x, tr.p, gap_s, self.motion)
-            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
-            tr.t_ns = t_ns
+        if self.tracks:
+            gaps_s = [(t_ns - tr.t_ns) / 1e9 for tr in self.tracks]
+            xs, ps = predict_many(
+                np.array([tr.x for tr in self.tracks]),
+                np.array([tr.p for tr in self.tracks]),
+                np.array(gaps_s),
+                self.motion,
+            )
+            for tr, x, p, gap_s in zip(self.tracks, xs, ps, gaps_s, strict=True):
+                tr.x, tr.p = x, p
+                tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
+                tr.t_ns = t_ns
         table = TrackTable.of(self.tracks)
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         free: dict[str, list[int]] = {}
@@ -160,17 +167,20 @@ class Tracker:
         fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
         weights = dict(zip(fused, self._fuse(fused, assigned, tick), strict=True))
         learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
+        kept_all: list[list[_Assigned]] = []
         for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
             kept = self._update(tr, got, tick, out, weights.get(i))
+            kept_all.append(kept)
             for a in kept:
                 hits[a.sensor_id][i] = a.blob
             if kept:
                 learnt.append(
                     (tr, {a.sensor_id: a.blob for a in kept}, min(tick.weights[a.sensor_id][0] for a in kept))
                 )
+        self._heights([(tr, got) for tr, got in zip(self.tracks, kept_all, strict=True) if got], views)
         self._learn(learnt, views)
-        for sid, scores in scored.items():
-            self._existence(scores, hits[sid], tick.weights[sid][1])
+        self._existence(scored, hits, tick)
+        for sid in scored:
             taken = set(hits[sid].values())
             free[sid] = [j for j in range(views[sid].n) if j not in taken]
         out.births = self._births(tick, free, t_ns)
@@ -190,19 +200,25 @@ class Tracker:
         w_exist = min(w_pos, dt_s / self.model.evidence_time_s, 1.0)
         return max(w_pos, 1e-3), w_exist
 
-    def _existence(self, scores: ViewScores, hit: dict[int, int], weight: float) -> None:
-        """Raise the existence of the tracks this view detects (track -> blob), lower that of those it should see
-        but misses."""
-        for i, tr in enumerate(self.tracks):
-            pd = float(scores.p_detect[i])
-            if pd <= 0:
-                continue
-            if i in hit:
-                lr = math.exp(min(float(scores.ln_lr[i, hit[i]]), 50.0))
-                delta = math.log(1.0 - pd + lr)
-            else:
-                delta = float(scores.ln_miss[i])
-            tr.logodds = min(tr.logodds + weight * delta, logit(self.model.p_max))
+    def _existence(self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: _Tick) -> None:
+        """Raise the existence of the tracks each view detects (``hits``: per view, track -> blob), lower that of
+        those it should see but misses; view after view in order of sensor ids, each capped at ``p_max``."""
+        if not self.tracks:
+            return
+        cap = logit(self.model.p_max)
+        logodds = np.array([tr.logodds for tr in self.tracks])
+        for sid, scores in scored.items():
+            delta = scores.ln_miss.copy()
+            hit = hits[sid]
+            if hit:
+                rows = np.fromiter(hit.keys(), dtype=np.int64, count=len(hit))
+                cols = np.fromiter(hit.values(), dtype=np.int64, count=len(hit))
+                lr = np.exp(np.minimum(scores.ln_lr[rows, cols], 50.0))
+                delta[rows] = np.log(1.0 - scores.p_detect[rows] + lr)
+            moved = np.minimum(logodds + tick.weights[sid][1] * delta, cap)
+            logodds = np.where(scores.p_detect > 0, moved, logodds)
+        for tr, lo in zip(self.tracks, logodds.tolist(), strict=True):
+            tr.logodds = lo
 
     def _update(
         self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
@@ -212,7 +228,6 @@ class Tracker:
 
         ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
         """
-        views = tick.views
         paper = got and weight is None and self.model.mode == "paper"
         ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else []
         fix: Measurement | None = None
@@ -238,7 +253,6 @@ class Tracker:
         by_sid = {a.sensor_id: a.blob for a in got}
         if fix is None:
             ranked = self._rank(tr.x[:2], sorted(by_sid), tick)
-        self._height(tr, got, views)
         tr.method = method
         self._report(tr, ranked, by_sid, tick, out)
         return got
@@ -270,19 +284,12 @@ class Tracker:
             v = tick.views[sid]
             ks, cs, js = (np.array(col, dtype=np.int64) for col in zip(*entries, strict=True))
             obs[ks, cs] = observation_rows(v, js, xs[ks, :2], self._spread(v), tick.weights[sid][0])
-        lines = size_ratio_lines(
+        line_rows, line_valid = size_ratio_lines(
             tick.views,
             [{a.sensor_id: a.blob for a in got} for got in gots],
             self.birth_params.width_rel_sigma,
             2 * MAX_PAIR_CAMERAS,
         )
-        nl = max(len(ln) for ln in lines)
-        line_rows = np.zeros((len(trs), nl, 4))
-        line_valid = np.zeros((len(trs), nl), dtype=bool)
-        for k, track_lines in enumerate(lines):
-            for c, ln in enumerate(track_lines):
-                line_rows[k, c] = (*ln.direction, ln.value, ln.var)
-                line_valid[k, c] = True
         m = self.model
         batch = ObservationBatch.padded(obs, valid, line_rows, line_valid)
         xs, ps, weight = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
@@ -343,19 +350,38 @@ class Tracker:
                 )
             )
 
-    def _height(self, tr: TrackRecord, got: list[_Assigned], views: dict[str, ViewBlobs]) -> None:
-        """Fuse the head-top heights the views imply at the updated distance (scalar Kalman updates)."""
-        for a in got:
-            v = views[a.sensor_id]
-            if v.top_cut is not None and bool(v.top_cut[a.blob]):
-                continue
-            d = math.hypot(float(tr.x[0] - v.origin_xy[0]), float(tr.x[1] - v.origin_xy[1]))
-            tan_top = math.tan(float(v.top_elev_rad[a.blob]))
-            z = v.z_m + d * tan_top
-            var = (d * v.sigma_rad * (1.0 + tan_top * tan_top)) ** 2 + self._spread(v).cross_var
-            k = tr.height_var / (tr.height_var + var)
-            tr.height_m += k * (z - tr.height_m)
-            tr.height_var *= 1.0 - k
+    def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], views: dict[str, ViewBlobs]) -> None:
+        """Fuse into each track the head-top heights its views imply at its updated distance (scalar Kalman
+        updates, view after view; all tracks at once)."""
+        if not seen:
+            return
+        width = max(len(got) for _, got in seen)
+        # Per track and slot: the implied height and its variance (NaN: no view there, or a head cut by the
+        # picture's top, a lower bound only).
+        cam = np.zeros((len(seen), width, 5))  # x, y, z, sigma, spread
+        top = np.zeros((len(seen), width))
+        use = np.zeros((len(seen), width), dtype=bool)
+        for i, (_, got) in enumerate(seen):
+            for c, a in enumerate(got):
+                v = views[a.sensor_id]
+                if v.top_cut is not None and bool(v.top_cut[a.blob]):
+                    continue
+                cam[i, c] = (*v.origin_xy, v.z_m, v.sigma_rad, self._spread(v).cross_var)
+                top[i, c] = v.top_elev_rad[a.blob]
+                use[i, c] = True
+        xy = np.array([tr.x[:2] for tr, _ in seen])
+        d = np.hypot(xy[:, 0, None] - cam[:, :, 0], xy[:, 1, None] - cam[:, :, 1])
+        tan_top = np.tan(top)
+        z = cam[:, :, 2] + d * tan_top
+        var = (d * cam[:, :, 3] * (1.0 + tan_top * tan_top)) ** 2 + cam[:, :, 4]
+        height = np.array([tr.height_m for tr, _ in seen])
+        height_var = np.array([tr.height_var for tr, _ in seen])
+        for c in range(width):
+            k = height_var / (height_var + var[:, c])
+            height = np.where(use[:, c], height + k * (z[:, c] - height), height)
+            height_var = np.where(use[:, c], height_var * (1.0 - k), height_var)
+        for (tr, _), h, hv in zip(seen, height.tolist(), height_var.tolist(), strict=True):
+            tr.height_m, tr.height_var = h, hv
 
     def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], views: dict[str, ViewBlobs]) -> None:
         """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
@@ -424,7 +450,7 @@ class Tracker:
             method=fix.method if fix is not None else "least_squares",
         )
         got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
-        self._height(tr, got, views)
+        self._heights([(tr, got)], views)
         self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
         if ranked:
             tr.sensors = (ranked[0].a, ranked[0].b)
