@@ -7,7 +7,7 @@ error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is t
 much as the other, not a switch).
 
 Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's line
-qualify (with many cameras, pairs among the first ``max_views`` of them by sensor id); a blob wider than one person
+qualify (with many cameras, pairs among the first few of them by sensor id); a blob wider than one person
 (a merged group) gives no width to use. Every pair of every track is worked out at once, with arrays.
 """
 
@@ -20,7 +20,6 @@ import numpy.typing as npt
 
 from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
 from resource_manager.stereo.localize import MAX_PERSON_WIDTH_M
-from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["size_ratio_lines"]
 
@@ -29,35 +28,28 @@ BoolArray = npt.NDArray[np.bool_]
 
 
 def size_ratio_lines(
-    views: dict[str, ViewBlobs], blobs: list[dict[str, int]], width_rel_sigma: float, max_views: int
+    origin: FloatArray, blob: FloatArray, used: BoolArray, width_rel_sigma: float
 ) -> tuple[FloatArray, BoolArray]:
-    """Each track's line observations from the blobs assigned to it (``blobs``: per track, sensor id -> blob),
-    pairs taken in order of sensor ids; ``width_rel_sigma``: the relative width error eps.
+    """Each track's line observations from the blobs assigned to it, pairs taken in order of slots.
+
+    Args:
+        origin: (k, w, 2) the camera of each track's slots (its views in order of sensor id).
+        blob: (k, w, 2) the bearing and angular width of the blob in each slot.
+        used: (k, w) which slots hold a view.
+        width_rel_sigma: the relative width error eps.
 
     Returns:
         (k, l, 4) rows of direction x, y, value and variance (the
         :class:`~resource_manager.track.motion.LineObservation` of each, as
         :meth:`~resource_manager.track.motion.ObservationBatch.padded` takes them), and (k, l) which are there.
     """
-    k = len(blobs)
-    chosen = [sorted(by_sid)[:max_views] for by_sid in blobs]
-    width = max((len(c) for c in chosen), default=0)
+    k, width = used.shape
     if width < 2:
         return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
-    # Per track and slot: the camera's position and the blob's bearing and width.
-    cam = np.zeros((k, width, 2))
-    blob = np.zeros((k, width, 2))
-    used = np.zeros((k, width), dtype=bool)
-    for i, (by_sid, ids) in enumerate(zip(blobs, chosen, strict=True)):
-        for c, sid in enumerate(ids):
-            v, j = views[sid], by_sid[sid]
-            cam[i, c] = v.origin_xy
-            blob[i, c] = v.bearing_rad[j], v.width_rad[j]
-            used[i, c] = True
     ia, ib = np.triu_indices(width, 1)  # the order of itertools.combinations
-    oa, ta, wa = cam[:, ia], blob[:, ia, 0], blob[:, ia, 1]
+    oa, ta, wa = origin[:, ia], blob[:, ia, 0], blob[:, ia, 1]
     tb, wb = blob[:, ib, 0], blob[:, ib, 1]
-    base = cam[:, ib] - oa
+    base = origin[:, ib] - oa
     length = np.hypot(base[:, :, 0], base[:, :, 1])
     psi = np.arctan2(base[:, :, 1], base[:, :, 0])
     ok = used[:, ia] & used[:, ib] & (length > 0)

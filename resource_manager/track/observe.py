@@ -45,7 +45,6 @@ __all__ = [
     "ViewStack",
     "fov_width",
     "observation",
-    "observation_rows",
     "score_view",
     "score_views",
     "visibility",
@@ -230,7 +229,7 @@ def score_views(
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
     unit = d / dist[:, :, None]  # d distance / d position
     pc = table.pos_cov
-    s_tt = np.einsum("sni,nij,snj->sn", jac, pc, jac) + _bearing_var(stack, dist)
+    s_tt = np.einsum("sni,nij,snj->sn", jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
     s_dd_track = np.einsum("sni,nij,snj->sn", unit, pc, unit)
     blob_dist, blob_s_tt, blob_s_dd = dist[col].T, s_tt[col].T, s_dd_track[col].T
     nu_t = _wrap(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
@@ -275,13 +274,6 @@ def bearing_var(v: ViewBlobs, dist: FloatArray, spread: Spread) -> FloatArray:
     spread of the point seen around the person."""
     d = np.maximum(dist, MIN_RANGE_M)
     return np.asarray(v.sigma_rad**2 + (spread.cross_var + v.sigma_xy_m**2) / (d * d), dtype=np.float64)
-
-
-def _bearing_var(stack: ViewStack, dist: FloatArray) -> FloatArray:
-    """:func:`bearing_var` of each view (row of ``dist``)."""
-    d = np.maximum(dist, MIN_RANGE_M)
-    spread = stack.cross_var + stack.sigma_xy_m**2
-    return np.asarray((stack.sigma_rad**2)[:, None] + spread[:, None] / (d * d), dtype=np.float64)
 
 
 def _height_term(
@@ -403,24 +395,3 @@ def observation(v: ViewBlobs, j: int, xy: FloatArray, spread: Spread, weight: fl
         rng = float(v.mono_range_m[j])
         rvar = (float(v.mono_sigma_m[j]) ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
     return Observation((float(v.origin_xy[0]), float(v.origin_xy[1])), float(v.bearing_rad[j]), var, rng, rvar)
-
-
-def observation_rows(
-    v: ViewBlobs, blobs: npt.NDArray[np.int64], xy: FloatArray, spread: Spread, weight: float = 1.0
-) -> FloatArray:
-    """:func:`observation` of many blobs of one view at once, each of a person near its row of ``xy`` (n, 2): (n, 6)
-    rows of origin x, y, bearing, its variance, floor distance (NaN: none), its variance, as
-    :meth:`~resource_manager.track.motion.ObservationBatch.padded` takes them."""
-    n = len(blobs)
-    out = np.empty((n, 6))
-    out[:, 0], out[:, 1] = v.origin_xy[0], v.origin_xy[1]
-    out[:, 2] = v.bearing_rad[blobs]
-    d = np.hypot(xy[:, 0] - v.origin_xy[0], xy[:, 1] - v.origin_xy[1])
-    out[:, 3] = bearing_var(v, d, spread) / weight
-    out[:, 4:] = math.nan
-    if v.mono_range_m is not None and v.mono_sigma_m is not None:
-        rng = v.mono_range_m[blobs]
-        has = np.isfinite(rng)
-        out[has, 4] = rng[has]
-        out[has, 5] = (v.mono_sigma_m[blobs][has] ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
-    return out

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from resource_manager.track.motion import MIN_RANGE_M
 from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["Spread", "ViewStack"]
@@ -37,6 +38,8 @@ class ViewStack:
     """Several views' blobs along one axis (view after view), with each view's own quantities per row."""
 
     views: tuple[ViewBlobs, ...]
+    rows: dict[str, int]
+    """sensor id -> its view's row."""
     offsets: IntArray
     """(s + 1,) view ``i``'s blobs are entries ``offsets[i]:offsets[i + 1]``."""
     view_of: IntArray
@@ -57,6 +60,8 @@ class ViewStack:
     """(s,) horizontal extent of each view's bearings."""
     bearing_rad: FloatArray
     """(m,) the blobs' world azimuths."""
+    width_rad: FloatArray
+    """(m,) their angular widths."""
     top_elev_rad: FloatArray
     """(m,) elevations of the blob tops."""
     top_cut: npt.NDArray[np.bool_]
@@ -88,6 +93,7 @@ class ViewStack:
         ranges = [_ranges(v) for v in views]
         return ViewStack(
             views=tuple(views),
+            rows={v.sensor_id: i for i, v in enumerate(views)},
             offsets=offsets,
             view_of=np.repeat(np.arange(len(views), dtype=np.int64), counts),
             origin=np.array([v.origin_xy for v in views], dtype=np.float64).reshape(-1, 2),
@@ -98,12 +104,20 @@ class ViewStack:
             range_var=np.array([s.range_var for s in spreads], dtype=np.float64),
             fov_width_rad=np.array([fov_width(v) for v in views], dtype=np.float64),
             bearing_rad=cat("bearing_rad", 0.0),
+            width_rad=cat("width_rad", 0.0),
             top_elev_rad=cat("top_elev_rad", 0.0),
             top_cut=cat("top_cut", 0.0) > 0,
             mono_range_m=np.concatenate([r for r, _ in ranges]) if ranges else np.zeros(0),
             mono_sigma_m=np.concatenate([s for _, s in ranges]) if ranges else np.zeros(0),
             local_id=np.concatenate([v.local_id for v in views]).astype(np.int64) if views else np.zeros(0, np.int64),
         )
+
+    def bearing_var(self, rows: IntArray, dist: FloatArray) -> FloatArray:
+        """Bearing variance of a person at ``dist`` from the camera of view ``rows`` (each element its own): the
+        sensor's and its yaw's, its position's and the spread of the point seen around the person."""
+        d = np.maximum(dist, MIN_RANGE_M)
+        spread = self.cross_var[rows] + self.sigma_xy_m[rows] ** 2
+        return np.asarray(self.sigma_rad[rows] ** 2 + spread / (d * d), dtype=np.float64)
 
     def split(self, a: FloatArray) -> list[FloatArray]:
         """(n, m) per-blob columns ``a`` cut into each view's (n, m_i)."""

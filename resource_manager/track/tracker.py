@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -43,7 +44,6 @@ from resource_manager.track.observe import (
     ViewScores,
     ViewStack,
     observation,
-    observation_rows,
     score_views,
     visibility_many,
 )
@@ -53,6 +53,8 @@ from resource_manager.views.blobs import ViewBlobs
 __all__ = ["Tracker", "TrackerOutcome"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+_Scalar = TypeVar("_Scalar", bound=np.generic)
 MAX_PAIR_CAMERAS = 5
 """Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
 
@@ -77,6 +79,44 @@ class _Tick:
     weights: dict[str, tuple[float, float]]
     """sensor id -> (position, existence) weight of its evidence at this tick (:meth:`Tracker._weights`)."""
     pose_sigma: dict[str, float]
+    stack: ViewStack
+    """The views stacked into arrays, in order of sensor ids."""
+    position_weight: FloatArray
+    """(s,) the position weight of each view of ``stack``."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Slots:
+    """Tracks' assigned blobs as indices into the tick's :class:`ViewStack`: the ``slot[e]``-th blob assigned to
+    track ``track[e]`` (slots in order of sensor ids) is the stack's blob ``blob[e]``, of its view ``view[e]``."""
+
+    track: IntArray
+    slot: IntArray
+    view: IntArray
+    blob: IntArray
+    shape: tuple[int, int]
+    """(tracks, most slots of any)."""
+
+    @staticmethod
+    def of(gots: list[list[_Assigned]], stack: ViewStack) -> _Slots:
+        rows = stack.rows
+        flat = [(k, c, rows[a.sensor_id], a.blob) for k, got in enumerate(gots) for c, a in enumerate(got)]
+        idx = np.array(flat, dtype=np.int64).reshape(-1, 4)
+        view = idx[:, 2]
+        width = max((len(got) for got in gots), default=0)
+        return _Slots(idx[:, 0], idx[:, 1], view, stack.offsets[view] + idx[:, 3], (len(gots), width))
+
+    def spread(self, values: npt.NDArray[_Scalar], fill: float = 0.0) -> npt.NDArray[_Scalar]:
+        """(k, w, ...) per-slot array of ``values`` (one per entry), ``fill`` in the empty slots."""
+        out = np.full((*self.shape, *values.shape[1:]), fill, dtype=values.dtype)
+        out[self.track, self.slot] = values
+        return out
+
+    def used(self) -> npt.NDArray[np.bool_]:
+        """(k, w) which slots hold a blob."""
+        out = np.zeros(self.shape, dtype=bool)
+        out[self.track, self.slot] = True
+        return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,9 +193,10 @@ class Tracker:
         table = TrackTable.of(self.tracks)
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         free: dict[str, list[int]] = {}
-        tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
+        evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
         sids = sorted(views)
         stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
+        tick = _Tick(views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]))
         pd = visibility_many(stack, table, self.model)
         pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
         scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
@@ -177,7 +218,7 @@ class Tracker:
                 learnt.append(
                     (tr, {a.sensor_id: a.blob for a in kept}, min(tick.weights[a.sensor_id][0] for a in kept))
                 )
-        self._heights([(tr, got) for tr, got in zip(self.tracks, kept_all, strict=True) if got], views)
+        self._heights([(tr, got) for tr, got in zip(self.tracks, kept_all, strict=True) if got], stack)
         self._learn(learnt, views)
         self._existence(scored, hits, tick)
         for sid in scored:
@@ -271,27 +312,29 @@ class Tracker:
         gots = [assigned[i] for i in rows]
         xs = np.array([tr.x for tr in trs], dtype=np.float64)
         ps = np.array([tr.p for tr in trs], dtype=np.float64)
-        width = max(len(got) for got in gots)
-        obs = np.zeros((len(trs), width, 6))
-        valid = np.zeros((len(trs), width), dtype=bool)
-        # Per view, the (track, slot, blob) it gives: each view's rows computed at once.
-        per_view: dict[str, list[tuple[int, int, int]]] = {}
-        for k, got in enumerate(gots):
-            for c, a in enumerate(got):
-                per_view.setdefault(a.sensor_id, []).append((k, c, a.blob))
-                valid[k, c] = True
-        for sid, entries in per_view.items():
-            v = tick.views[sid]
-            ks, cs, js = (np.array(col, dtype=np.int64) for col in zip(*entries, strict=True))
-            obs[ks, cs] = observation_rows(v, js, xs[ks, :2], self._spread(v), tick.weights[sid][0])
+        st, slots = tick.stack, _Slots.of(gots, tick.stack)
+        view, blob = slots.view, slots.blob
+        # Each assigned blob as an observation of its track (:func:`~.observe.observation`).
+        obs = np.full((len(view), 6), math.nan)
+        obs[:, :2] = origin = st.origin[view]
+        obs[:, 2] = st.bearing_rad[blob]
+        weight = tick.position_weight[view]
+        dist = np.hypot(xs[slots.track, 0] - origin[:, 0], xs[slots.track, 1] - origin[:, 1])
+        obs[:, 3] = st.bearing_var(view, dist) / weight
+        has = np.isfinite(st.mono_range_m[blob])
+        obs[has, 4] = st.mono_range_m[blob[has]]
+        feet_var = st.mono_sigma_m[blob[has]] ** 2 + st.sigma_xy_m[view[has]] ** 2 + st.range_var[view[has]]
+        obs[has, 5] = feet_var / weight[has]
+        # With many cameras, size-ratio pairs among the first 2 * MAX_PAIR_CAMERAS views of each track.
+        first = slice(0, 2 * MAX_PAIR_CAMERAS)
         line_rows, line_valid = size_ratio_lines(
-            tick.views,
-            [{a.sensor_id: a.blob for a in got} for got in gots],
+            slots.spread(origin)[:, first],
+            slots.spread(np.column_stack([st.bearing_rad[blob], st.width_rad[blob]]))[:, first],
+            slots.used()[:, first],
             self.birth_params.width_rel_sigma,
-            2 * MAX_PAIR_CAMERAS,
         )
         m = self.model
-        batch = ObservationBatch.padded(obs, valid, line_rows, line_valid)
+        batch = ObservationBatch.padded(slots.spread(obs), slots.used(), line_rows, line_valid)
         xs, ps, weight = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
         for k, tr in enumerate(trs):
             tr.x, tr.p = xs[k].copy(), ps[k].copy()
@@ -350,33 +393,23 @@ class Tracker:
                 )
             )
 
-    def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], views: dict[str, ViewBlobs]) -> None:
+    def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], stack: ViewStack) -> None:
         """Fuse into each track the head-top heights its views imply at its updated distance (scalar Kalman
         updates, view after view; all tracks at once)."""
         if not seen:
             return
-        width = max(len(got) for _, got in seen)
-        # Per track and slot: the implied height and its variance (NaN: no view there, or a head cut by the
-        # picture's top, a lower bound only).
-        cam = np.zeros((len(seen), width, 5))  # x, y, z, sigma, spread
-        top = np.zeros((len(seen), width))
-        use = np.zeros((len(seen), width), dtype=bool)
-        for i, (_, got) in enumerate(seen):
-            for c, a in enumerate(got):
-                v = views[a.sensor_id]
-                if v.top_cut is not None and bool(v.top_cut[a.blob]):
-                    continue
-                cam[i, c] = (*v.origin_xy, v.z_m, v.sigma_rad, self._spread(v).cross_var)
-                top[i, c] = v.top_elev_rad[a.blob]
-                use[i, c] = True
-        xy = np.array([tr.x[:2] for tr, _ in seen])
-        d = np.hypot(xy[:, 0, None] - cam[:, :, 0], xy[:, 1, None] - cam[:, :, 1])
-        tan_top = np.tan(top)
-        z = cam[:, :, 2] + d * tan_top
-        var = (d * cam[:, :, 3] * (1.0 + tan_top * tan_top)) ** 2 + cam[:, :, 4]
+        slots = _Slots.of([got for _, got in seen], stack)
+        view, blob = slots.view, slots.blob
+        xy = np.array([tr.x[:2] for tr, _ in seen])[slots.track]
+        d = np.hypot(xy[:, 0] - stack.origin[view, 0], xy[:, 1] - stack.origin[view, 1])
+        tan_top = np.tan(stack.top_elev_rad[blob])
+        z = slots.spread(stack.z_m[view] + d * tan_top)
+        var = slots.spread((d * stack.sigma_rad[view] * (1.0 + tan_top * tan_top)) ** 2 + stack.cross_var[view])
+        # A head cut by the picture's top gives a lower bound only: left out.
+        use = slots.used() & ~slots.spread(stack.top_cut[blob])
         height = np.array([tr.height_m for tr, _ in seen])
         height_var = np.array([tr.height_var for tr, _ in seen])
-        for c in range(width):
+        for c in range(slots.shape[1]):
             k = height_var / (height_var + var[:, c])
             height = np.where(use[:, c], height + k * (z[:, c] - height), height)
             height_var = np.where(use[:, c], height_var * (1.0 - k), height_var)
@@ -450,7 +483,7 @@ class Tracker:
             method=fix.method if fix is not None else "least_squares",
         )
         got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
-        self._heights([(tr, got)], views)
+        self._heights([(tr, got)], tick.stack)
         self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
         if ranked:
             tr.sensors = (ranked[0].a, ranked[0].b)
