@@ -266,51 +266,56 @@ def update_many(
         return x, p, np.zeros((0, batch.valid.shape[1]))
     info_prior = np.linalg.inv(p)
     valid, has = batch.valid, batch.has_range
+    pr = _Predicted.at(x[:, :2], batch)
     resp = valid.astype(np.float64)
     if outlier is not None:  # first judged against the prediction, with its uncertainty
-        resp = _responsibilities(x, p, batch, outlier)
+        resp = _responsibilities(pr, p, batch, outlier)
+    # The lines are linear in the position: their information and their pull on the step do not change.
     w_line = np.where(batch.lines_valid, 1.0 / batch.lines_var, 0.0)
+    info_prior[:, :2, :2] += _outer_sum(w_line, batch.lines_dir)
+    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, x[:, :2])
+    grad_line = np.einsum("kl,kli->ki", w_line * nu_line, batch.lines_dir)
     xi = x.copy()
     p_new = p
     active = np.ones(k, dtype=bool)
     for _ in range(IEKF_ITERATIONS):
-        pr = _Predicted.at(xi[:, :2], batch)
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
         w_b = np.where(valid, resp / batch.bearing_var, 0.0)
         w_r = np.where(has, resp / batch.range_var, 0.0)
         info = info_prior.copy()
-        info[:, :2, :2] += _outer_sum(w_line, batch.lines_dir)
         info[:, :2, :2] += _outer_sum(w_b, pr.bearing_jac) + _outer_sum(w_r, pr.range_jac)
         p_step = np.linalg.inv(info)
         dxy = (x - xi)[:, None, :2]
-        nu_l = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, xi[:, :2])
-        nu_l -= np.sum(batch.lines_dir * dxy, axis=2)
         nu_b = _wrap(batch.bearing_rad - pr.bearing - np.sum(pr.bearing_jac * dxy, axis=2))
         nu_r = batch.range_m - pr.range_m - np.sum(pr.range_jac * dxy, axis=2)
-        grad = (
-            np.einsum("kl,kli->ki", w_line * nu_l, batch.lines_dir)
-            + np.einsum("kv,kvi->ki", w_b * nu_b, pr.bearing_jac)
-            + np.einsum("kv,kvi->ki", w_r * nu_r, pr.range_jac)
-        )
+        grad = grad_line + _weighted_sum(w_b * nu_b, pr.bearing_jac) + _weighted_sum(w_r * nu_r, pr.range_jac)
         step = x + np.einsum("kij,kj->ki", p_step[:, :, :2], grad)
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
         p_new = np.where(active[:, None, None], p_step, p_new)
+        last = not (active & (moved >= 1e-4)).any()
+        if outlier is not None or not last:
+            pr = _Predicted.at(xi[:, :2], batch)
         if outlier is not None:
-            resp = np.where(active[:, None], _responsibilities(xi, p_new, batch, outlier), resp)
+            resp = np.where(active[:, None], _responsibilities(pr, p_new, batch, outlier), resp)
         active &= moved >= 1e-4
-        if not active.any():
+        if last:
             break
     return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp
 
 
+def _weighted_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
+    """(k, 2) Σ_rows w J of each track's rows."""
+    return np.einsum("kr,kri->ki", w, jac)
+
+
 def _responsibilities(
-    x: FloatArray, p: FloatArray, batch: ObservationBatch, outlier: tuple[float, float]
+    pr: _Predicted, p: FloatArray, batch: ObservationBatch, outlier: tuple[float, float]
 ) -> FloatArray:
-    """(k, v) posterior probability of each observation's core (not outlier) component, from its residual at
-    ``x`` and its variance there (the measurement's plus the estimate's, ``p``); the lines left out."""
+    """(k, v) posterior probability of each observation's core (not outlier) component, from its residual at the
+    estimate ``pr`` was predicted at and its variance there (the measurement's plus the estimate's, ``p``); the
+    lines left out."""
     eps, scale = outlier
-    pr = _Predicted.at(x[:, :2], batch)
     pos = p[:, None, :2, :2]
     var_b = batch.bearing_var + np.einsum("kvi,kvij,kvj->kv", pr.bearing_jac, pos, pr.bearing_jac)
     var_r = batch.range_var + np.einsum("kvi,kvij,kvj->kv", pr.range_jac, pos, pr.range_jac)
