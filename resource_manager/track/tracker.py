@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 
 from common.schema import Method, PairEntry
 from resource_manager.stereo.localize import Measurement, localize_best_pair
-from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
+from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.looks import learn_looks
@@ -83,6 +83,13 @@ class _Tick:
     """The views stacked into arrays, in order of sensor ids."""
     position_weight: FloatArray
     """(s,) the position weight of each view of ``stack``."""
+
+
+class _Ranking(NamedTuple):
+    """The pair of a track's cameras chosen (:meth:`Tracker._rank`) among how many."""
+
+    best: PairCandidate | None
+    candidates: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,17 +214,28 @@ class Tracker:
         # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
         fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
         weights = dict(zip(fused, self._fuse(fused, assigned, tick), strict=True))
-        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
         kept_all: list[list[_Assigned]] = []
+        rankings: list[_Ranking | None] = []
         for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            kept = self._update(tr, got, tick, out, weights.get(i))
+            kept, ranking = self._update(tr, got, tick, out, weights.get(i))
             kept_all.append(kept)
-            for a in kept:
-                hits[a.sensor_id][i] = a.blob
-            if kept:
-                learnt.append(
-                    (tr, {a.sensor_id: a.blob for a in kept}, min(tick.weights[a.sensor_id][0] for a in kept))
-                )
+            rankings.append(ranking)
+        # The pairs of the cameras that detected each track, ranked for all tracks at once where not yet ranked.
+        later = [i for i, (kept, r) in enumerate(zip(kept_all, rankings, strict=True)) if kept and r is None]
+        xys = np.array([self.tracks[i].x[:2] for i in later]).reshape(-1, 2)
+        ranked = self._rank_many(xys, [sorted(a.sensor_id for a in kept_all[i]) for i in later], tick)
+        for i, ranking in zip(later, ranked, strict=True):
+            rankings[i] = ranking
+        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
+        for i, (tr, kept, ranking) in enumerate(zip(self.tracks, kept_all, rankings, strict=True)):
+            if not kept:
+                continue
+            by_sid = {a.sensor_id: a.blob for a in kept}
+            for sid, j in by_sid.items():
+                hits[sid][i] = j
+            assert ranking is not None
+            self._report(tr, ranking, by_sid, tick, out)
+            learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in kept)))
         self._heights([(tr, got) for tr, got in zip(self.tracks, kept_all, strict=True) if got], stack)
         self._learn(learnt, views)
         self._existence(scored, hits, tick)
@@ -263,17 +281,19 @@ class Tracker:
 
     def _update(
         self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
-    ) -> list[_Assigned]:
+    ) -> tuple[list[_Assigned], _Ranking | None]:
         """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
-        someone else's, in ``model`` mode, goes back to the unexplained ones), whose looks the caller learns.
+        someone else's, in ``model`` mode, goes back to the unexplained ones), whose looks the caller learns, and
+        in ``paper`` mode the ranking of their cameras' pairs (``model`` mode: the caller ranks every track's at
+        once, :meth:`_rank_many`).
 
         ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
         """
-        paper = got and weight is None and self.model.mode == "paper"
-        ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else []
+        paper = bool(got) and weight is None and self.model.mode == "paper"
+        ranking = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else None
         fix: Measurement | None = None
-        if paper and ranked:
-            fix = self._pair_fix(ranked[0], {a.sensor_id: a.blob for a in got}, tick)
+        if ranking is not None and ranking.best is not None:
+            fix = self._pair_fix(ranking.best, {a.sensor_id: a.blob for a in got}, tick)
         method: Method = "predicted"
         if fix is not None:
             tr.x, tr.p = _position_update(tr.x, tr.p, fix)
@@ -287,16 +307,14 @@ class Tracker:
         if not got:
             tr.misses += 1
             tr.method, tr.sensors = "predicted", ()
-            return []
+            return [], None
         tr.hits += 1
         tr.misses = 0
         out.detected += 1
-        by_sid = {a.sensor_id: a.blob for a in got}
-        if fix is None:
-            ranked = self._rank(tr.x[:2], sorted(by_sid), tick)
         tr.method = method
-        self._report(tr, ranked, by_sid, tick, out)
-        return got
+        if fix is None:
+            ranking = self._rank(tr.x[:2], sorted(a.sensor_id for a in got), tick) if paper else None
+        return got, ranking
 
     def _fuse(
         self, rows: list[int], assigned: list[list[_Assigned]], tick: _Tick, tracks: list[TrackRecord] | None = None
@@ -345,15 +363,36 @@ class Tracker:
         sigma = v.point_sigma_m if v.point_sigma_m > 0 else self.model.body_sigma_m
         return Spread(sigma * sigma, sigma * sigma)
 
-    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> list[PairCandidate]:
-        """The pairs of cameras ``sids``, best first by the error model (or shuffled: ``pair_choice = random``)."""
-        v, ps = tick.views, tick.pose_sigma
-        cams = [CameraGeom(s, v[s].origin_xy, v[s].sigma_rad, ps.get(s, 0.0)) for s in sids]
-        ranked = rank_pairs(xy, cams, len(cams) if self.pair_choice == "random" else MAX_PAIR_CAMERAS)
-        if self.pair_choice == "random" and ranked:
-            order = self._rng.permutation(len(ranked))
-            ranked = [ranked[int(k)] for k in order]
-        return ranked
+    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> _Ranking:
+        """The best pair of cameras ``sids`` by the error model (or at random: ``pair_choice = random``)."""
+        return self._rank_many(xy[None, :], [sids], tick)[0]
+
+    def _rank_many(self, xys: FloatArray, sids: list[list[str]], tick: _Tick) -> list[_Ranking]:
+        """:meth:`_rank` of many tracks at once (``xys`` (k, 2), each with its cameras ``sids``)."""
+        st = tick.stack
+        width = max((len(ids) for ids in sids), default=0)
+        view = np.zeros((len(sids), width), dtype=np.int64)
+        for i, ids in enumerate(sids):
+            view[i, : len(ids)] = [st.rows[s] for s in ids]
+        pose_sigma = np.array([tick.pose_sigma.get(v.sensor_id, 0.0) for v in st.views])
+        random = self.pair_choice == "random"
+        a, b, err, count = rank_pairs_many(
+            xys,
+            st.origin[view],
+            st.sigma_rad[view],
+            pose_sigma[view],
+            count=np.array([len(ids) for ids in sids], dtype=np.int64),
+            max_cameras=width if random else MAX_PAIR_CAMERAS,
+        )
+        out: list[_Ranking] = []
+        for i, (ids, n) in enumerate(zip(sids, count.tolist(), strict=True)):
+            if n == 0:
+                out.append(_Ranking(None, 0))
+                continue
+            # pair_choice = random: the pairs shuffled, the first taken.
+            q = int(self._rng.permutation(n)[0]) if random else 0
+            out.append(_Ranking(PairCandidate(ids[a[i, q]], ids[b[i, q]], float(err[i, q])), n))
+        return out
 
     def _pair_fix(self, pair: PairCandidate, by_sid: dict[str, int], tick: _Tick) -> Measurement | None:
         """The paper's localisation: Eq. (1) or, near colinearity, Eq. (2) with one pair of views."""
@@ -368,14 +407,14 @@ class Tracker:
         )
 
     def _report(
-        self, tr: TrackRecord, ranked: list[PairCandidate], by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
+        self, tr: TrackRecord, ranking: _Ranking, by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
     ) -> None:
         """Which pair the error model ranks best for the track, with its predicted error (the ``pairs`` key)."""
-        if not ranked:
+        best = ranking.best
+        if best is None:
             tr.sensors = tuple(by_sid)
             tr.predicted_error_m = tr.position_sigma_m
             return
-        best = ranked[0]
         tr.sensors = (best.a, best.b)
         fix = self._pair_fix(best, by_sid, tick)
         # The error of the method the crossover rule picks for this pair: Eq. 1's, or Eq. 2's near colinearity.
@@ -389,7 +428,7 @@ class Tracker:
                     sensor_b=best.b,
                     predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
                     method=fix.method,
-                    candidates=len(ranked),
+                    candidates=ranking.candidates,
                 )
             )
 
@@ -458,8 +497,8 @@ class Tracker:
         self._serial += 1
         p = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
         x = np.array([h.fix.xy[0], h.fix.xy[1], 0.0, 0.0])
-        ranked = self._rank(x[:2], sorted(h.blobs), tick)
-        fix = self._pair_fix(ranked[0], h.blobs, tick) if m.mode == "paper" and ranked else None
+        best = self._rank(x[:2], sorted(h.blobs), tick).best
+        fix = self._pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
         if fix is not None:
             p[:2, :2] = fix.cov
             x[:2] = fix.xy
@@ -485,9 +524,9 @@ class Tracker:
         got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
         self._heights([(tr, got)], tick.stack)
         self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
-        if ranked:
-            tr.sensors = (ranked[0].a, ranked[0].b)
-            tr.predicted_error_m = ranked[0].error_m
+        if best is not None:
+            tr.sensors = (best.a, best.b)
+            tr.predicted_error_m = best.error_m
         self.tracks.append(tr)
 
     def _prune(self) -> list[str]:
