@@ -126,13 +126,11 @@ class _Slots:
         return out
 
 
-@dataclass(frozen=True, slots=True)
-class _Assigned:
+class _Assigned(NamedTuple):
     """One view's blob assigned to a track."""
 
     sensor_id: str
     blob: int
-    ln_lr: float
 
 
 class Tracker:
@@ -209,7 +207,7 @@ class Tracker:
         scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
         for sid, scores in scored.items():
             for i, j in _assign(scores):
-                assigned[i].append(_Assigned(sid, j, float(scores.ln_lr[i, j])))
+                assigned[i].append(_Assigned(sid, j))
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
         # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
         fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
@@ -521,7 +519,7 @@ class Tracker:
             hits=1,
             method=fix.method if fix is not None else "least_squares",
         )
-        got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
+        got = [_Assigned(s, j) for s, j in sorted(h.blobs.items())]
         self._heights([(tr, got)], tick.stack)
         self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
         if best is not None:
@@ -596,13 +594,14 @@ def _assign(scores: ViewScores) -> list[tuple[int, int]]:
     if gain.size == 0:
         return []
     ok = np.isfinite(gain) & (gain > 0)
-    if not ok.any():
-        return []
     rows = np.flatnonzero(ok.any(axis=1))
+    if not rows.size:
+        return []
     cols = np.flatnonzero(ok.any(axis=0))
-    sub = np.where(ok[np.ix_(rows, cols)], gain[np.ix_(rows, cols)], 0.0)
+    sub = np.where(ok, gain, 0.0)[rows][:, cols]
     r, c = linear_sum_assignment(sub, maximize=True)
-    return [(int(rows[i]), int(cols[j])) for i, j in zip(r, c, strict=True) if ok[rows[i], cols[j]]]
+    tracks, blobs = rows.tolist(), cols.tolist()
+    return [(tracks[i], blobs[j]) for i, j in zip(r.tolist(), c.tolist(), strict=True) if sub[i, j] > 0]
 
 
 def _position_update(x: FloatArray, p: FloatArray, fix: Measurement) -> tuple[FloatArray, FloatArray]:
