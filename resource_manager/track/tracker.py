@@ -485,6 +485,7 @@ class Tracker:
             spread=lambda sid: self._spread(tick.views[sid]),
             tick=self._tick,
             min_evidence=need,
+            stack=tick.stack,
         )
         for h in hyps:
             self._spawn(h, tick, t_ns, prior + w * h.evidence)
