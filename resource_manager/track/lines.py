@@ -13,6 +13,7 @@ qualify (with many cameras, pairs among the first few of them by sensor id); a b
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -46,7 +47,7 @@ def size_ratio_lines(
     k, width = used.shape
     if width < 2:
         return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
-    ia, ib = np.triu_indices(width, 1)  # the order of itertools.combinations
+    ia, ib = _pairs_of(width)
     oa, ta, wa = origin[:, ia], blob[:, ia, 0], blob[:, ia, 1]
     tb, wb = blob[:, ib, 0], blob[:, ib, 1]
     base = origin[:, ib] - oa
@@ -99,3 +100,11 @@ def _off_line(angle_rad: FloatArray) -> FloatArray:
     """Angle between a direction and a line (either way along it), in [0, pi/2]."""
     a = np.remainder(angle_rad, math.pi)
     return np.asarray(np.minimum(a, math.pi - a), dtype=np.float64)
+
+
+@functools.cache
+def _pairs_of(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """The (i, j), i < j, of ``n`` items in the order of ``itertools.combinations`` (read-only)."""
+    ia, ib = np.triu_indices(n, 1)
+    ia.flags.writeable = ib.flags.writeable = False
+    return ia, ib

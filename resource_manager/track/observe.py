@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
-from resource_manager.track.motion import MIN_RANGE_M, Observation
+from resource_manager.track.motion import MIN_RANGE_M
 from resource_manager.track.stack import Spread, ViewStack, fov_width
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -44,7 +44,6 @@ __all__ = [
     "ViewScores",
     "ViewStack",
     "fov_width",
-    "observation",
     "score_view",
     "score_views",
     "visibility",
@@ -269,13 +268,6 @@ def score_views(
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
 
 
-def bearing_var(v: ViewBlobs, dist: FloatArray, spread: Spread) -> FloatArray:
-    """(n,) bearing variance of a person at ``dist``: the sensor's and its yaw's, its position's and the
-    spread of the point seen around the person."""
-    d = np.maximum(dist, MIN_RANGE_M)
-    return np.asarray(v.sigma_rad**2 + (spread.cross_var + v.sigma_xy_m**2) / (d * d), dtype=np.float64)
-
-
 def _height_term(
     stack: ViewStack, table: TrackTable, dist: FloatArray, s_dd: FloatArray, *, model: TrackModel
 ) -> FloatArray:
@@ -380,18 +372,3 @@ def _link_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackMode
     linked = linked.reshape(len(tracks), len(sids))[:, stack.view_of]
     same = linked == stack.local_id[None, :]
     return np.where(same & (linked >= 0), math.log(model.link_odds), 0.0)
-
-
-def observation(v: ViewBlobs, j: int, xy: FloatArray, spread: Spread, weight: float = 1.0) -> Observation:
-    """Blob ``j`` of view ``v`` as an :class:`Observation` of a person near ``xy``.
-
-    ``weight`` in (0, 1]: the share of a new frame's information this observation carries (a tick between two
-    frames sees an interpolation of frames already used): its variances are divided by it.
-    """
-    d = math.hypot(float(xy[0] - v.origin_xy[0]), float(xy[1] - v.origin_xy[1]))
-    var = float(bearing_var(v, np.array([d]), spread)[0]) / weight
-    rng = rvar = math.nan
-    if v.mono_range_m is not None and v.mono_sigma_m is not None and math.isfinite(float(v.mono_range_m[j])):
-        rng = float(v.mono_range_m[j])
-        rvar = (float(v.mono_sigma_m[j]) ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
-    return Observation((float(v.origin_xy[0]), float(v.origin_xy[1])), float(v.bearing_rad[j]), var, rng, rvar)

@@ -37,13 +37,12 @@ from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import MotionModel, Observation, ObservationBatch, predict_many, update, update_many
+from resource_manager.track.motion import MotionModel, ObservationBatch, predict_many, update_many
 from resource_manager.track.observe import (
     Spread,
     TrackTable,
     ViewScores,
     ViewStack,
-    observation,
     score_views,
     visibility_many,
 )
@@ -211,7 +210,13 @@ class Tracker:
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
         # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
         fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
-        weights = dict(zip(fused, self._fuse(fused, assigned, tick), strict=True))
+        weights = dict(
+            zip(
+                fused,
+                self._fuse_tracks([self.tracks[i] for i in fused], [assigned[i] for i in fused], tick),
+                strict=True,
+            )
+        )
         kept_all: list[list[_Assigned]] = []
         rankings: list[_Ranking | None] = []
         for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
@@ -298,7 +303,7 @@ class Tracker:
             method = fix.method
         elif got:
             if weight is None:
-                (weight,) = self._fuse([0], [got], tick, [tr])
+                (weight,) = self._fuse_tracks([tr], [got], tick)
             got = [a for a, w in zip(got, weight.tolist(), strict=True) if w >= OUTLIER_RELEASE]
             method = "least_squares"
         tr.detected = bool(got)
@@ -315,22 +320,17 @@ class Tracker:
         return got, ranking
 
     def _fuse(
-        self, rows: list[int], assigned: list[list[_Assigned]], tick: _Tick, tracks: list[TrackRecord] | None = None
-    ) -> list[FloatArray]:
-        """Update tracks ``rows`` (of ``tracks``, default all) with every view assigned to each (``assigned``, per
-        row), all at once (:func:`~resource_manager.track.motion.update_many`): the bearings, the feet distances
-        and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`). Returns each updated
-        track's weight of each of its assigned blobs (low: an outlier)."""
-        if not rows:
-            return []
-        tracks = self.tracks if tracks is None else tracks
-        trs = [tracks[i] for i in rows]
-        gots = [assigned[i] for i in rows]
-        xs = np.array([tr.x for tr in trs], dtype=np.float64)
-        ps = np.array([tr.p for tr in trs], dtype=np.float64)
+        self, xs: FloatArray, ps: FloatArray, gots: list[list[_Assigned]], tick: _Tick, *, lines: bool = True
+    ) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
+        """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with every view assigned to each
+        (``gots``), all at once (:func:`~resource_manager.track.motion.update_many`): the bearings, the feet
+        distances and (``lines``) the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`).
+        Also returns each one's weight of each of its assigned blobs (low: an outlier)."""
         st, slots = tick.stack, _Slots.of(gots, tick.stack)
         view, blob = slots.view, slots.blob
-        # Each assigned blob as an observation of its track (:func:`~.observe.observation`).
+        # Each assigned blob as an observation of its track: its bearing and, where the camera sees the feet, its
+        # floor distance, each variance divided by the view's position weight (a tick between two frames sees an
+        # interpolation of frames already used: it carries that share of a new frame's information).
         obs = np.full((len(view), 6), math.nan)
         obs[:, :2] = origin = st.origin[view]
         obs[:, 2] = st.bearing_rad[blob]
@@ -341,20 +341,29 @@ class Tracker:
         obs[has, 4] = st.mono_range_m[blob[has]]
         feet_var = st.mono_sigma_m[blob[has]] ** 2 + st.sigma_xy_m[view[has]] ** 2 + st.range_var[view[has]]
         obs[has, 5] = feet_var / weight[has]
-        # With many cameras, size-ratio pairs among the first 2 * MAX_PAIR_CAMERAS views of each track.
-        first = slice(0, 2 * MAX_PAIR_CAMERAS)
-        line_rows, line_valid = size_ratio_lines(
-            slots.spread(origin)[:, first],
-            slots.spread(np.column_stack([st.bearing_rad[blob], st.width_rad[blob]]))[:, first],
-            slots.used()[:, first],
-            self.birth_params.width_rel_sigma,
-        )
+        line_rows, line_valid = np.zeros((len(gots), 0, 4)), np.zeros((len(gots), 0), dtype=bool)
+        if lines:
+            # With many cameras, size-ratio pairs among the first 2 * MAX_PAIR_CAMERAS views of each track.
+            first = slice(0, 2 * MAX_PAIR_CAMERAS)
+            line_rows, line_valid = size_ratio_lines(
+                slots.spread(origin)[:, first],
+                slots.spread(np.column_stack([st.bearing_rad[blob], st.width_rad[blob]]))[:, first],
+                slots.used()[:, first],
+                self.birth_params.width_rel_sigma,
+            )
         m = self.model
         batch = ObservationBatch.padded(slots.spread(obs), slots.used(), line_rows, line_valid)
-        xs, ps, weight = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
-        for k, tr in enumerate(trs):
-            tr.x, tr.p = xs[k].copy(), ps[k].copy()
-        return [weight[k, : len(got)] for k, got in enumerate(gots)]
+        xs, ps, resp = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
+        return xs, ps, [resp[k, : len(got)] for k, got in enumerate(gots)]
+
+    def _fuse_tracks(self, trs: list[TrackRecord], gots: list[list[_Assigned]], tick: _Tick) -> list[FloatArray]:
+        """:meth:`_fuse` tracks ``trs`` in place; returns each one's weight of each of its assigned blobs."""
+        if not trs:
+            return []
+        xs, ps, weights = self._fuse(np.array([tr.x for tr in trs]), np.array([tr.p for tr in trs]), gots, tick)
+        for tr, x, p in zip(trs, xs, ps, strict=True):
+            tr.x, tr.p = x.copy(), p.copy()
+        return weights
 
     def _spread(self, v: ViewBlobs) -> Spread:
         """The spread of a view's points around a person: what its sensor states, else the model's default."""
@@ -487,46 +496,55 @@ class Tracker:
             min_evidence=need,
             stack=tick.stack,
         )
-        for h in hyps:
-            self._spawn(h, tick, t_ns, prior + w * h.evidence)
+        if hyps:
+            self._spawn(hyps, tick, t_ns, [prior + w * h.evidence for h in hyps])
         return len(hyps)
 
-    def _spawn(self, h: Hypothesis, tick: _Tick, t_ns: int, logodds: float) -> None:
-        m, views, weights = self.model, tick.views, tick.weights
-        self._serial += 1
-        p = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
-        x = np.array([h.fix.xy[0], h.fix.xy[1], 0.0, 0.0])
-        best = self._rank(x[:2], sorted(h.blobs), tick).best
-        fix = self._pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
-        if fix is not None:
-            p[:2, :2] = fix.cov
-            x[:2] = fix.xy
-        else:
-            obs: list[Observation] = [
-                observation(views[s], j, x[:2], self._spread(views[s]), weights[s][0])
-                for s, j in sorted(h.blobs.items())
-            ]
-            x, p, _ = update(x, p, obs, (m.outlier_prob, m.outlier_scale))
-        tr = TrackRecord(
-            serial=self._serial,
-            x=x,
-            p=p,
-            t_ns=t_ns,
-            born_ns=t_ns,
-            logodds=min(logodds, logit(m.p_max)),
-            height_m=m.height_prior_m,
-            height_var=m.height_sigma_m**2,
-            detected=True,
-            hits=1,
-            method=fix.method if fix is not None else "least_squares",
+    def _spawn(self, hyps: list[Hypothesis], tick: _Tick, t_ns: int, logodds: list[float]) -> None:
+        """Start a track on each hypothesis (existence ``logodds``), in order: at its best pair's fix (``paper``
+        mode) or updated from a wide prior there with all its views (all at once)."""
+        m, weights = self.model, tick.weights
+        gots = [[_Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
+        prior = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
+        xs = np.array([[h.fix.xy[0], h.fix.xy[1], 0.0, 0.0] for h in hyps])
+        ps = np.repeat(prior[None, :, :], len(hyps), axis=0)
+        bests = [r.best for r in self._rank_many(xs[:, :2], [sorted(h.blobs) for h in hyps], tick)]
+        fixes = [
+            self._pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
+            for h, best in zip(hyps, bests, strict=True)
+        ]
+        fused = [k for k, fix in enumerate(fixes) if fix is None]
+        if fused:
+            xs[fused], ps[fused], _ = self._fuse(xs[fused], ps[fused], [gots[k] for k in fused], tick, lines=False)
+        born: list[TrackRecord] = []
+        for k, (fix, best) in enumerate(zip(fixes, bests, strict=True)):
+            self._serial += 1
+            x, p = xs[k].copy(), ps[k].copy()
+            if fix is not None:
+                p[:2, :2] = fix.cov
+                x[:2] = fix.xy
+            tr = TrackRecord(
+                serial=self._serial,
+                x=x,
+                p=p,
+                t_ns=t_ns,
+                born_ns=t_ns,
+                logodds=min(logodds[k], logit(m.p_max)),
+                height_m=m.height_prior_m,
+                height_var=m.height_sigma_m**2,
+                detected=True,
+                hits=1,
+                method=fix.method if fix is not None else "least_squares",
+            )
+            if best is not None:
+                tr.sensors = (best.a, best.b)
+                tr.predicted_error_m = best.error_m
+            born.append(tr)
+        self._heights(list(zip(born, gots, strict=True)), tick.stack)
+        self._learn(
+            [(tr, h.blobs, min(weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)], tick.views
         )
-        got = [_Assigned(s, j) for s, j in sorted(h.blobs.items())]
-        self._heights([(tr, got)], tick.stack)
-        self._learn([(tr, h.blobs, min(weights[s][0] for s in h.blobs))], views)
-        if best is not None:
-            tr.sensors = (best.a, best.b)
-            tr.predicted_error_m = best.error_m
-        self.tracks.append(tr)
+        self.tracks.extend(born)
 
     def _prune(self) -> list[str]:
         """Confirm tracks whose existence reached ``p_confirm``; end those below ``p_delete``, lost, or on the same
