@@ -217,7 +217,16 @@ def _wrap(a: FloatArray) -> FloatArray:
 
 def _outer_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
     """(k, 2, 2) Σ_rows w Jᵀ J of each track's rows (``w`` (k, r), ``jac`` (k, r, 2))."""
-    return np.einsum("kr,kri,krj->kij", w, jac, jac)
+    return np.asarray(np.swapaxes(jac * w[:, :, None], 1, 2) @ jac, dtype=np.float64)
+
+
+def quadratic_form(a: FloatArray, p: FloatArray, b: FloatArray) -> FloatArray:
+    """aᵀ P b of 2-vectors ``a``, ``b`` (..., 2) and 2x2 matrices ``p`` (..., 2, 2), broadcast (elementwise
+    arithmetic: cheaper than ``einsum`` on the small arrays of one tick)."""
+    a0, a1, b0, b1 = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+    return np.asarray(
+        a0 * (p[..., 0, 0] * b0 + p[..., 0, 1] * b1) + a1 * (p[..., 1, 0] * b0 + p[..., 1, 1] * b1), dtype=np.float64
+    )
 
 
 def update(
@@ -317,8 +326,8 @@ def _responsibilities(
     lines left out."""
     eps, scale = outlier
     pos = p[:, None, :2, :2]
-    var_b = batch.bearing_var + np.einsum("kvi,kvij,kvj->kv", pr.bearing_jac, pos, pr.bearing_jac)
-    var_r = batch.range_var + np.einsum("kvi,kvij,kvj->kv", pr.range_jac, pos, pr.range_jac)
+    var_b = batch.bearing_var + quadratic_form(pr.bearing_jac, pos, pr.bearing_jac)
+    var_r = batch.range_var + quadratic_form(pr.range_jac, pos, pr.range_jac)
     nu_b = _wrap(batch.bearing_rad - pr.bearing)
     nu_r = batch.range_m - pr.range_m
     d2 = nu_b**2 / var_b + np.where(batch.has_range, nu_r**2 / var_r, 0.0)

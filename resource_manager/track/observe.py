@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
-from resource_manager.track.motion import MIN_RANGE_M
+from resource_manager.track.motion import MIN_RANGE_M, quadratic_form
 from resource_manager.track.stack import Spread, ViewStack, fov_width
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -228,8 +228,8 @@ def score_views(
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
     unit = d / dist[:, :, None]  # d distance / d position
     pc = table.pos_cov
-    s_tt = np.einsum("sni,nij,snj->sn", jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
-    s_dd_track = np.einsum("sni,nij,snj->sn", unit, pc, unit)
+    s_tt = quadratic_form(jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
+    s_dd_track = quadratic_form(unit, pc, unit)
     blob_dist, blob_s_tt, blob_s_dd = dist[col].T, s_tt[col].T, s_dd_track[col].T
     nu_t = _wrap(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
@@ -239,7 +239,7 @@ def score_views(
     ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
     has = np.isfinite(stack.mono_range_m)
     if has.any():
-        s_td = np.einsum("sni,nij,snj->sn", jac, pc, unit)[col].T
+        s_td = quadratic_form(jac, pc, unit)[col].T
         rng = np.where(has, stack.mono_range_m, 0.0)
         feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
         s_dd = blob_s_dd + feet_var[None, :]
