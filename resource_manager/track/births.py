@@ -149,7 +149,7 @@ def find_births(
     misses = np.zeros(len(cands))
     for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
         misses += row
-    unexplained = ViewStack.of([sub[sids[i]] for i in with_free], [spread(sids[i]) for i in with_free])
+    unexplained = every.subset([sub[sids[i]] for i in with_free], with_free, [free[sids[i]] for i in with_free])
     scores = score_views(unexplained, cands, cand_table, pd[with_free], model=model)
     # The unexplained blobs side by side, view after view: (hypothesis, blob) gains, each blob's view and index.
     gain = np.concatenate([sc.gain for sc in scores], axis=1)

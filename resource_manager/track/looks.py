@@ -59,18 +59,20 @@ def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, Vie
 
 def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], views: dict[str, ViewBlobs]) -> None:
     """:func:`learn_look` of many tracks at once: (track, sensor id -> blob, alpha) each."""
+    hists = {sid: v.hist_sqrt for sid, v in views.items() if v.hist_sqrt is not None}
+    # (track, sensor id, its look there, the blob's histogram, alpha) of every blob assigned.
+    seen = [
+        (tr, sid, tr.looks.get(sid), hists[sid][i], alpha)
+        for tr, used_blobs, alpha in learnt
+        for sid, i in used_blobs.items()
+        if sid in hists
+    ]
     mixed: dict[int, list[tuple[TrackRecord, str, FloatArray, FloatArray, float]]] = {}
-    for tr, used_blobs, alpha in learnt:
-        for sid, i in used_blobs.items():
-            hs = views[sid].hist_sqrt
-            if hs is None:
-                continue
-            h = hs[i]
-            old = tr.looks.get(sid)
-            if old is None or old.shape != h.shape:
-                tr.looks[sid] = h.copy()
-            else:
-                mixed.setdefault(h.shape[0], []).append((tr, sid, old, h, alpha))
+    for tr, sid, old, h, alpha in seen:
+        if old is None or old.shape != h.shape:
+            tr.looks[sid] = h.copy()
+        else:
+            mixed.setdefault(h.shape[0], []).append((tr, sid, old, h, alpha))
     for rows in mixed.values():
         weight = np.array([r[4] for r in rows])[:, None]
         mix = (1.0 - weight) * np.array([r[2] for r in rows]) + weight * np.array([r[3] for r in rows])

@@ -331,23 +331,22 @@ def _look_arrays(
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``stack`` and (n, s) 1/0
     whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
-    column = {v.sensor_id: i for i, v in enumerate(stack.views)}
-    rows: list[int] = []
-    cols: list[int] = []
-    looks: list[FloatArray] = []
-    for i, tr in enumerate(tracks):
-        for sid, look in tr.looks.items():
-            if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s:
-                rows.append(i)
-                cols.append(column.get(sid, -1))
-                looks.append(look)
+    column = stack.rows
+    learnt = [
+        (i, column.get(sid, -1), look)
+        for i, tr in enumerate(tracks)
+        for sid, look in tr.looks.items()
+        if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
+    ]
     n = len(tracks)
     own = np.zeros((n, stack.n_views, bins))
     own_ok = np.zeros((n, stack.n_views))
     total = np.zeros((n, bins))
     count = np.zeros(n)
-    if looks:
-        r, c, mat = np.array(rows), np.array(cols), np.array(looks)
+    if learnt:
+        r = np.array([i for i, _, _ in learnt], dtype=np.int64)
+        c = np.array([c for _, c, _ in learnt], dtype=np.int64)
+        mat = np.array([look for _, _, look in learnt])
         np.add.at(total, r, mat)  # each track's looks summed in its own order
         np.add.at(count, r, 1.0)
         here = c >= 0

@@ -112,6 +112,33 @@ class ViewStack:
             local_id=np.concatenate([v.local_id for v in views]).astype(np.int64) if views else np.zeros(0, np.int64),
         )
 
+    def subset(self, views: Sequence[ViewBlobs], rows: Sequence[int], blobs: Sequence[Sequence[int]]) -> ViewStack:
+        """The stack of some of its views with some of their blobs: ``views``, the views of ``rows`` with only
+        their blobs ``blobs`` (:func:`~resource_manager.views.build.subset_view`), taken from these arrays."""
+        counts = np.array([len(b) for b in blobs], dtype=np.int64)
+        row = np.asarray(rows, dtype=np.int64)
+        pick = np.array([self.offsets[r] + j for r, b in zip(rows, blobs, strict=True) for j in b], dtype=np.int64)
+        return ViewStack(
+            views=tuple(views),
+            rows={v.sensor_id: i for i, v in enumerate(views)},
+            offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+            view_of=np.repeat(np.arange(len(views), dtype=np.int64), counts),
+            origin=self.origin[row],
+            z_m=self.z_m[row],
+            sigma_rad=self.sigma_rad[row],
+            sigma_xy_m=self.sigma_xy_m[row],
+            cross_var=self.cross_var[row],
+            range_var=self.range_var[row],
+            fov_width_rad=self.fov_width_rad[row],
+            bearing_rad=self.bearing_rad[pick],
+            width_rad=self.width_rad[pick],
+            top_elev_rad=self.top_elev_rad[pick],
+            top_cut=self.top_cut[pick],
+            mono_range_m=self.mono_range_m[pick],
+            mono_sigma_m=self.mono_sigma_m[pick],
+            local_id=self.local_id[pick],
+        )
+
     def bearing_var(self, rows: IntArray, dist: FloatArray) -> FloatArray:
         """Bearing variance of a person at ``dist`` from the camera of view ``rows`` (each element its own): the
         sensor's and its yaw's, its position's and the spread of the point seen around the person."""

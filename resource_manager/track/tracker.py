@@ -268,17 +268,19 @@ class Tracker:
         if not self.tracks:
             return
         cap = logit(self.model.p_max)
+        views = list(scored.values())
+        p_detect = np.array([sc.p_detect for sc in views])
+        # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
+        delta = np.array([sc.ln_miss for sc in views])
+        hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
+        if hit:
+            rows, cols = np.array([h[0] for h in hit]), np.array([h[1] for h in hit])
+            ln_lr = np.array([views[h[0]].ln_lr[h[1], h[2]] for h in hit])
+            delta[rows, cols] = np.log(1.0 - p_detect[rows, cols] + np.exp(np.minimum(ln_lr, 50.0)))
         logodds = np.array([tr.logodds for tr in self.tracks])
-        for sid, scores in scored.items():
-            delta = scores.ln_miss.copy()
-            hit = hits[sid]
-            if hit:
-                rows = np.fromiter(hit.keys(), dtype=np.int64, count=len(hit))
-                cols = np.fromiter(hit.values(), dtype=np.int64, count=len(hit))
-                lr = np.exp(np.minimum(scores.ln_lr[rows, cols], 50.0))
-                delta[rows] = np.log(1.0 - scores.p_detect[rows] + lr)
-            moved = np.minimum(logodds + tick.weights[sid][1] * delta, cap)
-            logodds = np.where(scores.p_detect > 0, moved, logodds)
+        for row, sid in enumerate(scored):
+            moved = np.minimum(logodds + tick.weights[sid][1] * delta[row], cap)
+            logodds = np.where(p_detect[row] > 0, moved, logodds)
         for tr, lo in zip(self.tracks, logodds.tolist(), strict=True):
             tr.logodds = lo
 
