@@ -190,25 +190,40 @@ class ObservationBatch:
 
 
 @dataclass(frozen=True, slots=True)
-class _Predicted:
-    """What the views' rows predict at a state: bearings and distances with their gradients in position."""
+class _Rows:
+    """A batch's observations as rows of one kind after the other: every slot's bearing, then its floor distance
+    (weightless where there is none), each row with its camera."""
 
-    bearing: FloatArray
-    """(k, v)"""
-    bearing_jac: FloatArray
-    """(k, v, 2)"""
-    range_m: FloatArray
-    """(k, v)"""
-    range_jac: FloatArray
-    """(k, v, 2) unit vectors from the cameras."""
+    origin: FloatArray
+    """(k, v, 2) the cameras (of both kinds of rows: the first ``v`` bearings, the next ``v`` distances)."""
+    z: FloatArray
+    """(k, 2v) measured values."""
+    var: FloatArray
+    """(k, 2v) their variances."""
+    used: npt.NDArray[np.bool_]
+    """(k, 2v) which rows hold a measurement."""
 
     @staticmethod
-    def at(xy: FloatArray, batch: ObservationBatch) -> _Predicted:
-        d = xy[:, None, :] - batch.origin
+    def of(batch: ObservationBatch) -> _Rows:
+        return _Rows(
+            batch.origin,
+            np.concatenate([batch.bearing_rad, batch.range_m], axis=1),
+            np.concatenate([batch.bearing_var, batch.range_var], axis=1),
+            np.concatenate([batch.valid, batch.has_range], axis=1),
+        )
+
+    def predicted(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(h, H) at positions ``xy`` (k, 2): (k, 2v) predicted bearings then distances, and (k, 2v, 2) their
+        gradients in position."""
+        d = xy[:, None, :] - self.origin
         dx, dy = d[:, :, 0], d[:, :, 1]
         r2 = np.maximum(dx * dx + dy * dy, MIN_RANGE_M**2)
         r = np.sqrt(r2)
-        return _Predicted(np.arctan2(dy, dx), np.stack([-dy / r2, dx / r2], axis=-1), r, d / r[:, :, None])
+        v = dx.shape[1]
+        jac = np.empty((dx.shape[0], 2 * v, 2))
+        jac[:, :v, 0], jac[:, :v, 1] = -dy / r2, dx / r2
+        jac[:, v:] = d / r[:, :, None]
+        return np.concatenate([np.arctan2(dy, dx), r], axis=1), jac
 
 
 def _wrap(a: FloatArray) -> FloatArray:
@@ -270,15 +285,15 @@ def update_many(
         (x (k, 4), P (k, 4, 4), weight (k, v) of each observation in [0, 1]; 1 without ``outlier``, 0 in the
         slots without one).
     """
-    k = x.shape[0]
+    k, nv = batch.valid.shape
     if k == 0:
-        return x, p, np.zeros((0, batch.valid.shape[1]))
+        return x, p, np.zeros((0, nv))
     info_prior = np.linalg.inv(p)
-    valid, has = batch.valid, batch.has_range
-    pr = _Predicted.at(x[:, :2], batch)
-    resp = valid.astype(np.float64)
+    rows = _Rows.of(batch)
+    h, jac = rows.predicted(x[:, :2])
+    resp = batch.valid.astype(np.float64)
     if outlier is not None:  # first judged against the prediction, with its uncertainty
-        resp = _responsibilities(pr, p, batch, outlier)
+        resp = _responsibilities(h, jac, p, rows, outlier)
     # The lines are linear in the position: their information and their pull on the step do not change.
     w_line = np.where(batch.lines_valid, 1.0 / batch.lines_var, 0.0)
     info_prior[:, :2, :2] += _outer_sum(w_line, batch.lines_dir)
@@ -289,24 +304,23 @@ def update_many(
     active = np.ones(k, dtype=bool)
     for _ in range(IEKF_ITERATIONS):
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
-        w_b = np.where(valid, resp / batch.bearing_var, 0.0)
-        w_r = np.where(has, resp / batch.range_var, 0.0)
+        w = np.where(rows.used, np.concatenate([resp, resp], axis=1) / rows.var, 0.0)
         info = info_prior.copy()
-        info[:, :2, :2] += _outer_sum(w_b, pr.bearing_jac) + _outer_sum(w_r, pr.range_jac)
+        info[:, :2, :2] += _outer_sum(w, jac)
         p_step = np.linalg.inv(info)
-        dxy = (x - xi)[:, None, :2]
-        nu_b = _wrap(batch.bearing_rad - pr.bearing - np.sum(pr.bearing_jac * dxy, axis=2))
-        nu_r = batch.range_m - pr.range_m - np.sum(pr.range_jac * dxy, axis=2)
-        grad = grad_line + _weighted_sum(w_b * nu_b, pr.bearing_jac) + _weighted_sum(w_r * nu_r, pr.range_jac)
+        dx, dy = x[:, 0] - xi[:, 0], x[:, 1] - xi[:, 1]
+        nu = rows.z - h - (jac[:, :, 0] * dx[:, None] + jac[:, :, 1] * dy[:, None])
+        nu[:, :nv] = _wrap(nu[:, :nv])
+        grad = grad_line + _weighted_sum(w * nu, jac)
         step = x + np.einsum("kij,kj->ki", p_step[:, :, :2], grad)
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
         p_new = np.where(active[:, None, None], p_step, p_new)
         last = not (active & (moved >= 1e-4)).any()
         if outlier is not None or not last:
-            pr = _Predicted.at(xi[:, :2], batch)
+            h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
-            resp = np.where(active[:, None], _responsibilities(pr, p_new, batch, outlier), resp)
+            resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
         active &= moved >= 1e-4
         if last:
             break
@@ -319,19 +333,20 @@ def _weighted_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
 
 
 def _responsibilities(
-    pr: _Predicted, p: FloatArray, batch: ObservationBatch, outlier: tuple[float, float]
+    h: FloatArray, jac: FloatArray, p: FloatArray, rows: _Rows, outlier: tuple[float, float]
 ) -> FloatArray:
     """(k, v) posterior probability of each observation's core (not outlier) component, from its residual at the
-    estimate ``pr`` was predicted at and its variance there (the measurement's plus the estimate's, ``p``); the
-    lines left out."""
+    estimate ``h``, ``jac`` were predicted at and its variance there (the measurement's plus the estimate's,
+    ``p``); the lines left out."""
     eps, scale = outlier
-    pos = p[:, None, :2, :2]
-    var_b = batch.bearing_var + quadratic_form(pr.bearing_jac, pos, pr.bearing_jac)
-    var_r = batch.range_var + quadratic_form(pr.range_jac, pos, pr.range_jac)
-    nu_b = _wrap(batch.bearing_rad - pr.bearing)
-    nu_r = batch.range_m - pr.range_m
-    d2 = nu_b**2 / var_b + np.where(batch.has_range, nu_r**2 / var_r, 0.0)
-    dims = np.where(batch.has_range, 2.0, 1.0)
+    nv = h.shape[1] // 2
+    var = rows.var + quadratic_form(jac, p[:, None, :2, :2], jac)
+    nu = rows.z - h
+    nu[:, :nv] = _wrap(nu[:, :nv])
+    terms = nu**2 / var
+    has = rows.used[:, nv:]
+    d2 = terms[:, :nv] + np.where(has, terms[:, nv:], 0.0)
+    dims = np.where(has, 2.0, 1.0)
     core = (1.0 - eps) * np.exp(-0.5 * d2)
     wide = eps * np.exp(-0.5 * d2 / scale**2) / scale**dims
-    return np.asarray(np.where(batch.valid, core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
+    return np.asarray(np.where(rows.used[:, :nv], core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
