@@ -338,21 +338,24 @@ def _look_arrays(
         for sid, look in tr.looks.items()
         if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
     ]
-    n = len(tracks)
-    own = np.zeros((n, stack.n_views, bins))
-    own_ok = np.zeros((n, stack.n_views))
-    total = np.zeros((n, bins))
-    count = np.zeros(n)
-    if learnt:
-        r = np.array([i for i, _, _ in learnt], dtype=np.int64)
-        c = np.array([c for _, c, _ in learnt], dtype=np.int64)
-        mat = np.array([look for _, _, look in learnt])
-        np.add.at(total, r, mat)  # each track's looks summed in its own order
-        np.add.at(count, r, 1.0)
-        here = c >= 0
-        own[r[here], c[here]] = mat[here]
-        own_ok[r[here], c[here]] = 1.0
-    return own, own_ok, total, count
+    n, s = len(tracks), stack.n_views
+    own = np.zeros((n * s, bins))
+    own_ok = np.zeros(n * s)
+    if not learnt:
+        return own.reshape(n, s, bins), own_ok.reshape(n, s), np.zeros((n, bins)), np.zeros(n)
+    row = np.fromiter((i for i, _, _ in learnt), dtype=np.int64, count=len(learnt))
+    col = np.fromiter((c for _, c, _ in learnt), dtype=np.int64, count=len(learnt))
+    mat = np.concatenate([look for _, _, look in learnt]).reshape(-1, bins)
+    here = col >= 0
+    own[row[here] * s + col[here]] = mat[here]
+    own_ok[row[here] * s + col[here]] = 1.0
+    # Each track's looks in its own slots, in its order: summed one after the other.
+    count = np.bincount(row, minlength=n)
+    slot = np.arange(len(learnt)) - (np.cumsum(count) - count)[row]
+    each = np.zeros((n * int(count.max()), bins))
+    each[row * int(count.max()) + slot] = mat
+    total = each.reshape(n, -1, bins).sum(axis=1)
+    return own.reshape(n, s, bins), own_ok.reshape(n, s), total, count.astype(np.float64)
 
 
 def _colour_ln_lr(coefficient: FloatArray, model: TrackModel) -> FloatArray:
