@@ -16,6 +16,10 @@ Each tick, at the fusion instant:
 6. **Life cycle**: a track is confirmed (published, given an id) once its existence reaches ``p_confirm``, and ends
    when it falls below ``p_delete`` or its position is lost (``lost_sigma_m``).
 
+Each step works on every track and view of the tick at once, on arrays (the views stacked, :mod:`.stack`; the
+tracks' updates, :mod:`.fuse`): a tick's cost is then a few hundred array operations, not a few dozen per track and
+per view. Only the assignment (one Hungarian problem per view) and the pair report (one fix per track) stay loops.
+
 Only this package changes a track's state; :meth:`Tracker.step` returns what the other stages need.
 """
 
@@ -24,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple, TypeVar
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -34,10 +38,10 @@ from common.schema import Method, PairEntry
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
-from resource_manager.track.lines import size_ratio_lines
+from resource_manager.track.fuse import Slots, fuse, fuse_heights
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import MotionModel, ObservationBatch, predict_many, update_many
+from resource_manager.track.motion import MotionModel, predict_many
 from resource_manager.track.observe import (
     Spread,
     TrackTable,
@@ -52,8 +56,6 @@ from resource_manager.views.blobs import ViewBlobs
 __all__ = ["Tracker", "TrackerOutcome"]
 
 FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-_Scalar = TypeVar("_Scalar", bound=np.generic)
 MAX_PAIR_CAMERAS = 5
 """Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
 
@@ -89,40 +91,6 @@ class _Ranking(NamedTuple):
 
     best: PairCandidate | None
     candidates: int
-
-
-@dataclass(frozen=True, slots=True)
-class _Slots:
-    """Tracks' assigned blobs as indices into the tick's :class:`ViewStack`: the ``slot[e]``-th blob assigned to
-    track ``track[e]`` (slots in order of sensor ids) is the stack's blob ``blob[e]``, of its view ``view[e]``."""
-
-    track: IntArray
-    slot: IntArray
-    view: IntArray
-    blob: IntArray
-    shape: tuple[int, int]
-    """(tracks, most slots of any)."""
-
-    @staticmethod
-    def of(gots: list[list[_Assigned]], stack: ViewStack) -> _Slots:
-        rows = stack.rows
-        flat = [(k, c, rows[a.sensor_id], a.blob) for k, got in enumerate(gots) for c, a in enumerate(got)]
-        idx = np.array(flat, dtype=np.int64).reshape(-1, 4)
-        view = idx[:, 2]
-        width = max((len(got) for got in gots), default=0)
-        return _Slots(idx[:, 0], idx[:, 1], view, stack.offsets[view] + idx[:, 3], (len(gots), width))
-
-    def spread(self, values: npt.NDArray[_Scalar], fill: float = 0.0) -> npt.NDArray[_Scalar]:
-        """(k, w, ...) per-slot array of ``values`` (one per entry), ``fill`` in the empty slots."""
-        out = np.full((*self.shape, *values.shape[1:]), fill, dtype=values.dtype)
-        out[self.track, self.slot] = values
-        return out
-
-    def used(self) -> npt.NDArray[np.bool_]:
-        """(k, w) which slots hold a blob."""
-        out = np.zeros(self.shape, dtype=bool)
-        out[self.track, self.slot] = True
-        return out
 
 
 class _Assigned(NamedTuple):
@@ -182,21 +150,8 @@ class Tracker:
         self._t_ns = t_ns
         self._tick += 1
         out = TrackerOutcome()
-        if self.tracks:
-            gaps_s = [(t_ns - tr.t_ns) / 1e9 for tr in self.tracks]
-            xs, ps = predict_many(
-                np.array([tr.x for tr in self.tracks]),
-                np.array([tr.p for tr in self.tracks]),
-                np.array(gaps_s),
-                self.motion,
-            )
-            for tr, x, p, gap_s in zip(self.tracks, xs, ps, gaps_s, strict=True):
-                tr.x, tr.p = x, p
-                tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
-                tr.t_ns = t_ns
+        self._predict(t_ns)
         table = TrackTable.of(self.tracks)
-        assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
-        free: dict[str, list[int]] = {}
         evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
         sids = sorted(views)
         stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
@@ -204,50 +159,68 @@ class Tracker:
         pd = visibility_many(stack, table, self.model)
         pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
         scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
+        assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
         for sid, scores in scored.items():
             for i, j in _assign(scores):
                 assigned[i].append(_Assigned(sid, j))
+        kept = self._update_all(assigned, tick, out)
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
-        # Model mode: every track with assigned blobs is updated with them at once, before the rest of its update.
-        fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
-        weights = dict(
-            zip(
-                fused,
-                self._fuse_tracks([self.tracks[i] for i in fused], [assigned[i] for i in fused], tick),
-                strict=True,
-            )
-        )
-        kept_all: list[list[_Assigned]] = []
-        rankings: list[_Ranking | None] = []
-        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            kept, ranking = self._update(tr, got, tick, out, weights.get(i))
-            kept_all.append(kept)
-            rankings.append(ranking)
-        # The pairs of the cameras that detected each track, ranked for all tracks at once where not yet ranked.
-        later = [i for i, (kept, r) in enumerate(zip(kept_all, rankings, strict=True)) if kept and r is None]
-        xys = np.array([self.tracks[i].x[:2] for i in later]).reshape(-1, 2)
-        ranked = self._rank_many(xys, [sorted(a.sensor_id for a in kept_all[i]) for i in later], tick)
-        for i, ranking in zip(later, ranked, strict=True):
-            rankings[i] = ranking
-        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
-        for i, (tr, kept, ranking) in enumerate(zip(self.tracks, kept_all, rankings, strict=True)):
-            if not kept:
-                continue
-            by_sid = {a.sensor_id: a.blob for a in kept}
-            for sid, j in by_sid.items():
+        for i, got in enumerate(kept):
+            for sid, j in got:
                 hits[sid][i] = j
-            assert ranking is not None
-            self._report(tr, ranking, by_sid, tick, out)
-            learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in kept)))
-        self._heights([(tr, got) for tr, got in zip(self.tracks, kept_all, strict=True) if got], stack)
-        self._learn(learnt, views)
         self._existence(scored, hits, tick)
-        for sid in scored:
-            taken = set(hits[sid].values())
-            free[sid] = [j for j in range(views[sid].n) if j not in taken]
+        taken = {sid: set(hit.values()) for sid, hit in hits.items()}
+        free = {sid: [j for j in range(views[sid].n) if j not in taken[sid]] for sid in scored}
         out.births = self._births(tick, free, t_ns)
         out.ended = self._prune()
         return out
+
+    def _predict(self, t_ns: int) -> None:
+        """Every track predicted to the instant ``t_ns`` (all at once)."""
+        if not self.tracks:
+            return
+        gaps_s = [(t_ns - tr.t_ns) / 1e9 for tr in self.tracks]
+        xs, ps = predict_many(
+            np.array([tr.x for tr in self.tracks]),
+            np.array([tr.p for tr in self.tracks]),
+            np.array(gaps_s),
+            self.motion,
+        )
+        for tr, x, p, gap_s in zip(self.tracks, xs, ps, gaps_s, strict=True):
+            tr.x, tr.p = x, p
+            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
+            tr.t_ns = t_ns
+
+    def _update_all(self, assigned: list[list[_Assigned]], tick: _Tick, out: TrackerOutcome) -> list[list[_Assigned]]:
+        """Update every track with the blobs assigned to it (:meth:`_update`); returns those each keeps.
+
+        In ``model`` mode the tracks' filters are updated all at once (:meth:`_fuse_tracks`) and the pairs of the
+        cameras that detected each are ranked all at once; then each track's pair is reported, and its head height,
+        looks and links learnt (all tracks at once).
+        """
+        fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
+        weights = self._fuse_tracks([self.tracks[i] for i in fused], [assigned[i] for i in fused], tick)
+        weight_of = dict(zip(fused, weights, strict=True))
+        kept: list[list[_Assigned]] = []
+        rankings: list[_Ranking | None] = []
+        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
+            keep, ranking = self._update(tr, got, tick, out, weight_of.get(i))
+            kept.append(keep)
+            rankings.append(ranking)
+        later = [i for i, (got, r) in enumerate(zip(kept, rankings, strict=True)) if got and r is None]
+        xys = np.array([self.tracks[i].x[:2] for i in later]).reshape(-1, 2)
+        ranked = self._rank_many(xys, [sorted(a.sensor_id for a in kept[i]) for i in later], tick)
+        for i, ranking in zip(later, ranked, strict=True):
+            rankings[i] = ranking
+        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
+        for tr, got, ranking in zip(self.tracks, kept, rankings, strict=True):
+            if got and ranking is not None:
+                by_sid = {a.sensor_id: a.blob for a in got}
+                self._report(tr, ranking, by_sid, tick, out)
+                learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in got)))
+        self._heights([(tr, got) for tr, got in zip(self.tracks, kept, strict=True) if got], tick.stack)
+        self._learn(learnt, tick.views)
+        return kept
 
     def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
         """(position, existence) weight of a view's evidence at this tick.
@@ -325,37 +298,20 @@ class Tracker:
         self, xs: FloatArray, ps: FloatArray, gots: list[list[_Assigned]], tick: _Tick, *, lines: bool = True
     ) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
         """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with every view assigned to each
-        (``gots``), all at once (:func:`~resource_manager.track.motion.update_many`): the bearings, the feet
-        distances and (``lines``) the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`).
-        Also returns each one's weight of each of its assigned blobs (low: an outlier)."""
-        st, slots = tick.stack, _Slots.of(gots, tick.stack)
-        view, blob = slots.view, slots.blob
-        # Each assigned blob as an observation of its track: its bearing and, where the camera sees the feet, its
-        # floor distance, each variance divided by the view's position weight (a tick between two frames sees an
-        # interpolation of frames already used: it carries that share of a new frame's information).
-        obs = np.full((len(view), 6), math.nan)
-        obs[:, :2] = origin = st.origin[view]
-        obs[:, 2] = st.bearing_rad[blob]
-        weight = tick.position_weight[view]
-        dist = np.hypot(xs[slots.track, 0] - origin[:, 0], xs[slots.track, 1] - origin[:, 1])
-        obs[:, 3] = st.bearing_var(view, dist) / weight
-        has = np.isfinite(st.mono_range_m[blob])
-        obs[has, 4] = st.mono_range_m[blob[has]]
-        feet_var = st.mono_sigma_m[blob[has]] ** 2 + st.sigma_xy_m[view[has]] ** 2 + st.range_var[view[has]]
-        obs[has, 5] = feet_var / weight[has]
-        line_rows, line_valid = np.zeros((len(gots), 0, 4)), np.zeros((len(gots), 0), dtype=bool)
-        if lines:
-            # With many cameras, size-ratio pairs among the first 2 * MAX_PAIR_CAMERAS views of each track.
-            first = slice(0, 2 * MAX_PAIR_CAMERAS)
-            line_rows, line_valid = size_ratio_lines(
-                slots.spread(origin)[:, first],
-                slots.spread(np.column_stack([st.bearing_rad[blob], st.width_rad[blob]]))[:, first],
-                slots.used()[:, first],
-                self.birth_params.width_rel_sigma,
-            )
+        (``gots``), all at once (:func:`~resource_manager.track.fuse.fuse`), with (``lines``) the size-ratio lines
+        among each one's first ``2 * MAX_PAIR_CAMERAS`` views. Also returns each one's weight of each of its
+        assigned blobs (low: an outlier)."""
         m = self.model
-        batch = ObservationBatch.padded(slots.spread(obs), slots.used(), line_rows, line_valid)
-        xs, ps, resp = update_many(xs, ps, batch, (m.outlier_prob, m.outlier_scale))
+        xs, ps, resp = fuse(
+            xs,
+            ps,
+            Slots.of(gots, tick.stack),
+            tick.stack,
+            position_weight=tick.position_weight,
+            outlier=(m.outlier_prob, m.outlier_scale),
+            width_rel_sigma=self.birth_params.width_rel_sigma,
+            line_views=2 * MAX_PAIR_CAMERAS if lines else 0,
+        )
         return xs, ps, [resp[k, : len(got)] for k, got in enumerate(gots)]
 
     def _fuse_tracks(self, trs: list[TrackRecord], gots: list[list[_Assigned]], tick: _Tick) -> list[FloatArray]:
@@ -442,25 +398,17 @@ class Tracker:
             )
 
     def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], stack: ViewStack) -> None:
-        """Fuse into each track the head-top heights its views imply at its updated distance (scalar Kalman
-        updates, view after view; all tracks at once)."""
+        """Fuse into each track the head-top heights its views imply at its updated distance (all tracks at
+        once: :func:`~resource_manager.track.fuse.fuse_heights`)."""
         if not seen:
             return
-        slots = _Slots.of([got for _, got in seen], stack)
-        view, blob = slots.view, slots.blob
-        xy = np.array([tr.x[:2] for tr, _ in seen])[slots.track]
-        d = np.hypot(xy[:, 0] - stack.origin[view, 0], xy[:, 1] - stack.origin[view, 1])
-        tan_top = np.tan(stack.top_elev_rad[blob])
-        z = slots.spread(stack.z_m[view] + d * tan_top)
-        var = slots.spread((d * stack.sigma_rad[view] * (1.0 + tan_top * tan_top)) ** 2 + stack.cross_var[view])
-        # A head cut by the picture's top gives a lower bound only: left out.
-        use = slots.used() & ~slots.spread(stack.top_cut[blob])
-        height = np.array([tr.height_m for tr, _ in seen])
-        height_var = np.array([tr.height_var for tr, _ in seen])
-        for c in range(slots.shape[1]):
-            k = height_var / (height_var + var[:, c])
-            height = np.where(use[:, c], height + k * (z[:, c] - height), height)
-            height_var = np.where(use[:, c], height_var * (1.0 - k), height_var)
+        height, height_var = fuse_heights(
+            np.array([tr.x[:2] for tr, _ in seen]),
+            np.array([tr.height_m for tr, _ in seen]),
+            np.array([tr.height_var for tr, _ in seen]),
+            Slots.of([got for _, got in seen], stack),
+            stack,
+        )
         for (tr, _), h, hv in zip(seen, height.tolist(), height_var.tolist(), strict=True):
             tr.height_m, tr.height_var = h, hv
 
