@@ -48,16 +48,26 @@ def size_ratio_lines(
     if width < 2:
         return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
     ia, ib = _pairs_of(width)
-    oa, ta, wa = origin[:, ia], blob[:, ia, 0], blob[:, ia, 1]
-    tb, wb = blob[:, ib, 0], blob[:, ib, 1]
+    ray = np.stack([np.cos(blob[:, :, 0]), np.sin(blob[:, :, 0])], axis=2)  # each blob's bearing as a vector
+    oa, wa, wb = origin[:, ia], blob[:, ia, 1], blob[:, ib, 1]
     base = origin[:, ib] - oa
     length = np.hypot(base[:, :, 0], base[:, :, 1])
-    psi = np.arctan2(base[:, :, 1], base[:, :, 0])
     ok = used[:, ia] & used[:, ib] & (length > 0)
-    ok &= np.maximum(_off_line(ta - psi), _off_line(tb - psi)) < MAX_SIZE_RATIO_OFFSET_RAD
+    u = base / np.where(ok, length, 1.0)[:, :, None]
+    # Each bearing's angle with the baseline's line, by its sine and cosine with the baseline's direction.
+    ra, rb = ray[:, ia], ray[:, ib]
+    sin_a, cos_a = (
+        ra[:, :, 0] * u[:, :, 1] - ra[:, :, 1] * u[:, :, 0],
+        ra[:, :, 0] * u[:, :, 0] + ra[:, :, 1] * u[:, :, 1],
+    )
+    sin_b, cos_b = (
+        rb[:, :, 0] * u[:, :, 1] - rb[:, :, 1] * u[:, :, 0],
+        rb[:, :, 0] * u[:, :, 0] + rb[:, :, 1] * u[:, :, 1],
+    )
+    ok &= np.maximum(np.abs(sin_a), np.abs(sin_b)) < math.sin(MAX_SIZE_RATIO_OFFSET_RAD)
     # Eq. (2): the cosines' signs say whether the person is between the cameras or beyond one of them.
-    c1 = np.where(np.abs(_wrap(ta - psi)) < math.pi / 2, 1.0, -1.0)
-    c2 = np.where(np.abs(_wrap(tb - psi - math.pi)) < math.pi / 2, 1.0, -1.0)
+    c1 = np.where(cos_a > 0, 1.0, -1.0)
+    c2 = np.where(cos_b < 0, 1.0, -1.0)
     w1, w2 = np.sin(wa / 2), np.sin(wb / 2)
     ok &= (w1 > 0) & (w2 > 0)
     den = w1 * c1 + w2 * c2
@@ -68,9 +78,7 @@ def size_ratio_lines(
     ok &= (d1 > 0) & (d2 > 0)
     # A blob wider than one person at its distance (a merged group) gives no width to use.
     ok &= ~(_wide(d1, wa) | _wide(d2, wb))
-    length = np.where(ok, length, 1.0)
-    u = base / length[:, :, None]
-    sigma = 2.0 * width_rel_sigma * d1 * d2 / length
+    sigma = 2.0 * width_rel_sigma * d1 * d2 / np.where(ok, length, 1.0)
     value = u[:, :, 0] * oa[:, :, 0] + u[:, :, 1] * oa[:, :, 1] + c1 * d1
     # Each track's lines moved to its first slots, in order.
     count = ok.sum(axis=1)
@@ -89,17 +97,6 @@ def _wide(distance_m: FloatArray, width_rad: FloatArray) -> BoolArray:
     """Whether blobs of angular widths ``width_rad`` are plainly wider than one person at ``distance_m``
     (:func:`~resource_manager.stereo.localize.wide_blob`)."""
     return np.asarray(2.0 * distance_m * np.tan(0.5 * width_rad) > MAX_PERSON_WIDTH_M, dtype=bool)
-
-
-def _wrap(angle_rad: FloatArray) -> FloatArray:
-    """Angles in [-pi, pi)."""
-    return np.asarray(np.remainder(angle_rad + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
-
-
-def _off_line(angle_rad: FloatArray) -> FloatArray:
-    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
-    a = np.remainder(angle_rad, math.pi)
-    return np.asarray(np.minimum(a, math.pi - a), dtype=np.float64)
 
 
 @functools.cache
