@@ -51,6 +51,7 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 LN_2PI = math.log(TWO_PI)
@@ -230,68 +231,87 @@ def score_views(
     pc = table.pos_cov
     s_tt = quadratic_form(jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
-    blob_dist, blob_s_tt, blob_s_dd = dist[col].T, s_tt[col].T, s_dd_track[col].T
+    blob_s_tt = s_tt[col].T
     nu_t = _wrap(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
-    ln_det = np.log(blob_s_tt)
-    dim = np.ones((n, m))
     ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
     has = np.isfinite(stack.mono_range_m)
+    det = None
     if has.any():
         s_td = quadratic_form(jac, pc, unit)[col].T
         rng = np.where(has, stack.mono_range_m, 0.0)
         feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
-        s_dd = blob_s_dd + feet_var[None, :]
-        nu_d = rng[None, :] - blob_dist
+        s_dd = s_dd_track[col].T + feet_var[None, :]
+        nu_d = rng[None, :] - dist[col].T
         det = blob_s_tt * s_dd - s_td**2
         det = np.maximum(det, 1e-18)
         d2_joint = (s_dd * nu_t**2 - 2.0 * s_td * nu_t * nu_d + blob_s_tt * nu_d**2) / det
         gate_d = nu_d**2 / s_dd <= model.gate_sigmas**2
         d2 = np.where(has[None, :], d2_joint, d2)
         gate &= np.where(has[None, :], gate_d, True)
-        ln_det = np.where(has[None, :], np.log(det), ln_det)
-        dim = np.where(has[None, :], 2.0, dim)
         ln_clutter = ln_clutter + np.where(has, -math.log(model.max_range_m), 0.0)
-    ln_g = _mixture_ln(d2, ln_det, dim, model)
     # Other people's blobs near the track are the alternative explanation of a blob there: the local density of
     # blobs in each track's gate beyond the one it would have (non-parametric PDA), when above the view's mean.
     counted = np.concatenate([np.zeros((n, 1)), np.cumsum(gate, axis=1, dtype=np.float64)], axis=1)
     in_gate = counted[:, stack.offsets[1:]] - counted[:, stack.offsets[:-1]]
     local = np.log(np.maximum(in_gate - 1.0, 1e-9) / (2.0 * model.gate_sigmas * np.sqrt(s_tt.T)))
-    ln_alt = np.maximum(ln_clutter[None, :], local[:, col])
-    ln_lr = np.log(np.maximum(p_detect, 1e-300))[col].T + ln_g - ln_alt
-    ln_lr = ln_lr + _height_term(stack, table, blob_dist, blob_s_dd, model=model)
-    ln_lr = ln_lr + _colour_term(stack, tracks, model)
-    ln_lr = ln_lr + _link_term(stack, tracks, model)
-    ln_lr = np.where(gate & (p_detect[col].T > 0), ln_lr, -np.inf)
+    # The likelihood ratio where it can be finite: (track, blob) entries in the gate of a track the view can see.
+    track, blob = np.nonzero(gate & (p_detect[col].T > 0))
+    view = col[blob]
+    ln_det = np.log(s_tt[view, track])
+    dim = np.ones(len(track))
+    if det is not None:
+        ln_det = np.where(has[blob], np.log(det[track, blob]), ln_det)
+        dim = np.where(has[blob], 2.0, dim)
+    ln_g = _mixture_ln(d2[track, blob], ln_det, dim, model)
+    ln_alt = np.maximum(ln_clutter[blob], local[track, view])
+    entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
+    entry = entry + _height_term(
+        stack, table, track, blob, dist=dist[view, track], s_dd=s_dd_track[view, track], model=model
+    )
+    entry = entry + _colour_term(stack, tracks, track, blob, model)
+    entry = entry + _link_term(stack, tracks, track, blob, model)
+    ln_lr = np.full((n, m), -np.inf)
+    ln_lr[track, blob] = entry
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
 
 
 def _height_term(
-    stack: ViewStack, table: TrackTable, dist: FloatArray, s_dd: FloatArray, *, model: TrackModel
+    stack: ViewStack,
+    table: TrackTable,
+    track: IntArray,
+    blob: IntArray,
+    *,
+    dist: FloatArray,
+    s_dd: FloatArray,
+    model: TrackModel,
 ) -> FloatArray:
-    """(n, m) ln [N(implied head height; track height) · height_range]: the paper's height consistency
-    (``dist``, ``s_dd``: each track's distance and its variance from each blob's camera)."""
-    col = stack.view_of
-    tan_top = np.tan(stack.top_elev_rad)
+    """ln [N(implied head height; track height) · height_range] of each (``track``, ``blob``) entry: the paper's
+    height consistency (``dist``, ``s_dd``: the track's distance and its variance from the blob's camera)."""
+    view = stack.view_of[blob]
+    tan_top = np.tan(stack.top_elev_rad[blob])
     sec2 = 1.0 + tan_top**2
-    z = stack.z_m[col][None, :] + dist * tan_top[None, :]
+    z = stack.z_m[view] + dist * tan_top
     var = (
-        table.height_var[:, None]
-        + (dist * stack.sigma_rad[col][None, :] * sec2[None, :]) ** 2
-        + (tan_top**2)[None, :] * s_dd
-        + stack.cross_var[col][None, :]
+        table.height_var[track]
+        + (dist * stack.sigma_rad[view] * sec2) ** 2
+        + (tan_top**2) * s_dd
+        + stack.cross_var[view]
     )
-    nu = z - table.height[:, None]
+    nu = z - table.height[track]
     term = -0.5 * (nu**2 / var + np.log(var) + LN_2PI) + math.log(model.height_range_m)
     # A head above the picture gives only a lower bound: no evidence either way.
-    cut = stack.top_cut
-    return np.asarray(np.where(cut[None, :], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64)
+    return np.asarray(
+        np.where(stack.top_cut[blob], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64
+    )
 
 
-def _colour_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackModel) -> FloatArray:
-    """(n, m) ln [p(colour | this person) / p(colour | anyone else)], the paper's intensity similarity, twice:
+def _colour_term(
+    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+) -> FloatArray:
+    """ln [p(colour | this person) / p(colour | anyone else)] of each (``track``, ``blob``) entry, the paper's
+    intensity similarity, twice:
 
     * against the track's own look in this view, once it has one (the same shirt, from this side, over time);
     * against its look in the *other* views (the paper's r_is compares the blobs of two views): a track whose
@@ -299,10 +319,9 @@ def _colour_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackMo
 
     0 where the track has no look to compare, or the view no histograms.
     """
-    n, m = len(tracks), stack.view_of.shape[0]
-    out = np.zeros((n, m))
-    sizes = {v.hist_sqrt.shape[1] for v in stack.views if v.hist_sqrt is not None}
-    for bins in sorted(sizes):
+    out = np.zeros(len(track))
+    view = stack.view_of[blob]
+    for bins, hist in stack.hist_sqrt.items():
         own, own_ok, total, count = _look_arrays(tracks, stack, bins, model.look_min_s)
         # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's
         # direction).
@@ -310,19 +329,13 @@ def _colour_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackMo
         others_ok = count[:, None] - own_ok > 0
         norm = np.linalg.norm(others, axis=2)
         others = others / np.maximum(norm, 1e-12)[:, :, None]
-        # Bhattacharyya coefficients of each blob with the looks of its own view (NaN: another histogram size).
-        bc_own = np.full((n, m), math.nan)
-        bc_others = np.full((n, m), math.nan)
-        for i, v in enumerate(stack.views):
-            if v.hist_sqrt is not None and v.hist_sqrt.shape[1] == bins:
-                sl = slice(int(stack.offsets[i]), int(stack.offsets[i + 1]))
-                bc_own[:, sl] = own[:, i] @ v.hist_sqrt.T
-                bc_others[:, sl] = others[:, i] @ v.hist_sqrt.T
-        here = ~np.isnan(bc_own)
-        col = stack.view_of
-        term = np.where(here & (own_ok[:, col] > 0), _colour_ln_lr(bc_own, model), 0.0)
-        term = term + np.where(here & others_ok[:, col], _colour_ln_lr(bc_others, model), 0.0)
-        out = np.where(here, term, out)
+        here = stack.hist_bins[view] == bins
+        t, v, h = track[here], view[here], hist[blob[here]]
+        # Bhattacharyya coefficients of each blob with the track's looks in the blob's view.
+        bc_own = np.einsum("ek,ek->e", own[t, v], h)
+        bc_others = np.einsum("ek,ek->e", others[t, v], h)
+        term = np.where(own_ok[t, v] > 0, _colour_ln_lr(bc_own, model), 0.0)
+        out[here] = term + np.where(others_ok[t, v], _colour_ln_lr(bc_others, model), 0.0)
     return out
 
 
@@ -367,10 +380,13 @@ def _colour_ln_lr(coefficient: FloatArray, model: TrackModel) -> FloatArray:
     return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)
 
 
-def _link_term(stack: ViewStack, tracks: Sequence[TrackRecord], model: TrackModel) -> FloatArray:
-    """(n, m) ln(link_odds) where the blob continues the node's 2D track last assigned to the track."""
+def _link_term(
+    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+) -> FloatArray:
+    """ln(link_odds) of each (``track``, ``blob``) entry where the blob continues the node's 2D track last assigned
+    to the track, else 0."""
     sids = [v.sensor_id for v in stack.views]
     linked = np.array([[tr.links.get(sid, -1) for sid in sids] for tr in tracks], dtype=np.int64)
-    linked = linked.reshape(len(tracks), len(sids))[:, stack.view_of]
-    same = linked == stack.local_id[None, :]
-    return np.where(same & (linked >= 0), math.log(model.link_odds), 0.0)
+    linked = linked.reshape(len(tracks), len(sids))[track, stack.view_of[blob]]
+    same = (linked == stack.local_id[blob]) & (linked >= 0)
+    return np.where(same, math.log(model.link_odds), 0.0)

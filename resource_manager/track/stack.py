@@ -72,6 +72,10 @@ class ViewStack:
     """(m,) their 1-sigma (NaN: none)."""
     local_id: IntArray
     """(m,) the nodes' 2D track ids."""
+    hist_bins: IntArray
+    """(s,) the size of each view's colour histograms (0: it sends none)."""
+    hist_sqrt: dict[int, FloatArray]
+    """Histogram size -> (m, size) square-rooted histograms of the blobs whose view has that size (0 elsewhere)."""
 
     @property
     def n_views(self) -> int:
@@ -91,6 +95,13 @@ class ViewStack:
             return np.concatenate(parts) if parts else np.zeros(0)
 
         ranges = [_ranges(v) for v in views]
+        bins = [0 if v.hist_sqrt is None else int(v.hist_sqrt.shape[1]) for v in views]
+        hists: dict[int, FloatArray] = {}
+        for size in sorted(set(bins) - {0}):
+            hists[size] = np.zeros((int(offsets[-1]), size))
+            for i, v in enumerate(views):
+                if bins[i] == size and v.hist_sqrt is not None:
+                    hists[size][offsets[i] : offsets[i + 1]] = v.hist_sqrt
         return ViewStack(
             views=tuple(views),
             rows={v.sensor_id: i for i, v in enumerate(views)},
@@ -110,6 +121,8 @@ class ViewStack:
             mono_range_m=np.concatenate([r for r, _ in ranges]) if ranges else np.zeros(0),
             mono_sigma_m=np.concatenate([s for _, s in ranges]) if ranges else np.zeros(0),
             local_id=np.concatenate([v.local_id for v in views]).astype(np.int64) if views else np.zeros(0, np.int64),
+            hist_bins=np.array(bins, dtype=np.int64),
+            hist_sqrt=hists,
         )
 
     def subset(self, views: Sequence[ViewBlobs], rows: Sequence[int], blobs: Sequence[Sequence[int]]) -> ViewStack:
@@ -137,6 +150,8 @@ class ViewStack:
             mono_range_m=self.mono_range_m[pick],
             mono_sigma_m=self.mono_sigma_m[pick],
             local_id=self.local_id[pick],
+            hist_bins=self.hist_bins[row],
+            hist_sqrt={size: h[pick] for size, h in self.hist_sqrt.items()},
         )
 
     def bearing_var(self, rows: IntArray, dist: FloatArray) -> FloatArray:
