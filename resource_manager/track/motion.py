@@ -200,16 +200,24 @@ class _Rows:
     """(k, 2v) measured values."""
     var: FloatArray
     """(k, 2v) their variances."""
-    used: npt.NDArray[np.bool_]
-    """(k, 2v) which rows hold a measurement."""
+    info: FloatArray
+    """(k, 2v) their information (1 / variance; 0 in the rows without a measurement)."""
+    has_range: npt.NDArray[np.bool_]
+    """(k, v) which slots have a floor distance."""
+    valid: npt.NDArray[np.bool_]
+    """(k, v) which slots hold an observation."""
 
     @staticmethod
     def of(batch: ObservationBatch) -> _Rows:
+        var = np.concatenate([batch.bearing_var, batch.range_var], axis=1)
+        used = np.concatenate([batch.valid, batch.has_range], axis=1)
         return _Rows(
             batch.origin,
             np.concatenate([batch.bearing_rad, batch.range_m], axis=1),
-            np.concatenate([batch.bearing_var, batch.range_var], axis=1),
-            np.concatenate([batch.valid, batch.has_range], axis=1),
+            var,
+            np.where(used, 1.0 / var, 0.0),
+            batch.has_range,
+            batch.valid,
         )
 
     def predicted(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -304,15 +312,14 @@ def update_many(
     active = np.ones(k, dtype=bool)
     for _ in range(IEKF_ITERATIONS):
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
-        w = np.where(rows.used, np.concatenate([resp, resp], axis=1) / rows.var, 0.0)
+        w = np.concatenate([resp, resp], axis=1) * rows.info
         info = info_prior.copy()
         info[:, :2, :2] += _outer_sum(w, jac)
         p_step = np.linalg.inv(info)
-        dx, dy = x[:, 0] - xi[:, 0], x[:, 1] - xi[:, 1]
-        nu = rows.z - h - (jac[:, :, 0] * dx[:, None] + jac[:, :, 1] * dy[:, None])
+        nu = rows.z - h - (jac @ (x - xi)[:, :2, None])[:, :, 0]
         nu[:, :nv] = _wrap(nu[:, :nv])
         grad = grad_line + _weighted_sum(w * nu, jac)
-        step = x + np.einsum("kij,kj->ki", p_step[:, :, :2], grad)
+        step = x + (p_step[:, :, :2] @ grad[:, :, None])[:, :, 0]
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
         p_new = np.where(active[:, None, None], p_step, p_new)
@@ -340,13 +347,12 @@ def _responsibilities(
     ``p``); the lines left out."""
     eps, scale = outlier
     nv = h.shape[1] // 2
-    var = rows.var + quadratic_form(jac, p[:, None, :2, :2], jac)
+    var = rows.var + np.einsum("kri,kri->kr", jac @ p[:, :2, :2], jac)
     nu = rows.z - h
     nu[:, :nv] = _wrap(nu[:, :nv])
     terms = nu**2 / var
-    has = rows.used[:, nv:]
+    has = rows.has_range
     d2 = terms[:, :nv] + np.where(has, terms[:, nv:], 0.0)
-    dims = np.where(has, 2.0, 1.0)
     core = (1.0 - eps) * np.exp(-0.5 * d2)
-    wide = eps * np.exp(-0.5 * d2 / scale**2) / scale**dims
-    return np.asarray(np.where(rows.used[:, :nv], core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
+    wide = np.where(has, eps / scale**2, eps / scale) * np.exp(-0.5 * d2 / scale**2)
+    return np.asarray(np.where(rows.valid, core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
