@@ -219,7 +219,7 @@ class Tracker:
                 self._report(tr, ranking, by_sid, tick, out)
                 learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in got)))
         self._heights([(tr, got) for tr, got in zip(self.tracks, kept, strict=True) if got], tick.stack)
-        self._learn(learnt, tick.views)
+        self._learn(learnt, tick.stack)
         return kept
 
     def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
@@ -412,19 +412,23 @@ class Tracker:
         for (tr, _), h, hv in zip(seen, height.tolist(), height_var.tolist(), strict=True):
             tr.height_m, tr.height_var = h, hv
 
-    def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], views: dict[str, ViewBlobs]) -> None:
+    def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
         """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
         (track, sensor id -> blob, the evidence weight of those views), all tracks' looks at once."""
+        offsets = stack.offsets.tolist()
+        with_hist = (stack.hist_bins > 0).tolist()
+        entries = [(tr, sid, stack.rows[sid], j) for tr, by_sid, _ in learnt for sid, j in by_sid.items()]
+        local_id = stack.local_id[[offsets[row] + j for _, _, row, j in entries]].tolist()
+        for (tr, sid, _, _), lid in zip(entries, local_id, strict=True):
+            tr.links[sid] = lid
         looks: list[tuple[TrackRecord, dict[str, int], float]] = []
         for tr, by_sid, weight in learnt:
-            for sid, j in by_sid.items():
-                tr.links[sid] = int(views[sid].local_id[j])
             dt = weight * self.model.evidence_time_s
             looks.append((tr, by_sid, 1.0 - math.exp(-dt / self.model.look_time_s)))
             for sid in by_sid:
-                if views[sid].hist_sqrt is not None:
+                if with_hist[stack.rows[sid]]:
                     tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
-        learn_looks(looks, views)
+        learn_looks(looks, stack)
 
     # -- births and deaths ----------------------------------------------------------------------------
     def _births(self, tick: _Tick, free: dict[str, list[int]], t_ns: int) -> int:
@@ -492,7 +496,7 @@ class Tracker:
             born.append(tr)
         self._heights(list(zip(born, gots, strict=True)), tick.stack)
         self._learn(
-            [(tr, h.blobs, min(weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)], tick.views
+            [(tr, h.blobs, min(weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)], tick.stack
         )
         self.tracks.extend(born)
 
