@@ -110,6 +110,11 @@ def _in_room(xy: FloatArray, model: TrackModel) -> bool:
     return x0 - m <= float(xy[0]) <= x1 + m and y0 - m <= float(xy[1]) <= y1 + m
 
 
+def _near(xy: FloatArray, track_xy: FloatArray) -> bool:
+    """Whether a person at ``xy`` would stand within two person radii of one at a row of ``track_xy``."""
+    return bool(track_xy.size) and float(np.min(np.hypot(*(track_xy - xy).T))) < 2.0 * PERSON_RADIUS_M
+
+
 def find_births(
     views: dict[str, ViewBlobs],
     free: dict[str, list[int]],
@@ -131,7 +136,9 @@ def find_births(
     with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
     sub = {sids[i]: subset_view(views[sids[i]], free[sids[i]]) for i in with_free}
     found = _hypotheses(sub, free, params, tick)
-    found = [h for h in found if _in_room(h[0].xy, model)]
+    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
+    # Nobody is started within two person radii of a track: those hypotheses go before they are scored.
+    found = [h for h in found if _in_room(h[0].xy, model) and not _near(h[0].xy, track_xy)]
     if not found:
         return []
     cands = [_provisional(fix, model) for fix, *_ in found]
@@ -159,7 +166,6 @@ def find_births(
     free_sids = [sids[i] for i in with_free]
     open_ = np.ones(gain.shape[1], dtype=bool)
     alive = np.ones(len(cands), dtype=bool)
-    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
     out: list[Hypothesis] = []
     while alive.any():
         # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
@@ -180,9 +186,8 @@ def find_births(
         alive[c] = False
         if blobs.get(a) != ia or blobs.get(b) != ib:
             continue  # its own pair no longer fits it best: another hypothesis of those blobs will say
-        near = track_xy.size and np.min(np.hypot(*(track_xy - fix.xy).T)) < 2.0 * PERSON_RADIUS_M
-        if near:
-            continue
+        if _near(fix.xy, track_xy):
+            continue  # beside a person started before it in this tick
         out.append(Hypothesis(fix, blobs, float(evidence[c])))
         track_xy = np.vstack([track_xy, fix.xy[None, :]])
         for sid, j in blobs.items():
