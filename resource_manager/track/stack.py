@@ -97,11 +97,15 @@ class ViewStack:
         ranges = [_ranges(v) for v in views]
         bins = [0 if v.hist_sqrt is None else int(v.hist_sqrt.shape[1]) for v in views]
         hists: dict[int, FloatArray] = {}
-        for size in sorted(set(bins) - {0}):
-            hists[size] = np.zeros((int(offsets[-1]), size))
-            for i, v in enumerate(views):
-                if bins[i] == size and v.hist_sqrt is not None:
-                    hists[size][offsets[i] : offsets[i + 1]] = v.hist_sqrt
+        sizes = sorted(set(bins) - {0})
+        if len(sizes) == 1 and min(bins) > 0:  # every view with histograms of one size: the usual case
+            hists[sizes[0]] = np.concatenate([v.hist_sqrt for v in views if v.hist_sqrt is not None])
+        else:
+            for size in sizes:
+                hists[size] = np.zeros((int(offsets[-1]), size))
+                for i, v in enumerate(views):
+                    if bins[i] == size and v.hist_sqrt is not None:
+                        hists[size][offsets[i] : offsets[i + 1]] = v.hist_sqrt
         return ViewStack(
             views=tuple(views),
             rows={v.sensor_id: i for i, v in enumerate(views)},
