@@ -13,6 +13,7 @@ position error).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -20,11 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from common.error_model import pair_error_f
+from common.error_model import pair_error_f, pair_position_errors
 
-__all__ = ["CameraGeom", "PairCandidate", "rank_pairs"]
+__all__ = ["CameraGeom", "PairCandidate", "rank_pairs", "rank_pairs_many"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,3 +67,70 @@ def rank_pairs(target_xy: FloatArray, cameras: list[CameraGeom], max_cameras: in
         out.append(PairCandidate(ca.sensor_id, cb.sensor_id, err))
     out.sort(key=lambda p: p.error_m)
     return out
+
+
+def rank_pairs_many(
+    target_xy: FloatArray,
+    origin: FloatArray,
+    sigma_rad: FloatArray,
+    sigma_xy_m: FloatArray,
+    *,
+    count: IntArray,
+    max_cameras: int = 5,
+) -> tuple[IntArray, IntArray, FloatArray, IntArray]:
+    """:func:`rank_pairs` of many targets at once, each with its own cameras (a tick's people: one pass).
+
+    Args:
+        target_xy: (k, 2) the targets.
+        origin: (k, w, 2) the cameras of each target, in its first ``count`` slots.
+        sigma_rad: (k, w) their bearing errors.
+        sigma_xy_m: (k, w) their position errors.
+        count: (k,) how many cameras each target has.
+        max_cameras: only this many cameras nearest each target are paired.
+
+    Returns:
+        (a, b, error_m) (k, q): each target's pairs best first, as the slots of their two cameras and their
+        predicted errors (slots as :func:`rank_pairs` orders them: ties in the order it makes the pairs), and (k,)
+        how many of them each target has (the rest of its row is padding).
+    """
+    k, w = sigma_rad.shape
+    used = np.arange(w) < count[:, None]
+    m = min(w, max_cameras)
+    if m < 2:
+        return np.zeros((k, 0), np.int64), np.zeros((k, 0), np.int64), np.zeros((k, 0)), np.zeros(k, np.int64)
+    # The nearest max_cameras cameras (in order of distance) where there are more; else all, in their order.
+    dist = np.where(
+        used, np.hypot(origin[:, :, 0] - target_xy[:, 0, None], origin[:, :, 1] - target_xy[:, 1, None]), np.inf
+    )
+    nearest = np.argsort(dist, axis=1, kind="stable")[:, :m]
+    chosen = np.where((count > max_cameras)[:, None], nearest, np.arange(m))
+    ia, ib = _pairs_of(m)
+    sa, sb = chosen[:, ia], chosen[:, ib]
+    valid = ib[None, :] < np.minimum(count, m)[:, None]
+    rows = np.arange(k)[:, None]
+    sigma = np.hypot(sigma_rad[rows, sa], sigma_rad[rows, sb]) / math.sqrt(2.0)
+    sigma_b = np.hypot(sigma_xy_m[rows, sa], sigma_xy_m[rows, sb])
+    target = np.broadcast_to(target_xy[:, None, :], (*sa.shape, 2))
+    err = pair_position_errors(
+        origin[rows, sa].reshape(-1, 2),
+        origin[rows, sb].reshape(-1, 2),
+        target.reshape(-1, 2),
+        sigma.ravel(),
+        sigma_b.ravel(),
+    ).reshape(sa.shape)
+    err = np.where(np.isfinite(err), err, np.inf)
+    order = np.lexsort((err, ~valid), axis=1)  # the pairs there, by error; ties in their order
+    return (
+        np.take_along_axis(sa, order, axis=1),
+        np.take_along_axis(sb, order, axis=1),
+        np.take_along_axis(err, order, axis=1),
+        valid.sum(axis=1),
+    )
+
+
+@functools.cache
+def _pairs_of(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """The (i, j), i < j, of ``n`` items in the order of ``itertools.combinations`` (read-only)."""
+    ia, ib = np.triu_indices(n, 1)
+    ia.flags.writeable = ib.flags.writeable = False
+    return ia, ib

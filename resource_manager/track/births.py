@@ -26,7 +26,7 @@ import numpy.typing as npt
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
-from resource_manager.track.observe import Spread, TrackTable, score_view, visibility
+from resource_manager.track.observe import Spread, TrackTable, ViewStack, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import subset_view
@@ -63,11 +63,11 @@ class Hypothesis:
 
 
 def _hypotheses(
-    views: dict[str, ViewBlobs], free: dict[str, list[int]], params: BirthParams, tick: int
+    sub: dict[str, ViewBlobs], free: dict[str, list[int]], params: BirthParams, tick: int
 ) -> list[tuple[Measurement, str, int, str, int]]:
-    """(fix, view a, blob, view b, blob) of every Eq. 7 match of unexplained blobs, blob indices in full views."""
-    sids = sorted(s for s, idx in free.items() if idx)
-    sub = {s: subset_view(views[s], free[s]) for s in sids}
+    """(fix, view a, blob, view b, blob) of every Eq. 7 match of unexplained blobs (``sub``: each view with only
+    its unexplained blobs ``free``), blob indices in full views."""
+    sids = sorted(sub)
     pairs = list(itertools.combinations(sids, 2))
     if len(pairs) > params.max_pairs:
         start = (tick * params.max_pairs) % len(pairs)
@@ -110,6 +110,11 @@ def _in_room(xy: FloatArray, model: TrackModel) -> bool:
     return x0 - m <= float(xy[0]) <= x1 + m and y0 - m <= float(xy[1]) <= y1 + m
 
 
+def _near(xy: FloatArray, track_xy: FloatArray) -> bool:
+    """Whether a person at ``xy`` would stand within two person radii of one at a row of ``track_xy``."""
+    return bool(track_xy.size) and float(np.min(np.hypot(*(track_xy - xy).T))) < 2.0 * PERSON_RADIUS_M
+
+
 def find_births(
     views: dict[str, ViewBlobs],
     free: dict[str, list[int]],
@@ -120,13 +125,20 @@ def find_births(
     spread: Callable[[str], Spread],
     tick: int,
     min_evidence: float,
+    stack: ViewStack | None = None,
 ) -> list[Hypothesis]:
     """The new people among the unexplained blobs ``free`` (sensor id -> blob indices), best first.
 
     ``min_evidence``: the log likelihood ratio a hypothesis needs (the prior and the deletion threshold).
+    ``stack``: ``views`` stacked in order of sensor ids with their ``spread`` (default: stacked here).
     """
-    found = _hypotheses(views, free, params, tick)
-    found = [h for h in found if _in_room(h[0].xy, model)]
+    sids = sorted(views)
+    with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
+    sub = {sids[i]: subset_view(views[sids[i]], free[sids[i]]) for i in with_free}
+    found = _hypotheses(sub, free, params, tick)
+    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
+    # Nobody is started within two person radii of a track: those hypotheses go before they are scored.
+    found = [h for h in found if _in_room(h[0].xy, model) and not _near(h[0].xy, track_xy)]
     if not found:
         return []
     cands = [_provisional(fix, model) for fix, *_ in found]
@@ -137,55 +149,50 @@ def find_births(
             if hs is not None:
                 tr.looks[sid] = hs[j].copy()
                 tr.look_s[sid] = model.look_min_s
-    n_old = len(tracks)
-    table = TrackTable.of(tracks + cands)
-    occluders = np.arange(n_old + len(cands)) < n_old
     cand_table = TrackTable.of(cands)
-    sids = sorted(views)
-    # Per view: each hypothesis' gain for each unexplained blob, and its miss term.
-    gains: dict[str, FloatArray] = {}
+    # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
+    every = stack if stack is not None else ViewStack.of([views[sid] for sid in sids], [spread(sid) for sid in sids])
+    pd = visibility_many(every, cand_table, model, blockers=TrackTable.of(tracks))
     misses = np.zeros(len(cands))
-    for sid in sids:
-        v = views[sid]
-        pd = visibility(v, table, model, occluders)[n_old:]
-        idx = free.get(sid, [])
-        sc = score_view(subset_view(v, idx), cands, cand_table, pd, model=model, spread=spread(sid)) if idx else None
-        misses += np.log1p(-np.minimum(pd, 1.0 - 1e-9))
-        if sc is not None:
-            gains[sid] = sc.gain
-    taken: dict[str, set[int]] = {s: set() for s in sids}
+    for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
+        misses += row
+    unexplained = every.subset([sub[sids[i]] for i in with_free], with_free, [free[sids[i]] for i in with_free])
+    scores = score_views(unexplained, cands, cand_table, pd[with_free], model=model)
+    # The unexplained blobs side by side, view after view: (hypothesis, blob) gains, each blob's view and index.
+    gain = np.concatenate([sc.gain for sc in scores], axis=1)
+    starts = unexplained.offsets[:-1]
+    column = {(sids[i], j): c for c, (i, j) in enumerate((i, j) for i in with_free for j in free[sids[i]])}
+    blob_of = [j for i in with_free for j in free[sids[i]]]
+    free_sids = [sids[i] for i in with_free]
+    open_ = np.ones(gain.shape[1], dtype=bool)
     alive = np.ones(len(cands), dtype=bool)
-    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
     out: list[Hypothesis] = []
     while alive.any():
+        # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
+        open_gain = np.where(open_, gain, -np.inf)
+        best = np.maximum.reduceat(open_gain, starts, axis=1)
         evidence = misses.copy()
-        best_blob: dict[str, npt.NDArray[np.int64]] = {}
-        for sid, g in gains.items():
-            cols = [c for c, j in enumerate(free[sid]) if j not in taken[sid]]
-            if not cols:
-                continue
-            sub = g[:, cols]
-            k = np.argmax(sub, axis=1)
-            best = sub[np.arange(len(cands)), k]
-            evidence += np.maximum(best, 0.0)
-            best_blob[sid] = np.where(best > 0, np.asarray(cols)[k], -1)
+        for v in range(best.shape[1]):
+            evidence += np.maximum(best[:, v], 0.0)
         evidence = np.where(alive, evidence, -np.inf)
         c = int(np.argmax(evidence))
         if evidence[c] < min_evidence:
             break
         fix, a, ia, b, ib = found[c]
-        blobs = {sid: free[sid][int(col[c])] for sid, col in best_blob.items() if int(col[c]) >= 0}
+        blobs: dict[str, int] = {}
+        for v, (lo, hi) in enumerate(zip(starts.tolist(), unexplained.offsets[1:].tolist(), strict=True)):
+            if best[c, v] > 0:
+                blobs[free_sids[v]] = blob_of[lo + int(np.argmax(open_gain[c, lo:hi]))]
         alive[c] = False
         if blobs.get(a) != ia or blobs.get(b) != ib:
             continue  # its own pair no longer fits it best: another hypothesis of those blobs will say
-        near = track_xy.size and np.min(np.hypot(*(track_xy - fix.xy).T)) < 2.0 * PERSON_RADIUS_M
-        if near:
-            continue
+        if _near(fix.xy, track_xy):
+            continue  # beside a person started before it in this tick
         out.append(Hypothesis(fix, blobs, float(evidence[c])))
         track_xy = np.vstack([track_xy, fix.xy[None, :]])
         for sid, j in blobs.items():
-            taken[sid].add(j)
+            open_[column[sid, j]] = False
         for k2, (_, a2, i2, b2, j2) in enumerate(found):
-            if alive[k2] and (i2 in taken[a2] or j2 in taken[b2]):
+            if alive[k2] and (not open_[column[a2, i2]] or not open_[column[b2, j2]]):
                 alive[k2] = False
     return out

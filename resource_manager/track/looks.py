@@ -1,7 +1,7 @@
 """Colour looks: how much blobs and tracks look alike (the colour term of identity, beside Eq. 7's r_is).
 
 A track keeps, per camera, a running mean of the square-rooted, L1-normalised colour histograms of the blobs
-that localised it (:func:`learn_look`): the same shirt looks different from another side or under another light.
+that localised it (:func:`learn_looks`): the same shirt looks different from another side or under another light.
 Every comparison of colours here is one Bhattacharyya coefficient ``BC(p, q) = Σ √p·√q`` of square-rooted
 histograms, computed by :func:`bhattacharyya` in whatever shape it is asked: blobs of a view against the tracks'
 looks there (the support assignment), the blobs of a fix against one track (is the fix in its colours?), and
@@ -17,10 +17,10 @@ import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
+    from resource_manager.track.stack import ViewStack
     from resource_manager.track.state import TrackRecord
-    from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["bhattacharyya", "learn_look", "mean_similarity"]
+__all__ = ["bhattacharyya", "learn_looks", "mean_similarity"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -51,17 +51,29 @@ def mean_similarity(pairs: Iterable[tuple[FloatArray | None, FloatArray | None]]
     return sum(sims) / len(sims) if sims else None
 
 
-def learn_look(tr: TrackRecord, used_blobs: dict[str, int], views: dict[str, ViewBlobs], alpha: float) -> None:
-    """Fold the colours of the blobs assigned to ``tr`` into its per-view looks (running mean of weight
-    ``alpha``, renormalised)."""
-    for sid, i in used_blobs.items():
-        hs = views[sid].hist_sqrt
-        if hs is None:
+def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
+    """Fold the colours of the blobs assigned to each track into its per-view looks (running mean of weight
+    alpha, renormalised): ``learnt`` holds (track, sensor id -> blob index in its view, alpha), the blobs those of
+    the views of ``stack``; all tracks at once."""
+    bins = stack.hist_bins.tolist()
+    offsets = stack.offsets.tolist()
+    # (track, sensor id, its view's row, the blob's entry in the stack, alpha) of every blob assigned.
+    seen = [(tr, sid, stack.rows[sid], j, alpha) for tr, used_blobs, alpha in learnt for sid, j in used_blobs.items()]
+    for size, hist in stack.hist_sqrt.items():
+        group = [(tr, sid, row, offsets[row] + j, alpha) for tr, sid, row, j, alpha in seen if bins[row] == size]
+        if not group:
             continue
-        h = hs[i]
-        old = tr.looks.get(sid)
-        if old is None or old.shape != h.shape:
-            tr.looks[sid] = h.copy()
-        else:
-            mixed = (1.0 - alpha) * old + alpha * h
-            tr.looks[sid] = mixed / max(float(np.linalg.norm(mixed)), 1e-12)
+        h = hist[[e[3] for e in group]]
+        olds = [tr.looks.get(sid) for tr, sid, *_ in group]
+        mixed = [k for k, old in enumerate(olds) if old is not None and old.shape == (size,)]
+        for k, ((tr, sid, *_), old) in enumerate(zip(group, olds, strict=True)):
+            if old is None or old.shape != (size,):
+                tr.looks[sid] = h[k]
+        if not mixed:
+            continue
+        weight = np.array([group[k][4] for k in mixed])[:, None]
+        mix = (1.0 - weight) * np.array([olds[k] for k in mixed]) + weight * h[mixed]
+        mix = mix / np.maximum(np.linalg.norm(mix, axis=1), 1e-12)[:, None]
+        for k, look in zip(mixed, mix, strict=True):
+            tr, sid, *_ = group[k]
+            tr.looks[sid] = look

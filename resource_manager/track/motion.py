@@ -25,7 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["LineObservation", "MotionModel", "Observation", "predict", "update"]
+__all__ = [
+    "LineObservation",
+    "MotionModel",
+    "Observation",
+    "ObservationBatch",
+    "predict",
+    "predict_many",
+    "update",
+    "update_many",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IEKF_ITERATIONS = 4
@@ -65,6 +74,18 @@ def predict(x: FloatArray, p: FloatArray, dt_s: float, model: MotionModel) -> tu
     return f @ x, f @ p @ f.T + q
 
 
+def predict_many(x: FloatArray, p: FloatArray, dt_s: FloatArray, model: MotionModel) -> tuple[FloatArray, FloatArray]:
+    """:func:`predict` of many tracks at once: states ``x`` (k, 4), covariances ``p`` (k, 4, 4), each ``dt_s``
+    (k,) later (tracks predicted to one instant share one transition)."""
+    x_new, p_new = x.copy(), p.copy()
+    for dt in np.unique(dt_s[dt_s > 0]):
+        rows = dt_s == dt
+        f, q = model.transition(float(dt))
+        x_new[rows] = x[rows] @ f.T
+        p_new[rows] = f @ p[rows] @ f.T + q
+    return x_new, p_new
+
+
 @dataclass(frozen=True, slots=True)
 class Observation:
     """What one view says about one person: a bearing and, optionally, a floor distance."""
@@ -90,51 +111,145 @@ class LineObservation:
 
 
 @dataclass(frozen=True, slots=True)
-class _Stack:
-    """Observations stacked as rows: the lines, every view's bearing, then the distances where there are any."""
+class ObservationBatch:
+    """The observations of many tracks at once, padded to the most views (and lines) any of them has.
+
+    Row ``k`` holds track ``k``'s observations; slots beyond its own are marked invalid and weigh nothing.
+    Building the arrays once per tick and stepping every track's filter together costs a few array operations per
+    tick instead of a few dozen per track.
+    """
 
     origin: FloatArray
-    """(no, 2) camera positions."""
+    """(k, v, 2) camera positions."""
+    bearing_rad: FloatArray
+    """(k, v) measured bearings."""
+    bearing_var: FloatArray
+    """(k, v) their variances (rad²)."""
+    range_m: FloatArray
+    """(k, v) floor distances from the feet (0 where there is none)."""
+    range_var: FloatArray
+    """(k, v) their variances (m²; 1 where there is none)."""
     has_range: npt.NDArray[np.bool_]
+    """(k, v) which observations have a floor distance."""
+    valid: npt.NDArray[np.bool_]
+    """(k, v) which slots hold an observation."""
     lines_dir: FloatArray
-    """(nl, 2) unit directions."""
-    z: FloatArray
-    var: FloatArray
-    angle: npt.NDArray[np.bool_]
-    """Which rows are angles (residuals wrapped)."""
-    rows: npt.NDArray[np.int64]
-    """The observation each non-line row comes from."""
+    """(k, l, 2) unit directions of the line observations."""
+    lines_value: FloatArray
+    """(k, l)"""
+    lines_var: FloatArray
+    """(k, l) (1 where there is none)."""
+    lines_valid: npt.NDArray[np.bool_]
+    """(k, l) which slots hold a line observation."""
 
     @staticmethod
-    def of(obs: list[Observation], lines: list[LineObservation]) -> _Stack:
-        o = np.array([(*ob.origin_xy, ob.bearing_rad, ob.bearing_var, ob.range_m, ob.range_var) for ob in obs])
-        o = o.reshape(-1, 6)
-        has = np.isfinite(o[:, 4])
-        nl, no, nr = len(lines), len(obs), int(has.sum())
-        return _Stack(
-            origin=o[:, :2],
+    def of(obs: list[list[Observation]], lines: list[list[LineObservation]] | None = None) -> ObservationBatch:
+        """The batch of per-track lists of observations (and lines)."""
+        k = len(obs)
+        lines = lines or [[] for _ in obs]
+        nv = max((len(o) for o in obs), default=0)
+        nl = max((len(ln) for ln in lines), default=0)
+        rows = np.zeros((k, nv, 6))
+        rows[:, :, 3] = rows[:, :, 5] = 1.0
+        rows[:, :, 4] = math.nan
+        valid = np.zeros((k, nv), dtype=bool)
+        for i, track_obs in enumerate(obs):
+            for j, ob in enumerate(track_obs):
+                rows[i, j] = (*ob.origin_xy, ob.bearing_rad, ob.bearing_var, ob.range_m, ob.range_var)
+                valid[i, j] = True
+        lrows = np.zeros((k, nl, 4))
+        lrows[:, :, 3] = 1.0
+        lvalid = np.zeros((k, nl), dtype=bool)
+        for i, track_lines in enumerate(lines):
+            for j, ln in enumerate(track_lines):
+                lrows[i, j] = (*ln.direction, ln.value, ln.var)
+                lvalid[i, j] = True
+        return ObservationBatch.padded(rows, valid, lrows, lvalid)
+
+    @staticmethod
+    def padded(
+        rows: FloatArray, valid: npt.NDArray[np.bool_], lines: FloatArray, lines_valid: npt.NDArray[np.bool_]
+    ) -> ObservationBatch:
+        """The batch of ``rows`` (k, v, 6): origin x, y, bearing, its variance, range (NaN: none), its variance;
+        ``lines`` (k, l, 4): direction x, y, value, variance; invalid slots may hold anything finite or NaN."""
+        has = valid & np.isfinite(rows[:, :, 4])
+        lines_valid = lines_valid.copy()
+        return ObservationBatch(
+            origin=np.where(valid[:, :, None], rows[:, :, :2], 0.0),
+            bearing_rad=np.where(valid, rows[:, :, 2], 0.0),
+            bearing_var=np.where(valid, rows[:, :, 3], 1.0),
+            range_m=np.where(has, rows[:, :, 4], 0.0),
+            range_var=np.where(has, rows[:, :, 5], 1.0),
             has_range=has,
-            lines_dir=np.array([ln.direction for ln in lines], dtype=np.float64).reshape(-1, 2),
-            z=np.concatenate([[ln.value for ln in lines], o[:, 2], o[has, 4]]),
-            var=np.concatenate([[ln.var for ln in lines], o[:, 3], o[has, 5]]),
-            angle=np.concatenate([np.zeros(nl, bool), np.ones(no, bool), np.zeros(nr, bool)]),
-            rows=np.concatenate([np.arange(no), np.flatnonzero(has)]).astype(np.int64),
+            valid=valid,
+            lines_dir=np.where(lines_valid[:, :, None], lines[:, :, :2], 0.0),
+            lines_value=np.where(lines_valid, lines[:, :, 2], 0.0),
+            lines_var=np.where(lines_valid, lines[:, :, 3], 1.0),
+            lines_valid=lines_valid,
         )
 
-    def predicted(self, x: FloatArray, with_lines: bool = True) -> tuple[FloatArray, FloatArray]:
-        """(h(x), H) of the rows at state ``x`` (without the lines' rows if not ``with_lines``)."""
-        d = x[:2] - self.origin
-        r2 = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, MIN_RANGE_M**2)
+
+@dataclass(frozen=True, slots=True)
+class _Rows:
+    """A batch's observations as rows of one kind after the other: every slot's bearing, then its floor distance
+    (weightless where there is none), each row with its camera."""
+
+    origin: FloatArray
+    """(k, v, 2) the cameras (of both kinds of rows: the first ``v`` bearings, the next ``v`` distances)."""
+    z: FloatArray
+    """(k, 2v) measured values."""
+    var: FloatArray
+    """(k, 2v) their variances."""
+    info: FloatArray
+    """(k, 2v) their information (1 / variance; 0 in the rows without a measurement)."""
+    has_range: npt.NDArray[np.bool_]
+    """(k, v) which slots have a floor distance."""
+    valid: npt.NDArray[np.bool_]
+    """(k, v) which slots hold an observation."""
+
+    @staticmethod
+    def of(batch: ObservationBatch) -> _Rows:
+        var = np.concatenate([batch.bearing_var, batch.range_var], axis=1)
+        used = np.concatenate([batch.valid, batch.has_range], axis=1)
+        return _Rows(
+            batch.origin,
+            np.concatenate([batch.bearing_rad, batch.range_m], axis=1),
+            var,
+            np.where(used, 1.0 / var, 0.0),
+            batch.has_range,
+            batch.valid,
+        )
+
+    def predicted(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(h, H) at positions ``xy`` (k, 2): (k, 2v) predicted bearings then distances, and (k, 2v, 2) their
+        gradients in position."""
+        d = xy[:, None, :] - self.origin
+        dx, dy = d[:, :, 0], d[:, :, 1]
+        r2 = np.maximum(dx * dx + dy * dy, MIN_RANGE_M**2)
         r = np.sqrt(r2)
-        has = self.has_range
-        parts_h = [np.arctan2(d[:, 1], d[:, 0]), r[has]]
-        parts_j = [np.column_stack([-d[:, 1] / r2, d[:, 0] / r2]), d[has] / r[has, None]]
-        if with_lines:
-            parts_h.insert(0, self.lines_dir @ x[:2])
-            parts_j.insert(0, self.lines_dir)
-        jac = np.zeros((sum(len(ph) for ph in parts_h), 4))
-        jac[:, :2] = np.concatenate(parts_j)
-        return np.concatenate(parts_h), jac
+        v = dx.shape[1]
+        jac = np.empty((dx.shape[0], 2 * v, 2))
+        jac[:, :v, 0], jac[:, :v, 1] = -dy / r2, dx / r2
+        jac[:, v:] = d / r[:, :, None]
+        return np.concatenate([np.arctan2(dy, dx), r], axis=1), jac
+
+
+def _wrap(a: FloatArray) -> FloatArray:
+    return np.asarray(np.remainder(a + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
+
+
+def _outer_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
+    """(k, 2, 2) Σ_rows w Jᵀ J of each track's rows (``w`` (k, r), ``jac`` (k, r, 2))."""
+    return np.asarray(np.swapaxes(jac * w[:, :, None], 1, 2) @ jac, dtype=np.float64)
+
+
+def quadratic_form(a: FloatArray, p: FloatArray, b: FloatArray) -> FloatArray:
+    """aᵀ P b of 2-vectors ``a``, ``b`` (..., 2) and 2x2 matrices ``p`` (..., 2, 2), broadcast (elementwise
+    arithmetic: cheaper than ``einsum`` on the small arrays of one tick)."""
+    a0, a1, b0, b1 = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+    return np.asarray(
+        a0 * (p[..., 0, 0] * b0 + p[..., 0, 1] * b1) + a1 * (p[..., 1, 0] * b0 + p[..., 1, 1] * b1), dtype=np.float64
+    )
 
 
 def update(
@@ -152,56 +267,92 @@ def update(
     an iteratively reweighted update, so one wrong view does not drag a person seen well by the others.
     ``lines``: measurements along one direction each (taken as they are, not reweighed).
 
-    The steps are taken in information form (the measurement noise is diagonal and the state has four
-    dimensions): each is a 4x4 solve whatever the number of views.
+    One track's case of :func:`update_many`.
 
     Returns:
         (x, P, weight of each observation in [0, 1]; 1 without ``outlier``).
     """
     if not obs:
         return x, p, np.ones(0)
-    lines = lines or []
-    st = _Stack.of(obs, lines)
-    z, angle = st.z, st.angle
-    nl = len(lines)
+    batch = ObservationBatch.of([obs], [lines or []])
+    xs, ps, weights = update_many(x[None, :], p[None, :, :], batch, outlier)
+    return xs[0], ps[0], weights[0]
+
+
+def update_many(
+    x: FloatArray, p: FloatArray, batch: ObservationBatch, outlier: tuple[float, float] | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`update` of many tracks at once: states ``x`` (k, 4), covariances ``p`` (k, 4, 4), each track with
+    its row of ``batch``.
+
+    The steps are taken in information form (the measurement noise is diagonal and the state has four
+    dimensions): each is a 4x4 solve per track whatever the number of views. Each track stops iterating once its
+    step moves it less than 0.1 mm, as it would on its own.
+
+    Returns:
+        (x (k, 4), P (k, 4, 4), weight (k, v) of each observation in [0, 1]; 1 without ``outlier``, 0 in the
+        slots without one).
+    """
+    k, nv = batch.valid.shape
+    if k == 0:
+        return x, p, np.zeros((0, nv))
     info_prior = np.linalg.inv(p)
-    resp = np.ones(len(obs))
+    rows = _Rows.of(batch)
+    h, jac = rows.predicted(x[:, :2])
+    resp = batch.valid.astype(np.float64)
     if outlier is not None:  # first judged against the prediction, with its uncertainty
-        resp = _responsibilities(x, st, nl=nl, outlier=outlier, p=p)
+        resp = _responsibilities(h, jac, p, rows, outlier)
+    # The lines are linear in the position: their information and their pull on the step do not change.
+    w_line = np.where(batch.lines_valid, 1.0 / batch.lines_var, 0.0)
+    info_prior[:, :2, :2] += _outer_sum(w_line, batch.lines_dir)
+    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, x[:, :2])
+    grad_line = np.einsum("kl,kli->ki", w_line * nu_line, batch.lines_dir)
     xi = x.copy()
     p_new = p
+    active = np.ones(k, dtype=bool)
     for _ in range(IEKF_ITERATIONS):
-        hx, h = st.predicted(xi)
-        w = 1.0 / st.var
+        # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
+        w = np.concatenate([resp, resp], axis=1) * rows.info
+        info = info_prior.copy()
+        info[:, :2, :2] += _outer_sum(w, jac)
+        p_step = np.linalg.inv(info)
+        nu = rows.z - h - (jac @ (x - xi)[:, :2, None])[:, :, 0]
+        nu[:, :nv] = _wrap(nu[:, :nv])
+        grad = grad_line + _weighted_sum(w * nu, jac)
+        step = x + (p_step[:, :, :2] @ grad[:, :, None])[:, :, 0]
+        moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
+        xi = np.where(active[:, None], step, xi)
+        p_new = np.where(active[:, None, None], p_step, p_new)
+        last = not (active & (moved >= 1e-4)).any()
+        if outlier is not None or not last:
+            h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
-            # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
-            w = w * np.concatenate([np.ones(nl), resp[st.rows]])
-        hw = h.T * w  # Hᵀ W
-        p_new = np.asarray(np.linalg.inv(info_prior + hw @ h), dtype=np.float64)
-        nu = z - hx - h @ (x - xi)
-        nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
-        step = x + p_new @ (hw @ nu)
-        moved = float(np.hypot(step[0] - xi[0], step[1] - xi[1]))
-        xi = step
-        if outlier is not None:
-            resp = _responsibilities(xi, st, nl=nl, outlier=outlier, p=p_new)
-        if moved < 1e-4:
+            resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
+        active &= moved >= 1e-4
+        if last:
             break
-    return xi, 0.5 * (p_new + p_new.T), resp
+    return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp
 
 
-def _responsibilities(x: FloatArray, st: _Stack, *, nl: int, outlier: tuple[float, float], p: FloatArray) -> FloatArray:
-    """Posterior probability of each observation's core (not outlier) component, from its residual at ``x`` and
-    its variance there (the measurement's plus the estimate's, ``p``); the lines (first ``nl`` rows) left out."""
+def _weighted_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
+    """(k, 2) Σ_rows w J of each track's rows."""
+    return np.einsum("kr,kri->ki", w, jac)
+
+
+def _responsibilities(
+    h: FloatArray, jac: FloatArray, p: FloatArray, rows: _Rows, outlier: tuple[float, float]
+) -> FloatArray:
+    """(k, v) posterior probability of each observation's core (not outlier) component, from its residual at the
+    estimate ``h``, ``jac`` were predicted at and its variance there (the measurement's plus the estimate's,
+    ``p``); the lines left out."""
     eps, scale = outlier
-    hx, h = st.predicted(x, with_lines=False)
-    nu = st.z[nl:] - hx
-    angle = st.angle[nl:]
-    nu[angle] = np.remainder(nu[angle] + math.pi, 2.0 * math.pi) - math.pi
-    var = st.var[nl:] + np.einsum("ij,jk,ik->i", h, p, h)
-    n = len(st.origin)
-    d2 = np.bincount(st.rows, weights=nu**2 / var, minlength=n)
-    dims = np.bincount(st.rows, minlength=n).astype(np.float64)
+    nv = h.shape[1] // 2
+    var = rows.var + np.einsum("kri,kri->kr", jac @ p[:, :2, :2], jac)
+    nu = rows.z - h
+    nu[:, :nv] = _wrap(nu[:, :nv])
+    terms = nu**2 / var
+    has = rows.has_range
+    d2 = terms[:, :nv] + np.where(has, terms[:, nv:], 0.0)
     core = (1.0 - eps) * np.exp(-0.5 * d2)
-    wide = eps * np.exp(-0.5 * d2 / scale**2) / scale**dims
-    return np.asarray(core / np.maximum(core + wide, 1e-300), dtype=np.float64)
+    wide = np.where(has, eps / scale**2, eps / scale) * np.exp(-0.5 * d2 / scale**2)
+    return np.asarray(np.where(rows.valid, core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)

@@ -19,34 +19,42 @@ view missed that person". The ratio multiplies independent terms:
 Whether the camera should see the person at all (in its picture, in range, not hidden behind someone nearer)
 sets the detection probability P_D of both alternatives: a detected person scores ln P_D + ln(g / λ), a missed
 one ln(1 - P_D).
+
+Every view of a tick is scored at once, on the views stacked into arrays (:class:`~.stack.ViewStack`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
-from resource_manager.track.motion import MIN_RANGE_M, Observation
+from resource_manager.track.motion import MIN_RANGE_M, quadratic_form
+from resource_manager.track.stack import Spread, ViewStack, fov_width
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["Spread", "TrackTable", "ViewScores", "observation", "score_view", "visibility"]
+__all__ = [
+    "Spread",
+    "TrackTable",
+    "ViewScores",
+    "ViewStack",
+    "fov_width",
+    "score_view",
+    "score_views",
+    "visibility",
+    "visibility_many",
+]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 LN_2PI = math.log(TWO_PI)
-
-
-@dataclass(frozen=True, slots=True)
-class Spread:
-    """Variances (m²) of a camera's measured points around a person: across its rays, and along them (feet)."""
-
-    cross_var: float
-    range_var: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,8 +68,10 @@ class TrackTable:
     height: FloatArray
     """(n,) head-top heights."""
     height_var: FloatArray
-    looks: dict[tuple[int, str], tuple[FloatArray, FloatArray]] = field(default_factory=dict)
-    """Colour looks as arrays, filled on first use (see :func:`_look_arrays`)."""
+
+    @property
+    def n(self) -> int:
+        return int(self.xy.shape[0])
 
     @staticmethod
     def of(tracks: list[TrackRecord]) -> TrackTable:
@@ -97,56 +107,88 @@ def _wrap(a: FloatArray) -> FloatArray:
     return np.asarray(np.remainder(a + math.pi, TWO_PI) - math.pi, dtype=np.float64)
 
 
-def fov_width(v: ViewBlobs) -> float:
-    """Horizontal extent of the view's bearings (rad)."""
-    return TWO_PI if v.fov is None else min(2.0 * v.fov[1], TWO_PI)
+def visibility(v: ViewBlobs, table: TrackTable, model: TrackModel, blockers: TrackTable | None = None) -> FloatArray:
+    """(n,) detection probability of each track in this view (:func:`visibility_many` of one view)."""
+    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, blockers)[0]
 
 
-def visibility(
-    v: ViewBlobs, table: TrackTable, model: TrackModel, occluders: npt.NDArray[np.bool_] | None = None
+def visibility_many(
+    stack: ViewStack, table: TrackTable, model: TrackModel, blockers: TrackTable | None = None
 ) -> FloatArray:
-    """(n,) detection probability of each track in this view: 0 out of its picture or range, lower when
-    someone nearer stands on the same bearing (``occluders``: which rows may hide others; default all)."""
-    n = table.xy.shape[0]
-    if n == 0:
-        return np.zeros(0)
-    d = table.xy - v.origin_xy
-    dist = np.hypot(d[:, 0], d[:, 1])
-    seen = (dist > MIN_RANGE_M) & (dist <= model.max_range_m)
-    if v.image is not None:
-        feet = np.column_stack([table.xy, np.zeros(n)])
-        head = np.column_stack([table.xy, table.height])
-        seen &= v.image.inside(feet) | v.image.inside(head)
-    elif v.fov is not None:
-        seen &= np.abs(_wrap(np.arctan2(d[:, 1], d[:, 0]) - v.fov[0])) <= v.fov[1]
-    p = np.where(seen, model.p_detect, 0.0)
-    if n > 1:
-        covered = _covered(v, table, dist, seen if occluders is None else seen & occluders)
+    """(s, n) detection probability of each track in each view: 0 out of its picture or range, lower when
+    someone nearer stands on the same bearing: one of the tracks of ``blockers`` (default: of ``table`` itself;
+    new people's hypotheses are hidden by the tracks, not by each other)."""
+    n = table.n
+    p = np.zeros((stack.n_views, n))
+    if n == 0 or stack.n_views == 0:
+        return p
+    dist, seen = _in_view(stack, table, model)
+    p[seen] = model.p_detect
+    if n + (blockers.n if blockers is not None else 0) > 1:
+        hiders, hdist, hseen = (
+            (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, model))
+        )
+        covered = _covered(stack, table, dist, hiders=hiders, hdist=hdist, hseen=hseen)
         p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
     return p
 
 
-def _covered(v: ViewBlobs, table: TrackTable, dist: FloatArray, blockers: npt.NDArray[np.bool_]) -> FloatArray:
-    """(n,) share of each person's silhouette (feet to head, one person wide) that nearer people cover in the
-    picture, treating the covers as independent: 1 - Π(1 - overlap_k / area).
+def _in_view(stack: ViewStack, table: TrackTable, model: TrackModel) -> tuple[FloatArray, BoolArray]:
+    """(s, n) distance of each track from each camera and whether it is in the camera's picture and range."""
+    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    dist = np.hypot(d[:, :, 0], d[:, :, 1])
+    seen = (dist > MIN_RANGE_M) & (dist <= model.max_range_m)
+    feet = head = None
+    for i, v in enumerate(stack.views):
+        if v.image is not None:
+            if feet is None or head is None:
+                feet = np.column_stack([table.xy, np.zeros(table.n)])
+                head = np.column_stack([table.xy, table.height])
+            seen[i] &= v.image.inside(feet) | v.image.inside(head)
+        elif v.fov is not None:
+            seen[i] &= np.abs(_wrap(np.arctan2(d[i, :, 1], d[i, :, 0]) - v.fov[0])) <= v.fov[1]
+    return dist, seen
+
+
+def _silhouettes(
+    stack: ViewStack, table: TrackTable, dist: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(s, n) azimuth, half width, feet and head elevations of each track's silhouette in each view."""
+    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    r = np.maximum(dist, MIN_RANGE_M)
+    z = stack.z_m[:, None]
+    return np.arctan2(d[:, :, 1], d[:, :, 0]), PERSON_RADIUS_M / r, np.arctan2(-z, r), np.arctan2(table.height - z, r)
+
+
+def _covered(
+    stack: ViewStack,
+    table: TrackTable,
+    dist: FloatArray,
+    *,
+    hiders: TrackTable,
+    hdist: FloatArray,
+    hseen: BoolArray,
+) -> FloatArray:
+    """(s, n) share of each person's silhouette (feet to head, one person wide) that nearer people (of
+    ``hiders``, at ``hdist``, in the picture where ``hseen``) cover in each picture, treating the covers as
+    independent: 1 - Π(1 - overlap_k / area).
 
     Angular rectangles: azimuth ± person radius / distance, elevation from the feet to the head top. A camera
     above the crowd sees the head of someone behind a nearer person; one at head height does not.
     """
-    d = table.xy - v.origin_xy
-    az = np.arctan2(d[:, 1], d[:, 0])
-    r = np.maximum(dist, MIN_RANGE_M)
-    half = PERSON_RADIUS_M / r
-    lo = np.arctan2(-v.z_m, r)
-    hi = np.arctan2(table.height - v.z_m, r)
-    width = np.maximum(np.minimum(half[:, None], half[None, :]) * 2.0, 0.0)
-    over_az = np.clip(half[:, None] + half[None, :] - np.abs(_wrap(az[:, None] - az[None, :])), 0.0, width)
-    over_el = np.clip(np.minimum(hi[:, None], hi[None, :]) - np.maximum(lo[:, None], lo[None, :]), 0.0, None)
+    az, half, lo, hi = (a[:, :, None] for a in _silhouettes(stack, table, dist))
+    if hiders is table:
+        az_k, half_k, lo_k, hi_k = (np.swapaxes(a, 1, 2) for a in (az, half, lo, hi))
+    else:
+        az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(stack, hiders, hdist))
+    width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
+    over_az = np.clip(half + half_k - np.abs(_wrap(az - az_k)), 0.0, width)
+    over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
     area = np.maximum(2.0 * half * (hi - lo), 1e-12)
-    # [i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
-    front = (dist[None, :] < dist[:, None] - 2.0 * PERSON_RADIUS_M) & blockers[None, :]
-    share = np.where(front, np.minimum(over_az * over_el / area[:, None], 1.0), 0.0)
-    return np.asarray(1.0 - np.prod(1.0 - share, axis=1), dtype=np.float64)
+    # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
+    front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
+    share = np.where(front, np.minimum(over_az * over_el / area, 1.0), 0.0)
+    return np.asarray(1.0 - np.prod(1.0 - share, axis=2), dtype=np.float64)
 
 
 def _mixture_ln(d2: FloatArray, ln_det: FloatArray, dim: FloatArray, model: TrackModel) -> FloatArray:
@@ -166,155 +208,185 @@ def score_view(
     model: TrackModel,
     spread: Spread,
 ) -> ViewScores:
-    """Every blob of ``v`` against every track (see the module docstring); ``spread``: the camera's own spread of
-    points around a person."""
-    n, m = table.xy.shape[0], v.n
+    """Every blob of ``v`` against every track (:func:`score_views` of one view); ``spread``: the camera's own
+    spread of points around a person."""
+    return score_views(ViewStack.of([v], [spread]), tracks, table, p_detect[None, :], model=model)[0]
+
+
+def score_views(
+    stack: ViewStack, tracks: Sequence[TrackRecord], table: TrackTable, p_detect: FloatArray, *, model: TrackModel
+) -> list[ViewScores]:
+    """Every blob of every view of ``stack`` against every track (see the module docstring); ``p_detect`` (s, n):
+    each track's detection probability in each view."""
+    n, m = table.n, stack.view_of.shape[0]
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
-        return ViewScores(np.full((n, m), -np.inf), ln_miss, p_detect)
-    d = table.xy - v.origin_xy
-    r2 = np.maximum(d[:, 0] ** 2 + d[:, 1] ** 2, MIN_RANGE_M**2)
+        return [ViewScores(np.full((n, v.n), -np.inf), ln_miss[i], p_detect[i]) for i, v in enumerate(stack.views)]
+    col = stack.view_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
+    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
     dist = np.sqrt(r2)
-    jac = np.column_stack([-d[:, 1] / r2, d[:, 0] / r2])  # d bearing / d position
-    unit = d / dist[:, None]  # d distance / d position
+    jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
+    unit = d / dist[:, :, None]  # d distance / d position
     pc = table.pos_cov
-    s_tt = np.einsum("ni,nij,nj->n", jac, pc, jac) + bearing_var(v, dist, spread)
-    s_dd_track = np.einsum("ni,nij,nj->n", unit, pc, unit)
-    s_td = np.einsum("ni,nij,nj->n", jac, pc, unit)
-    nu_t = _wrap(v.bearing_rad[None, :] - np.arctan2(d[:, 1], d[:, 0])[:, None])
-    d2 = nu_t**2 / s_tt[:, None]
+    s_tt = quadratic_form(jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
+    s_dd_track = quadratic_form(unit, pc, unit)
+    blob_s_tt = s_tt[col].T
+    nu_t = _wrap(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
+    d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
-    ln_det = np.broadcast_to(np.log(s_tt)[:, None], (n, m)).copy()
-    dim = np.ones((n, m))
-    ln_clutter = np.full(m, math.log(max(model.clutter_per_view, float(m)) / fov_width(v)))
-    if v.mono_range_m is not None and v.mono_sigma_m is not None:
-        has = np.isfinite(v.mono_range_m)
-        if has.any():
-            rng = np.where(has, v.mono_range_m, 0.0)
-            feet_var = np.where(has, v.mono_sigma_m, 1.0) ** 2 + v.sigma_xy_m**2 + spread.range_var
-            s_dd = s_dd_track[:, None] + feet_var[None, :]
-            nu_d = rng[None, :] - dist[:, None]
-            det = s_tt[:, None] * s_dd - s_td[:, None] ** 2
-            det = np.maximum(det, 1e-18)
-            d2_joint = (s_dd * nu_t**2 - 2.0 * s_td[:, None] * nu_t * nu_d + s_tt[:, None] * nu_d**2) / det
-            gate_d = nu_d**2 / s_dd <= model.gate_sigmas**2
-            d2 = np.where(has[None, :], d2_joint, d2)
-            gate &= np.where(has[None, :], gate_d, True)
-            ln_det = np.where(has[None, :], np.log(det), ln_det)
-            dim = np.where(has[None, :], 2.0, dim)
-            ln_clutter = ln_clutter + np.where(has, -math.log(model.max_range_m), 0.0)
-    ln_g = _mixture_ln(d2, ln_det, dim, model)
+    ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
+    has = np.isfinite(stack.mono_range_m)
+    det = None
+    if has.any():
+        s_td = quadratic_form(jac, pc, unit)[col].T
+        rng = np.where(has, stack.mono_range_m, 0.0)
+        feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
+        s_dd = s_dd_track[col].T + feet_var[None, :]
+        nu_d = rng[None, :] - dist[col].T
+        det = blob_s_tt * s_dd - s_td**2
+        det = np.maximum(det, 1e-18)
+        d2_joint = (s_dd * nu_t**2 - 2.0 * s_td * nu_t * nu_d + blob_s_tt * nu_d**2) / det
+        gate_d = nu_d**2 / s_dd <= model.gate_sigmas**2
+        d2 = np.where(has[None, :], d2_joint, d2)
+        gate &= np.where(has[None, :], gate_d, True)
+        ln_clutter = ln_clutter + np.where(has, -math.log(model.max_range_m), 0.0)
     # Other people's blobs near the track are the alternative explanation of a blob there: the local density of
     # blobs in each track's gate beyond the one it would have (non-parametric PDA), when above the view's mean.
-    in_gate = np.count_nonzero(gate, axis=1).astype(np.float64)
-    local = np.log(np.maximum(in_gate - 1.0, 1e-9) / (2.0 * model.gate_sigmas * np.sqrt(s_tt)))
-    ln_alt = np.maximum(ln_clutter[None, :], local[:, None])
-    ln_lr = np.log(np.maximum(p_detect, 1e-300))[:, None] + ln_g - ln_alt
-    ln_lr = ln_lr + _height_term(v, table, dist, s_dd_track, model=model, spread=spread)
-    if v.hist_sqrt is not None:
-        ln_lr = ln_lr + _colour_term(v, tracks, table, model)
-    ln_lr = ln_lr + _link_term(v, tracks, model)
-    ln_lr = np.where(gate & (p_detect > 0)[:, None], ln_lr, -np.inf)
-    return ViewScores(ln_lr, ln_miss, p_detect)
-
-
-def bearing_var(v: ViewBlobs, dist: FloatArray, spread: Spread) -> FloatArray:
-    """(n,) bearing variance of a person at ``dist``: the sensor's and its yaw's, its position's and the
-    spread of the point seen around the person."""
-    d = np.maximum(dist, MIN_RANGE_M)
-    return np.asarray(v.sigma_rad**2 + (spread.cross_var + v.sigma_xy_m**2) / (d * d), dtype=np.float64)
+    counted = np.concatenate([np.zeros((n, 1)), np.cumsum(gate, axis=1, dtype=np.float64)], axis=1)
+    in_gate = counted[:, stack.offsets[1:]] - counted[:, stack.offsets[:-1]]
+    local = np.log(np.maximum(in_gate - 1.0, 1e-9) / (2.0 * model.gate_sigmas * np.sqrt(s_tt.T)))
+    # The likelihood ratio where it can be finite: (track, blob) entries in the gate of a track the view can see.
+    track, blob = np.nonzero(gate & (p_detect[col].T > 0))
+    view = col[blob]
+    ln_det = np.log(s_tt[view, track])
+    dim = np.ones(len(track))
+    if det is not None:
+        ln_det = np.where(has[blob], np.log(det[track, blob]), ln_det)
+        dim = np.where(has[blob], 2.0, dim)
+    ln_g = _mixture_ln(d2[track, blob], ln_det, dim, model)
+    ln_alt = np.maximum(ln_clutter[blob], local[track, view])
+    entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
+    entry = entry + _height_term(
+        stack, table, track, blob, dist=dist[view, track], s_dd=s_dd_track[view, track], model=model
+    )
+    entry = entry + _colour_term(stack, tracks, track, blob, model)
+    entry = entry + _link_term(stack, tracks, track, blob, model)
+    ln_lr = np.full((n, m), -np.inf)
+    ln_lr[track, blob] = entry
+    return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
 
 
 def _height_term(
-    v: ViewBlobs, table: TrackTable, dist: FloatArray, s_dd: FloatArray, *, model: TrackModel, spread: Spread
+    stack: ViewStack,
+    table: TrackTable,
+    track: IntArray,
+    blob: IntArray,
+    *,
+    dist: FloatArray,
+    s_dd: FloatArray,
+    model: TrackModel,
 ) -> FloatArray:
-    """(n, m) ln [N(implied head height; track height) · height_range]: the paper's height consistency."""
-    tan_top = np.tan(v.top_elev_rad)
+    """ln [N(implied head height; track height) · height_range] of each (``track``, ``blob``) entry: the paper's
+    height consistency (``dist``, ``s_dd``: the track's distance and its variance from the blob's camera)."""
+    view = stack.view_of[blob]
+    tan_top = np.tan(stack.top_elev_rad[blob])
     sec2 = 1.0 + tan_top**2
-    z = v.z_m + dist[:, None] * tan_top[None, :]
+    z = stack.z_m[view] + dist * tan_top
     var = (
-        table.height_var[:, None]
-        + (dist[:, None] * v.sigma_rad * sec2[None, :]) ** 2
-        + (tan_top**2)[None, :] * s_dd[:, None]
-        + spread.cross_var
+        table.height_var[track]
+        + (dist * stack.sigma_rad[view] * sec2) ** 2
+        + (tan_top**2) * s_dd
+        + stack.cross_var[view]
     )
-    nu = z - table.height[:, None]
+    nu = z - table.height[track]
     term = -0.5 * (nu**2 / var + np.log(var) + LN_2PI) + math.log(model.height_range_m)
     # A head above the picture gives only a lower bound: no evidence either way.
-    cut = v.top_cut if v.top_cut is not None else np.zeros(v.n, dtype=bool)
-    return np.asarray(np.where(cut[None, :], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64)
+    return np.asarray(
+        np.where(stack.top_cut[blob], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64
+    )
 
 
-def _colour_term(v: ViewBlobs, tracks: list[TrackRecord], table: TrackTable, model: TrackModel) -> FloatArray:
-    """(n, m) ln [p(colour | this person) / p(colour | anyone else)], the paper's intensity similarity, twice:
+def _colour_term(
+    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+) -> FloatArray:
+    """ln [p(colour | this person) / p(colour | anyone else)] of each (``track``, ``blob``) entry, the paper's
+    intensity similarity, twice:
 
     * against the track's own look in this view, once it has one (the same shirt, from this side, over time);
     * against its look in the *other* views (the paper's r_is compares the blobs of two views): a track whose
       views show different people (a ghost where two people's rays cross) matches neither well.
 
-    0 where the track has no look to compare.
+    0 where the track has no look to compare, or the view no histograms.
     """
-    assert v.hist_sqrt is not None
-    k = v.hist_sqrt.shape[1]
-    own, own_ok = _look_arrays(tracks, table, k, v.sensor_id, model.look_min_s)
-    total, count = _look_arrays(tracks, table, k, "", model.look_min_s)
-    # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's direction).
-    others = total - own * own_ok[:, None]
-    others_ok = count - own_ok > 0
-    norm = np.linalg.norm(others, axis=1)
-    others = others / np.maximum(norm, 1e-12)[:, None]
-    out = np.where(own_ok[:, None] > 0, _colour_ln_lr(own, v.hist_sqrt, model), 0.0)
-    return np.asarray(out + np.where(others_ok[:, None], _colour_ln_lr(others, v.hist_sqrt, model), 0.0))
+    out = np.zeros(len(track))
+    view = stack.view_of[blob]
+    for bins, hist in stack.hist_sqrt.items():
+        own, own_ok, total, count = _look_arrays(tracks, stack, bins, model.look_min_s)
+        # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's
+        # direction).
+        others = total[:, None, :] - own * own_ok[:, :, None]
+        others_ok = count[:, None] - own_ok > 0
+        norm = np.linalg.norm(others, axis=2)
+        others = others / np.maximum(norm, 1e-12)[:, :, None]
+        here = stack.hist_bins[view] == bins
+        t, v, h = track[here], view[here], hist[blob[here]]
+        # Bhattacharyya coefficients of each blob with the track's looks in the blob's view.
+        bc_own = np.einsum("ek,ek->e", own[t, v], h)
+        bc_others = np.einsum("ek,ek->e", others[t, v], h)
+        term = np.where(own_ok[t, v] > 0, _colour_ln_lr(bc_own, model), 0.0)
+        out[here] = term + np.where(others_ok[t, v], _colour_ln_lr(bc_others, model), 0.0)
+    return out
 
 
 def _look_arrays(
-    tracks: list[TrackRecord], table: TrackTable, bins: int, sensor_id: str, min_s: float
-) -> tuple[FloatArray, FloatArray]:
-    """(n, bins) looks and (n,) 1/0 whether each track has one, learnt for at least ``min_s``: in view
-    ``sensor_id``, or (``""``) the sum and count over every view. Computed once per tick per view."""
-    key = (bins, sensor_id)
-    got = table.looks.get(key)
-    if got is not None:
-        return got
-    n = len(tracks)
-    mat = np.zeros((n, bins))
-    ok = np.zeros(n)
-    for i, tr in enumerate(tracks):
-        items = tr.looks.items() if not sensor_id else [(sensor_id, tr.looks.get(sensor_id))]
-        for sid, look in items:
-            if look is not None and look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s:
-                mat[i] += look
-                ok[i] += 1.0
-    table.looks[key] = (mat, ok)
-    return mat, ok
+    tracks: Sequence[TrackRecord], stack: ViewStack, bins: int, min_s: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``stack`` and (n, s) 1/0
+    whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
+    column = stack.rows
+    learnt = [
+        (i, column.get(sid, -1), look)
+        for i, tr in enumerate(tracks)
+        for sid, look in tr.looks.items()
+        if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
+    ]
+    n, s = len(tracks), stack.n_views
+    own = np.zeros((n * s, bins))
+    own_ok = np.zeros(n * s)
+    if not learnt:
+        return own.reshape(n, s, bins), own_ok.reshape(n, s), np.zeros((n, bins)), np.zeros(n)
+    row = np.fromiter((i for i, _, _ in learnt), dtype=np.int64, count=len(learnt))
+    col = np.fromiter((c for _, c, _ in learnt), dtype=np.int64, count=len(learnt))
+    mat = np.concatenate([look for _, _, look in learnt]).reshape(-1, bins)
+    here = col >= 0
+    own[row[here] * s + col[here]] = mat[here]
+    own_ok[row[here] * s + col[here]] = 1.0
+    # Each track's looks in its own slots, in its order: summed one after the other.
+    count = np.bincount(row, minlength=n)
+    slot = np.arange(len(learnt)) - (np.cumsum(count) - count)[row]
+    each = np.zeros((n * int(count.max()), bins))
+    each[row * int(count.max()) + slot] = mat
+    total = each.reshape(n, -1, bins).sum(axis=1)
+    return own.reshape(n, s, bins), own_ok.reshape(n, s), total, count.astype(np.float64)
 
 
-def _colour_ln_lr(looks: FloatArray, hist_sqrt: FloatArray, model: TrackModel) -> FloatArray:
-    """(n, m) ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an
-    outlier floor, against a uniform distance for anyone else; ``looks`` (n, k), ``hist_sqrt`` (m, k)."""
-    dist = 1.0 - np.clip(looks @ hist_sqrt.T, 0.0, 1.0)
+def _colour_ln_lr(coefficient: FloatArray, model: TrackModel) -> FloatArray:
+    """ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an outlier
+    floor, against a uniform distance for anyone else, at Bhattacharyya coefficients ``coefficient``."""
+    dist = 1.0 - np.clip(coefficient, 0.0, 1.0)
     sig, eps = model.colour_sigma, model.outlier_prob
     same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
     return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)
 
 
-def _link_term(v: ViewBlobs, tracks: list[TrackRecord], model: TrackModel) -> FloatArray:
-    """(n, m) ln(link_odds) where the blob continues the node's 2D track last assigned to the track."""
-    linked = np.array([tr.links.get(v.sensor_id, -1) for tr in tracks], dtype=np.int64)
-    same = linked[:, None] == v.local_id[None, :]
-    return np.where(same & (linked[:, None] >= 0), math.log(model.link_odds), 0.0)
-
-
-def observation(v: ViewBlobs, j: int, xy: FloatArray, spread: Spread, weight: float = 1.0) -> Observation:
-    """Blob ``j`` of view ``v`` as an :class:`Observation` of a person near ``xy``.
-
-    ``weight`` in (0, 1]: the share of a new frame's information this observation carries (a tick between two
-    frames sees an interpolation of frames already used): its variances are divided by it.
-    """
-    d = math.hypot(float(xy[0] - v.origin_xy[0]), float(xy[1] - v.origin_xy[1]))
-    var = float(bearing_var(v, np.array([d]), spread)[0]) / weight
-    rng = rvar = math.nan
-    if v.mono_range_m is not None and v.mono_sigma_m is not None and math.isfinite(float(v.mono_range_m[j])):
-        rng = float(v.mono_range_m[j])
-        rvar = (float(v.mono_sigma_m[j]) ** 2 + v.sigma_xy_m**2 + spread.range_var) / weight
-    return Observation((float(v.origin_xy[0]), float(v.origin_xy[1])), float(v.bearing_rad[j]), var, rng, rvar)
+def _link_term(
+    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+) -> FloatArray:
+    """ln(link_odds) of each (``track``, ``blob``) entry where the blob continues the node's 2D track last assigned
+    to the track, else 0."""
+    sids = [v.sensor_id for v in stack.views]
+    linked = np.array([[tr.links.get(sid, -1) for sid in sids] for tr in tracks], dtype=np.int64)
+    linked = linked.reshape(len(tracks), len(sids))[track, stack.view_of[blob]]
+    same = (linked == stack.local_id[blob]) & (linked >= 0)
+    return np.where(same, math.log(model.link_odds), 0.0)

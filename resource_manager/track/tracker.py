@@ -16,30 +16,40 @@ Each tick, at the fusion instant:
 6. **Life cycle**: a track is confirmed (published, given an id) once its existence reaches ``p_confirm``, and ends
    when it falls below ``p_delete`` or its position is lost (``lost_sigma_m``).
 
+Each step works on every track and view of the tick at once, on arrays (the views stacked, :mod:`.stack`; the
+tracks' updates, :mod:`.fuse`): a tick's cost is then a few hundred array operations, not a few dozen per track and
+per view. Only the assignment (one Hungarian problem per view) and the pair report (one fix per track) stay loops.
+
 Only this package changes a track's state; :meth:`Tracker.step` returns what the other stages need.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from common.errors import GeometryError
-from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, size_ratio
 from common.schema import Method, PairEntry
-from resource_manager.stereo.localize import Measurement, localize_best_pair, wide_blob
-from resource_manager.stereo.pairs import CameraGeom, PairCandidate, rank_pairs
+from resource_manager.stereo.localize import Measurement, localize_best_pair
+from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
-from resource_manager.track.looks import learn_look
+from resource_manager.track.fuse import Slots, fuse, fuse_heights
+from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import LineObservation, MotionModel, Observation, predict, update
-from resource_manager.track.observe import Spread, TrackTable, ViewScores, observation, score_view, visibility
+from resource_manager.track.motion import MotionModel, predict_many
+from resource_manager.track.observe import (
+    Spread,
+    TrackTable,
+    ViewScores,
+    ViewStack,
+    score_views,
+    visibility_many,
+)
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 
@@ -70,15 +80,24 @@ class _Tick:
     weights: dict[str, tuple[float, float]]
     """sensor id -> (position, existence) weight of its evidence at this tick (:meth:`Tracker._weights`)."""
     pose_sigma: dict[str, float]
+    stack: ViewStack
+    """The views stacked into arrays, in order of sensor ids."""
+    position_weight: FloatArray
+    """(s,) the position weight of each view of ``stack``."""
 
 
-@dataclass(frozen=True, slots=True)
-class _Assigned:
+class _Ranking(NamedTuple):
+    """The pair of a track's cameras chosen (:meth:`Tracker._rank`) among how many."""
+
+    best: PairCandidate | None
+    candidates: int
+
+
+class _Assigned(NamedTuple):
     """One view's blob assigned to a track."""
 
     sensor_id: str
     blob: int
-    ln_lr: float
 
 
 class Tracker:
@@ -131,36 +150,77 @@ class Tracker:
         self._t_ns = t_ns
         self._tick += 1
         out = TrackerOutcome()
-        for tr in self.tracks:
-            gap_s = (t_ns - tr.t_ns) / 1e9
-            tr.x, tr.p = predict(tr.x, tr.p, gap_s, self.motion)
-            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
-            tr.t_ns = t_ns
+        self._predict(t_ns)
         table = TrackTable.of(self.tracks)
+        evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
+        sids = sorted(views)
+        stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
+        tick = _Tick(views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]))
+        pd = visibility_many(stack, table, self.model)
+        pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
+        scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
         assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
-        free: dict[str, list[int]] = {}
-        tick = _Tick(views, {sid: self._weights(v, dt_s) for sid, v in views.items()}, pose_sigma or {})
-        scored: dict[str, ViewScores] = {}
-        for sid in sorted(views):
-            v = views[sid]
-            pd = visibility(v, table, self.model)
-            if sid in blind:
-                pd = np.zeros_like(pd)
-            scores = score_view(v, self.tracks, table, pd, model=self.model, spread=self._spread(v))
-            scored[sid] = scores
-            for i, j in _assign(scores):
-                assigned[i].append(_Assigned(sid, j, float(scores.ln_lr[i, j])))
-        hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
-        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            for a in self._update(tr, got, tick, out):
-                hits[a.sensor_id][i] = a.blob
         for sid, scores in scored.items():
-            self._existence(scores, hits[sid], tick.weights[sid][1])
-            taken = set(hits[sid].values())
-            free[sid] = [j for j in range(views[sid].n) if j not in taken]
+            for i, j in _assign(scores):
+                assigned[i].append(_Assigned(sid, j))
+        kept = self._update_all(assigned, tick, out)
+        hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
+        for i, got in enumerate(kept):
+            for sid, j in got:
+                hits[sid][i] = j
+        self._existence(scored, hits, tick)
+        taken = {sid: set(hit.values()) for sid, hit in hits.items()}
+        free = {sid: [j for j in range(views[sid].n) if j not in taken[sid]] for sid in scored}
         out.births = self._births(tick, free, t_ns)
         out.ended = self._prune()
         return out
+
+    def _predict(self, t_ns: int) -> None:
+        """Every track predicted to the instant ``t_ns`` (all at once)."""
+        if not self.tracks:
+            return
+        gaps_s = [(t_ns - tr.t_ns) / 1e9 for tr in self.tracks]
+        xs, ps = predict_many(
+            np.array([tr.x for tr in self.tracks]),
+            np.array([tr.p for tr in self.tracks]),
+            np.array(gaps_s),
+            self.motion,
+        )
+        for tr, x, p, gap_s in zip(self.tracks, xs, ps, gaps_s, strict=True):
+            tr.x, tr.p = x, p
+            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
+            tr.t_ns = t_ns
+
+    def _update_all(self, assigned: list[list[_Assigned]], tick: _Tick, out: TrackerOutcome) -> list[list[_Assigned]]:
+        """Update every track with the blobs assigned to it (:meth:`_update`); returns those each keeps.
+
+        In ``model`` mode the tracks' filters are updated all at once (:meth:`_fuse_tracks`) and the pairs of the
+        cameras that detected each are ranked all at once; then each track's pair is reported, and its head height,
+        looks and links learnt (all tracks at once).
+        """
+        fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
+        weights = self._fuse_tracks([self.tracks[i] for i in fused], [assigned[i] for i in fused], tick)
+        weight_of = dict(zip(fused, weights, strict=True))
+        kept: list[list[_Assigned]] = []
+        rankings: list[_Ranking | None] = []
+        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
+            keep, ranking = self._update(tr, got, tick, out, weight_of.get(i))
+            kept.append(keep)
+            rankings.append(ranking)
+        later = [i for i, (got, r) in enumerate(zip(kept, rankings, strict=True)) if got and r is None]
+        xys = np.array([self.tracks[i].x[:2] for i in later]).reshape(-1, 2)
+        ranked = self._rank_many(xys, [sorted(a.sensor_id for a in kept[i]) for i in later], tick)
+        for i, ranking in zip(later, ranked, strict=True):
+            rankings[i] = ranking
+        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
+        for tr, got, ranking in zip(self.tracks, kept, rankings, strict=True):
+            if got and ranking is not None:
+                by_sid = {a.sensor_id: a.blob for a in got}
+                self._report(tr, ranking, by_sid, tick, out)
+                learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in got)))
+        self._heights([(tr, got) for tr, got in zip(self.tracks, kept, strict=True) if got], tick.stack)
+        self._learn(learnt, tick.stack)
+        return kept
 
     def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
         """(position, existence) weight of a view's evidence at this tick.
@@ -175,114 +235,129 @@ class Tracker:
         w_exist = min(w_pos, dt_s / self.model.evidence_time_s, 1.0)
         return max(w_pos, 1e-3), w_exist
 
-    def _existence(self, scores: ViewScores, hit: dict[int, int], weight: float) -> None:
-        """Raise the existence of the tracks this view detects (track -> blob), lower that of those it should see
-        but misses."""
-        for i, tr in enumerate(self.tracks):
-            pd = float(scores.p_detect[i])
-            if pd <= 0:
-                continue
-            if i in hit:
-                lr = math.exp(min(float(scores.ln_lr[i, hit[i]]), 50.0))
-                delta = math.log(1.0 - pd + lr)
-            else:
-                delta = float(scores.ln_miss[i])
-            tr.logodds = min(tr.logodds + weight * delta, logit(self.model.p_max))
+    def _existence(self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: _Tick) -> None:
+        """Raise the existence of the tracks each view detects (``hits``: per view, track -> blob), lower that of
+        those it should see but misses; view after view in order of sensor ids, each capped at ``p_max``."""
+        if not self.tracks:
+            return
+        cap = logit(self.model.p_max)
+        views = list(scored.values())
+        p_detect = np.array([sc.p_detect for sc in views])
+        # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
+        delta = np.array([sc.ln_miss for sc in views])
+        hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
+        if hit:
+            rows, cols = np.array([h[0] for h in hit]), np.array([h[1] for h in hit])
+            ln_lr = np.array([views[h[0]].ln_lr[h[1], h[2]] for h in hit])
+            delta[rows, cols] = np.log(1.0 - p_detect[rows, cols] + np.exp(np.minimum(ln_lr, 50.0)))
+        logodds = np.array([tr.logodds for tr in self.tracks])
+        for row, sid in enumerate(scored):
+            moved = np.minimum(logodds + tick.weights[sid][1] * delta[row], cap)
+            logodds = np.where(p_detect[row] > 0, moved, logodds)
+        for tr, lo in zip(self.tracks, logodds.tolist(), strict=True):
+            tr.logodds = lo
 
-    def _update(self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome) -> list[_Assigned]:
+    def _update(
+        self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
+    ) -> tuple[list[_Assigned], _Ranking | None]:
         """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
-        someone else's, in ``model`` mode, goes back to the unexplained ones)."""
-        views = tick.views
-        ranked = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if got and self.model.mode == "paper" else []
+        someone else's, in ``model`` mode, goes back to the unexplained ones), whose looks the caller learns, and
+        in ``paper`` mode the ranking of their cameras' pairs (``model`` mode: the caller ranks every track's at
+        once, :meth:`_rank_many`).
+
+        ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
+        """
+        paper = bool(got) and weight is None and self.model.mode == "paper"
+        ranking = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else None
         fix: Measurement | None = None
-        if got and self.model.mode == "paper" and ranked:
-            fix = self._pair_fix(ranked[0], {a.sensor_id: a.blob for a in got}, tick)
+        if ranking is not None and ranking.best is not None:
+            fix = self._pair_fix(ranking.best, {a.sensor_id: a.blob for a in got}, tick)
         method: Method = "predicted"
         if fix is not None:
             tr.x, tr.p = _position_update(tr.x, tr.p, fix)
             method = fix.method
         elif got:
-            m = self.model
-            obs = [self._observe(a.sensor_id, a.blob, tr.x[:2], tick) for a in got]
-            lines = self._size_ratio_lines(got, tick)
-            tr.x, tr.p, weight = update(tr.x, tr.p, obs, (m.outlier_prob, m.outlier_scale), lines)
+            if weight is None:
+                (weight,) = self._fuse_tracks([tr], [got], tick)
             got = [a for a, w in zip(got, weight.tolist(), strict=True) if w >= OUTLIER_RELEASE]
             method = "least_squares"
         tr.detected = bool(got)
         if not got:
             tr.misses += 1
             tr.method, tr.sensors = "predicted", ()
-            return []
+            return [], None
         tr.hits += 1
         tr.misses = 0
         out.detected += 1
-        by_sid = {a.sensor_id: a.blob for a in got}
-        if fix is None:
-            ranked = self._rank(tr.x[:2], sorted(by_sid), tick)
-        self._height(tr, got, views)
-        self._learn(tr, by_sid, views, min(tick.weights[a.sensor_id][0] for a in got))
         tr.method = method
-        self._report(tr, ranked, by_sid, tick, out)
-        return got
+        if fix is None:
+            ranking = self._rank(tr.x[:2], sorted(a.sensor_id for a in got), tick) if paper else None
+        return got, ranking
 
-    def _size_ratio_lines(self, got: list[_Assigned], tick: _Tick) -> list[LineObservation]:
-        """Where two of the views and the person are nearly colinear, bearings say little about where along the
-        baseline the person is; the size-ratio method (Eq. 2) says it from the two blob widths: each such pair
-        gives a measurement along its baseline, fused with the bearings (its error, 2 eps D1 D2 / B with eps the
-        relative width error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is then the
-        point where each counts as much as the other, not a switch).
+    def _fuse(
+        self, xs: FloatArray, ps: FloatArray, gots: list[list[_Assigned]], tick: _Tick, *, lines: bool = True
+    ) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
+        """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with every view assigned to each
+        (``gots``), all at once (:func:`~resource_manager.track.fuse.fuse`), with (``lines``) the size-ratio lines
+        among each one's first ``2 * MAX_PAIR_CAMERAS`` views. Also returns each one's weight of each of its
+        assigned blobs (low: an outlier)."""
+        m = self.model
+        xs, ps, resp = fuse(
+            xs,
+            ps,
+            Slots.of(gots, tick.stack),
+            tick.stack,
+            position_weight=tick.position_weight,
+            outlier=(m.outlier_prob, m.outlier_scale),
+            width_rel_sigma=self.birth_params.width_rel_sigma,
+            line_views=2 * MAX_PAIR_CAMERAS if lines else 0,
+        )
+        return xs, ps, [resp[k, : len(got)] for k, got in enumerate(gots)]
 
-        Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's
-        line qualify (with many cameras, pairs among ``2 * MAX_PAIR_CAMERAS`` of them); a blob wider than one
-        person (a merged group) gives no width to use.
-        """
-        out: list[LineObservation] = []
-        eps = self.birth_params.width_rel_sigma
-        by_sid = {a.sensor_id: a.blob for a in got}
-        for sa, sb in itertools.combinations(sorted(by_sid)[: 2 * MAX_PAIR_CAMERAS], 2):
-            va, vb = tick.views[sa], tick.views[sb]
-            ia, ib = by_sid[sa], by_sid[sb]
-            ta, tb = float(va.bearing_rad[ia]), float(vb.bearing_rad[ib])
-            base = vb.origin_xy - va.origin_xy
-            length = float(np.hypot(*base))
-            if length <= 0:
-                continue
-            psi = math.atan2(float(base[1]), float(base[0]))
-            if max(_off_line(ta - psi), _off_line(tb - psi)) >= MAX_SIZE_RATIO_OFFSET_RAD:
-                continue
-            c1 = 1.0 if abs(math.remainder(ta - psi, 2 * math.pi)) < math.pi / 2 else -1.0
-            c2 = 1.0 if abs(math.remainder(tb - psi - math.pi, 2 * math.pi)) < math.pi / 2 else -1.0
-            wa, wb = float(va.width_rad[ia]), float(vb.width_rad[ib])
-            try:
-                d1, d2 = size_ratio(length, math.sin(wa / 2), math.sin(wb / 2), c1, c2)
-            except GeometryError:
-                continue
-            if wide_blob(va, ia, d1) or wide_blob(vb, ib, d2):
-                continue
-            u = base / length
-            sigma = 2.0 * eps * d1 * d2 / length
-            out.append(LineObservation((float(u[0]), float(u[1])), float(u @ va.origin_xy) + c1 * d1, sigma * sigma))
-        return out
-
-    def _observe(self, sid: str, blob: int, xy: FloatArray, tick: _Tick) -> Observation:
-        """A view's blob as an observation of a person near ``xy`` (its spread, this tick's weight)."""
-        v = tick.views[sid]
-        return observation(v, blob, xy, self._spread(v), tick.weights[sid][0])
+    def _fuse_tracks(self, trs: list[TrackRecord], gots: list[list[_Assigned]], tick: _Tick) -> list[FloatArray]:
+        """:meth:`_fuse` tracks ``trs`` in place; returns each one's weight of each of its assigned blobs."""
+        if not trs:
+            return []
+        xs, ps, weights = self._fuse(np.array([tr.x for tr in trs]), np.array([tr.p for tr in trs]), gots, tick)
+        for tr, x, p in zip(trs, xs, ps, strict=True):
+            tr.x, tr.p = x.copy(), p.copy()
+        return weights
 
     def _spread(self, v: ViewBlobs) -> Spread:
         """The spread of a view's points around a person: what its sensor states, else the model's default."""
         sigma = v.point_sigma_m if v.point_sigma_m > 0 else self.model.body_sigma_m
         return Spread(sigma * sigma, sigma * sigma)
 
-    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> list[PairCandidate]:
-        """The pairs of cameras ``sids``, best first by the error model (or shuffled: ``pair_choice = random``)."""
-        v, ps = tick.views, tick.pose_sigma
-        cams = [CameraGeom(s, v[s].origin_xy, v[s].sigma_rad, ps.get(s, 0.0)) for s in sids]
-        ranked = rank_pairs(xy, cams, len(cams) if self.pair_choice == "random" else MAX_PAIR_CAMERAS)
-        if self.pair_choice == "random" and ranked:
-            order = self._rng.permutation(len(ranked))
-            ranked = [ranked[int(k)] for k in order]
-        return ranked
+    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> _Ranking:
+        """The best pair of cameras ``sids`` by the error model (or at random: ``pair_choice = random``)."""
+        return self._rank_many(xy[None, :], [sids], tick)[0]
+
+    def _rank_many(self, xys: FloatArray, sids: list[list[str]], tick: _Tick) -> list[_Ranking]:
+        """:meth:`_rank` of many tracks at once (``xys`` (k, 2), each with its cameras ``sids``)."""
+        st = tick.stack
+        width = max((len(ids) for ids in sids), default=0)
+        view = np.zeros((len(sids), width), dtype=np.int64)
+        for i, ids in enumerate(sids):
+            view[i, : len(ids)] = [st.rows[s] for s in ids]
+        pose_sigma = np.array([tick.pose_sigma.get(v.sensor_id, 0.0) for v in st.views])
+        random = self.pair_choice == "random"
+        a, b, err, count = rank_pairs_many(
+            xys,
+            st.origin[view],
+            st.sigma_rad[view],
+            pose_sigma[view],
+            count=np.array([len(ids) for ids in sids], dtype=np.int64),
+            max_cameras=width if random else MAX_PAIR_CAMERAS,
+        )
+        out: list[_Ranking] = []
+        for i, (ids, n) in enumerate(zip(sids, count.tolist(), strict=True)):
+            if n == 0:
+                out.append(_Ranking(None, 0))
+                continue
+            # pair_choice = random: the pairs shuffled, the first taken.
+            q = int(self._rng.permutation(n)[0]) if random else 0
+            out.append(_Ranking(PairCandidate(ids[a[i, q]], ids[b[i, q]], float(err[i, q])), n))
+        return out
 
     def _pair_fix(self, pair: PairCandidate, by_sid: dict[str, int], tick: _Tick) -> Measurement | None:
         """The paper's localisation: Eq. (1) or, near colinearity, Eq. (2) with one pair of views."""
@@ -297,14 +372,14 @@ class Tracker:
         )
 
     def _report(
-        self, tr: TrackRecord, ranked: list[PairCandidate], by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
+        self, tr: TrackRecord, ranking: _Ranking, by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
     ) -> None:
         """Which pair the error model ranks best for the track, with its predicted error (the ``pairs`` key)."""
-        if not ranked:
+        best = ranking.best
+        if best is None:
             tr.sensors = tuple(by_sid)
             tr.predicted_error_m = tr.position_sigma_m
             return
-        best = ranked[0]
         tr.sensors = (best.a, best.b)
         fix = self._pair_fix(best, by_sid, tick)
         # The error of the method the crossover rule picks for this pair: Eq. 1's, or Eq. 2's near colinearity.
@@ -318,34 +393,42 @@ class Tracker:
                     sensor_b=best.b,
                     predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
                     method=fix.method,
-                    candidates=len(ranked),
+                    candidates=ranking.candidates,
                 )
             )
 
-    def _height(self, tr: TrackRecord, got: list[_Assigned], views: dict[str, ViewBlobs]) -> None:
-        """Fuse the head-top heights the views imply at the updated distance (scalar Kalman updates)."""
-        for a in got:
-            v = views[a.sensor_id]
-            if v.top_cut is not None and bool(v.top_cut[a.blob]):
-                continue
-            d = math.hypot(float(tr.x[0] - v.origin_xy[0]), float(tr.x[1] - v.origin_xy[1]))
-            tan_top = math.tan(float(v.top_elev_rad[a.blob]))
-            z = v.z_m + d * tan_top
-            var = (d * v.sigma_rad * (1.0 + tan_top * tan_top)) ** 2 + self._spread(v).cross_var
-            k = tr.height_var / (tr.height_var + var)
-            tr.height_m += k * (z - tr.height_m)
-            tr.height_var *= 1.0 - k
+    def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], stack: ViewStack) -> None:
+        """Fuse into each track the head-top heights its views imply at its updated distance (all tracks at
+        once: :func:`~resource_manager.track.fuse.fuse_heights`)."""
+        if not seen:
+            return
+        height, height_var = fuse_heights(
+            np.array([tr.x[:2] for tr, _ in seen]),
+            np.array([tr.height_m for tr, _ in seen]),
+            np.array([tr.height_var for tr, _ in seen]),
+            Slots.of([got for _, got in seen], stack),
+            stack,
+        )
+        for (tr, _), h, hv in zip(seen, height.tolist(), height_var.tolist(), strict=True):
+            tr.height_m, tr.height_var = h, hv
 
-    def _learn(self, tr: TrackRecord, by_sid: dict[str, int], views: dict[str, ViewBlobs], weight: float) -> None:
-        """Links to the nodes' 2D tracks and the per-view colour looks of the assigned blobs."""
-        for sid, j in by_sid.items():
-            tr.links[sid] = int(views[sid].local_id[j])
-        dt = weight * self.model.evidence_time_s
-        alpha = 1.0 - math.exp(-dt / self.model.look_time_s)
-        learn_look(tr, by_sid, views, alpha)
-        for sid in by_sid:
-            if views[sid].hist_sqrt is not None:
-                tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
+    def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
+        """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
+        (track, sensor id -> blob, the evidence weight of those views), all tracks' looks at once."""
+        offsets = stack.offsets.tolist()
+        with_hist = (stack.hist_bins > 0).tolist()
+        entries = [(tr, sid, stack.rows[sid], j) for tr, by_sid, _ in learnt for sid, j in by_sid.items()]
+        local_id = stack.local_id[[offsets[row] + j for _, _, row, j in entries]].tolist()
+        for (tr, sid, _, _), lid in zip(entries, local_id, strict=True):
+            tr.links[sid] = lid
+        looks: list[tuple[TrackRecord, dict[str, int], float]] = []
+        for tr, by_sid, weight in learnt:
+            dt = weight * self.model.evidence_time_s
+            looks.append((tr, by_sid, 1.0 - math.exp(-dt / self.model.look_time_s)))
+            for sid in by_sid:
+                if with_hist[stack.rows[sid]]:
+                    tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
+        learn_looks(looks, stack)
 
     # -- births and deaths ----------------------------------------------------------------------------
     def _births(self, tick: _Tick, free: dict[str, list[int]], t_ns: int) -> int:
@@ -365,47 +448,57 @@ class Tracker:
             spread=lambda sid: self._spread(tick.views[sid]),
             tick=self._tick,
             min_evidence=need,
+            stack=tick.stack,
         )
-        for h in hyps:
-            self._spawn(h, tick, t_ns, prior + w * h.evidence)
+        if hyps:
+            self._spawn(hyps, tick, t_ns, [prior + w * h.evidence for h in hyps])
         return len(hyps)
 
-    def _spawn(self, h: Hypothesis, tick: _Tick, t_ns: int, logodds: float) -> None:
-        m, views, weights = self.model, tick.views, tick.weights
-        self._serial += 1
-        p = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
-        x = np.array([h.fix.xy[0], h.fix.xy[1], 0.0, 0.0])
-        ranked = self._rank(x[:2], sorted(h.blobs), tick)
-        fix = self._pair_fix(ranked[0], h.blobs, tick) if m.mode == "paper" and ranked else None
-        if fix is not None:
-            p[:2, :2] = fix.cov
-            x[:2] = fix.xy
-        else:
-            obs: list[Observation] = [
-                observation(views[s], j, x[:2], self._spread(views[s]), weights[s][0])
-                for s, j in sorted(h.blobs.items())
-            ]
-            x, p, _ = update(x, p, obs, (m.outlier_prob, m.outlier_scale))
-        tr = TrackRecord(
-            serial=self._serial,
-            x=x,
-            p=p,
-            t_ns=t_ns,
-            born_ns=t_ns,
-            logodds=min(logodds, logit(m.p_max)),
-            height_m=m.height_prior_m,
-            height_var=m.height_sigma_m**2,
-            detected=True,
-            hits=1,
-            method=fix.method if fix is not None else "least_squares",
+    def _spawn(self, hyps: list[Hypothesis], tick: _Tick, t_ns: int, logodds: list[float]) -> None:
+        """Start a track on each hypothesis (existence ``logodds``), in order: at its best pair's fix (``paper``
+        mode) or updated from a wide prior there with all its views (all at once)."""
+        m, weights = self.model, tick.weights
+        gots = [[_Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
+        prior = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
+        xs = np.array([[h.fix.xy[0], h.fix.xy[1], 0.0, 0.0] for h in hyps])
+        ps = np.repeat(prior[None, :, :], len(hyps), axis=0)
+        bests = [r.best for r in self._rank_many(xs[:, :2], [sorted(h.blobs) for h in hyps], tick)]
+        fixes = [
+            self._pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
+            for h, best in zip(hyps, bests, strict=True)
+        ]
+        fused = [k for k, fix in enumerate(fixes) if fix is None]
+        if fused:
+            xs[fused], ps[fused], _ = self._fuse(xs[fused], ps[fused], [gots[k] for k in fused], tick, lines=False)
+        born: list[TrackRecord] = []
+        for k, (fix, best) in enumerate(zip(fixes, bests, strict=True)):
+            self._serial += 1
+            x, p = xs[k].copy(), ps[k].copy()
+            if fix is not None:
+                p[:2, :2] = fix.cov
+                x[:2] = fix.xy
+            tr = TrackRecord(
+                serial=self._serial,
+                x=x,
+                p=p,
+                t_ns=t_ns,
+                born_ns=t_ns,
+                logodds=min(logodds[k], logit(m.p_max)),
+                height_m=m.height_prior_m,
+                height_var=m.height_sigma_m**2,
+                detected=True,
+                hits=1,
+                method=fix.method if fix is not None else "least_squares",
+            )
+            if best is not None:
+                tr.sensors = (best.a, best.b)
+                tr.predicted_error_m = best.error_m
+            born.append(tr)
+        self._heights(list(zip(born, gots, strict=True)), tick.stack)
+        self._learn(
+            [(tr, h.blobs, min(weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)], tick.stack
         )
-        got = [_Assigned(s, j, 0.0) for s, j in sorted(h.blobs.items())]
-        self._height(tr, got, views)
-        self._learn(tr, h.blobs, views, min(weights[s][0] for s in h.blobs))
-        if ranked:
-            tr.sensors = (ranked[0].a, ranked[0].b)
-            tr.predicted_error_m = ranked[0].error_m
-        self.tracks.append(tr)
+        self.tracks.extend(born)
 
     def _prune(self) -> list[str]:
         """Confirm tracks whose existence reached ``p_confirm``; end those below ``p_delete``, lost, or on the same
@@ -462,12 +555,6 @@ def _same_person(a: TrackRecord, b: TrackRecord) -> bool:
     return d2 < SAME_PERSON_CHI2
 
 
-def _off_line(angle_rad: float) -> float:
-    """Angle between a direction and a line (either way along it), in [0, pi/2]."""
-    a = abs(math.remainder(angle_rad, math.pi))
-    return min(a, math.pi - a)
-
-
 OUTLIER_RELEASE = 0.5
 """An assigned blob that the track's other views make more likely an outlier than not is released."""
 PRIOR_SIGMA = 1.0
@@ -480,13 +567,14 @@ def _assign(scores: ViewScores) -> list[tuple[int, int]]:
     if gain.size == 0:
         return []
     ok = np.isfinite(gain) & (gain > 0)
-    if not ok.any():
-        return []
     rows = np.flatnonzero(ok.any(axis=1))
+    if not rows.size:
+        return []
     cols = np.flatnonzero(ok.any(axis=0))
-    sub = np.where(ok[np.ix_(rows, cols)], gain[np.ix_(rows, cols)], 0.0)
+    sub = np.where(ok, gain, 0.0)[rows][:, cols]
     r, c = linear_sum_assignment(sub, maximize=True)
-    return [(int(rows[i]), int(cols[j])) for i, j in zip(r, c, strict=True) if ok[rows[i], cols[j]]]
+    tracks, blobs = rows.tolist(), cols.tolist()
+    return [(tracks[i], blobs[j]) for i, j in zip(r.tolist(), c.tolist(), strict=True) if sub[i, j] > 0]
 
 
 def _position_update(x: FloatArray, p: FloatArray, fix: Measurement) -> tuple[FloatArray, FloatArray]:

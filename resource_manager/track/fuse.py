@@ -1,0 +1,138 @@
+"""Every track's measurement update of one tick at once: the floor filter and the head height.
+
+The blobs assigned to the tracks are gathered from the tick's :class:`~.stack.ViewStack` by index arrays
+(:class:`Slots`: one slot per view of each track, in order of sensor ids), so that the arithmetic runs once per
+tick on arrays rather than once per track and view:
+
+* :func:`fuse`: the iterated EKF of :mod:`.motion` with each view's bearing and, where the camera sees the feet,
+  its floor distance, and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`);
+* :func:`fuse_heights`: the head-top heights the views imply at each track's updated distance (scalar Kalman
+  updates, view after view).
+
+Pure: states in, states out; :class:`~.tracker.Tracker` writes them into its tracks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from resource_manager.track.lines import size_ratio_lines
+from resource_manager.track.motion import ObservationBatch, update_many
+from resource_manager.track.stack import ViewStack
+
+__all__ = ["Slots", "fuse", "fuse_heights"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+_Scalar = TypeVar("_Scalar", bound=np.generic)
+
+
+@dataclass(frozen=True, slots=True)
+class Slots:
+    """Tracks' assigned blobs as indices into a :class:`ViewStack`: the ``slot[e]``-th blob assigned to track
+    ``track[e]`` is the stack's blob ``blob[e]``, of its view ``view[e]``."""
+
+    track: IntArray
+    slot: IntArray
+    view: IntArray
+    blob: IntArray
+    shape: tuple[int, int]
+    """(tracks, most slots of any)."""
+
+    @staticmethod
+    def of(assigned: Sequence[Sequence[tuple[str, int]]], stack: ViewStack) -> Slots:
+        """The slots of each track's assigned (sensor id, blob index in its view), in that order."""
+        rows = stack.rows
+        flat = [(k, c, rows[sid], j) for k, got in enumerate(assigned) for c, (sid, j) in enumerate(got)]
+        idx = np.array(flat, dtype=np.int64).reshape(-1, 4)
+        view = idx[:, 2]
+        width = max((len(got) for got in assigned), default=0)
+        return Slots(idx[:, 0], idx[:, 1], view, stack.offsets[view] + idx[:, 3], (len(assigned), width))
+
+    def per_slot(self, values: npt.NDArray[_Scalar], fill: float = 0.0) -> npt.NDArray[_Scalar]:
+        """(k, w, ...) per-slot array of ``values`` (one per entry), ``fill`` in the empty slots."""
+        out = np.full((*self.shape, *values.shape[1:]), fill, dtype=values.dtype)
+        out[self.track, self.slot] = values
+        return out
+
+    def used(self) -> npt.NDArray[np.bool_]:
+        """(k, w) which slots hold a blob."""
+        out = np.zeros(self.shape, dtype=bool)
+        out[self.track, self.slot] = True
+        return out
+
+
+def fuse(
+    xs: FloatArray,
+    ps: FloatArray,
+    slots: Slots,
+    stack: ViewStack,
+    *,
+    position_weight: FloatArray,
+    outlier: tuple[float, float],
+    width_rel_sigma: float,
+    line_views: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``.
+
+    Args:
+        position_weight: (s,) each view's share of a new frame's information (its variances are divided by it: a
+            tick between two frames sees an interpolation of frames already used).
+        outlier: (probability, scale) of the observations' outlier component.
+        width_rel_sigma: the relative width error of the size-ratio method.
+        line_views: the size-ratio pairs are taken among each track's first this many views (0: none).
+
+    Returns:
+        (x, P, the weight (k, w) of each slot's blob: low for an outlier).
+    """
+    view, blob = slots.view, slots.blob
+    # Each assigned blob as an observation of its track: its bearing and, where the camera sees the feet, its
+    # floor distance (motion.ObservationBatch.padded's rows).
+    obs = np.full((len(view), 6), math.nan)
+    obs[:, :2] = origin = stack.origin[view]
+    obs[:, 2] = stack.bearing_rad[blob]
+    weight = position_weight[view]
+    dist = np.hypot(xs[slots.track, 0] - origin[:, 0], xs[slots.track, 1] - origin[:, 1])
+    obs[:, 3] = stack.bearing_var(view, dist) / weight
+    has = np.isfinite(stack.mono_range_m[blob])
+    obs[has, 4] = stack.mono_range_m[blob[has]]
+    feet_var = stack.mono_sigma_m[blob[has]] ** 2 + stack.sigma_xy_m[view[has]] ** 2 + stack.range_var[view[has]]
+    obs[has, 5] = feet_var / weight[has]
+    k = slots.shape[0]
+    line_rows, line_valid = np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
+    if line_views > 0:
+        first = slice(0, line_views)
+        line_rows, line_valid = size_ratio_lines(
+            slots.per_slot(origin)[:, first],
+            slots.per_slot(np.column_stack([stack.bearing_rad[blob], stack.width_rad[blob]]))[:, first],
+            slots.used()[:, first],
+            width_rel_sigma,
+        )
+    batch = ObservationBatch.padded(slots.per_slot(obs), slots.used(), line_rows, line_valid)
+    return update_many(xs, ps, batch, outlier)
+
+
+def fuse_heights(
+    xy: FloatArray, height_m: FloatArray, height_var: FloatArray, slots: Slots, stack: ViewStack
+) -> tuple[FloatArray, FloatArray]:
+    """Head-top heights ``height_m`` (k,) and their variances ``height_var`` of tracks at ``xy`` (k, 2) after the
+    heights their slots' blobs imply (scalar Kalman updates, slot after slot)."""
+    view, blob = slots.view, slots.blob
+    at = xy[slots.track]
+    d = np.hypot(at[:, 0] - stack.origin[view, 0], at[:, 1] - stack.origin[view, 1])
+    tan_top = np.tan(stack.top_elev_rad[blob])
+    z = slots.per_slot(stack.z_m[view] + d * tan_top)
+    var = slots.per_slot((d * stack.sigma_rad[view] * (1.0 + tan_top * tan_top)) ** 2 + stack.cross_var[view])
+    # A head cut by the picture's top gives a lower bound only: left out.
+    use = slots.used() & ~slots.per_slot(stack.top_cut[blob])
+    for c in range(slots.shape[1]):
+        k = height_var / (height_var + var[:, c])
+        height_m = np.where(use[:, c], height_m + k * (z[:, c] - height_m), height_m)
+        height_var = np.where(use[:, c], height_var * (1.0 - k), height_var)
+    return height_m, height_var
