@@ -1,8 +1,8 @@
 """Sensor node: one process per camera, from frames to published blob features.
 
-Pure stages (no zenoh), one module each: :mod:`~sensor_node.unwarp` (annular ->
-panorama), :mod:`~sensor_node.background` (subtraction, frame differencing,
-abnormal change, update outside objects), :mod:`~sensor_node.blobs`,
+Pure stages (no zenoh), one module or package each: :mod:`~sensor_node.unwarp` (annular ->
+panorama), :mod:`~sensor_node.background` (the model: subtraction, frame differencing,
+abnormal change, update outside objects; shadows, still regions, ghosts), :mod:`~sensor_node.blobs`,
 :mod:`~sensor_node.head`, :mod:`~sensor_node.features` (I, theta, w, h),
 :mod:`~sensor_node.tracks2d`, :mod:`~sensor_node.sightings` (Eq. 3) and
 :mod:`~sensor_node.detections` (MOT files -> Features), composed by

@@ -236,7 +236,7 @@ class PipelineSettings(ConfigStruct, frozen=True):
     a noisy or compressed camera needs no retuning. Higher: fewer false pixels, faint people break up."""
     shadows: bool = True
     """Changed pixels that are the background dimmed or brightened with its hue kept (cast shadows,
-    highlights) are not objects (:mod:`sensor_node.shadows`). Off: grey levels only."""
+    highlights) are not objects (:mod:`sensor_node.background.shadows`). Off: grey levels only."""
     diff_threshold: Annotated[int, msgspec.Meta(ge=1, le=255)] = 22
     """Grey-level frame-to-frame difference that counts as motion (frame differencing)."""
     learning_rate: Frac = 0.05

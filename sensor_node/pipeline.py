@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from common.errors import SourceError
 from common.schema import DetectorState, Features
-from sensor_node.background import BackgroundModel, Motion, MotionState
+from sensor_node.background.model import BackgroundModel, Motion, MotionState
 from sensor_node.blobs import find_blobs
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import ImageGeometry, PanoramicGeometry, PinholeGeometry, annotate, to_wire
@@ -73,7 +73,7 @@ class FrameResult:
 def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None = None) -> tuple[Mask, Mask]:
     """The changed pixels that may be objects, and the same before the vote.
 
-    Shadows and highlights are removed (:mod:`sensor_node.shadows`), then a 3 x 3 majority vote, so
+    Shadows and highlights are removed (:mod:`sensor_node.background.shadows`), then a 3 x 3 majority vote, so
     isolated pixels (compression noise, a frame-difference trail, the edge of something swinging) neither
     chain blobs together nor stretch their boxes, and one-pixel holes close. The vote also erases what is
     thin or sparse in a person (a neck, the outline of a shirt of the wall's grey): grouping joins the

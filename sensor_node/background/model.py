@@ -22,7 +22,7 @@ integrates four parts, all here:
   object regions* (the caller passes the mask of accepted objects), so people
   who pause are not absorbed while the slow light drift is followed; ghosts
   (someone who was in the model and left) are absorbed by the still-region
-  stage (:mod:`sensor_node.still`).
+  stage (:mod:`sensor_node.background.still`).
 
 The model starts from the per-pixel median of ``warmup_frames`` frames taken
 every ``warmup_stride`` frames, so people walking through the first second do not leave ghosts.
@@ -42,9 +42,9 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.background.shadows import local_spread, shadow_mask
+from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
-from sensor_node.shadows import local_spread, shadow_mask
-from sensor_node.still import StillRegions
 
 __all__ = ["BackgroundModel", "Motion", "MotionState"]
 
@@ -121,12 +121,12 @@ class BackgroundModel:
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
         self._colour_now: Mask | None = None
         self._bg_spread: npt.NDArray[np.float32] | None = None
-        """The colour background's local texture (:func:`sensor_node.shadows.local_spread`), computed when the
-        shadow test first needs it after the colour background changed."""
+        """The colour background's local texture (:func:`sensor_node.background.shadows.local_spread`),
+        computed when the shadow test first needs it after the colour background changed."""
         self.noise_sigma = 0.0
         """The image's own noise: robust sigma of |frame - background| over the background (grey levels)."""
         self.still = StillRegions(settings)
-        """Changed-but-still regions: ghosts absorbed, people who pause kept (:mod:`sensor_node.still`)."""
+        """Changed-but-still regions: ghosts absorbed, people who pause kept (:mod:`sensor_node.background.still`)."""
         self._last_fg: Mask | None = None
         """Objects of the last normal frame: kept out of the light-change estimate."""
         self._frames = 0
@@ -212,7 +212,7 @@ class BackgroundModel:
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
-        :func:`sensor_node.shadows.shadow_mask`.
+        :func:`sensor_node.background.shadows.shadow_mask`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return None

@@ -1,6 +1,6 @@
 """Stage 2b: still regions of the background model -- ghosts absorbed, people who pause kept.
 
-Used by :class:`sensor_node.background.BackgroundModel` on every normal frame. A
+Used by :class:`sensor_node.background.model.BackgroundModel` on every normal frame. A
 *ghost* -- something that was in the background and left (a person who stood
 still while the model learnt) -- changes pixels like a person does but never
 moves. :class:`StillRegions` counts, per pixel, the frames it has been
@@ -14,14 +14,14 @@ post where someone stood) passes that test too and must not stay for ever; a
 still region that neither test recognises (on a textured floor) becomes
 background after ``still_absorb_frames``, so no ghost stays.
 
-The surface beside a region is a second test (:func:`~sensor_node.ghosts.surround_deviation`):
+The surface beside a region is a second test (:func:`~sensor_node.background.ghosts.surround_deviation`):
 a region changed ever since the model was young (*born*) is a start-up hole unless the frame,
-not the model, clearly departs from the surface beside it (:func:`~sensor_node.ghosts.start_up_hole`),
+not the model, clearly departs from the surface beside it (:func:`~sensor_node.background.ghosts.start_up_hole`),
 absorbed at its first test whatever its outline says (a plain shirt before a textured wall; a
 grey shirt held where the frame shows a bright ceiling corner); an outline "ghost" whose frame
 is no closer to its surroundings than the model is, is not absorbed. What an absorption
 overwrote (outside start-up holes) is kept a while and put back where the frame shows it again
-(:class:`~sensor_node.ghosts.UnderGhosts`).
+(:class:`~sensor_node.background.ghosts.UnderGhosts`).
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from sensor_node.background.ghosts import UnderGhosts, start_up_hole, surround_deviation
 from sensor_node.components import components
 from sensor_node.config import PipelineSettings
-from sensor_node.ghosts import UnderGhosts, start_up_hole, surround_deviation
 
 __all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
 

@@ -1,6 +1,6 @@
 """Ghost tests of the background model: the surface beside a still region, and undoing a wrong absorption.
 
-Used by :mod:`sensor_node.background` (stage 2). A *ghost* is a changed region
+Used by :mod:`sensor_node.background.model` (stage 2). A *ghost* is a changed region
 where something that was in the background left (a person who stood still
 while the model was learnt). The helpers:
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sensor_node.ghosts import RESTORE_FRAMES, UnderGhosts
+from sensor_node.background.ghosts import RESTORE_FRAMES, UnderGhosts
 from tests.unit.sensor_node.sn_synth import H, W
 
 

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from sensor_node.background import BackgroundModel
+from sensor_node.background.model import BackgroundModel
 from sensor_node.config import PipelineSettings
 from tests.unit.sensor_node.sn_synth import H, W, backdrop, draw_person, grey, noisy
 
