@@ -302,7 +302,7 @@ class PipelineSettings(ConfigStruct, frozen=True):
     track_split_hits: Annotated[int, msgspec.Meta(ge=0)] = 5
     """A blob that holds the predicted head columns of two or more 2D tracks, each seen standing alone in
     at least this many frames, is cut between them, at a shallow valley or where the far head comes out
-    from behind the near one (:mod:`sensor_node.groups`): people in a tight group stay apart when they
+    from behind the near one (:mod:`sensor_node.segmentation.groups`): people in a tight group stay apart when they
     were apart a moment ago. 0: off. Lower: groups part sooner, an arm split off for a few frames may
     keep cutting its own body; higher: the opposite."""
     head_edges: bool = True

@@ -28,8 +28,8 @@ import numpy.typing as npt
 
 from common.cameras import CylindricalCamera, PinholeCamera
 from common.schema import Blob
-from sensor_node.blobs import RawBlob, roi
 from sensor_node.head import DiffRows, extract_head
+from sensor_node.segmentation.blobs import RawBlob, roi
 from sensor_node.unwarp import PanoFrame
 
 __all__ = [
@@ -182,7 +182,7 @@ def annotate(
     """Turn a validated blob into its annotation (I, theta, w, h, bottom, box).
 
     Args:
-        raw: the blob (box and pixel mask) from :func:`sensor_node.blobs.find_blobs`.
+        raw: the blob (box and pixel mask) from :func:`sensor_node.segmentation.blobs.find_blobs`.
         frame: the frame the blob was found in (None: no image, no histogram).
         geometry: pixel -> angle mapping of that image.
         head_ratio: head box height:width (paper 3:2).

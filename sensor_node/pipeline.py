@@ -25,12 +25,12 @@ import numpy.typing as npt
 from common.errors import SourceError
 from common.schema import DetectorState, Features
 from sensor_node.background.model import BackgroundModel, Motion, MotionState
-from sensor_node.blobs import find_blobs
 from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.features import ImageGeometry, PanoramicGeometry, PinholeGeometry, annotate, to_wire
-from sensor_node.groups import split_by_tracks
+from sensor_node.segmentation.blobs import find_blobs
+from sensor_node.segmentation.groups import split_by_tracks
+from sensor_node.segmentation.head_splits import split_at_heads
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
-from sensor_node.split import split_at_heads
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import PanoFrame, Unwarper
 
@@ -77,7 +77,7 @@ def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None
     isolated pixels (compression noise, a frame-difference trail, the edge of something swinging) neither
     chain blobs together nor stretch their boxes, and one-pixel holes close. The vote also erases what is
     thin or sparse in a person (a neck, the outline of a shirt of the wall's grey): grouping joins the
-    parts above one another through the mask before it (:func:`sensor_node.blobs.find_blobs`).
+    parts above one another through the mask before it (:func:`sensor_node.segmentation.blobs.find_blobs`).
     """
     fg = motion.fg
     shade = background.shadows(fg, floor)

@@ -39,8 +39,8 @@ from common.cameras import CylindricalCamera
 from common.errors import GeometryError
 from common.geometry import baseline_exact, sighting_bearing
 from common.schema import Sighting
-from sensor_node.blobs import roi
 from sensor_node.config import BodySpec, PipelineSettings
+from sensor_node.segmentation.blobs import roi
 from sensor_node.unwarp import PanoFrame
 
 __all__ = ["BandFinder", "BodySighting", "is_body_blob"]

@@ -10,8 +10,8 @@ import pytest
 from common.cameras import PtzCamera, design_pal
 from common.codec import decode, encode
 from common.schema import Blob
-from sensor_node.blobs import RawBlob
 from sensor_node.features import PanoramicGeometry, PinholeGeometry, annotate, colour_histogram, to_wire
+from sensor_node.segmentation.blobs import RawBlob
 from sensor_node.unwarp import PanoFrame
 from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 

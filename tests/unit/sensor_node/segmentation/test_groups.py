@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensor_node.blobs import RawBlob, find_blobs
 from sensor_node.config import PipelineSettings
 from sensor_node.features import PanoramicGeometry, annotate
-from sensor_node.groups import split_by_tracks
 from sensor_node.pipeline import ImagePipeline
-from sensor_node.split import split_at_heads
+from sensor_node.segmentation.blobs import RawBlob, find_blobs
+from sensor_node.segmentation.groups import split_by_tracks
+from sensor_node.segmentation.head_splits import split_at_heads
 from tests.unit.sensor_node.sn_synth import (
     WHITE,
     ColumnGeometry,

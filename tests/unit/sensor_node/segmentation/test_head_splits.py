@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensor_node.blobs import find_blobs
 from sensor_node.config import PipelineSettings
 from sensor_node.features import annotate
-from sensor_node.split import split_at_heads, top_profile
+from sensor_node.segmentation.blobs import find_blobs
+from sensor_node.segmentation.head_splits import split_at_heads, top_profile
 from tests.unit.sensor_node.sn_synth import WHITE, ColumnGeometry, H, W, draw_person, mask_of
 
 

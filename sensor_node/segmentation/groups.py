@@ -3,7 +3,7 @@
 People who walk in a tight group keep merging into one blob: one head stands
 a little in front of the other, the far head is a step on the slope of the
 near one's top profile, and no valley between the heads is deep enough for
-:func:`sensor_node.split.split_at_heads`. But a moment earlier they were
+:func:`sensor_node.segmentation.head_splits.split_at_heads`. But a moment earlier they were
 apart, and each had its own 2D track (:mod:`sensor_node.tracks2d`). When the
 predicted head columns of two or more confirmed tracks fall inside one blob,
 the blob is cut between each pair of neighbouring predictions:
@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.blobs import RawBlob
 from sensor_node.config import PipelineSettings
-from sensor_node.split import blob_part, has_head, ok_part, top_profile
+from sensor_node.segmentation.blobs import RawBlob
+from sensor_node.segmentation.head_splits import blob_part, has_head, ok_part, top_profile
 
 __all__ = ["split_by_tracks"]
 
@@ -224,7 +224,7 @@ def split_by_tracks(
     """The blob cut between the predicted head columns of the tracks inside it (``[blob]`` if none).
 
     Args:
-        blob: a blob (after :func:`sensor_node.split.split_at_heads`).
+        blob: a blob (after :func:`sensor_node.segmentation.head_splits.split_at_heads`).
         predicted_u: predicted head columns of the confirmed 2D tracks (image columns).
         moving: (H, W) frame-difference mask (for the parts' motion fractions).
         settings: the blob checks.

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensor_node.blobs import find_blobs, roi
 from sensor_node.config import PipelineSettings
+from sensor_node.segmentation.blobs import find_blobs, roi
 
 H, W = 162, 1080
 

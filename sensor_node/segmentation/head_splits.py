@@ -30,8 +30,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
 
-from sensor_node.blobs import RawBlob, roi
 from sensor_node.config import PipelineSettings
+from sensor_node.segmentation.blobs import RawBlob, roi
 
 __all__ = ["blob_part", "has_head", "ok_part", "split_at_heads", "top_profile"]
 
