@@ -1,10 +1,13 @@
 """The image pipeline of one camera: frame in, Features out (pure: no zenoh, no clock).
 
-Panoramic cameras: annular frame -> unwarp -> grey -> background model ->
-blobs -> split at head valleys -> split between the 2D tracks' predicted heads -> (robot bodies
-removed) -> head + annotation -> 2D tracks -> Features,
-with the sightings of other robots (Eq. 3) every ``sighting_every`` frames.
-Perspective (PTZ) cameras skip the unwarp and the sightings and report world
+Panoramic cameras, in the order :meth:`ImagePipeline.process` runs them: annular frame -> unwarp
+(grey panorama, reduced colour) -> background model (changed pixels) -> shadows and highlights
+removed, majority vote -> segmentation: blobs -> split at head valleys -> split between the 2D
+tracks' predicted heads -> (robot bodies removed) -> head + annotation -> 2D tracks -> Features,
+then the background update outside this frame's objects; with the sightings of other robots
+(Eq. 3) every ``sighting_every`` frames. Two results feed later frames: the 2D tracks' predicted
+heads drive the next frame's group splits, and each frame's objects keep the background update off
+the people. Perspective (PTZ) cameras skip the unwarp and the sightings and report world
 azimuths; the background model restarts whenever the head moves.
 
 Performance: the background model works on one grey channel at panorama
@@ -26,8 +29,15 @@ from common.errors import SourceError
 from common.schema import DetectorState, Features
 from sensor_node.background.model import BackgroundModel, Motion, MotionState
 from sensor_node.config import BodySpec, PipelineSettings
-from sensor_node.features import ImageGeometry, PanoramicGeometry, PinholeGeometry, annotate, to_wire
-from sensor_node.segmentation.blobs import find_blobs
+from sensor_node.features import (
+    BlobFeature,
+    ImageGeometry,
+    PanoramicGeometry,
+    PinholeGeometry,
+    annotate,
+    to_wire,
+)
+from sensor_node.segmentation.blobs import RawBlob, find_blobs
 from sensor_node.segmentation.groups import split_by_tracks
 from sensor_node.segmentation.head_splits import split_at_heads
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
@@ -98,6 +108,74 @@ def below_horizon(geometry: ImageGeometry, width: int, height: int, scale: int) 
     return np.where(below, 255, 0).astype(np.uint8)
 
 
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """One object of a frame, as segmentation left it."""
+
+    blob: RawBlob
+    cut: bool
+    """Cut from a group by the 2D tracks' predicted heads (its track does not count it a solo hit)."""
+
+
+def segment(
+    fg: Mask,
+    links: Mask,
+    moving: Mask,
+    settings: PipelineSettings,
+    *,
+    wrap: bool,
+    predicted_heads: list[float],
+) -> list[Segment]:
+    """The objects of one frame: the changed pixels grouped into blobs, each split at its head valleys
+    (:mod:`sensor_node.segmentation.head_splits`) and between the ``predicted_heads`` of the 2D tracks
+    inside it (:mod:`sensor_node.segmentation.groups`); a part is kept if enough of its box changed.
+
+    Args:
+        fg: the objects' pixels (:func:`objects_mask`).
+        links: the changed pixels before the vote, which join a person's parts above one another.
+        moving: the frame-difference mask (the parts' motion fractions).
+        settings: the blob checks and split knobs.
+        wrap: columns wrap around (a panorama).
+        predicted_heads: image columns where the 2D tracks expect a head in this frame (from the
+            frames before).
+    """
+    width = fg.shape[1]
+    out = []
+    for blob in find_blobs(fg, moving, settings, wrap=wrap, check_frac=False, links=links):
+        for head_part in split_at_heads(blob, moving, settings, width):
+            parts = split_by_tracks(head_part, predicted_heads, moving, settings, width)
+            out += [Segment(part, len(parts) > 1) for part in parts if part.changed_frac >= settings.min_changed_frac]
+    return out
+
+
+def people_of(
+    objects: list[Segment],
+    frame: PanoFrame,
+    geometry: ImageGeometry,
+    settings: PipelineSettings,
+    *,
+    sightings: list[BodySighting],
+    background: Mask | None,
+) -> tuple[list[BlobFeature], list[bool], int]:
+    """The objects that are people, annotated (head, bearing, width, colour), with whether each was cut
+    from a group, and how many objects were the bodies of robots in ``sightings`` (not people).
+
+    ``background``: the background model's image, for sub-pixel head edges (None: from the mask alone).
+    """
+    width = frame.grey.shape[1]
+    people: list[BlobFeature] = []
+    cut: list[bool] = []
+    n_body = 0
+    for obj in objects:
+        raw = obj.blob
+        if sightings and is_body_blob(raw.u0, raw.w, width, sightings, v0=raw.v0):
+            n_body += 1
+            continue
+        people.append(annotate(raw, frame, geometry, settings.head_ratio, settings.hist_bins, background=background))
+        cut.append(obj.cut)
+    return people, cut, n_body
+
+
 class ImagePipeline:
     """All stages for one camera.
 
@@ -159,64 +237,37 @@ class ImagePipeline:
         self.geometry = geometry
 
     def process(self, frame: Image, stamp_ns: int, frame_index: int) -> FrameResult:
-        """Run every stage on one frame and build its Features (``processing_ms`` left 0)."""
+        """Run every stage on one frame and build its Features (``processing_ms`` left 0).
+
+        The stages in their order; what feeds later frames is passed by name: the 2D tracks'
+        ``predicted_heads`` (from the frames before) to segmentation, this frame's ``objects`` to the
+        background update.
+        """
         s = self.settings
-        if self.unwarper is None and isinstance(self.geometry, PinholeGeometry):
-            cam = self.geometry.camera
-            h, w = frame.shape[:2]
-            if (w, h) != (cam.width_px, cam.height_px):
-                raise SourceError(
-                    f"frame is {w}x{h} px but the camera calibration is for {cam.width_px}x{cam.height_px} "
-                    "(calibration image_size)"
-                )
+        self._check_size(frame)
         pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
-        grey = pf.grey
-        motion = self.background.apply(grey, stamp_ns, pf.small if s.shadows else None)
-        width = grey.shape[1]
-        fg, before_vote = (
+        motion = self.background.apply(pf.grey, stamp_ns, pf.small if s.shadows else None)
+        fg, links = (
             objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else (motion.fg, motion.fg)
         )
-        if self.bands is not None and self._frames % s.sighting_every == 0:
-            self._last_sightings = self.bands.find(pf)
-        self._frames += 1
-        sightings = self._last_sightings
-        raws_found = (
-            find_blobs(fg, motion.moving, s, wrap=self.geometry.wraps, check_frac=False, links=before_vote)
+        sightings = self._sightings(pf)
+        tracker = self._tracks(pf.grey.shape[1])
+        predicted_heads = self._split_heads(tracker)
+        objects = (
+            segment(fg, links, motion.moving, s, wrap=self.geometry.wraps, predicted_heads=predicted_heads)
             if motion.reportable
             else []
         )
-        if self._tracker is None:
-            self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
-        predicted = (
-            [u for u, _ in self._tracker.predicted(s.track_split_hits, TRACK_SPLIT_MISSED)]
-            if s.track_split_hits > 0
-            else []
+        people, cut, n_body = people_of(
+            objects,
+            pf,
+            self.geometry,
+            s,
+            sightings=sightings,
+            background=self.background.background if s.head_edges else None,
         )
-        raws, was_cut = [], []
-        for raw in raws_found:
-            for head_part in split_at_heads(raw, motion.moving, s, width):
-                split = split_by_tracks(head_part, predicted, motion.moving, s, width)
-                for part in split:
-                    if part.changed_frac >= s.min_changed_frac:
-                        raws.append(part)
-                        was_cut.append(len(split) > 1)
-        people = []
-        cut: list[bool] = []
-        n_body = 0
-        bg = self.background.background if s.head_edges else None
-        for raw, raw_cut in zip(raws, was_cut, strict=True):
-            if sightings and is_body_blob(raw.u0, raw.w, width, sightings, v0=raw.v0):
-                n_body += 1
-                continue
-            people.append(annotate(raw, pf, self.geometry, s.head_ratio, s.hist_bins, background=bg))
-            cut.append(raw_cut)
-        ids = self._tracker.update(
-            [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people], cut
-        )
-        if motion.state == "ok":
-            # Not on a light jump's frame: its objects are unknown (nothing was detected), and blending
-            # it in would paint the people standing there into the background.
-            self.background.update(grey, motion.fg, [(r.u0, r.v0, r.w, r.h) for r in raws])
+        ids = tracker.update(self._head_points(people, pf.grey.shape[1]), cut)
+        self._learn_background(pf.grey, motion, objects=objects)
         features = Features(
             sensor_id=self.sensor_id,
             seq=self.seq,
@@ -228,3 +279,46 @@ class ImagePipeline:
         )
         self.seq += 1
         return FrameResult(features, motion.state, n_body, pf)
+
+    def _check_size(self, frame: Image) -> None:
+        """A perspective camera's frames must be the size its calibration is for."""
+        if self.unwarper is None and isinstance(self.geometry, PinholeGeometry):
+            cam = self.geometry.camera
+            h, w = frame.shape[:2]
+            if (w, h) != (cam.width_px, cam.height_px):
+                raise SourceError(
+                    f"frame is {w}x{h} px but the camera calibration is for {cam.width_px}x{cam.height_px} "
+                    "(calibration image_size)"
+                )
+
+    def _sightings(self, pf: PanoFrame) -> list[BodySighting]:
+        """The other robots' bodies: looked for every ``sighting_every`` frames, the last ones in between."""
+        if self.bands is not None and self._frames % self.settings.sighting_every == 0:
+            self._last_sightings = self.bands.find(pf)
+        self._frames += 1
+        return self._last_sightings
+
+    def _tracks(self, width: int) -> Tracker2D:
+        """The 2D tracks (started on the first frame after a reset)."""
+        s = self.settings
+        if self._tracker is None:
+            self._tracker = Tracker2D(s.track_gate_px, s.track_max_missed, float(width) if self.geometry.wraps else 0.0)
+        return self._tracker
+
+    def _split_heads(self, tracker: Tracker2D) -> list[float]:
+        """The head columns the 2D tracks predict for this frame, of the tracks trusted to split a group."""
+        s = self.settings
+        if s.track_split_hits <= 0:
+            return []
+        return [u for u, _ in tracker.predicted(s.track_split_hits, TRACK_SPLIT_MISSED)]
+
+    def _head_points(self, people: list[BlobFeature], width: int) -> list[tuple[float, float]]:
+        """The people's head positions in the image (columns wrapped on a panorama), for the 2D tracks."""
+        return [(f.head_u_px % width if self.geometry.wraps else f.head_u_px, f.head_v_px) for f in people]
+
+    def _learn_background(self, grey: Mask, motion: Motion, *, objects: list[Segment]) -> None:
+        """The background update, outside this frame's changed pixels and ``objects``."""
+        if motion.state == "ok":
+            # Not on a light jump's frame: its objects are unknown (nothing was detected), and blending
+            # it in would paint the people standing there into the background.
+            self.background.update(grey, motion.fg, [(o.blob.u0, o.blob.v0, o.blob.w, o.blob.h) for o in objects])
