@@ -48,9 +48,7 @@ NO_DIRECT_TEST = {
     "resource_manager/stereo/match_tables.py",
     "resource_manager/track/births.py",
     "resource_manager/track/fuse.py",
-    "resource_manager/track/model.py",
     "resource_manager/track/stack.py",
-    "resource_manager/views/blobs.py",
     "resource_manager/views/settling.py",
     "resource_manager/wiring.py",
     "sim/people.py",
@@ -63,12 +61,8 @@ NO_DIRECT_TEST = {
     "sim/source.py",
     "sim/walkers.py",
     "user_agent/config.py",
-    "user_agent/groundtruth.py",
-    "user_agent/messages.py",
     "user_agent/plot.py",
-    "user_agent/record.py",
     "user_agent/replay.py",
-    "user_agent/report.py",
 }
 
 
