@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo, Sighting
+from resource_manager.stereo.match import ViewBlobs
 
 TWO_PI = 2 * math.pi
 
@@ -243,3 +244,28 @@ class RandomWalk:
             else:
                 out.append(Person(legs[-1][4], legs[-1][5], self.heights[k]))  # type: ignore[misc]
         return out
+
+
+def view(
+    sid: str, origin: tuple[float, float], targets: list[tuple[float, float, float, int]], z: float = 1.1
+) -> ViewBlobs:
+    """Blobs seen from ``origin`` of targets (x, y, height, colour index), exact."""
+    o = np.array(origin, dtype=np.float64)
+    b, w, top, hist = [], [], [], []
+    for x, y, h, k in targets:
+        d = math.hypot(x - o[0], y - o[1])
+        b.append(math.atan2(y - o[1], x - o[0]))
+        w.append(2 * math.atan(0.45 / (2 * d)))
+        top.append(math.atan2(h - z, d))
+        hist.append(colour_hist(k))
+    return ViewBlobs(
+        sensor_id=sid,
+        origin_xy=o,
+        z_m=z,
+        sigma_rad=math.radians(0.2),
+        bearing_rad=np.array(b),
+        width_rad=np.array(w),
+        top_elev_rad=np.array(top),
+        hist=np.array(hist) if hist else None,
+        local_id=np.arange(len(targets)),
+    )

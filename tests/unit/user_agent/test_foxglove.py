@@ -4,8 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+from msgspec.structs import replace as msgspec_replace
+
 from common.schema import PanoramicModel, Pose, SensorInfo, Track, TrackSet
 from tests.support import decode_protobuf
+from tests.unit.user_agent.recorded_run import EPOCH, sensor_info
 from user_agent.foxglove import WORLD_FRAME, cameras_scene, frame_transform, tracks_scene, truth_scene
 
 STAMP = 1_700_000_000_123_456_789
@@ -56,3 +59,21 @@ def test_truth_scene_has_one_grey_figure_per_person() -> None:
     assert [e.id for e in scene.entities] == ["truth/1", "truth/2"]
     assert all(e.cylinders[0].color.a < 1.0 for e in scene.entities)
     assert scene.entities[0].lifetime.nanos == 200_000_000
+
+
+def test_a_pose_the_manager_lost_no_longer_places_the_camera() -> None:
+    from common.schema import ManagerStatus, PoseEstimate
+    from user_agent.foxglove import CameraPlacements
+
+    places = CameraPlacements()
+    places.update(msgspec_replace(sensor_info("robot", 0.0, 0.0), pose_source="mutual"), EPOCH)
+    est = PoseEstimate(sensor_id="robot", pose=Pose(x_m=3.0, y_m=2.0, z_m=0.0, yaw_rad=0.5), source="mutual")
+
+    def status(poses: list[PoseEstimate]) -> ManagerStatus:
+        return ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=EPOCH, tick_ms=1.0, tick_p99_ms=1.0,
+                             tick_rate_hz=10.0, poses=poses)  # fmt: skip
+
+    places.update(status([est]), EPOCH)
+    assert places.camera_xyz["robot"] == (3.0, 2.0, 1.1)
+    places.update(status([]), EPOCH)  # the manager lost it: no rays drawn from where it was
+    assert "robot" not in places.camera_xyz

@@ -1,11 +1,8 @@
-"""``panostereo import mot`` and ``evaluate-site`` (panostereo/datasets/): a dataset made in the test, and the
-shared PETS 2009 detections (passed by path, never copied)."""
+"""``panostereo import mot`` (panostereo/datasets/mot.py): a dataset made in the test, and the shared PETS 2009
+detections (passed by path, never copied)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,11 +11,9 @@ import pytest
 from common.errors import ConfigError
 from common.site import load_site
 from panostereo.datasets.mot import import_mot
-from panostereo.datasets.play import evaluate_site
 from sensor_node.config import DetectionsSource, load_node_config
 from tests.support import REPO, skip_or_fail
 from tests.unit.panostereo.mot_synth import CAMERAS, write_dataset
-from user_agent.evaluate import within_area
 from user_agent.groundtruth import read_gt_csv
 
 PETS = REPO.parent / "shared" / "datasets" / "pets2009_s2l1"
@@ -64,52 +59,6 @@ def test_import_perturbs_boxes_when_asked_and_refuses_bad_input(made: Path, tmp_
         import_mot(tmp_path / "empty", tmp_path / "out", fps=5.0)
     with pytest.raises(ConfigError, match="inside the dataset"):
         import_mot(made, made / "site", fps=5.0)
-
-
-def test_evaluate_site_is_deterministic_and_scores_from_the_first_frame(made: Path, tmp_path: Path) -> None:
-    site = import_mot(made, tmp_path / "site", fps=5.0).site
-    one, run1 = evaluate_site(site)
-    _, run2 = evaluate_site(site)
-    assert [ts.tracks for ts in run1.tracksets] == [ts.tracks for ts in run2.tracksets]  # identical tracks
-    s05, s10 = one["scores"]
-    assert s05["threshold_m"] == 0.5 and s10["threshold_m"] == 1.0
-    assert s05["frames"] == 30 and s05["objects"] == 90  # every ground-truth frame, from the first
-    assert s05["mota"] >= 0.9 and s05["idf1"] >= 0.9 and s05["id_switches"] == 0
-    assert s05["mean_error_m"] < 0.1
-    assert one["scored_area"] == "ground_truth" and len(one["scores_everywhere"]) == 2
-
-
-def test_a_false_box_in_one_camera_is_no_person(tmp_path: Path) -> None:
-    write_dataset(tmp_path / "data", clutter=True)
-    report, _ = evaluate_site(import_mot(tmp_path / "data", tmp_path / "site", fps=5.0).site)
-    s = report["scores_everywhere"][0]
-    assert s["false_positives"] <= 3 and s["mota"] >= 0.9
-
-
-def test_the_cli_prints_json_and_writes_the_tracks(made: Path, tmp_path: Path) -> None:
-    site = import_mot(made, tmp_path / "site", fps=5.0).site
-    csv = tmp_path / "tracks.csv"
-    cmd = [sys.executable, "-m", "panostereo", "evaluate-site", str(site), "--json", "--tracks-csv", str(csv)]
-    out = subprocess.run(cmd, capture_output=True, text=True, check=True, cwd=REPO)
-    report = json.loads(out.stdout)
-    assert report["scores"][0]["mota"] >= 0.9 and report["tracks_csv"]["rows"] > 60
-    rows = csv.read_text().splitlines()
-    assert rows[0] == "frame,id,x_m,y_m" and rows[1].startswith("1,")
-    bad = subprocess.run(
-        [sys.executable, "-m", "panostereo", "evaluate-site", str(tmp_path / "nope.toml")],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        check=False,
-    )
-    assert bad.returncode != 0 and "nope.toml" in bad.stderr and "Traceback" not in bad.stderr
-
-
-def test_the_scored_area_is_where_the_ground_truth_annotates(made: Path) -> None:
-    area = read_gt_csv(made / "gt.csv").area()
-    assert area is not None
-    assert within_area(area, 4.0, 5.0, 0.5)  # among the people
-    assert within_area(area, 1.0 - 0.3, 3.0, 0.5) and not within_area(area, -2.0, 3.0, 0.5)
 
 
 def test_pets_worked_example(tmp_path: Path) -> None:

@@ -8,32 +8,7 @@ import numpy as np
 import pytest
 
 from resource_manager.stereo.match import MatchParams, ViewBlobs, get_matcher, match_matrix
-from tests.unit.resource_manager.synth import colour_hist
-
-
-def view(
-    sid: str, origin: tuple[float, float], targets: list[tuple[float, float, float, int]], z: float = 1.1
-) -> ViewBlobs:
-    """Blobs seen from ``origin`` of targets (x, y, height, colour index), exact."""
-    o = np.array(origin, dtype=np.float64)
-    b, w, top, hist = [], [], [], []
-    for x, y, h, k in targets:
-        d = math.hypot(x - o[0], y - o[1])
-        b.append(math.atan2(y - o[1], x - o[0]))
-        w.append(2 * math.atan(0.45 / (2 * d)))
-        top.append(math.atan2(h - z, d))
-        hist.append(colour_hist(k))
-    return ViewBlobs(
-        sensor_id=sid,
-        origin_xy=o,
-        z_m=z,
-        sigma_rad=math.radians(0.2),
-        bearing_rad=np.array(b),
-        width_rad=np.array(w),
-        top_elev_rad=np.array(top),
-        hist=np.array(hist) if hist else None,
-        local_id=np.arange(len(targets)),
-    )
+from tests.unit.resource_manager.synth import view
 
 
 @pytest.mark.parametrize("matcher", ["greedy", "global"])

@@ -16,8 +16,8 @@ from common.site import CameraSpec, LightingSpec, SiteConfig, load_site
 from sim.render.bodies import PLATFORM_LABEL0, band_z_range, head_size
 from sim.render.cameras import PANO_MARGIN_ROWS, PanoramicRenderer, PtzRenderer, light_gain
 from sim.world import PersonState, World, sensor_bearing
+from tests.support import REPO
 
-REPO = Path(__file__).resolve().parents[3]
 SITES = REPO / "deploy" / "sites"
 CLEAN = LightingSpec(noise_sigma=0.0, drift_amplitude=0.0)
 

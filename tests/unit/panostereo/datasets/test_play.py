@@ -1,0 +1,47 @@
+"""Playing an imported dataset through the fusion (panostereo/datasets/play.py): deterministic, scored from the first
+frame, a one-camera false box is no person, the scored area is where the ground truth annotates."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from panostereo.datasets.mot import import_mot
+from panostereo.datasets.play import evaluate_site
+from tests.unit.panostereo.mot_synth import write_dataset
+from user_agent.evaluate import within_area
+from user_agent.groundtruth import read_gt_csv
+
+
+@pytest.fixture
+def made(tmp_path: Path) -> Path:
+    write_dataset(tmp_path / "data")
+    return tmp_path / "data"
+
+
+def test_evaluate_site_is_deterministic_and_scores_from_the_first_frame(made: Path, tmp_path: Path) -> None:
+    site = import_mot(made, tmp_path / "site", fps=5.0).site
+    one, run1 = evaluate_site(site)
+    _, run2 = evaluate_site(site)
+    assert [ts.tracks for ts in run1.tracksets] == [ts.tracks for ts in run2.tracksets]  # identical tracks
+    s05, s10 = one["scores"]
+    assert s05["threshold_m"] == 0.5 and s10["threshold_m"] == 1.0
+    assert s05["frames"] == 30 and s05["objects"] == 90  # every ground-truth frame, from the first
+    assert s05["mota"] >= 0.9 and s05["idf1"] >= 0.9 and s05["id_switches"] == 0
+    assert s05["mean_error_m"] < 0.1
+    assert one["scored_area"] == "ground_truth" and len(one["scores_everywhere"]) == 2
+
+
+def test_a_false_box_in_one_camera_is_no_person(tmp_path: Path) -> None:
+    write_dataset(tmp_path / "data", clutter=True)
+    report, _ = evaluate_site(import_mot(tmp_path / "data", tmp_path / "site", fps=5.0).site)
+    s = report["scores_everywhere"][0]
+    assert s["false_positives"] <= 3 and s["mota"] >= 0.9
+
+
+def test_the_scored_area_is_where_the_ground_truth_annotates(made: Path) -> None:
+    area = read_gt_csv(made / "gt.csv").area()
+    assert area is not None
+    assert within_area(area, 4.0, 5.0, 0.5)  # among the people
+    assert within_area(area, 1.0 - 0.3, 3.0, 0.5) and not within_area(area, -2.0, 3.0, 0.5)

@@ -1,0 +1,50 @@
+"""PTZ allocation: priority, preemption, release, aiming and the end of a track."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from common.schema import PinholeModel, Pose, SensorInfo
+from resource_manager.serve.ptz import PtzAllocator, PtzTarget
+
+
+def _ptz(sid: str, x: float, y: float) -> SensorInfo:
+    return SensorInfo(
+        sensor_id=sid,
+        seq=0,
+        stamp_ns=1,
+        kind="ptz",
+        model=PinholeModel(width_px=640, height_px=480, k=[500.0, 0, 320, 0, 500, 240, 0, 0, 1]),
+        pose=Pose(x_m=x, y_m=y, z_m=2.5, yaw_rad=0.0),
+        pose_source="surveyed",
+    )
+
+
+def test_ptz_priority_preemption_release_and_track_end() -> None:
+    alloc = PtzAllocator()
+    alloc.update_info(_ptz("z1", 0.0, 0.0))
+    alloc.update_info(_ptz("z2", 50.0, 0.0))  # too far from the person
+    person = PtzTarget("m-1", 3.0, 4.0, 1.8)
+    assert alloc.acquire("a1", person, "m-1", 1, 10) == ("z1", "")
+    sid, why = alloc.acquire("a2", person, "m-1", 1, 11)
+    assert sid == "" and "priority" in why  # equal priority does not preempt
+    assert alloc.acquire("a3", person, "m-1", 5, 12) == ("z1", "")  # higher priority preempts
+    assert alloc.ended[-1][0].agent_id == "a1" and "preempted" in alloc.ended[-1][1]
+    (aim,) = alloc.tick({"m-1": person})
+    assert aim.pan_rad == pytest.approx(math.atan2(4.0, 3.0))
+    assert aim.tilt_rad == pytest.approx(math.atan2(1.8 * 0.85 - 2.5, 5.0))
+    assert 1.0 <= aim.zoom <= 10.0
+    assert alloc.release("a3", "m-1") == ("z1", "")
+    assert alloc.release("a3", "m-1")[0] == ""
+    assert alloc.acquire("a1", person, "m-1", 0, 13) == ("z1", "")
+    assert alloc.tick({}) == [] and not alloc.assignments  # the track ended
+    assert alloc.acquire("a1", None, "m-9", 0, 14)[1].startswith("no current track")
+
+
+def test_ptz_none_can_see() -> None:
+    alloc = PtzAllocator()
+    alloc.update_info(_ptz("z2", 50.0, 0.0))
+    sid, why = alloc.acquire("a1", PtzTarget("m-1", 3.0, 4.0, 1.8), "m-1", 0, 1)
+    assert sid == "" and "can see" in why

@@ -1,0 +1,54 @@
+"""The motion model and the robust update: prediction, and bearings pulling a prior onto a person."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from resource_manager.track.motion import MotionModel, Observation, predict, update
+
+
+def test_an_unseen_walker_is_predicted_to_stop_and_spread_like_a_random_walk() -> None:
+    """The velocity decays over ``turn_time_s``: a walker unseen for long ends near where they were heading
+    (τ·v further), and the position variance then grows about linearly in time, not with t³."""
+    m = MotionModel(speed_sigma_mps=0.8, turn_time_s=2.0)
+    x0, p0 = np.array([0.0, 0.0, 1.0, 0.0]), np.diag([0.01, 0.01, 0.01, 0.01])
+    far, pf = predict(x0, p0, 30.0, m)
+    assert far[0] == pytest.approx(2.0, abs=1e-6) and abs(far[2]) < 1e-6  # stopped τ·v = 2 m on
+    _, p10 = predict(x0, p0, 10.0, m)
+    _, p20 = predict(x0, p0, 20.0, m)
+    growth = (pf[0, 0] - p20[0, 0]) / (p20[0, 0] - p10[0, 0])
+    assert growth == pytest.approx(1.0, abs=0.1)  # 10 s more adds as much as the 10 s before: diffusion
+    near, _ = predict(x0, p0, 0.1, m)
+    assert near[0] == pytest.approx(0.1, abs=0.005)  # a frame later: still walking at 1 m/s
+    same, same_p = predict(x0, p0, 0.0, m)
+    assert same is x0 and same_p is p0
+
+
+def _bearing(origin: tuple[float, float], xy: tuple[float, float], var: float = 1e-5) -> Observation:
+    return Observation(origin, math.atan2(xy[1] - origin[1], xy[0] - origin[0]), var)
+
+
+def test_bearings_from_three_cameras_pull_a_wide_prior_onto_the_person() -> None:
+    person = (3.0, 4.0)
+    x, p = np.array([4.5, 2.5, 0.0, 0.0]), np.diag([1.0, 1.0, 0.5, 0.5])
+    obs = [_bearing(o, person) for o in ((0.0, 0.0), (8.0, 0.0), (0.0, 8.0))]
+    xn, pn, w = update(x, p, obs)
+    assert float(np.hypot(xn[0] - 3.0, xn[1] - 4.0)) < 0.01
+    assert pn[0, 0] < 0.001 and pn[1, 1] < 0.001 and np.all(w == 1.0)
+
+
+def test_one_wrong_view_is_down_weighted_by_the_others() -> None:
+    """Three views agree on the person; a fourth gave another person's blob (3 m off): with the outlier
+    component the estimate stays on the person and that view's weight falls; without, it is dragged off."""
+    person = (3.0, 4.0)
+    good = [_bearing(o, person) for o in ((0.0, 0.0), (8.0, 0.0), (0.0, 8.0))]
+    wrong = _bearing((8.0, 8.0), (6.0, 4.0))
+    x, p = np.array([3.2, 3.8, 0.0, 0.0]), np.diag([0.25, 0.25, 0.5, 0.5])
+    robust, _, w = update(x, p, [*good, wrong], (0.05, 4.0))
+    plain, _, _ = update(x, p, [*good, wrong])
+    assert float(np.hypot(robust[0] - 3.0, robust[1] - 4.0)) < 0.02
+    assert float(np.hypot(plain[0] - 3.0, plain[1] - 4.0)) > 0.1
+    assert w[3] < 0.1 and np.all(w[:3] > 0.9)

@@ -1,0 +1,103 @@
+"""Tests mirror the tree (STYLE.md habit 15): ``pkg/sub/mod.py`` is tested in ``tests/unit/pkg/sub/test_mod.py``.
+
+Checked both ways for the packages in :data:`PACKAGES`: every library module has its test file, and every
+``test_*.py`` under ``tests/unit/<package>/`` names a module that exists (a test file left behind by a move or a
+rename fails here). ``sensor_node`` is not checked yet: it is being split into subpackages.
+
+``__main__.py`` files are not checked: each only calls its package's ``cli.main()``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.support import REPO
+
+PACKAGES = ("common", "resource_manager", "user_agent", "panostereo", "sim")
+UNIT = REPO / "tests" / "unit"
+
+NOT_TESTED_BY_DESIGN = {
+    # Thin entry points: argparse, config, logging, then run(); started as real processes by tests/integration.
+    "resource_manager/cli.py",
+    "user_agent/cli.py",
+    "panostereo/cli.py",
+    "panostereo/commands/demo.py",
+    "panostereo/commands/router.py",
+    "panostereo/commands/up.py",
+    # The shells that own a zenoh session (habit 2): tested on loopback by tests/integration.
+    "resource_manager/node.py",
+    "user_agent/live.py",
+    # Type aliases only (numpy array types for annotations): nothing runs, mypy checks their use.
+    "common/arrays.py",
+    # One import point re-exporting common.annular, common.cylindrical and common.pinhole (tested there).
+    "common/cameras.py",
+}
+
+NO_DIRECT_TEST = {
+    # Library modules still without a test file of their own (exercised only through other modules' tests).
+    # Each one here is a debt: write its test, then take it off this list.
+    "common/site.py",
+    "panostereo/commands/calib.py",
+    "panostereo/commands/evaluate_detections.py",
+    "panostereo/commands/import_dataset.py",
+    "panostereo/commands/render.py",
+    "resource_manager/plan/checks.py",
+    "resource_manager/plan/scene.py",
+    "resource_manager/stereo/match_tables.py",
+    "resource_manager/track/fuse.py",
+    "resource_manager/track/stack.py",
+    "resource_manager/wiring.py",
+    "sim/people.py",
+    "sim/render/bodies.py",
+    "sim/render/extras.py",
+    "sim/render/panoramic.py",
+    "sim/render/ptz.py",
+    "sim/render/room.py",
+    "sim/robots.py",
+    "sim/source.py",
+    "sim/walkers.py",
+    "user_agent/config.py",
+    "user_agent/plot.py",
+    "user_agent/replay.py",
+}
+
+
+def _modules() -> list[str]:
+    found = []
+    for pkg in PACKAGES:
+        for path in sorted((REPO / pkg).rglob("*.py")):
+            if path.name not in ("__init__.py", "__main__.py"):
+                found.append(path.relative_to(REPO).as_posix())
+    return found
+
+
+def _test_file(module: str) -> Path:
+    path = Path(module)
+    return UNIT / path.parent / f"test_{path.name}"
+
+
+def test_every_module_has_its_mirrored_test_file() -> None:
+    missing = [m for m in _modules() if m not in NOT_TESTED_BY_DESIGN | NO_DIRECT_TEST and not _test_file(m).is_file()]
+    assert missing == [], "no test file beside these modules: " + ", ".join(
+        f"{m} -> {_test_file(m).relative_to(REPO).as_posix()}" for m in missing
+    )
+
+
+def test_every_test_file_names_a_module() -> None:
+    modules = {_test_file(m) for m in _modules()}
+    orphans = [
+        t.relative_to(REPO).as_posix()
+        for pkg in PACKAGES
+        for t in sorted((UNIT / pkg).rglob("test_*.py"))
+        if t not in modules
+    ]
+    assert orphans == [], f"test files that mirror no module: {orphans}"
+
+
+@pytest.mark.parametrize("module", sorted(NOT_TESTED_BY_DESIGN | NO_DIRECT_TEST))
+def test_the_allow_lists_hold_only_untested_modules_that_exist(module: str) -> None:
+    """An entry stays only while it is needed: once its test file exists (or the module is gone) it must go."""
+    assert (REPO / module).is_file(), f"{module} is allow-listed but does not exist"
+    assert not _test_file(module).is_file(), f"{module} has its test file now: take it off the allow-list"
