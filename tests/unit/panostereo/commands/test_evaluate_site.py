@@ -7,17 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 from panostereo.datasets.mot import import_mot
 from tests.support import REPO
-from tests.unit.panostereo.mot_synth import write_dataset
-
-
-@pytest.fixture
-def made(tmp_path: Path) -> Path:
-    write_dataset(tmp_path / "data")
-    return tmp_path / "data"
 
 
 def test_the_cli_prints_json_and_writes_the_tracks(made: Path, tmp_path: Path) -> None:

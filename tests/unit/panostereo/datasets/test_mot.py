@@ -13,16 +13,10 @@ from common.site import load_site
 from panostereo.datasets.mot import import_mot
 from sensor_node.config import DetectionsSource, load_node_config
 from tests.support import REPO, skip_or_fail
-from tests.unit.panostereo.mot_synth import CAMERAS, write_dataset
+from tests.unit.panostereo.mot_synth import CAMERAS
 from user_agent.groundtruth import read_gt_csv
 
 PETS = REPO.parent / "shared" / "datasets" / "pets2009_s2l1"
-
-
-@pytest.fixture
-def made(tmp_path: Path) -> Path:
-    write_dataset(tmp_path / "data")
-    return tmp_path / "data"
 
 
 def test_import_writes_a_site_of_the_dataset_facts_only(made: Path, tmp_path: Path) -> None:

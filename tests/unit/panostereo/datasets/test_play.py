@@ -5,19 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-
 from panostereo.datasets.mot import import_mot
 from panostereo.datasets.play import evaluate_site
 from tests.unit.panostereo.mot_synth import write_dataset
 from user_agent.evaluate import within_area
 from user_agent.groundtruth import read_gt_csv
-
-
-@pytest.fixture
-def made(tmp_path: Path) -> Path:
-    write_dataset(tmp_path / "data")
-    return tmp_path / "data"
 
 
 def test_evaluate_site_is_deterministic_and_scores_from_the_first_frame(made: Path, tmp_path: Path) -> None:
