@@ -123,29 +123,35 @@ def _cut_between(top: npt.NDArray[np.int64], a: float, b: float) -> int | None:
     return c if c is not None and 0 < c < top.size else None
 
 
-def _extent(top: npt.NDArray[np.int64], p: int) -> tuple[int, int]:
+def _extent(top: list[int], p: int) -> tuple[int, int]:
     """Columns [a, b] around ``p`` whose top lies from ``top[p]`` to ``HEAD_DIP_PX`` rows below it (a
     far head's extent ends where the near person's higher profile begins)."""
-    t = int(top[p])
+    t = top[p]
     a = b = p
     while a > 0 and t <= top[a - 1] <= t + HEAD_DIP_PX:
         a -= 1
-    while b + 1 < top.size and t <= top[b + 1] <= t + HEAD_DIP_PX:
+    while b + 1 < len(top) and t <= top[b + 1] <= t + HEAD_DIP_PX:
         b += 1
     return a, b
 
 
-def _local_tops(top: npt.NDArray[np.int64], image_top: int) -> list[tuple[int, int]]:
+def _local_tops(top: list[int], image_top: int) -> list[tuple[int, int]]:
     """The runs of equal top (first and last column) that are local tops below ``image_top``: the profile
-    is lower on both sides (a step beside a near shoulder is too often that shoulder)."""
-    edges = np.flatnonzero(np.diff(top)) + 1
-    starts = np.concatenate([[0], edges])
-    ends = np.concatenate([edges - 1, [top.size - 1]])
-    level = top[starts]
-    left = np.concatenate([[True], top[starts[1:] - 1] > level[1:]])
-    right = np.concatenate([top[ends[:-1] + 1] > level[:-1], [True]])
-    keep = np.flatnonzero(left & right & (level > image_top))
-    return list(zip(starts[keep].tolist(), ends[keep].tolist(), strict=True))
+    is lower on both sides (a step beside a near shoulder is too often that shoulder).
+
+    One pass over plain ints: a blob's profile is a few dozen columns, too short for array operations
+    to pay their fixed cost.
+    """
+    out: list[tuple[int, int]] = []
+    n, c = len(top), 0
+    while c < n:
+        t, e = top[c], c
+        while e + 1 < n and top[e + 1] == t:
+            e += 1
+        if t > image_top and (c == 0 or top[c - 1] > t) and (e == n - 1 or top[e + 1] > t):
+            out.append((c, e))
+        c = e + 1
+    return out
 
 
 def _head_bumps(
@@ -164,20 +170,21 @@ def _head_bumps(
     """
     found: list[tuple[int, int, int]] = []
     vals, pl = top.tolist(), preds.tolist()
-    for c, e in _local_tops(top, image_top):
+    for c, e in _local_tops(vals, image_top):
         p, tp = (c + e) // 2, vals[c]
         near_f = min(pl, key=lambda q: abs(q - p))
         if abs(near_f - p) < MIN_SEPARATION_PX:
             continue
         near = round(near_f)
         lo = max(near - HEAD_SEARCH_PX, 0)
-        head = lo + int(np.argmin(top[lo : near + HEAD_SEARCH_PX + 1]))
-        if top[head] <= image_top:
+        search = vals[lo : near + HEAD_SEARCH_PX + 1]
+        head = lo + search.index(min(search))  # the first highest column, as argmin
+        if vals[head] <= image_top:
             continue  # the tracked person's head is above the view: their shoulders are its top
-        if tp <= int(top[head]):
+        if tp <= vals[head]:
             continue  # as high as the tracked head: not a head behind it
-        a, b = _extent(top, p)
-        ha, hb = _extent(top, head)
+        a, b = _extent(vals, p)
+        ha, hb = _extent(vals, head)
         if a - hb < SHOULDER_GAP_FRAC * (hb - ha + 1) and ha - b < SHOULDER_GAP_FRAC * (hb - ha + 1):
             continue  # on the tracked head's own slope, or where its shoulder is
         if b - a > hb - ha or b - a + 1 < e - c + 1 + ROUND_MIN_COLS:
