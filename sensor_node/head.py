@@ -59,40 +59,42 @@ def extract_head(mask: npt.NDArray[np.bool_], head_ratio: float = 1.5, diff: Dif
             to sub-pixel precision from the partly covered edge pixels (:func:`_row_edges`), not
             from the thresholded mask's whole pixels.
     """
-    rows = np.flatnonzero(mask.any(axis=1))
-    if rows.size == 0:
-        raise ValueError("extract_head needs a non-empty blob mask")
-    top = int(rows[0])
-    h = int(rows[-1]) - top + 1
+    height, width = mask.shape
+    if height and mask[0].any() and mask[-1].any():
+        top, h = 0, height  # a box trimmed to its pixels (every blob's)
+    else:
+        rows = np.flatnonzero(mask.any(axis=1))
+        if rows.size == 0:
+            raise ValueError("extract_head needs a non-empty blob mask")
+        top = int(rows[0])
+        h = int(rows[-1]) - top + 1
     # Crown rows: about the top tenth of the body, at least 2 rows; their extents give the head width.
     k = max(2, min(h, round(0.1 * h)))
     crown = mask[top : top + k]
-    width = crown.shape[1]
     first = crown.argmax(axis=1)
     last = width - 1 - crown[:, ::-1].argmax(axis=1)
-    filled = crown[np.arange(crown.shape[0]), first]
-    widths = sorted((last - first + 1)[filled].tolist())
-    head_w = max(2, int(widths[len(widths) // 2]))
+    widths = sorted((last - first + 1)[crown.any(axis=1)].tolist())
+    head_w = max(2, widths[len(widths) // 2])
     head_h = max(2, min(h, round(head_ratio * head_w)))
     region = mask[top : top + head_h]
     # Per-row pixel centroids, averaged over the rows that are head-wide (a shoulder row that
-    # slipped into the box would pull the centroid towards the body).
-    counts = region.sum(axis=1)
-    ok = (counts > 0) & (counts <= max(1.5 * head_w, 2))
-    if not ok.any():
-        ok = counts > 0
-    row_v = np.flatnonzero(ok)
+    # slipped into the box would pull the centroid towards the body). The head's few dozen rows
+    # as plain ints: cheaper than a handful of array operations on them.
+    counts: list[int] = np.count_nonzero(region, axis=1).tolist()
+    most = max(1.5 * head_w, 2)
+    row_v = [v for v, n in enumerate(counts) if 0 < n <= most] or [v for v, n in enumerate(counts) if n > 0]
     if diff is not None and HEAD_EDGE_ROWS > 0:
         # The crown half: hair all round, so the same contrast on both sides (the face, often
         # close to the wall's brightness, is lower down and on one side only).
         edge_v = row_v[: max(1, math.ceil(HEAD_EDGE_ROWS * head_h))]
-        d = diff(top + int(edge_v[0]), top + int(edge_v[-1]) + 1)
-        row_u = _row_edges(region[edge_v], d[edge_v - edge_v[0]])
+        v0 = edge_v[0]
+        d = diff(top + v0, top + edge_v[-1] + 1)
+        row_u = _row_edges(region[edge_v], d[[v - v0 for v in edge_v]])
     else:
-        row_u = (region[ok] @ np.arange(width, dtype=np.float64)) / counts[ok]
+        row_u = (region[row_v] @ np.arange(width, dtype=np.float64)) / np.asarray(counts)[row_v]
     return Head(
         u_px=float(row_u.sum()) / row_u.size,
-        v_px=float(row_v.sum()) / row_v.size + top,
+        v_px=sum(row_v) / len(row_v) + top,
         top_px=top,
         width_px=head_w,
         height_px=head_h,
@@ -128,12 +130,10 @@ def _row_edges(rows: npt.NDArray[np.bool_], diff: npt.NDArray[np.float32]) -> np
         ref_l, ref_r = row[min(first + 1, last) + 1], row[max(last - 1, first) + 1]
         left, right = first - 0.5, last + 0.5
         if abs(ref_l) >= 1.0:  # no contrast to scale by: whole pixels
-            left += 1.0 - _frac(row[first + 1] / ref_l) - _frac(row[first] / ref_l)
+            a, b = row[first + 1] / ref_l, row[first] / ref_l
+            left += 1.0 - (0.0 if a < 0.0 else min(a, 1.0)) - (0.0 if b < 0.0 else min(b, 1.0))
         if abs(ref_r) >= 1.0:
-            right -= 1.0 - _frac(row[last + 1] / ref_r) - _frac(row[last + 2] / ref_r)
+            a, b = row[last + 1] / ref_r, row[last + 2] / ref_r
+            right -= 1.0 - (0.0 if a < 0.0 else min(a, 1.0)) - (0.0 if b < 0.0 else min(b, 1.0))
         out[i] = (left + right) / 2.0
     return out
-
-
-def _frac(x: float) -> float:
-    return 0.0 if x < 0.0 else min(x, 1.0)
