@@ -525,10 +525,10 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     # The seeded labels' cells: an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
     cells = cv2.LUT(cv2.convertScaleAbs(labels), np.resize(seeded, 256)) if n <= 256 else seeded[labels]
     joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
-    near = cv2.dilate(strong, _K3)
-    beyond = cv2.subtract(joined, near)  # faint parts, not touching the contrasted ones
-    ring = cv2.bitwise_and(cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)), near)
-    return cv2.bitwise_or(cv2.bitwise_or(strong, beyond), ring)
+    beyond = cv2.subtract(joined, cv2.dilate(strong, _K3))  # faint parts, not touching the contrasted ones
+    # strong | beyond | ring, where the ring is what of ``joined`` touches both ``strong`` and ``beyond``:
+    # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so one mask does.
+    return cv2.bitwise_or(strong, cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)))
 
 
 def _threshold(diff: Mask, level: int) -> Mask:
