@@ -106,15 +106,20 @@ def shadow_mask(
         return None
     sh, sw = small.shape[:2]
     h, w = fg.shape
-    fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    if h % sh == 0 and w % sw == 0:  # what the nearest-neighbour resize picks, without its cost
+        fg_small = np.ascontiguousarray(fg[:: h // sh, :: w // sw])
+    else:
+        fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)
     if floor is not None and floor.shape == fg_small.shape:
         fg_small = cv2.bitwise_and(fg_small, floor)
     points = cv2.findNonZero(fg_small)  # a tenth of np.nonzero's time
     if points is None:
         return None
     xs, ys = points.reshape(-1, 2).T
-    frame_px = small[ys, xs].astype(np.float32)
-    bg_px = colour_bg[ys, xs]
+    # Pixels gathered by flat index along one axis (a third of the time of indexing by rows and columns).
+    at = ys * sw + xs
+    frame_px = np.take(small.reshape(-1, 3), at, axis=0).astype(np.float32)
+    bg_px = np.take(colour_bg.reshape(-1, 3), at, axis=0)
     bb = np.einsum("ij,ij->i", bg_px, bg_px)
     ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
     chroma = frame_px - ratio[:, None] * bg_px
@@ -129,10 +134,10 @@ def shadow_mask(
     # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
     # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell;
     # the frame's texture is measured around the other candidates only (the window's reach beyond them).
-    ys, xs, ratio = ys[is_shadow], xs[is_shadow], ratio[is_shadow]
+    ys, xs, at, ratio = ys[is_shadow], xs[is_shadow], at[is_shadow], ratio[is_shadow]
     if bg_spread is None:
         bg_spread = local_spread(colour_bg)
-    vb = bg_spread[ys, xs]
+    vb = np.take(bg_spread, at)
     textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
     if textured.any():
         ty, tx = ys[textured], xs[textured]
@@ -140,7 +145,7 @@ def shadow_mask(
         r0, r1 = max(int(ty.min()) - m, 0), min(int(ty.max()) + m + 1, sh)
         c0, c1 = max(int(tx.min()) - m, 0), min(int(tx.max()) + m + 1, sw)
         var_f = local_spread(np.ascontiguousarray(small[r0:r1, c0:c1]))
-        lost = var_f[ty - r0, tx - c0] < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
+        lost = np.take(var_f, (ty - r0) * (c1 - c0) + (tx - c0)) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
         keep = np.ones(ys.size, bool)
         keep[np.flatnonzero(textured)[lost]] = False
         ys, xs = ys[keep], xs[keep]
@@ -153,5 +158,6 @@ def shadow_mask(
     sy, sx = h / sh, w / sw
     fr0, fr1, fc0, fc1 = round(r0 * sy), round(r1 * sy), round(c0 * sx), round(c1 * sx)
     full = np.zeros((h, w), np.uint8)
-    full[fr0:fr1, fc0:fc1] = cv2.resize(box_small, (fc1 - fc0, fr1 - fr0), interpolation=cv2.INTER_NEAREST)
-    return cv2.bitwise_and(full, fg)
+    up = cv2.resize(box_small, (fc1 - fc0, fr1 - fr0), interpolation=cv2.INTER_NEAREST)
+    full[fr0:fr1, fc0:fc1] = cv2.bitwise_and(up, fg[fr0:fr1, fc0:fc1])
+    return full
