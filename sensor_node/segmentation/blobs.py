@@ -74,9 +74,10 @@ def roi(image: npt.NDArray[np.generic], u0: int, v0: int, w: int, h: int) -> npt
 
 
 def _groups(adj: npt.NDArray[np.bool_]) -> list[list[int]]:
-    """Connected components of a small symmetric adjacency matrix."""
+    """Connected components of a small symmetric adjacency matrix (a frame's few regions: plain lists)."""
     n = adj.shape[0]
-    seen = np.zeros(n, dtype=bool)
+    rows: list[list[bool]] = adj.tolist()
+    seen = [False] * n
     out: list[list[int]] = []
     for i in range(n):
         if seen[i]:
@@ -86,9 +87,11 @@ def _groups(adj: npt.NDArray[np.bool_]) -> list[list[int]]:
         while stack:
             j = stack.pop()
             members.append(j)
-            for k in np.flatnonzero(adj[j] & ~seen):
-                seen[k] = True
-                stack.append(int(k))
+            row = rows[j]
+            for k in range(n):
+                if row[k] and not seen[k]:
+                    seen[k] = True
+                    stack.append(k)
         out.append(members)
     return out
 
