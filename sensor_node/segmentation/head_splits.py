@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 from scipy import ndimage
@@ -157,7 +158,16 @@ def _median(values: npt.NDArray[np.intp]) -> float:
     return float(s[m]) if s.size % 2 else 0.5 * float(s[m - 1] + s[m])
 
 
-def _gaps(col_px: npt.NDArray[np.intp], gap_cols: int) -> list[int]:
+def _column_counts(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int32]:
+    """Set pixels per column of a blob mask: OpenCV's column sum over the mask's bytes (a fraction of
+    ``np.count_nonzero(mask, axis=0)``'s time on a blob's few dozen columns)."""
+    if mask.size == 0:
+        return np.zeros(mask.shape[1], np.int32)
+    counts = cv2.reduce(mask.view(np.uint8), 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+    return cast("npt.NDArray[np.int32]", counts)
+
+
+def _gaps(col_px: npt.NDArray[np.int32], gap_cols: int) -> list[int]:
     """Cut columns at the gaps of a blob's vertical projection profile.
 
     A gap is a run of at least ``gap_cols`` columns with at most ``GAP_MAX_PX`` changed pixels
@@ -170,13 +180,14 @@ def _gaps(col_px: npt.NDArray[np.intp], gap_cols: int) -> list[int]:
     if not low[1:-1].any():
         return []
     cuts: list[int] = []
-    c, w = 0, low.size
+    flags: list[bool] = low.tolist()  # plain bools: the loop reads them one by one
+    c, w = 0, len(flags)
     while c < w:
-        if not low[c]:
+        if not flags[c]:
             c += 1
             continue
         e = c
-        while e + 1 < w and low[e + 1]:
+        while e + 1 < w and flags[e + 1]:
             e += 1
         if c > 0 and e < w - 1 and e - c + 1 >= gap_cols:
             cuts.append((c + e + 1) // 2)
@@ -236,7 +247,7 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
     dip = settings.split_dip_px
     if blob.w < 2 * settings.min_blob_width_px:
         return [blob]
-    col_px = np.count_nonzero(blob.mask, axis=0)  # changed pixels per column: gaps, part widths, dips
+    col_px = _column_counts(blob.mask)  # changed pixels per column: gaps, part widths, dips
     gaps = _gaps(col_px, settings.split_gap_cols)
     top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
     head_dip = dip if dip > 0 else GAP_HEAD_DIP_PX
@@ -298,7 +309,7 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
 def blob_part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> RawBlob | None:
     """Columns [a, b) of a blob as a blob of its own, trimmed to its pixels (end columns of a speck dropped)."""
     sub = blob.mask[:, a:b]
-    counts = np.count_nonzero(sub, axis=0)
+    counts = _column_counts(sub)
     cols = np.flatnonzero(counts > GAP_MAX_PX)  # trimmed of specks left in a gap at its ends
     if cols.size == 0:
         cols = np.flatnonzero(counts)
