@@ -43,8 +43,6 @@ NO_DIRECT_TEST = {
     "panostereo/commands/calib.py",
     "panostereo/commands/evaluate_detections.py",
     "panostereo/commands/import_dataset.py",
-    "panostereo/commands/render.py",
-    "resource_manager/wiring.py",
     "sensor_node/background/shadows.py",
     "sensor_node/background/still.py",
     "sensor_node/build.py",
