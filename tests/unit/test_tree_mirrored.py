@@ -47,7 +47,6 @@ NO_DIRECT_TEST = {
     "sensor_node/background/still.py",
     "sensor_node/build.py",
     "sensor_node/ptz.py",
-    "sim/source.py",
     "user_agent/config.py",
     "user_agent/plot.py",
     "user_agent/replay.py",
