@@ -46,7 +46,6 @@ NO_DIRECT_TEST = {
     "sensor_node/background/still.py",
     "sensor_node/build.py",
     "sensor_node/ptz.py",
-    "user_agent/plot.py",
 }
 
 ACROSS_MODULES = {
