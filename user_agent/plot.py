@@ -220,6 +220,10 @@ def save_top_view(inp: PlotInput, out: str | Path, max_px: int = 900) -> Path:
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
     img = render_top_view(inp, max_px)
-    if not cv2.imwrite(str(p), img):
+    try:
+        ok = cv2.imwrite(str(p), img)
+    except cv2.error as err:  # OpenCV raises for an extension it has no writer for
+        raise ConfigError(f"{p}: cannot write image (is the extension .png?)") from err
+    if not ok:
         raise ConfigError(f"{p}: cannot write image (is the extension .png?)")
     return p

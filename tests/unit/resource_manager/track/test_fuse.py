@@ -1,0 +1,85 @@
+"""The tick's measurement update: slots gather each track's blobs, and fusing them pulls the state to the truth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from resource_manager.track.fuse import Slots, fuse, fuse_heights
+from resource_manager.track.stack import Spread, ViewStack
+from tests.unit.resource_manager.synth import view
+
+TRUE_A, TRUE_B = (3.0, 2.0, 1.75), (6.0, 4.0, 1.6)
+
+
+def _stack() -> ViewStack:
+    targets = [(*TRUE_A, 0), (*TRUE_B, 1)]
+    views = [view("p1", (0.0, 0.0), targets), view("p2", (8.0, 0.0), targets[::-1]), view("p3", (0.0, 6.0), targets)]
+    return ViewStack.of(views, [Spread(0.0, 0.0)] * 3)
+
+
+def test_slots_index_each_tracks_assigned_blobs_in_the_stack() -> None:
+    stack = _stack()
+    slots = Slots.of([[("p1", 0), ("p2", 1)], [("p3", 1)], []], stack)
+    assert slots.shape == (3, 2)
+    assert slots.track.tolist() == [0, 0, 1] and slots.slot.tolist() == [0, 1, 0]
+    assert slots.view.tolist() == [0, 1, 2]
+    assert slots.blob.tolist() == [0, 3, 5]  # p2's blob 1 is the stack's entry 2 + 1
+    assert stack.bearing_rad[slots.blob[1]] == pytest.approx(math.atan2(TRUE_A[1], TRUE_A[0] - 8.0))
+    assert slots.used().tolist() == [[True, True], [True, False], [False, False]]
+    assert slots.per_slot(np.array([1.0, 2.0, 3.0]), fill=-1.0).tolist() == [[1.0, 2.0], [3.0, -1.0], [-1.0, -1.0]]
+
+
+def _prior() -> tuple[np.ndarray, np.ndarray]:
+    xs = np.array([[3.5, 1.6, 0.0, 0.0], [5.5, 4.4, 0.0, 0.0]])
+    ps = np.stack([np.diag([0.25, 0.25, 0.5, 0.5])] * 2)
+    return xs, ps
+
+
+@pytest.mark.parametrize("line_views", [0, 4])
+def test_fusing_the_assigned_bearings_moves_each_track_to_its_person_and_shrinks_its_covariance(
+    line_views: int,
+) -> None:
+    stack = _stack()
+    slots = Slots.of([[("p1", 0), ("p2", 1), ("p3", 0)], [("p1", 1), ("p2", 0)]], stack)
+    xs, ps = _prior()
+    x, p, weight = fuse(
+        xs, ps, slots, stack, position_weight=np.ones(3), outlier=(0.05, 10.0), width_rel_sigma=0.15,
+        line_views=line_views,
+    )  # fmt: skip
+    for k, truth in enumerate((TRUE_A, TRUE_B)):
+        before = math.hypot(xs[k, 0] - truth[0], xs[k, 1] - truth[1])
+        after = math.hypot(x[k, 0] - truth[0], x[k, 1] - truth[1])
+        assert after < 0.05 < before
+        assert np.trace(p[k, :2, :2]) < 0.1 * np.trace(ps[k, :2, :2])
+        assert np.linalg.eigvalsh(p[k]).min() > 0.0  # still a covariance
+    assert weight.shape == (2, 3)
+    assert weight[0] == pytest.approx([1.0, 1.0, 1.0], abs=0.05)  # exact bearings: none an outlier
+    assert weight[1, 2] == 0.0  # the empty slot
+
+
+def test_a_wrong_blob_among_good_ones_is_weighed_down_as_an_outlier() -> None:
+    stack = _stack()
+    slots = Slots.of([[("p1", 0), ("p2", 1), ("p3", 1)]], stack)  # p3's blob 1 is the other person
+    xs, ps = _prior()
+    x, _, weight = fuse(
+        xs[:1], ps[:1], slots, stack, position_weight=np.ones(3), outlier=(0.05, 10.0), width_rel_sigma=0.15,
+        line_views=0,
+    )  # fmt: skip
+    assert weight[0, 2] < 0.1 < weight[0, 0]
+    assert math.hypot(x[0, 0] - TRUE_A[0], x[0, 1] - TRUE_A[1]) < 0.1
+
+
+def test_heights_move_to_what_the_views_imply_and_cut_heads_are_left_out() -> None:
+    stack = _stack()
+    slots = Slots.of([[("p1", 0), ("p3", 0)], [("p2", 0)]], stack)
+    xy = np.array([TRUE_A[:2], TRUE_B[:2]])
+    height, var = fuse_heights(xy, np.array([1.5, 1.9]), np.array([0.04, 0.04]), slots, stack)
+    assert height == pytest.approx([TRUE_A[2], TRUE_B[2]], abs=0.02)
+    assert (var < 0.04).all()
+    cut = ViewStack.of(stack.views, [Spread(0.0, 0.0)] * 3)
+    cut.top_cut[:] = True
+    height, var = fuse_heights(xy, np.array([1.5, 1.9]), np.array([0.04, 0.04]), slots, cut)
+    assert height.tolist() == [1.5, 1.9] and var.tolist() == [0.04, 0.04]
