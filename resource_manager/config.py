@@ -39,6 +39,7 @@ from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings
+from resource_manager.track.model import PERSON_RADIUS_M
 
 __all__ = [
     "ManagerConfig",
@@ -207,6 +208,10 @@ class TrackerSection(ConfigStruct, frozen=True):
     """A track is published once its existence probability reaches this."""
     p_delete: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.1
     """A track ends when its existence probability falls below this."""
+    publish_sigma_m: Pos = 2.0 * PERSON_RADIUS_M
+    """A confirmed track is reported only while its position is known to within this (1 sigma, its worst
+    direction): by default a person's width, beyond which it cannot say which of two people side by side it is.
+    Until its views pin it down again it is held, with its id, unreported. Raising it reports vaguer positions."""
     lost_sigma_m: Pos = 2.0
     """A track whose position is this uncertain (1 sigma) has lost its person: it ends."""
     colour_sigma: Pos = 0.15

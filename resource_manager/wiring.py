@@ -92,6 +92,7 @@ def track_model(config: ManagerConfig) -> TrackModel:
         p_birth=t.p_birth,
         p_confirm=t.p_confirm,
         p_delete=t.p_delete,
+        publish_sigma_m=t.publish_sigma_m,
         lost_sigma_m=t.lost_sigma_m,
         colour_sigma=t.colour_sigma,
         link_odds=t.link_odds,

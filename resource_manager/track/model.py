@@ -67,6 +67,10 @@ class TrackModel:
     """A track whose existence probability falls below this ends."""
     p_max: float = 0.99
     """Existence probability is held below this, so that a long-seen person who left ends in a few seconds."""
+    publish_sigma_m: float = 2.0 * PERSON_RADIUS_M
+    """A confirmed track is reported only while its position is known to within this (1 sigma, its worst
+    direction): a person's width, beyond which it cannot tell two people side by side apart (one view's bearing
+    alone, or a pair of views near colinear, leaves a position that vague along the ray)."""
     lost_sigma_m: float = 2.0
     """A track whose position is this uncertain (1 sigma, its worst direction) has lost its person: it ends."""
     colour_sigma: float = 0.15
