@@ -9,8 +9,9 @@ world drives it there. The test, and only the test, scores the manager's
 tracks against the simulator's ground truth (the world with the same goals):
 after the move, scored from the moment the robot stops, the person is placed
 (a reported track within 0.3 m) far more of the time than before it, reported
-tracks are centimetres off, and so are most right after the stop; the goal keeps the bands in view (minimum baseline) and the manager
-knows the robot's pose all along.
+tracks are centimetres off, and so are most right after the stop; the goal
+keeps the bands in view (minimum baseline) and the manager knows the robot's
+pose all along.
 """
 
 from __future__ import annotations
