@@ -299,15 +299,9 @@ class Fusion:
 
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackRecord]:
-        """The tracks a TrackSet reports: confirmed, more likely there than not, and placed to within
-        ``publish_sigma_m`` (held ones keep their ids); tentative ones too with ``publish_tentative``."""
+        """The tracks a TrackSet reports (:meth:`Tracker.reported`); tentative ones too with ``publish_tentative``."""
         show_tentative = self.config.manager.publish_tentative
-        max_sigma_m = self.tracker.model.publish_sigma_m
-        return [
-            tr
-            for tr in self.tracker.tracks
-            if (tr.published and tr.position_sigma_m <= max_sigma_m) or (show_tentative and not tr.confirmed)
-        ]
+        return [tr for tr in self.tracker.tracks if self.tracker.reported(tr) or (show_tentative and not tr.confirmed)]
 
     def track_message(self, tr: TrackRecord) -> Track:
         tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"

@@ -70,8 +70,9 @@ class TrackRecord:
 
     @property
     def published(self) -> bool:
-        """Confirmed once and, now, more likely there than not: what the manager reports (a confirmed track whose
-        person has gone unseen is kept, unpublished, until it ends, so that it keeps its id if they reappear)."""
+        """Confirmed once and, now, more likely there than not (a confirmed track whose person has gone unseen is
+        kept, unpublished, until it ends, so that it keeps its id if they reappear). The manager reports it while
+        its position is placed too (:meth:`~resource_manager.track.tracker.Tracker.reported`)."""
         return self.confirmed and self.logodds >= 0.0
 
     @property

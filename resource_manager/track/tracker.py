@@ -130,6 +130,11 @@ class Tracker:
         self._tick = 0
         self._rng = np.random.default_rng(seed)
 
+    def reported(self, tr: TrackRecord) -> bool:
+        """Whether the manager reports ``tr`` now: published (confirmed, more likely there than not) and placed to
+        within ``publish_sigma_m``; a vaguer one is held, with its id, until its views pin it down again."""
+        return tr.published and tr.position_sigma_m <= self.model.publish_sigma_m
+
     # -- the tick -------------------------------------------------------------------------------------
     def step(
         self,
