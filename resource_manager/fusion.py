@@ -271,12 +271,15 @@ class Fusion:
             max_gap_ns=max(p.max_gap_ns, int(GAP_PERIODS * period)),
         )
 
+    def known_sensors(self) -> list[str]:
+        """Every sensor heard of: by its SensorInfo, its frames, or a pose override."""
+        return sorted(set(self.ingest.buffers) | set(self.poses.infos) | set(self.poses.overrides))
+
     def _in_use(self) -> list[str]:
-        return [
-            sid
-            for sid, buf in self.ingest.buffers.items()
-            if buf.newest_stamp() is not None and self.present.get(sid, True)
-        ]
+        """The sensors the watermark waits for: present ones with frames, and declared ones whose first frame is
+        still to come."""
+        with_frames = {sid for sid, buf in self.ingest.buffers.items() if buf.newest_stamp() is not None}
+        return [sid for sid in sorted(with_frames | self.poses.infos.keys()) if self.present.get(sid, True)]
 
     def next_instant(self, now_ns: int) -> int | None:
         """The instant to fuse now by the watermark rule (:mod:`resource_manager.ingest.schedule`), or None while
@@ -412,7 +415,7 @@ class Fusion:
             self.seq += 1
         tracks = [self.track_message(tr) for tr in self.published_tracks()][:256]
         used = sorted(in_use or [])
-        known = sorted(set(self.ingest.buffers) | set(self.poses.infos) | set(self.poses.overrides))
+        known = self.known_sensors()
         without = sorted(s for s in (aligned or {}) if s not in self.last_poses)
         c = self.ingest.counters
         counters = TickCounters(

@@ -407,6 +407,8 @@ class ManagerNode:
             dropped=sum(i.counters.dropped for i in inboxes),
         )
         self.status_seq += 1
+        with self.lock:
+            known = self.fusion.known_sensors()
         msg = manager_status(
             self.mid,
             self.status_seq,
@@ -414,6 +416,7 @@ class ManagerNode:
             tick_ms=self.tick_ms,
             period_s=period_s,
             result=result,
+            known=known,
             inboxes=counts,
             gate=self.gate,
             refused_partial=self.census is not None and self.census.partial,

@@ -181,13 +181,18 @@ def _run_times(site: SiteConfig, args: argparse.Namespace) -> tuple[float, float
 def _wait_ready(
     client: Any, procs: Supervisor, sensors: set[str], managers: set[str], *, shutdown: Shutdown, timeout_s: float
 ) -> bool:
-    """Wait until every sensor and manager of the site is alive (saying who it waits for now and then)."""
+    """Wait until every sensor and manager of the site is alive, and every manager has heard what each of its
+    sensors is (its status lists them as known: frames that came before would be held back or fused without
+    them), saying who it waits for now and then."""
     t0 = time.monotonic()
     last_wait_note = t0
     while not shutdown.is_set() and time.monotonic() - t0 < timeout_s:
         procs.poll()
         up_s = {s.sensor_id for s in client.sensors(timeout_s=0.5) if s.alive}
-        up_m = {m.manager_id for m in client.managers(timeout_s=0.5) if m.alive}
+        views = client.managers(timeout_s=0.5)
+        up_m = {
+            m.manager_id for m in views if m.alive and m.status is not None and _knows_its_sensors(m.status, sensors)
+        }
         if sensors <= up_s and managers <= up_m:
             return True
         if time.monotonic() - last_wait_note >= WAIT_NOTE_S:
@@ -195,6 +200,12 @@ def _wait_ready(
             print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
         shutdown.sleep(0.5)
     return False
+
+
+def _knows_its_sensors(status: Any, sensors: set[str]) -> bool:
+    """Whether a manager's status says it knows every one of the site's sensors it expects."""
+    expected = set(status.sensors_expected) & sensors if status.sensors_expected else sensors
+    return expected <= set(status.sensors_known)
 
 
 def _watch_run(

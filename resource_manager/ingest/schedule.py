@@ -6,7 +6,10 @@ hold everyone back: its next frame has missed the deadline its own recent frames
 latest they came past their expected time, at most ``max_wait``). The instant fused is the newest one that every
 sensor still on time has reached: the minimum of their newest frame stamps (the watermark of stream processors).
 Sensors that send frames at one instant (a dataset's cameras) are fused exactly at their frame instants;
-unsynchronised ones at the pace of the slowest, interpolated.
+unsynchronised ones at the pace of the slowest, interpolated. A sensor that has said what it is but sent no frame
+yet (the network starting, a camera joining) is waited for like one whose first frame is due: at most ``max_wait``
+from the first instant it holds back, and not again until it sends one; otherwise the first frames of a site's
+cameras, arriving one by one, would be fused one camera at a time.
 
 The same rule runs in dataset time (``panostereo evaluate-site``, every frame arriving at its own stamp) and live
 (:mod:`resource_manager.node`, frames arriving over the network), so the two fuse the same instants.
@@ -84,6 +87,8 @@ class FrameTiming:
     """Deadlines this sensor missed: the others were fused without it."""
     missed_newest: int = 0
     """The newest stamp whose next frame's deadline was already counted as missed."""
+    awaited_ns: int = 0
+    """Before its first frame: when it first held an instant back (0: not yet)."""
 
     def period(self) -> float:
         return self.period_ns if self.frames >= 2 and self.period_ns > 0 else float(self.declared_period_ns)
@@ -97,7 +102,10 @@ class FrameTiming:
         return int(min(max_wait_ns, max(MIN_ALLOWANCE_NS, WAIT_MARGIN * max(self.lateness))))
 
     def deadline_ns(self, max_wait_ns: int) -> int:
-        """When waiting for its next frame stops (from this instant on it is late)."""
+        """When waiting for its next frame stops (from this instant on it is late). Before its first frame: the
+        longest wait from when it first held an instant back (until then, no deadline has started)."""
+        if not self.newest_ns:
+            return self.awaited_ns + max_wait_ns if self.awaited_ns else _NEVER
         return self.newest_ns + int(self.period()) + self.allowance_ns(max_wait_ns)
 
     def note(self, stamp_ns: int, arrival_ns: int, processing_ns: int, max_wait_ns: int) -> None:
@@ -133,6 +141,11 @@ class FrameTiming:
         self.period_ns = self.period_dev_ns = self.delay_ns = self.delay_dev_ns = 0.0
         self.lateness.clear()
         self.newest_ns = self.arrival_ns = self.processing_ns = self.frames = self.missed_newest = 0
+        self.awaited_ns = 0
+
+
+_NEVER = 2**63 - 1
+"""The deadline of a sensor not yet waited for."""
 
 
 def _newest(s: FrameTiming) -> int:
@@ -192,11 +205,11 @@ class Scheduler:
         """The instant to fuse now, or None while nothing new can be fused.
 
         Args:
-            in_use: the sensors to wait for (present, with frames).
+            in_use: the sensors to wait for (present: with frames, or declared and none yet).
             now_ns: the manager's clock (in dataset time: the newest arrival).
             last_ns: the instant fused last (0: none yet).
         """
-        timings = [s for sid in in_use if (s := self.sensors.get(sid)) is not None and s.newest_ns]
+        timings, awaited = self._split(in_use)
         if not timings:
             return None
         p = self.params
@@ -204,6 +217,11 @@ class Scheduler:
             t = now_ns - p.max_wait_ns
             binding = min(timings, key=_newest)
         else:
+            for s in awaited:
+                if not s.awaited_ns:
+                    s.awaited_ns = now_ns
+            if any(now_ns < s.deadline_ns(p.max_wait_ns) for s in awaited):
+                return None  # a sensor's first frame is still due: nothing is fused without it yet
             on_time = [s for s in timings if now_ns < s.deadline_ns(p.max_wait_ns)]
             # Everyone late (a network stall): fuse what is there, up to the newest frame any of them sent.
             binding = min(on_time, key=_newest) if on_time else max(timings, key=_newest)
@@ -226,11 +244,21 @@ class Scheduler:
     def until_due_ns(self, in_use: Iterable[str], now_ns: int, last_ns: int) -> int | None:
         """How long from ``now_ns`` until :meth:`instant` may answer without a new frame arriving (a sensor's
         deadline passing, or the fixed delay's next instant); None: only a new frame can make one due."""
-        timings = [s for sid in in_use if (s := self.sensors.get(sid)) is not None and s.newest_ns]
+        timings, awaited = self._split(in_use)
         if not timings:
             return None
         p = self.params
         if p.mode == "fixed":
             return max(0, last_ns + p.min_interval_ns + p.max_wait_ns - now_ns) if last_ns else 0
-        due = [d for s in timings if (d := s.deadline_ns(p.max_wait_ns)) > now_ns]
+        due = [d for s in timings + awaited if now_ns < (d := s.deadline_ns(p.max_wait_ns)) < _NEVER]
         return min(due) - now_ns if due else None
+
+    def _split(self, in_use: Iterable[str]) -> tuple[list[FrameTiming], list[FrameTiming]]:
+        """The sensors in use with frames, and those declared that have sent none yet."""
+        timings: list[FrameTiming] = []
+        awaited: list[FrameTiming] = []
+        for sid in in_use:
+            s = self.sensors.get(sid)
+            if s is not None:
+                (timings if s.newest_ns else awaited).append(s)
+        return timings, awaited

@@ -33,14 +33,16 @@ def manager_status(
     tick_ms: Sequence[float],
     period_s: float,
     result: TickResult | None,
+    known: Sequence[str],
     inboxes: InboxCounts,
     gate: SenderGate,
     refused_partial: bool,
     schedule: Scheduler,
     latencies: Collection[Latency],
 ) -> ManagerStatus:
-    """The status message; lists are capped at their schema bounds. ``latencies``: the capture -> publish split
-    of each TrackSet published in the period, oldest first."""
+    """The status message; lists are capped at their schema bounds. ``known``: the sensors heard of now (before
+    the first fusion too). ``latencies``: the capture -> publish split of each TrackSet published in the period,
+    oldest first."""
     ms = np.asarray(list(tick_ms) or [0.0])
     c = result.counters if result is not None else None
     refusals = gate.refusals
@@ -52,7 +54,7 @@ def manager_status(
         tick_p99_ms=float(np.percentile(ms, 99)),
         tick_rate_hz=len(tick_ms) / period_s,
         sensors_in_use=(c.sensors_in_use if c else [])[:MAX_SENSORS],
-        sensors_known=(c.sensors_known if c else [])[:MAX_SENSORS],
+        sensors_known=list(known)[:MAX_SENSORS],
         sensors_without_pose=(c.sensors_without_pose if c else [])[:MAX_SENSORS],
         tracks=len(result.trackset.tracks) if result else 0,
         decode_errors=inboxes.decode_errors,

@@ -57,7 +57,7 @@ def test_live_network_matches_dataset_time(tmp_path: Path) -> None:
     want = offline["scores"][0]
     assert live["scored_from_s"] == 0.0 and live["frames"] >= FRAMES - 1  # from frame 1, whatever the start-up
     assert want["mota"] > 0.7  # the offline figure itself is sound
-    # Live runs score a little below dataset time on these 40 frames (the runs: benchmarks/NOTES.md): a floor
-    # against a live path that diverges, not an equality.
-    assert abs(live["mota"] - want["mota"]) <= 0.08, (live, want)
-    assert abs(live["idf1"] - want["idf1"]) <= 0.08, (live, want)
+    # Within run-to-run noise: a live instant fused without a camera whose frame came past its deadline under
+    # load (the runs: benchmarks/NOTES.md).
+    assert abs(live["mota"] - want["mota"]) <= 0.05, (live, want)
+    assert abs(live["idf1"] - want["idf1"]) <= 0.05, (live, want)

@@ -206,15 +206,41 @@ def test_a_frame_300_ms_late_is_dropped_once_its_instant_is_fused_and_never_rewi
 
 def test_a_sensor_always_300_ms_late_never_holds_the_others_back() -> None:
     """Every one of b's frames arrives 300 ms after capture (beyond the 200 ms most any sensor is waited for):
-    the others are fused at their own pace, b's frames are counted late, and its lateness is measured."""
+    after the one wait for its first frame, the others are fused at their own pace, b's frames are counted late,
+    and its lateness is measured."""
     fusion = _fusion()
     late = [(100 * k + 300, _frame("b", k, 100 * k)) for k in range(1, 31)]
     fused = _drive(fusion, _on_time("a", range(1, 31)) + late)
-    assert [t for t, _ in fused] == [100 * k for k in range(1, 31)]
+    assert fused[0] == (300, 305)  # b's first frame was waited for 200 ms from a's (at 105), then not again
+    assert [t for t, _ in fused] == [100 * k for k in range(3, 31)]
     assert max(at - t for t, at in fused) <= 5  # fused as a's frames came
     b = fusion.schedule.sensors["b"]
     assert b.delay_ns == pytest.approx(300 * MS, abs=1 * MS)
     assert b.late >= 25
+
+
+def test_the_first_frames_of_a_site_arriving_one_by_one_are_fused_together() -> None:
+    """The cameras' first frames (one instant) reach the manager a few ms apart: the instant waits for every
+    declared camera's, rather than being fused with the first camera alone and the others' dropped as late."""
+    fusion = _fusion()
+    fused = _drive(fusion, [(105, _frame("a", 1, 100)), (140, _frame("b", 1, 100)), *_on_time("a", range(2, 5))])
+    assert fused[0] == (100, 140)
+    assert fusion.schedule.sensors["b"].late == 0 and fusion.schedule.sensors["a"].late == 0
+
+
+def test_a_declared_sensor_that_never_sends_a_frame_is_waited_for_once() -> None:
+    fusion = _fusion()
+    fused = _drive(fusion, _on_time("a", range(1, 11)))
+    assert fused[0] == (300, 305)  # the first instant a could fuse waited the longest for b (200 ms from 105)
+    assert [t for t, _ in fused] == [100 * k for k in range(3, 11)]
+    assert max(at - t for t, at in fused[1:]) <= 5  # then a alone, at its own pace
+
+
+def test_a_sensor_that_is_gone_is_not_waited_for() -> None:
+    fusion = _fusion()
+    fusion.absorb(Batch(presence={"b": False}))
+    fused = _drive(fusion, _on_time("a", range(1, 4)))
+    assert fused == [(100, 105), (200, 205), (300, 305)]
 
 
 def test_out_of_order_frames_are_sorted_and_a_clock_step_restarts_a_sensor() -> None:

@@ -34,6 +34,7 @@ def _status(tick_ms: list[float], latencies: list[Latency]) -> ManagerStatus:
         tick_ms=tick_ms,
         period_s=2.0,
         result=None,
+        known=["p1"],
         inboxes=InboxCounts(decode_errors=4, dropped=5),
         gate=gate,
         refused_partial=False,
@@ -49,6 +50,7 @@ def test_status_of_a_period_with_ticks_and_published_tracksets() -> None:
     assert 39.0 < st.tick_p99_ms <= 40.0
     assert st.decode_errors == 4 and st.dropped_msgs == 5 and st.tracks == 0
     assert st.sensors_expected == ["p1", "p2"] and st.refused_msgs == 3
+    assert st.sensors_known == ["p1"]  # heard of before any fusion (what the demo waits for before it starts)
     assert st.schedule == "watermark" and st.timing == []
     assert st.latency is not None
     assert st.latency.age_ms == 80.0  # the newest TrackSet's age
