@@ -2,7 +2,10 @@
 
 1. The unexplained blobs of every two views are scored by the paper's 3D blob match (Eq. 7: colour, ray
    convergence, width and height consistency, feet on the floor) and paired by the configured matcher; each
-   pair's rays give a hypothesised person (Eq. 1, or Eq. 2 near colinearity).
+   pair's rays give a hypothesised person (Eq. 1, or Eq. 2 near colinearity). Where no second camera has a
+   clear view (out of every other picture, or hidden there by people nearer to it), stereo cannot start anyone:
+   there a blob whose feet a calibrated camera places on the floor to within ``publish_sigma_m`` is a
+   hypothesis of its own, which starts tentative and is confirmed over time.
 2. Each hypothesis is put to every view as a provisional track (:mod:`.observe`): a view whose unexplained
    blob fits it supports it, a view that should see it and has nothing there counts against it. The sum is
    the log likelihood ratio of "a new person" against "false detections that happen to agree".
@@ -17,6 +20,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -84,6 +88,33 @@ def _hypotheses(
     return out
 
 
+def _singles(
+    sub: dict[str, ViewBlobs], free: dict[str, list[int]], max_sigma_m: float
+) -> list[tuple[Measurement, str, int, str, int]]:
+    """(fix, view, blob, "", -1) of every unexplained blob a camera's feet range alone places to within
+    ``max_sigma_m`` along its ray (its bearing places it across)."""
+    out = []
+    for sid, v in sub.items():
+        if v.mono_range_m is None or v.mono_sigma_m is None:
+            continue
+        for i in np.flatnonzero(np.isfinite(v.mono_range_m) & (v.mono_sigma_m <= max_sigma_m)).tolist():
+            r, sr = float(v.mono_range_m[i]), float(v.mono_sigma_m[i])
+            u = np.array([math.cos(float(v.bearing_rad[i])), math.sin(float(v.bearing_rad[i]))])
+            across = np.array([-u[1], u[0]])
+            cov = sr**2 * np.outer(u, u) + (r * v.sigma_rad) ** 2 * np.outer(across, across)
+            fix = Measurement(
+                xy=v.origin_xy + r * u,
+                cov=cov,
+                height_m=0.0,
+                method="least_squares",
+                sensors=(sid,),
+                predicted_error_m=sr,
+                blobs=((sid, free[sid][i]),),
+            )
+            out.append((fix, sid, free[sid][i], "", -1))
+    return out
+
+
 def _provisional(fix: Measurement, model: TrackModel) -> TrackRecord:
     """A hypothesis as a track to score the views against."""
     p = np.zeros((4, 4))
@@ -135,7 +166,7 @@ def find_births(
     sids = sorted(views)
     with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
     sub = {sids[i]: subset_view(views[sids[i]], free[sids[i]]) for i in with_free}
-    found = _hypotheses(sub, free, params, tick)
+    found = _hypotheses(sub, free, params, tick) + _singles(sub, free, model.publish_sigma_m)
     track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
     # Nobody is started within two person radii of a track: those hypotheses go before they are scored.
     found = [h for h in found if _in_room(h[0].xy, model) and not _near(h[0].xy, track_xy)]
@@ -145,6 +176,8 @@ def find_births(
     for tr, (_, a, ia, b, ib) in zip(cands, found, strict=True):
         # The pair's colours: the other views' blobs are compared with them (Eq. 7's r_is across views).
         for sid, j in ((a, ia), (b, ib)):
+            if not sid:
+                continue  # a one-view hypothesis
             hs = views[sid].hist_sqrt
             if hs is not None:
                 tr.looks[sid] = hs[j].copy()
@@ -166,6 +199,11 @@ def find_births(
     free_sids = [sids[i] for i in with_free]
     open_ = np.ones(gain.shape[1], dtype=bool)
     alive = np.ones(len(cands), dtype=bool)
+    row = {sid: i for i, sid in enumerate(sids)}
+    for k, (_, a, _, b, _) in enumerate(found):
+        if not b:  # one view: only where no other camera has a clear view of the spot
+            others = np.delete(pd[:, k], row[a])
+            alive[k] = not bool(np.any(others > model.p_detect_hidden + 1e-9))
     out: list[Hypothesis] = []
     while alive.any():
         # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
@@ -184,7 +222,7 @@ def find_births(
             if best[c, v] > 0:
                 blobs[free_sids[v]] = blob_of[lo + int(np.argmax(open_gain[c, lo:hi]))]
         alive[c] = False
-        if blobs.get(a) != ia or blobs.get(b) != ib:
+        if blobs.get(a) != ia or (b and blobs.get(b) != ib):
             continue  # its own pair no longer fits it best: another hypothesis of those blobs will say
         if _near(fix.xy, track_xy):
             continue  # beside a person started before it in this tick
@@ -193,6 +231,6 @@ def find_births(
         for sid, j in blobs.items():
             open_[column[sid, j]] = False
         for k2, (_, a2, i2, b2, j2) in enumerate(found):
-            if alive[k2] and (not open_[column[a2, i2]] or not open_[column[b2, j2]]):
+            if alive[k2] and (not open_[column[a2, i2]] or (b2 and not open_[column[b2, j2]])):
                 alive[k2] = False
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -49,3 +50,33 @@ def test_two_people_are_two_births_and_nobody_is_started_beside_a_track() -> Non
     tracked = TrackRecord(0, np.array([6.1, 4.0, 0.0, 0.0]), np.eye(4) * 0.01, 0, 0, 2.0, 1.6, 0.01)
     (h,) = _births(people, [tracked])
     assert (round(h.fix.xy[0]), round(h.fix.xy[1])) == (2, 2)
+
+
+def _one_camera(p2_fov: tuple[float, float] | None, mono_sigma_m: float = 0.2) -> list[Hypothesis]:
+    """A person at (3, 2) whom calibrated camera p1 sees with its feet on the floor; p2 has no blob of them and
+    points ``p2_fov`` (None: sees all round)."""
+    seen = view("p1", (0.0, 0.0), [(3.0, 2.0, 1.75, 1)])
+    p1 = dataclasses.replace(seen, mono_range_m=np.array([math.hypot(3.0, 2.0)]), mono_sigma_m=np.array([mono_sigma_m]))
+    p2 = dataclasses.replace(view("p2", (8.0, 0.0), []), fov=p2_fov)
+    return find_births(
+        {"p1": p1, "p2": p2},
+        {"p1": [0], "p2": []},
+        [],
+        MODEL,
+        PARAMS,
+        spread=lambda sid: Spread(SIGMA_M**2, SIGMA_M**2),
+        tick=0,
+        min_evidence=0.0,
+    )
+
+
+def test_where_one_camera_alone_sees_its_feet_on_the_floor_start_a_person() -> None:
+    (h,) = _one_camera(p2_fov=(0.0, 0.5))  # p2 looks away (+x): nobody else can see the spot
+    assert h.blobs == {"p1": 0}
+    assert math.hypot(h.fix.xy[0] - 3.0, h.fix.xy[1] - 2.0) < 0.05
+    assert h.fix.sensors == ("p1",)
+
+
+def test_one_camera_alone_starts_nobody_where_another_has_a_clear_view_or_the_feet_are_vague() -> None:
+    assert _one_camera(p2_fov=None) == []  # p2 sees the spot and has nothing there: stereo's to start
+    assert _one_camera(p2_fov=(0.0, 0.5), mono_sigma_m=2.0 * MODEL.publish_sigma_m) == []
