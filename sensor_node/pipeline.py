@@ -220,10 +220,10 @@ class ImagePipeline:
         """255 on the reduced colour image's pixels whose ray points below the horizon (cached per geometry)."""
         if not self.settings.shadows:
             return None
-        small = pf.small
-        key = (small.shape[0], small.shape[1], id(self.geometry))
+        small_h, small_w = pf.small_shape
+        key = (small_h, small_w, id(self.geometry))
         if self._floor_key != key:
-            self._floor_mask = below_horizon(self.geometry, small.shape[1], small.shape[0], pf.scale)
+            self._floor_mask = below_horizon(self.geometry, small_w, small_h, pf.scale)
             self._floor_key = key
         return self._floor_mask
 
@@ -246,7 +246,7 @@ class ImagePipeline:
         s = self.settings
         self._check_size(frame)
         pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
-        motion = self.background.apply(pf.grey, stamp_ns, pf.small if s.shadows else None)
+        motion = self.background.apply(pf.grey, stamp_ns, pf if s.shadows else None)
         fg, links = (
             objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else (motion.fg, motion.fg)
         )

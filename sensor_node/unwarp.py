@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from common.arrays import Image
 from common.cameras import AnnularModel
@@ -79,6 +80,32 @@ class PanoFrame:
             else:
                 self._small = cv2.remap(self.source, self.small_maps, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
         return self._small
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        """(rows, columns) of :attr:`small`, without computing it."""
+        if self._small is not None:
+            return self._small.shape[0], self._small.shape[1]
+        if self.small_maps is not None:
+            return self.small_maps.shape[0], self.small_maps.shape[1]
+        return -(-self.source.shape[0] // self.scale), -(-self.source.shape[1] // self.scale)
+
+    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Image:
+        """(N, 3) pixels of :attr:`small` at (``rows``, ``cols``), without computing all of it."""
+        if self._small is not None:
+            return np.take(self._small.reshape(-1, 3), rows * self._small.shape[1] + cols, axis=0)
+        w = self.source.shape[1]
+        if self.small_maps is None:
+            return np.take(self.source.reshape(-1, 3), (rows * self.scale) * w + cols * self.scale, axis=0)
+        # The nearest-neighbour maps' source pixels (what the remap reads; outside the frame it gives 0).
+        xy = np.take(self.small_maps.reshape(-1, 2), rows * self.small_maps.shape[1] + cols, axis=0).astype(np.intp)
+        x, y = xy[:, 0], xy[:, 1]
+        inside = (x >= 0) & (x < w) & (y >= 0) & (y < self.source.shape[0])
+        if inside.all():
+            return np.take(self.source.reshape(-1, 3), y * w + x, axis=0)
+        out = np.zeros((rows.size, 3), np.uint8)
+        out[inside] = np.take(self.source.reshape(-1, 3), y[inside] * w + x[inside], axis=0)
+        return out
 
     def small_box(self, c0: int, r0: int, w: int, h: int) -> Image:
         """The box (c0, r0, w, h) of :attr:`small` without computing all of it; columns wrap."""

@@ -181,11 +181,13 @@ class UnderGhosts:
         """
         if self.expired(frame):
             return None, 0
-        self._mask[self._frame < frame - RESTORE_FRAMES] = 0
+        # What is too old to put back is forgotten (an 8-bit mask of the young: a fraction of a masked
+        # assignment's time).
+        young = cv2.compare(self._frame, frame - RESTORE_FRAMES, cv2.CMP_GE)  # type: ignore[call-overload]
+        cv2.bitwise_and(self._mask, young, dst=self._mask)
         cand = cv2.bitwise_and(still, self._mask)
         if cv2.countNonZero(cand) < least_px:
             return None, 0
-        near = cv2.absdiff(grey, self._under_u8) <= match_level
         n, labels, stats = components(cand)
         done: Mask | None = None
         regions = 0
@@ -195,7 +197,8 @@ class UnderGhosts:
                 continue
             box = (slice(y, y + h), slice(x, x + w))
             comp = labels[box] == k
-            if np.count_nonzero(near[box][comp]) < RESTORE_MATCH * area:
+            near = cv2.absdiff(grey[box], self._under_u8[box]) <= match_level
+            if np.count_nonzero(near[comp]) < RESTORE_MATCH * area:
                 continue
             bg[box][comp] = self._under[box][comp]
             self._mask[box][comp] = 0

@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import local_spread, shadow_mask
+from sensor_node.background.shadows import ReducedColour, local_spread, shadow_mask
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -119,7 +119,7 @@ class BackgroundModel:
         for Gaussian noise; more for compressed video (blocks, ringing)."""
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
-        self._colour_now: Mask | None = None
+        self._colour_now: ReducedColour | None = None
         self._bg_spread: npt.NDArray[np.float32] | None = None
         """The colour background's local texture (:func:`sensor_node.background.shadows.local_spread`),
         computed when the shadow test first needs it after the colour background changed."""
@@ -217,7 +217,7 @@ class BackgroundModel:
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return None
         small = self._colour_now
-        if small.shape[:2] != self._colour_bg.shape[:2]:
+        if small.small_shape != self._colour_bg.shape[:2]:
             return None
         if self._bg_spread is None:
             self._bg_spread = local_spread(self._colour_bg)
@@ -225,15 +225,16 @@ class BackgroundModel:
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
 
-    def apply(self, grey: Mask, stamp_ns: int | None = None, colour: Mask | None = None) -> Motion:
+    def apply(self, grey: Mask, stamp_ns: int | None = None, colour: ReducedColour | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
 
         Args:
             grey: the frame.
             stamp_ns: its capture time: the warm-up spans ``warmup_s`` of it (None: frames are counted,
                 every ``warmup_stride``-th taken).
-            colour: the frame's reduced colour image (:attr:`PanoFrame.small`), for the colour
-                background that tells shadows from objects (:meth:`shadows`); None: grey only.
+            colour: the frame's reduced colour image (a :class:`~sensor_node.unwarp.PanoFrame`: the shadow
+                test reads its candidates' pixels only, the colour background's update all of it), for the
+                colour background that tells shadows from objects (:meth:`shadows`); None: grey only.
         """
         s = self.settings
         self._frames += 1
@@ -254,7 +255,7 @@ class BackgroundModel:
             elif self._take_warm(stamp_ns):
                 self._warm.append(grey.copy())
                 if colour is not None:
-                    self._warm_colour.append(colour.copy())
+                    self._warm_colour.append(colour.small.copy())
             if len(self._warm) >= s.warmup_frames:
                 self._learn_warm()
             return Motion(empty, moving, "warmup", 0.0)
@@ -428,9 +429,10 @@ class BackgroundModel:
         self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
 
     def _update_colour(self, objects: Mask | None, alpha: float) -> None:
-        colour = self._colour_now
-        if self._colour_bg is None or colour is None or colour.shape[:2] != self._colour_bg.shape[:2]:
+        now = self._colour_now
+        if self._colour_bg is None or now is None or now.small_shape != self._colour_bg.shape[:2]:
             return
+        colour = now.small
         self._bg_spread = None
         if objects is None:
             cv2.accumulateWeighted(colour, self._colour_bg, alpha)

@@ -21,7 +21,7 @@ view every camera type has), on the changed pixels only.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast
 
 import cv2
 import numpy as np
@@ -34,6 +34,8 @@ __all__ = [
     "CHROMA_TOLERANCE",
     "HIGHLIGHT_MAX_RATIO",
     "SHADOW_MIN_RATIO",
+    "ColourImage",
+    "ReducedColour",
     "local_spread",
     "shadow_mask",
 ]
@@ -71,6 +73,48 @@ TEXTURE_KEPT = 0.5
 ratio); cloth of the floor's colour shows little of it."""
 
 
+class ReducedColour(Protocol):
+    """A frame's reduced colour image, read in parts: a panorama's is sampled from the annular frame, and
+    the shadow test reads a few thousand of its pixels (:class:`sensor_node.unwarp.PanoFrame` is one)."""
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the image."""
+        ...
+
+    @property
+    def small(self) -> Mask:
+        """The whole (rows, columns, 3) BGR image."""
+        ...
+
+    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Mask:
+        """(N, 3) BGR pixels at (``rows``, ``cols``)."""
+        ...
+
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        """The (h, w, 3) box at column ``c0``, row ``r0``."""
+        ...
+
+
+class ColourImage:
+    """A reduced colour image already made, as a :class:`ReducedColour`."""
+
+    __slots__ = ("small",)
+
+    def __init__(self, small: Mask) -> None:
+        self.small = small
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        return self.small.shape[0], self.small.shape[1]
+
+    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Mask:
+        return np.take(self.small.reshape(-1, 3), rows * self.small.shape[1] + cols, axis=0)
+
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        return np.ascontiguousarray(self.small[r0 : r0 + h, c0 : c0 + w])
+
+
 def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
     """Per pixel: grey-level variance over ``TEXTURE_WINDOW`` pixels (the texture a shadow keeps)."""
     g = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
@@ -80,7 +124,7 @@ def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
 
 
 def shadow_mask(
-    small: Mask,
+    small: Mask | ReducedColour,
     colour_bg: npt.NDArray[np.float32],
     fg: Mask,
     noise_sigma: float,
@@ -92,7 +136,8 @@ def shadow_mask(
     """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
 
     Args:
-        small: the frame's reduced BGR image.
+        small: the frame's reduced BGR image (or a view that reads it in parts: only the candidates'
+            pixels and the box around the textured ones are read).
         colour_bg: the background in the same reduced BGR (float).
         fg: (H, W) changed pixels (255) at full resolution.
         noise_sigma: the image's noise (grey levels, per channel).
@@ -104,7 +149,8 @@ def shadow_mask(
     """
     if not settings.shadows:
         return None
-    sh, sw = small.shape[:2]
+    colour = ColourImage(small) if isinstance(small, np.ndarray) else small
+    sh, sw = colour.small_shape
     h, w = fg.shape
     # The candidates: changed pixels on the floor, looked for in the floor's box only (on a panorama the
     # rows below the horizon).
@@ -121,12 +167,12 @@ def shadow_mask(
     points = cv2.findNonZero(fg_small)  # a tenth of np.nonzero's time
     if points is None:
         return None
-    xs, ys = points.reshape(-1, 2).T
+    xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
     if x0 or y0:
         xs, ys = xs + x0, ys + y0
     # Pixels gathered by flat index along one axis (a third of the time of indexing by rows and columns).
     at = ys * sw + xs
-    frame_px = np.take(small.reshape(-1, 3), at, axis=0).astype(np.float32)
+    frame_px = colour.small_at(ys, xs).astype(np.float32)
     bg_px = np.take(colour_bg.reshape(-1, 3), at, axis=0)
     bb = np.einsum("ij,ij->i", bg_px, bg_px)
     ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
@@ -152,7 +198,7 @@ def shadow_mask(
         m = TEXTURE_WINDOW // 2
         r0, r1 = max(int(ty.min()) - m, 0), min(int(ty.max()) + m + 1, sh)
         c0, c1 = max(int(tx.min()) - m, 0), min(int(tx.max()) + m + 1, sw)
-        var_f = local_spread(np.ascontiguousarray(small[r0:r1, c0:c1]))
+        var_f = local_spread(colour.small_box(c0, r0, c1 - c0, r1 - r0))
         lost = np.take(var_f, (ty - r0) * (c1 - c0) + (tx - c0)) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
         keep = np.ones(ys.size, bool)
         keep[np.flatnonzero(textured)[lost]] = False
