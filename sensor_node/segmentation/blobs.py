@@ -60,8 +60,6 @@ class RawBlob:
     area_px: int
     changed_frac: float
     """Changed pixels / box area."""
-    moving_frac: float
-    """Fraction of the blob's pixels that also moved since the previous frame."""
 
 
 def roi(image: npt.NDArray[np.generic], u0: int, v0: int, w: int, h: int) -> npt.NDArray[np.generic]:
@@ -109,7 +107,6 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
 
 def find_blobs(
     fg: Mask,
-    moving: Mask,
     settings: PipelineSettings,
     wrap: bool = True,
     *,
@@ -126,7 +123,6 @@ def find_blobs(
 
     Args:
         fg: (H, W) 255 = changed against the background.
-        moving: (H, W) 255 = changed since the previous frame (frame differencing).
         settings: grouping and validation knobs.
         wrap: the image is a 360-degree panorama (columns wrap around).
         check_frac: drop blobs with less than ``min_changed_frac`` of their box changed. False: the
@@ -178,7 +174,7 @@ def find_blobs(
             ws = int(a1[m].max()) - u0 + 1
         v0 = int(b0[m].min())
         box = (u0 * k, v0 * k, min(ws * k, width), (int(b1[m].max()) - v0 + 1) * k)
-        blob = _cut(fg, moving, box, wrap)
+        blob = _cut(fg, box, wrap)
         if blob is None or blob.area_px < settings.min_blob_px or blob.h < settings.min_blob_height_px:
             continue
         if blob.w < settings.min_blob_width_px:
@@ -224,7 +220,7 @@ def _bridged(
     return out
 
 
-def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
+def _cut(fg: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
     """The blob in a full-resolution box (u0, v0, w, h): its changed pixels, the box trimmed to them."""
     height, width = fg.shape
     u0, v0, w, h = box
@@ -238,5 +234,4 @@ def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> 
     sub = sub[r0 : r0 + h, c0 : c0 + w]
     u0, v0 = (u0 + c0) % width, v0 + r0
     area = cv2.countNonZero(sub)
-    moving_px = cv2.countNonZero(cv2.bitwise_and(np.asarray(roi(moving, u0, v0, w, h)), sub))
-    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h), moving_px / max(area, 1))
+    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h))
