@@ -38,6 +38,7 @@ __all__ = [
     "ReducedColour",
     "local_spread",
     "shadow_mask",
+    "spread_at",
 ]
 
 Mask = npt.NDArray[Any]
@@ -91,10 +92,6 @@ class ReducedColour(Protocol):
         """(N, 3) BGR pixels at (``rows``, ``cols``)."""
         ...
 
-    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
-        """The (h, w, 3) box at column ``c0``, row ``r0``."""
-        ...
-
 
 class ColourImage:
     """A reduced colour image already made, as a :class:`ReducedColour`."""
@@ -111,9 +108,6 @@ class ColourImage:
     def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Mask:
         return np.take(self.small.reshape(-1, 3), rows * self.small.shape[1] + cols, axis=0)
 
-    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
-        return np.ascontiguousarray(self.small[r0 : r0 + h, c0 : c0 + w])
-
 
 def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
     """Per pixel: grey-level variance over ``TEXTURE_WINDOW`` pixels (the texture a shadow keeps)."""
@@ -121,6 +115,34 @@ def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
     k = (TEXTURE_WINDOW, TEXTURE_WINDOW)
     m = cv2.blur(g, k)
     return cv2.blur(g * g, k) - m * m
+
+
+_WINDOW_OFFSETS = np.arange(TEXTURE_WINDOW) - TEXTURE_WINDOW // 2
+
+
+def spread_at(
+    colour: ReducedColour, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]
+) -> npt.NDArray[np.float32]:
+    """:func:`local_spread` of the reduced colour image at the pixels (``rows``, ``cols``) only, the same values.
+
+    A frame's textured shadow candidates are a few dozen pixels: their windows are gathered (mirrored at
+    the image's edges, as the box filter's default border is) rather than the image made and filtered
+    around them. The window sums of integer grey levels are exact in float64, so scaling them as the
+    box filter does gives its float32 results bit for bit.
+    """
+    h, w = colour.small_shape
+    r = np.abs(rows[:, None] + _WINDOW_OFFSETS)
+    r = np.where(r >= h, 2 * (h - 1) - r, r)
+    c = np.abs(cols[:, None] + _WINDOW_OFFSETS)
+    c = np.where(c >= w, 2 * (w - 1) - c, c)
+    window_rows = np.repeat(r, TEXTURE_WINDOW, axis=1).ravel()
+    window_cols = np.tile(c, (1, TEXTURE_WINDOW)).ravel()
+    px = colour.small_at(window_rows, window_cols).reshape(-1, 1, 3)
+    g = cv2.cvtColor(px, cv2.COLOR_BGR2GRAY).reshape(rows.size, -1).astype(np.float64)
+    scale = 1.0 / g.shape[1]
+    mean = (g.sum(axis=1) * scale).astype(np.float32)
+    mean_sq = ((g * g).sum(axis=1) * scale).astype(np.float32)
+    return mean_sq - mean * mean
 
 
 def shadow_mask(
@@ -137,7 +159,7 @@ def shadow_mask(
 
     Args:
         small: the frame's reduced BGR image (or a view that reads it in parts: only the candidates'
-            pixels and the box around the textured ones are read).
+            pixels and the texture windows of the textured ones are read).
         colour_bg: the background in the same reduced BGR (float).
         fg: (H, W) changed pixels (255) at full resolution.
         noise_sigma: the image's noise (grey levels, per channel).
@@ -187,7 +209,7 @@ def shadow_mask(
         return None
     # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
     # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell;
-    # the frame's texture is measured around the other candidates only (the window's reach beyond them).
+    # the frame's texture is measured at the other candidates only.
     ys, xs, at, ratio = ys[is_shadow], xs[is_shadow], at[is_shadow], ratio[is_shadow]
     if bg_spread is None:
         bg_spread = local_spread(colour_bg)
@@ -195,11 +217,7 @@ def shadow_mask(
     textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
     if textured.any():
         ty, tx = ys[textured], xs[textured]
-        m = TEXTURE_WINDOW // 2
-        r0, r1 = max(int(ty.min()) - m, 0), min(int(ty.max()) + m + 1, sh)
-        c0, c1 = max(int(tx.min()) - m, 0), min(int(tx.max()) + m + 1, sw)
-        var_f = local_spread(colour.small_box(c0, r0, c1 - c0, r1 - r0))
-        lost = np.take(var_f, (ty - r0) * (c1 - c0) + (tx - c0)) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
+        lost = spread_at(colour, ty, tx) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
         keep = np.ones(ys.size, bool)
         keep[np.flatnonzero(textured)[lost]] = False
         ys, xs = ys[keep], xs[keep]
