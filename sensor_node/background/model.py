@@ -110,7 +110,7 @@ class BackgroundModel:
         """Per-pixel changed threshold (8-bit): ``fg_threshold``, or more where the image is noisy or swings."""
         self._thr_weak: Mask | None = None
         """Per-pixel threshold (8-bit, at most ``_thr``) beyond which a pixel connected to changed pixels
-        changed too (None: the noise tail is not measured yet)."""
+        changed too (None: the noise tail is not measured yet, or the threshold is ``_thr`` everywhere)."""
         self._sigma: npt.NDArray[np.float32] | None = None
         """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
         self.tail_sigmas: float | None = None
@@ -204,7 +204,10 @@ class BackgroundModel:
         if self.tail_sigmas is None:
             self._thr_weak = None
         else:
-            self._thr_weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
+            weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
+            # Nowhere below the changed threshold (a noise tail as long as it: compressed video): hysteresis
+            # would join nothing; it is skipped until the thresholds change.
+            self._thr_weak = weak if cv2.countNonZero(cv2.subtract(thr, weak)) else None
 
     def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
         """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
@@ -514,8 +517,6 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     stays out, as it would without hysteresis; between the contrasted part and a faint one (hair and a face
     of the wall's grey) both sides are set and the vote fills it.
     """
-    if cv2.countNonZero(weak) == cv2.countNonZero(strong):
-        return strong
     height, width = weak.shape
     size = (max(1, width // HYSTERESIS_CELL_PX), max(1, height // HYSTERESIS_CELL_PX))
     weak_cells = cv2.resize(weak, size, interpolation=cv2.INTER_AREA)
