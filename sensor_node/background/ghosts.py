@@ -181,11 +181,15 @@ class UnderGhosts:
         """
         if self.expired(frame):
             return None, 0
-        # What is too old to put back is forgotten (an 8-bit mask of the young: a fraction of a masked
-        # assignment's time).
-        young = cv2.compare(self._frame, frame - RESTORE_FRAMES, cv2.CMP_GE)  # type: ignore[call-overload]
-        cv2.bitwise_and(self._mask, young, dst=self._mask)
-        cand = cv2.bitwise_and(still, self._mask)
+        # Everything is done in the box of what is kept (a few regions of a large image). What is too old
+        # to put back is forgotten (an 8-bit mask of the young: a fraction of a masked assignment's time).
+        mx, my, mw, mh = cv2.boundingRect(self._mask)
+        if mw == 0:
+            return None, 0
+        kept = (slice(my, my + mh), slice(mx, mx + mw))
+        young = cv2.compare(self._frame[kept], frame - RESTORE_FRAMES, cv2.CMP_GE)  # type: ignore[call-overload]
+        self._mask[kept] = cv2.bitwise_and(self._mask[kept], young)
+        cand = cv2.bitwise_and(still[kept], self._mask[kept])
         if cv2.countNonZero(cand) < least_px:
             return None, 0
         n, labels, stats = components(cand)
@@ -195,8 +199,9 @@ class UnderGhosts:
             x, y, w, h, area = (int(v) for v in stats[k])
             if area < least_px:
                 continue
+            comp = labels[y : y + h, x : x + w] == k
+            x, y = x + mx, y + my
             box = (slice(y, y + h), slice(x, x + w))
-            comp = labels[box] == k
             near = cv2.absdiff(grey[box], self._under_u8[box]) <= match_level
             if np.count_nonzero(near[comp]) < RESTORE_MATCH * area:
                 continue
