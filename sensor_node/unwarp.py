@@ -47,9 +47,11 @@ class PanoFrame:
         scale: reduction of the colour views.
         maps: full-resolution fixed-point remap maps (None: ``source`` already is the processed image).
         small_maps: nearest-neighbour maps of the reduced colour panorama (with ``maps``).
+        small_index: each reduced pixel's flat index into ``source``'s pixels (what ``small_maps`` reads;
+            None: some read outside the frame, or no maps).
     """
 
-    __slots__ = ("_small", "grey", "maps", "scale", "small_maps", "source")
+    __slots__ = ("_small", "grey", "maps", "scale", "small_index", "small_maps", "source")
 
     def __init__(
         self,
@@ -58,12 +60,15 @@ class PanoFrame:
         scale: int = 2,
         maps: tuple[Image, Image] | None = None,
         small_maps: Image | None = None,
+        *,
+        small_index: Image | None = None,
     ) -> None:
         self.grey = grey
         self.source = source
         self.scale = scale
         self.maps = maps
         self.small_maps = small_maps
+        self.small_index = small_index
         self._small: Image | None = None
 
     @classmethod
@@ -90,22 +95,19 @@ class PanoFrame:
             return self.small_maps.shape[0], self.small_maps.shape[1]
         return -(-self.source.shape[0] // self.scale), -(-self.source.shape[1] // self.scale)
 
-    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Image:
-        """(N, 3) pixels of :attr:`small` at (``rows``, ``cols``), without computing all of it."""
+    def small_at(self, at: npt.NDArray[np.integer]) -> Image:
+        """(N, 3) pixels of :attr:`small` at the flat indices ``at`` (row * columns + column), without
+        computing all of it."""
         if self._small is not None:
-            return np.take(self._small.reshape(-1, 3), rows * self._small.shape[1] + cols, axis=0)
-        w = self.source.shape[1]
+            return np.take(self._small.reshape(-1, 3), at, axis=0)
+        if self.small_index is not None:
+            return np.take(self.source.reshape(-1, 3), np.take(self.small_index, at), axis=0)
         if self.small_maps is None:
-            return np.take(self.source.reshape(-1, 3), (rows * self.scale) * w + cols * self.scale, axis=0)
-        # The nearest-neighbour maps' source pixels (what the remap reads; outside the frame it gives 0).
-        xy = np.take(self.small_maps.reshape(-1, 2), rows * self.small_maps.shape[1] + cols, axis=0).astype(np.intp)
-        x, y = xy[:, 0], xy[:, 1]
-        inside = (x >= 0) & (x < w) & (y >= 0) & (y < self.source.shape[0])
-        if inside.all():
-            return np.take(self.source.reshape(-1, 3), y * w + x, axis=0)
-        out = np.zeros((rows.size, 3), np.uint8)
-        out[inside] = np.take(self.source.reshape(-1, 3), y[inside] * w + x[inside], axis=0)
-        return out
+            rows, cols = np.divmod(at, self.small_shape[1])
+            return np.take(
+                self.source.reshape(-1, 3), (rows * self.scale) * self.source.shape[1] + cols * self.scale, axis=0
+            )
+        return np.take(self.small.reshape(-1, 3), at, axis=0)
 
     def small_box(self, c0: int, r0: int, w: int, h: int) -> Image:
         """The box (c0, r0, w, h) of :attr:`small` without computing all of it; columns wrap."""
@@ -141,6 +143,10 @@ class Unwarper:
         vv, uu = np.mgrid[0 : model.pano_h // scale, 0 : model.pano_w // scale].astype(np.float64)
         sx, sy = model.annular_from_pano(uu * scale + off, vv * scale + off)
         self._s1, _ = cv2.convertMaps(sx.astype(np.float32), sy.astype(np.float32), cv2.CV_16SC2, nninterpolation=True)
+        # The same samples as flat indices into the frame's pixels (for reading a few of them).
+        x, y = self._s1[..., 0].astype(np.int64), self._s1[..., 1].astype(np.int64)
+        inside = bool(((x >= 0) & (x < model.image_w) & (y >= 0) & (y < model.image_h)).all())
+        self._s_index = (y * model.image_w + x).astype(np.int32).ravel() if inside else None
 
     @property
     def pano_size(self) -> tuple[int, int]:
@@ -172,4 +178,4 @@ class Unwarper:
         self._check(annular)
         grey_annular = cv2.cvtColor(annular, cv2.COLOR_BGR2GRAY)
         grey = cv2.remap(grey_annular, self._m1, self._m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return PanoFrame(grey, annular, self.scale, (self._m1, self._m2), self._s1)
+        return PanoFrame(grey, annular, self.scale, (self._m1, self._m2), self._s1, small_index=self._s_index)

@@ -88,8 +88,8 @@ class ReducedColour(Protocol):
         """The whole (rows, columns, 3) BGR image."""
         ...
 
-    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Mask:
-        """(N, 3) BGR pixels at (``rows``, ``cols``)."""
+    def small_at(self, at: npt.NDArray[np.integer]) -> Mask:
+        """(N, 3) BGR pixels at the flat indices ``at`` (row * columns + column)."""
         ...
 
 
@@ -105,8 +105,8 @@ class ColourImage:
     def small_shape(self) -> tuple[int, int]:
         return self.small.shape[0], self.small.shape[1]
 
-    def small_at(self, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]) -> Mask:
-        return np.take(self.small.reshape(-1, 3), rows * self.small.shape[1] + cols, axis=0)
+    def small_at(self, at: npt.NDArray[np.integer]) -> Mask:
+        return np.take(self.small.reshape(-1, 3), at, axis=0)
 
 
 def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
@@ -135,9 +135,7 @@ def spread_at(
     r = np.where(r >= h, 2 * (h - 1) - r, r)
     c = np.abs(cols[:, None] + _WINDOW_OFFSETS)
     c = np.where(c >= w, 2 * (w - 1) - c, c)
-    window_rows = np.repeat(r, TEXTURE_WINDOW, axis=1).ravel()
-    window_cols = np.tile(c, (1, TEXTURE_WINDOW)).ravel()
-    px = colour.small_at(window_rows, window_cols).reshape(-1, 1, 3)
+    px = colour.small_at((r[:, :, None] * w + c[:, None, :]).ravel()).reshape(-1, 1, 3)
     g = cv2.cvtColor(px, cv2.COLOR_BGR2GRAY).reshape(rows.size, -1).astype(np.float64)
     scale = 1.0 / g.shape[1]
     mean = (g.sum(axis=1) * scale).astype(np.float32)
@@ -194,7 +192,7 @@ def shadow_mask(
         xs, ys = xs + x0, ys + y0
     # Pixels gathered by flat index along one axis (a third of the time of indexing by rows and columns).
     at = ys * sw + xs
-    frame_px = colour.small_at(ys, xs).astype(np.float32)
+    frame_px = colour.small_at(at).astype(np.float32)
     bg_px = np.take(colour_bg.reshape(-1, 3), at, axis=0)
     bb = np.einsum("ij,ij->i", bg_px, bg_px)
     ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
