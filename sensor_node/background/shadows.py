@@ -135,7 +135,8 @@ def spread_at(
     r = np.where(r >= h, 2 * (h - 1) - r, r)
     c = np.abs(cols[:, None] + _WINDOW_OFFSETS)
     c = np.where(c >= w, 2 * (w - 1) - c, c)
-    px = colour.small_at((r[:, :, None] * w + c[:, None, :]).ravel()).reshape(-1, 1, 3)
+    # One row of pixels: OpenCV converts row by row, and a column of single pixels costs several times more.
+    px = colour.small_at((r[:, :, None] * w + c[:, None, :]).ravel()).reshape(1, -1, 3)
     g = cv2.cvtColor(px, cv2.COLOR_BGR2GRAY).reshape(rows.size, -1).astype(np.float64)
     scale = 1.0 / g.shape[1]
     mean = (g.sum(axis=1) * scale).astype(np.float32)
