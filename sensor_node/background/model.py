@@ -11,7 +11,8 @@ integrates four parts, all here:
   the thin, sparse links between them;
 * **frame differencing** -- ``|I_t - I_{t-1}| > diff_threshold`` marks moving
   pixels; it tells a *sudden* global change (every pixel jumps between two
-  frames) from people, and gives each blob its motion evidence;
+  frames) from people, a camera that moves from people who do, and still
+  regions (ghosts, people who pause) from moving ones;
 * **abnormal-change detection** -- when more than ``abnormal_frac`` of the
   image changed at once (a light switched, the camera moved), the model is
   re-initialised instead of reporting the whole image as people: first by a
@@ -46,7 +47,7 @@ from sensor_node.background.shadows import ReducedColour, local_spread, shadow_m
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
-__all__ = ["BackgroundModel", "Motion", "MotionState"]
+__all__ = ["BackgroundModel", "FrameDifference", "Motion", "MotionState"]
 
 logger = logging.getLogger(__name__)
 
@@ -55,14 +56,39 @@ Mask = npt.NDArray[Any]
 MotionState = Literal["warmup", "ok", "relit", "reinit", "moving"]
 
 
+class FrameDifference:
+    """255 where a frame differs from the one before by more than ``level`` (frame differencing), computed when
+    first asked for: the warm-up, a mobile camera's ego-motion test and the still regions' sampling frames
+    read it, the other frames do not."""
+
+    __slots__ = ("_grey", "_level", "_mask", "_prev")
+
+    def __init__(self, grey: Mask, prev: Mask | None, level: int) -> None:
+        self._grey, self._prev, self._level = grey, prev, level
+        self._mask: Mask | None = None
+
+    @classmethod
+    def none(cls, grey: Mask) -> FrameDifference:
+        """No moving pixels (a frame whose difference to the one before means nothing)."""
+        return cls(grey, None, 0)
+
+    def __call__(self) -> Mask:
+        if self._mask is None:
+            if self._prev is None:
+                self._mask = np.zeros_like(self._grey)
+            else:
+                self._mask = _threshold(cv2.absdiff(self._grey, self._prev), self._level)
+        return self._mask
+
+
 @dataclass(frozen=True, slots=True)
 class Motion:
     """What changed in one frame."""
 
     fg: Mask
     """255 where the frame differs from the background (empty unless state is "ok" or "relit")."""
-    moving: Mask
-    """255 where the frame differs from the previous frame."""
+    difference: FrameDifference
+    """Where the frame differs from the previous frame (:attr:`moving`)."""
     state: MotionState
     """"warmup": still learning; "ok"; "relit": a global light change was compensated by a gain;
     "reinit": the background was re-initialised from this frame (nothing reported); "moving": the
@@ -75,6 +101,11 @@ class Motion:
     @property
     def reportable(self) -> bool:
         return self.state in ("ok", "relit")
+
+    @property
+    def moving(self) -> Mask:
+        """255 where the frame differs from the previous frame."""
+        return self.difference()
 
 
 class BackgroundModel:
@@ -244,13 +275,13 @@ class BackgroundModel:
         self._colour_now = colour
         prev = self._prev
         self._prev = grey
-        moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
-        empty = np.zeros_like(grey)
+        moving = FrameDifference(grey, prev, s.diff_threshold)
         ego = prev is not None and self._camera_moves(grey, prev, moving)
         if ego:
             self.ego_frames += 1
         if self._bg is None:
-            if ego or (prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size):
+            empty = np.zeros_like(grey)
+            if ego or (prev is not None and cv2.countNonZero(moving()) > 0.5 * s.abnormal_frac * grey.size):
                 # The camera is moving (or the light flickers): learn only from a still view.
                 self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
                 if ego:
@@ -266,7 +297,7 @@ class BackgroundModel:
             # Known ego-motion is not available: the background no longer fits the view. Forget it
             # now (not after it has soaked up the moving scene) and learn it afresh once stopped.
             self._restart(1.0, 1.0, "the camera moves")
-            return Motion(empty, moving, "moving", 1.0)
+            return Motion(np.zeros_like(grey), moving, "moving", 1.0)
         bg_u8 = self._bg_u8
         assert bg_u8 is not None and self._thr is not None
         diff = cv2.absdiff(grey, bg_u8)
@@ -307,10 +338,10 @@ class BackgroundModel:
             self.still.forget_under()
             logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
             # The frame of the jump is not reported: frame differencing is meaningless across it.
-            return Motion(empty, empty, "relit", frac, gain)
+            return Motion(np.zeros_like(grey), FrameDifference.none(grey), "relit", frac, gain)
         return self._restart(frac, gain, "not explained by a light change")
 
-    def _camera_moves(self, grey: Mask, prev: Mask, moving: Mask) -> bool:
+    def _camera_moves(self, grey: Mask, prev: Mask, moving: FrameDifference) -> bool:
         """Frame differencing says the camera itself moves: motion in most directions at once.
 
         People move in a few compact column ranges; when the robot carrying the
@@ -321,7 +352,7 @@ class BackgroundModel:
         frac = self.settings.ego_motion_frac
         if frac >= 1.0 or not self.mobile:
             return False
-        cols = cv2.reduce(moving, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        cols = cv2.reduce(moving(), 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         n = cols.size - cols.size % EGO_SECTORS
         if n < EGO_SECTORS:
             return False
@@ -346,7 +377,7 @@ class BackgroundModel:
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
         empty = np.zeros(self._prev.shape if self._prev is not None else (1, 1), np.uint8)
-        return Motion(empty, empty, "reinit", frac, gain)
+        return Motion(empty, FrameDifference.none(empty), "reinit", frac, gain)
 
     def update(self, grey: Mask, fg: Mask | None = None, boxes: list[tuple[int, int, int, int]] | None = None) -> None:
         """Weighted-average update of the background outside object regions.
