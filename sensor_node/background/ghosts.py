@@ -181,14 +181,13 @@ class UnderGhosts:
         """
         if self.expired(frame):
             return None, 0
-        # Everything is done in the box of what is kept (a few regions of a large image). What is too old
-        # to put back is forgotten (an 8-bit mask of the young: a fraction of a masked assignment's time).
+        # Everything is done in the box of what is kept (a few regions of a large image); what is too old
+        # to put back is forgotten.
         mx, my, mw, mh = cv2.boundingRect(self._mask)
         if mw == 0:
             return None, 0
         kept = (slice(my, my + mh), slice(mx, mx + mw))
-        young = cv2.compare(self._frame[kept], frame - RESTORE_FRAMES, cv2.CMP_GE)  # type: ignore[call-overload]
-        self._mask[kept] = cv2.bitwise_and(self._mask[kept], young)
+        self._mask[kept][self._frame[kept] < frame - RESTORE_FRAMES] = 0
         cand = cv2.bitwise_and(still[kept], self._mask[kept])
         if cv2.countNonZero(cand) < least_px:
             return None, 0
