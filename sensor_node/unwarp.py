@@ -9,9 +9,11 @@ What the pipeline needs from a frame is cheaper than a full colour panorama:
 * geometry (background model, blobs, heads) needs full resolution but one
   channel: the annular frame is converted to grey *before* the remap, a third
   of the remap work;
-* colour (histograms, the robots' band colours) needs little resolution: a
-  half-resolution colour panorama sampled with nearest-neighbour maps, made
-  only when asked for (the band search), or just for a blob's box;
+* colour (histograms, shadows, the robots' band colours) needs little
+  resolution: a half-resolution colour panorama sampled with nearest-neighbour
+  maps, made whole only when asked for (the colour background's update), else
+  read in parts (a box for the band search; a blob's or a shadow candidate's
+  pixels, gathered by index from the annular frame);
 * the sub-pixel boundaries of a sighted robot need full-resolution colour on a
   small box only: :meth:`PanoFrame.colour` remaps just that box.
 """
