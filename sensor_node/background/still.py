@@ -91,6 +91,8 @@ class StillRegions:
         self._born_first: Mask | None = None
         """Changed pixels that have stayed changed since the model was learnt: someone who came in later
         cannot be among them."""
+        self._born_live = self._born_first_live = True
+        """The born masks may still hold changed pixels (once empty they stay so)."""
         self._under: UnderGhosts | None = None
         """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
         self.ghosts = 0
@@ -131,16 +133,21 @@ class StillRegions:
         self._born_age += 1
         if self._born is None or self._born_first is None:
             self._born, self._born_first = fg.copy(), fg.copy()
+            self._born_live = self._born_first_live = True
         else:
-            cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
+            if self._born_first_live:
+                cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
             if self._born_age == BORN_FRAMES:
-                self._born = fg.copy()
-            else:
+                self._born, self._born_live = fg.copy(), True
+            elif self._born_live:
                 cv2.bitwise_and(self._born, fg, dst=self._born)
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
         if frame % STATIC_EVERY:
             return False
+        # A born mask that emptied stays empty (each frame can only clear more of it): no more ANDs.
+        self._born_first_live = self._born_first_live and cv2.countNonZero(self._born_first) > 0
+        self._born_live = self._born_live and cv2.countNonZero(self._born) > 0
         moved = moving()
         still = cv2.bitwise_and(fg, cv2.bitwise_not(moved))
         if self._static is None:
