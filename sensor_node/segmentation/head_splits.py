@@ -255,8 +255,11 @@ def split_at_heads(
         top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
     head_dip = dip if dip > 0 else GAP_HEAD_DIP_PX
 
-    widest = max(
-        (int(np.count_nonzero(col_px[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w])), default=0
+    # The widest part between gaps (only parts between gaps read it).
+    widest = (
+        max(int(np.count_nonzero(col_px[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w]))
+        if gaps
+        else 0
     )
 
     def ok_gap(a: int, b: int) -> bool:
