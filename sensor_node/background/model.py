@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import ReducedColour, local_spread, shadow_mask
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_mask
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -151,6 +151,11 @@ class BackgroundModel:
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
         self._colour_now: ReducedColour | None = None
+        self._colour_rows: tuple[int, int] = (0, 1 << 30)
+        """Rows [r0, r1) of the colour background the shadow test reads: the floor's (the ``floor`` given to
+        :meth:`shadows`) and the texture window's reach around them. Only they are learnt (the floor is
+        the same for a model's life: a camera that turns gets a new model)."""
+        self._floor: Mask | None = None
         self._bg_spread: npt.NDArray[np.float32] | None = None
         """The colour background's local texture (:func:`sensor_node.background.shadows.local_spread`),
         computed when the shadow test first needs it after the colour background changed."""
@@ -253,8 +258,15 @@ class BackgroundModel:
         small = self._colour_now
         if small.small_shape != self._colour_bg.shape[:2]:
             return None
+        if floor is not self._floor:
+            self._floor = floor
+            self._colour_rows = _rows_read(floor, self._colour_bg.shape[0])
+            self._bg_spread = None
         if self._bg_spread is None:
-            self._bg_spread = local_spread(self._colour_bg)
+            r0, r1 = self._colour_rows
+            self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
+            if r1 > r0:
+                self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
         return shadow_mask(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
@@ -466,14 +478,19 @@ class BackgroundModel:
         now = self._colour_now
         if self._colour_bg is None or now is None or now.small_shape != self._colour_bg.shape[:2]:
             return
-        colour = now.small
         self._bg_spread = None
-        if objects is None:
-            cv2.accumulateWeighted(colour, self._colour_bg, alpha)
-            return
+        # Only the rows the shadow test reads (the rest of the colour background is never read).
         h, w = self._colour_bg.shape[:2]
+        r0, r1 = self._colour_rows[0], min(self._colour_rows[1], h)
+        if r1 <= r0:
+            return
+        colour = now.small if (r0, r1) == (0, h) else now.small_box(0, r0, w, r1 - r0)
+        learnt = self._colour_bg[r0:r1]
+        if objects is None:
+            cv2.accumulateWeighted(colour, learnt, alpha)
+            return
         small_objects = cv2.resize(cv2.dilate(objects, _K5), (w, h), interpolation=cv2.INTER_NEAREST)
-        cv2.accumulateWeighted(colour, self._colour_bg, alpha, mask=cv2.bitwise_not(small_objects))
+        cv2.accumulateWeighted(colour, learnt, alpha, mask=cv2.bitwise_not(small_objects[r0:r1]))
 
 
 WARM_SLACK_NS = 2_000_000
@@ -566,6 +583,18 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     # strong | beyond | ring, where the ring is what of ``joined`` touches both ``strong`` and ``beyond``:
     # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so one mask does.
     return cv2.bitwise_or(strong, cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)))
+
+
+def _rows_read(floor: Mask | None, height: int) -> tuple[int, int]:
+    """Rows [r0, r1) of a reduced colour image the shadow test reads for this ``floor``: the floor's rows and
+    the texture window's reach beyond them (all rows without a floor)."""
+    if floor is None:
+        return 0, height
+    _, y, _, h = cv2.boundingRect(floor)
+    if h == 0:
+        return 0, 0
+    m = TEXTURE_WINDOW // 2
+    return max(y - m, 0), min(y + h + m, height)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

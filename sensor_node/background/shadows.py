@@ -92,6 +92,10 @@ class ReducedColour(Protocol):
         """(N, 3) BGR pixels at the flat indices ``at`` (row * columns + column)."""
         ...
 
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        """The (h, w, 3) box at column ``c0``, row ``r0``."""
+        ...
+
 
 class ColourImage:
     """A reduced colour image already made, as a :class:`ReducedColour`."""
@@ -107,6 +111,9 @@ class ColourImage:
 
     def small_at(self, at: npt.NDArray[np.integer]) -> Mask:
         return np.take(self.small.reshape(-1, 3), at, axis=0)
+
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        return np.ascontiguousarray(self.small[r0 : r0 + h, c0 : c0 + w])
 
 
 def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
