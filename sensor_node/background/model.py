@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import cv2
 import numpy as np
@@ -555,7 +555,8 @@ def _object_mask(shape: tuple[int, ...], fg: Mask | None, boxes: list[tuple[int,
 
 
 def _hysteresis(strong: Mask, weak: Mask) -> Mask:
-    """``strong`` and the pixels of ``weak`` connected to it through ``weak``, but for those touching ``strong``.
+    """``strong`` and the pixels of ``weak`` connected to it through ``weak``, but for those touching ``strong``
+    (``weak`` holds ``strong``: a lower threshold).
 
     Connectivity is judged on 2 x 2 cells (a cell is weak or strong if any of its pixels is): the labelling
     costs a quarter, and a faint part one pixel from a contrasted one is still the same object.
@@ -576,13 +577,30 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     seeded = np.zeros(max(n, 256), np.uint8)
     seeded[labels[strong_cells > 0]] = 255
     seeded[0] = 0
-    # The seeded labels' cells: an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
-    cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:256]) if n <= 256 else seeded[labels]
-    joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
+    cell = HYSTERESIS_CELL_PX
+    if (cell * size[0], cell * size[1]) == (width, height):
+        # Each cell is a block of the image: ``weak`` without the blocks of its regions that hold no strong
+        # cell (a few specks of noise), cleared in place -- scaling the seeded cells back up and masking
+        # costs several times more.
+        lone = 255 - seeded
+        lone[0] = 0
+        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
+        lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
+        joined = weak.copy()
+        points = cv2.findNonZero(lone_cells)
+        if points is not None:
+            xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
+            joined.reshape(size[1], cell, size[0], cell)[ys, :, xs, :] = 0
+    else:
+        cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:256]) if n <= 256 else seeded[labels]
+        joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
     beyond = cv2.subtract(joined, cv2.dilate(strong, _K3))  # faint parts, not touching the contrasted ones
     # strong | beyond | ring, where the ring is what of ``joined`` touches both ``strong`` and ``beyond``:
-    # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so one mask does.
-    return cv2.bitwise_or(strong, cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)))
+    # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so ``joined`` where that
+    # dilation is and ``strong`` elsewhere.
+    out = strong.copy()
+    cv2.copyTo(joined, cv2.dilate(beyond, _K3), out)
+    return out
 
 
 def _rows_read(floor: Mask | None, height: int) -> tuple[int, int]:
