@@ -229,13 +229,17 @@ def shadow_mask(
         ys, xs = ys[keep], xs[keep]
     if ys.size == 0:
         return None
+    full = np.zeros((h, w), np.uint8)
+    if h % sh == 0 and w % sw == 0:
+        # Back to full resolution: each reduced pixel's block, set in place (scaling a mask up costs more).
+        full.reshape(sh, h // sh, sw, w // sw)[ys, :, xs, :] = 255
+        return cv2.bitwise_and(full, fg)
     # Back to full resolution over the shadow pixels' box only (nearest: each reduced pixel's block).
     r0, r1, c0, c1 = int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1
     box_small = np.zeros((r1 - r0, c1 - c0), np.uint8)
     box_small[ys - r0, xs - c0] = 255
     sy, sx = h / sh, w / sw
     fr0, fr1, fc0, fc1 = round(r0 * sy), round(r1 * sy), round(c0 * sx), round(c1 * sx)
-    full = np.zeros((h, w), np.uint8)
     up = cv2.resize(box_small, (fc1 - fc0, fr1 - fr0), interpolation=cv2.INTER_NEAREST)
     full[fr0:fr1, fc0:fc1] = cv2.bitwise_and(up, fg[fr0:fr1, fc0:fc1])
     return full
