@@ -426,7 +426,7 @@ class BackgroundModel:
             outside = cv2.bitwise_not(objects)
             # Means over the outside as dot products with its 0/1 weights (cv2.mean with a mask costs 10x).
             weights = np.float32(outside.ravel()) * np.float32(1.0 / 255.0)
-            n_out = max(float(weights.sum()), 1.0)
+            n_out = max(float(cv2.countNonZero(outside)), 1.0)  # the weights' sum, counted on 8 bits
             before = float(np.dot(self._bg.ravel(), weights)) / n_out
             cv2.accumulateWeighted(grey, self._bg, alpha, mask=outside)
             after = float(np.dot(self._bg.ravel(), weights)) / n_out
@@ -443,7 +443,7 @@ class BackgroundModel:
         diff = cv2.absdiff(grey, self._bg_u8)
         self._update_tail(diff, objects, alpha)
         cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
-        sample = cv2.min(diff.astype(np.float32), cap)
+        sample = np.minimum(diff, cap)  # float32, without converting the differences first
         people = _object_mask(grey.shape, None, boxes)
         cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
         self._refresh_threshold()
