@@ -17,9 +17,9 @@ def components(mask: Mask) -> tuple[int, Mask, npt.NDArray[np.int32]]:
     """The 8-connected regions of a mask: what ``cv2.connectedComponentsWithStats(mask, connectivity=8)``
     returns (count, labels, stats: left, top, width, height, area; the background's row left zero).
 
-    Labels are 16-bit where they fit: OpenCV's statistics pass costs a third of its time with 32-bit
-    labels (0.1 against 0.27 ms on a reduced panorama mask). Regions of an 8-connected labelling touch
-    not even at a corner, so a mask has at most one per 2 x 2 block of pixels.
+    Labels are 16-bit where they fit: OpenCV's statistics pass is several times faster with them than with
+    32-bit labels (``benchmarks/NOTES.md``). Regions of an 8-connected labelling touch not even at a
+    corner, so a mask has at most one per 2 x 2 block of pixels.
     """
     height, width = mask.shape[:2]
     ltype = cv2.CV_16U if ((height + 1) // 2) * ((width + 1) // 2) < np.iinfo(np.uint16).max else cv2.CV_32S
