@@ -11,9 +11,10 @@ What the pipeline needs from a frame is cheaper than a full colour panorama:
   of the remap work;
 * colour (histograms, shadows, the robots' band colours) needs little
   resolution: a half-resolution colour panorama sampled with nearest-neighbour
-  maps, made whole only when asked for (the colour background's update), else
-  read in parts (a box for the band search; a blob's or a shadow candidate's
-  pixels, gathered by index from the annular frame);
+  maps, made whole only when asked for (the warm-up's colour samples), else
+  read in parts (rows for the band search and the colour background's
+  update; a blob's or a shadow candidate's pixels, gathered by index from the
+  annular frame);
 * the sub-pixel boundaries of a sighted robot need full-resolution colour on a
   small box only: :meth:`PanoFrame.colour` remaps just that box.
 """
