@@ -279,7 +279,7 @@ class BackgroundModel:
             stamp_ns: its capture time: the warm-up spans ``warmup_s`` of it (None: frames are counted,
                 every ``warmup_stride``-th taken).
             colour: the frame's reduced colour image (a :class:`~sensor_node.unwarp.PanoFrame`: the shadow
-                test reads its candidates' pixels only, the colour background's update all of it), for the
+                test reads its candidates' pixels, the colour background's update the rows it reads), for the
                 colour background that tells shadows from objects (:meth:`shadows`); None: grey only.
         """
         s = self.settings
