@@ -145,11 +145,11 @@ class BlobFeature:
 
 
 def colour_histogram(
-    bgr_roi: npt.NDArray[Any], mask: npt.NDArray[np.bool_], bins: tuple[int, int] | list[int]
+    bgr_roi: npt.NDArray[Any], mask: npt.NDArray[np.bool_] | None, bins: tuple[int, int] | list[int]
 ) -> list[float]:
-    """L1-normalised hue x saturation histogram of the masked pixels (the paper's I)."""
+    """L1-normalised hue x saturation histogram of the masked pixels (the paper's I); ``mask`` None: of all."""
     hsv = cv2.cvtColor(np.ascontiguousarray(bgr_roi), cv2.COLOR_BGR2HSV)
-    m8 = mask.view(np.uint8) if mask.flags.c_contiguous else mask.astype(np.uint8)
+    m8 = None if mask is None else mask.view(np.uint8) if mask.flags.c_contiguous else mask.astype(np.uint8)
     hist = cv2.calcHist([hsv], [0, 1], m8, [int(bins[0]), int(bins[1])], [0, 180, 0, 256]).ravel()
     total = float(hist.sum())
     if total <= 0:
@@ -158,16 +158,21 @@ def colour_histogram(
     return out
 
 
-def _small_box(frame: PanoFrame, raw: RawBlob) -> tuple[Image, npt.NDArray[np.bool_]] | None:
-    """The blob's box in the frame's reduced colour image, and its mask sampled to match."""
+def _small_pixels(frame: PanoFrame, raw: RawBlob) -> Image:
+    """(1, N, 3) colours of the blob's pixels at the reduced colour image's pixels inside its box.
+
+    Gathered (on a panorama from the annular frame, without making the reduced image) as one row:
+    OpenCV converts colours row by row.
+    """
     s = frame.scale
     r0, r1 = -(-raw.v0 // s), (raw.v0 + raw.h - 1) // s
     c0, c1 = -(-raw.u0 // s), (raw.u0 + raw.w - 1) // s
     if r1 < r0 or c1 < c0:
-        return None
-    img = frame.small_box(c0, r0, c1 - c0 + 1, r1 - r0 + 1)
-    # The mask's pixels at the reduced pixels' rows and columns (every s-th, from the first inside it).
-    return img, raw.mask[r0 * s - raw.v0 :: s, c0 * s - raw.u0 :: s][: r1 - r0 + 1, : c1 - c0 + 1]
+        return np.zeros((1, 0, 3), np.uint8)
+    sampled = raw.mask[r0 * s - raw.v0 :: s, c0 * s - raw.u0 :: s][: r1 - r0 + 1, : c1 - c0 + 1]
+    rows, cols = np.nonzero(sampled)
+    sw = frame.small_shape[1]
+    return frame.small_at((rows + r0) * sw + (cols + c0) % sw)[None]
 
 
 def annotate(
@@ -214,9 +219,9 @@ def annotate(
     hist: list[float] = []
     feet_visible = True
     if frame is not None:
-        box = _small_box(frame, raw)
-        if box is not None and box[1].any():
-            hist = colour_histogram(box[0], box[1], hist_bins)
+        px = _small_pixels(frame, raw)
+        if px.shape[1]:
+            hist = colour_histogram(px, None, hist_bins)
         feet_visible = raw.v0 + raw.h < height_px
         if not geometry.wraps:
             feet_visible = feet_visible and raw.u0 > 0 and raw.u0 + raw.w < width_img

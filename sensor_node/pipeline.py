@@ -39,7 +39,7 @@ from sensor_node.features import (
 )
 from sensor_node.segmentation.blobs import RawBlob, find_blobs
 from sensor_node.segmentation.groups import split_by_tracks
-from sensor_node.segmentation.head_splits import split_at_heads
+from sensor_node.segmentation.head_splits import split_at_heads, top_profile
 from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import PanoFrame, Unwarper
@@ -120,7 +120,6 @@ class Segment:
 def segment(
     fg: Mask,
     links: Mask,
-    moving: Mask,
     settings: PipelineSettings,
     *,
     wrap: bool,
@@ -133,7 +132,6 @@ def segment(
     Args:
         fg: the objects' pixels (:func:`objects_mask`).
         links: the changed pixels before the vote, which join a person's parts above one another.
-        moving: the frame-difference mask (the parts' motion fractions).
         settings: the blob checks and split knobs.
         wrap: columns wrap around (a panorama).
         predicted_heads: image columns where the 2D tracks expect a head in this frame (from the
@@ -141,9 +139,10 @@ def segment(
     """
     width = fg.shape[1]
     out = []
-    for blob in find_blobs(fg, moving, settings, wrap=wrap, check_frac=False, links=links):
-        for head_part in split_at_heads(blob, moving, settings, width):
-            parts = split_by_tracks(head_part, predicted_heads, moving, settings, width)
+    for blob in find_blobs(fg, settings, wrap=wrap, check_frac=False, links=links):
+        top = top_profile(blob.mask)  # both splits read it
+        for head_part in split_at_heads(blob, settings, width, top=top):
+            parts = split_by_tracks(head_part, predicted_heads, settings, width, top=top if head_part is blob else None)
             out += [Segment(part, len(parts) > 1) for part in parts if part.changed_frac >= settings.min_changed_frac]
     return out
 
@@ -220,10 +219,10 @@ class ImagePipeline:
         """255 on the reduced colour image's pixels whose ray points below the horizon (cached per geometry)."""
         if not self.settings.shadows:
             return None
-        small = pf.small
-        key = (small.shape[0], small.shape[1], id(self.geometry))
+        small_h, small_w = pf.small_shape
+        key = (small_h, small_w, id(self.geometry))
         if self._floor_key != key:
-            self._floor_mask = below_horizon(self.geometry, small.shape[1], small.shape[0], pf.scale)
+            self._floor_mask = below_horizon(self.geometry, small_w, small_h, pf.scale)
             self._floor_key = key
         return self._floor_mask
 
@@ -246,7 +245,7 @@ class ImagePipeline:
         s = self.settings
         self._check_size(frame)
         pf = self.unwarper.frame(frame) if self.unwarper is not None else PanoFrame.from_image(frame)
-        motion = self.background.apply(pf.grey, stamp_ns, pf.small if s.shadows else None)
+        motion = self.background.apply(pf.grey, stamp_ns, pf if s.shadows else None)
         fg, links = (
             objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else (motion.fg, motion.fg)
         )
@@ -254,7 +253,7 @@ class ImagePipeline:
         tracker = self._tracks(pf.grey.shape[1])
         predicted_heads = self._split_heads(tracker)
         objects = (
-            segment(fg, links, motion.moving, s, wrap=self.geometry.wraps, predicted_heads=predicted_heads)
+            segment(fg, links, s, wrap=self.geometry.wraps, predicted_heads=predicted_heads)
             if motion.reportable
             else []
         )

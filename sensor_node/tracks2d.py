@@ -68,6 +68,13 @@ class Tracker2D:
             d = (d + self.period / 2) % self.period - self.period / 2
         return d
 
+    def _dx_one(self, a: float, b: float) -> float:
+        """:meth:`_dx` of two numbers (plain floats: the same operations, without numpy's per-call cost)."""
+        d = a - b
+        if self.period > 0:
+            d = (d + self.period / 2) % self.period - self.period / 2
+        return d
+
     def update(self, positions: list[tuple[float, float]], cut: list[bool] | None = None) -> list[int]:
         """Assign a local id to each position of this frame (same order); unmatched ones get new ids.
 
@@ -93,7 +100,7 @@ class Tracker2D:
                 used_t.add(ti)
                 t = self._tracks[ti]
                 x, y = positions[di]
-                vx = float(self._dx(np.asarray(x), np.asarray(t.x)))
+                vx = self._dx_one(x, t.x)
                 t.vx, t.vy = 0.5 * t.vx + 0.5 * vx, 0.5 * t.vy + 0.5 * (y - t.y)
                 t.x, t.y, t.missed, t.hits = x, y, 0, t.hits + 1
                 t.solo_hits += not (cut and cut[di])

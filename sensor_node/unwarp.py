@@ -9,9 +9,12 @@ What the pipeline needs from a frame is cheaper than a full colour panorama:
 * geometry (background model, blobs, heads) needs full resolution but one
   channel: the annular frame is converted to grey *before* the remap, a third
   of the remap work;
-* colour (histograms, the robots' band colours) needs little resolution: a
-  half-resolution colour panorama sampled with nearest-neighbour maps, made
-  only when asked for (the band search), or just for a blob's box;
+* colour (histograms, shadows, the robots' band colours) needs little
+  resolution: a half-resolution colour panorama sampled with nearest-neighbour
+  maps, made whole only when asked for (the warm-up's colour samples), else
+  read in parts (rows for the band search and the colour background's
+  update; a blob's or a shadow candidate's pixels, gathered by index from the
+  annular frame);
 * the sub-pixel boundaries of a sighted robot need full-resolution colour on a
   small box only: :meth:`PanoFrame.colour` remaps just that box.
 """
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from common.arrays import Image
 from common.cameras import AnnularModel
@@ -46,9 +50,11 @@ class PanoFrame:
         scale: reduction of the colour views.
         maps: full-resolution fixed-point remap maps (None: ``source`` already is the processed image).
         small_maps: nearest-neighbour maps of the reduced colour panorama (with ``maps``).
+        small_index: each reduced pixel's flat index into ``source``'s pixels (what ``small_maps`` reads;
+            None: some read outside the frame, or no maps).
     """
 
-    __slots__ = ("_small", "grey", "maps", "scale", "small_maps", "source")
+    __slots__ = ("_small", "grey", "maps", "scale", "small_index", "small_maps", "source")
 
     def __init__(
         self,
@@ -57,12 +63,15 @@ class PanoFrame:
         scale: int = 2,
         maps: tuple[Image, Image] | None = None,
         small_maps: Image | None = None,
+        *,
+        small_index: Image | None = None,
     ) -> None:
         self.grey = grey
         self.source = source
         self.scale = scale
         self.maps = maps
         self.small_maps = small_maps
+        self.small_index = small_index
         self._small: Image | None = None
 
     @classmethod
@@ -79,6 +88,29 @@ class PanoFrame:
             else:
                 self._small = cv2.remap(self.source, self.small_maps, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
         return self._small
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        """(rows, columns) of :attr:`small`, without computing it."""
+        if self._small is not None:
+            return self._small.shape[0], self._small.shape[1]
+        if self.small_maps is not None:
+            return self.small_maps.shape[0], self.small_maps.shape[1]
+        return -(-self.source.shape[0] // self.scale), -(-self.source.shape[1] // self.scale)
+
+    def small_at(self, at: npt.NDArray[np.integer]) -> Image:
+        """(N, 3) pixels of :attr:`small` at the flat indices ``at`` (row * columns + column), without
+        computing all of it."""
+        if self._small is not None:
+            return np.take(self._small.reshape(-1, 3), at, axis=0)
+        if self.small_index is not None:
+            return np.take(self.source.reshape(-1, 3), np.take(self.small_index, at), axis=0)
+        if self.small_maps is None:
+            rows, cols = np.divmod(at, self.small_shape[1])
+            return np.take(
+                self.source.reshape(-1, 3), (rows * self.scale) * self.source.shape[1] + cols * self.scale, axis=0
+            )
+        return np.take(self.small.reshape(-1, 3), at, axis=0)
 
     def small_box(self, c0: int, r0: int, w: int, h: int) -> Image:
         """The box (c0, r0, w, h) of :attr:`small` without computing all of it; columns wrap."""
@@ -114,6 +146,10 @@ class Unwarper:
         vv, uu = np.mgrid[0 : model.pano_h // scale, 0 : model.pano_w // scale].astype(np.float64)
         sx, sy = model.annular_from_pano(uu * scale + off, vv * scale + off)
         self._s1, _ = cv2.convertMaps(sx.astype(np.float32), sy.astype(np.float32), cv2.CV_16SC2, nninterpolation=True)
+        # The same samples as flat indices into the frame's pixels (for reading a few of them).
+        x, y = self._s1[..., 0].astype(np.int64), self._s1[..., 1].astype(np.int64)
+        inside = bool(((x >= 0) & (x < model.image_w) & (y >= 0) & (y < model.image_h)).all())
+        self._s_index = (y * model.image_w + x).astype(np.int32).ravel() if inside else None
 
     @property
     def pano_size(self) -> tuple[int, int]:
@@ -145,4 +181,4 @@ class Unwarper:
         self._check(annular)
         grey_annular = cv2.cvtColor(annular, cv2.COLOR_BGR2GRAY)
         grey = cv2.remap(grey_annular, self._m1, self._m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return PanoFrame(grey, annular, self.scale, (self._m1, self._m2), self._s1)
+        return PanoFrame(grey, annular, self.scale, (self._m1, self._m2), self._s1, small_index=self._s_index)

@@ -181,11 +181,16 @@ class UnderGhosts:
         """
         if self.expired(frame):
             return None, 0
-        self._mask[self._frame < frame - RESTORE_FRAMES] = 0
-        cand = cv2.bitwise_and(still, self._mask)
+        # Everything is done in the box of what is kept (a few regions of a large image); what is too old
+        # to put back is forgotten.
+        mx, my, mw, mh = cv2.boundingRect(self._mask)
+        if mw == 0:
+            return None, 0
+        kept = (slice(my, my + mh), slice(mx, mx + mw))
+        self._mask[kept][self._frame[kept] < frame - RESTORE_FRAMES] = 0
+        cand = cv2.bitwise_and(still[kept], self._mask[kept])
         if cv2.countNonZero(cand) < least_px:
             return None, 0
-        near = cv2.absdiff(grey, self._under_u8) <= match_level
         n, labels, stats = components(cand)
         done: Mask | None = None
         regions = 0
@@ -193,9 +198,11 @@ class UnderGhosts:
             x, y, w, h, area = (int(v) for v in stats[k])
             if area < least_px:
                 continue
+            comp = labels[y : y + h, x : x + w] == k
+            x, y = x + mx, y + my
             box = (slice(y, y + h), slice(x, x + w))
-            comp = labels[box] == k
-            if np.count_nonzero(near[box][comp]) < RESTORE_MATCH * area:
+            near = cv2.absdiff(grey[box], self._under_u8[box]) <= match_level
+            if np.count_nonzero(near[comp]) < RESTORE_MATCH * area:
                 continue
             bg[box][comp] = self._under[box][comp]
             self._mask[box][comp] = 0

@@ -11,7 +11,8 @@ integrates four parts, all here:
   the thin, sparse links between them;
 * **frame differencing** -- ``|I_t - I_{t-1}| > diff_threshold`` marks moving
   pixels; it tells a *sudden* global change (every pixel jumps between two
-  frames) from people, and gives each blob its motion evidence;
+  frames) from people, a camera that moves from people who do, and still
+  regions (ghosts, people who pause) from moving ones;
 * **abnormal-change detection** -- when more than ``abnormal_frac`` of the
   image changed at once (a light switched, the camera moved), the model is
   re-initialised instead of reporting the whole image as people: first by a
@@ -36,17 +37,17 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import local_spread, shadow_mask
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_mask
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
-__all__ = ["BackgroundModel", "Motion", "MotionState"]
+__all__ = ["BackgroundModel", "FrameDifference", "Motion", "MotionState"]
 
 logger = logging.getLogger(__name__)
 
@@ -55,14 +56,39 @@ Mask = npt.NDArray[Any]
 MotionState = Literal["warmup", "ok", "relit", "reinit", "moving"]
 
 
+class FrameDifference:
+    """255 where a frame differs from the one before by more than ``level`` (frame differencing), computed when
+    first asked for: the warm-up, a mobile camera's ego-motion test and the still regions' sampling frames
+    read it, the other frames do not."""
+
+    __slots__ = ("_grey", "_level", "_mask", "_prev")
+
+    def __init__(self, grey: Mask, prev: Mask | None, level: int) -> None:
+        self._grey, self._prev, self._level = grey, prev, level
+        self._mask: Mask | None = None
+
+    @classmethod
+    def none(cls, grey: Mask) -> FrameDifference:
+        """No moving pixels (a frame whose difference to the one before means nothing)."""
+        return cls(grey, None, 0)
+
+    def __call__(self) -> Mask:
+        if self._mask is None:
+            if self._prev is None:
+                self._mask = np.zeros_like(self._grey)
+            else:
+                self._mask = _threshold(cv2.absdiff(self._grey, self._prev), self._level)
+        return self._mask
+
+
 @dataclass(frozen=True, slots=True)
 class Motion:
     """What changed in one frame."""
 
     fg: Mask
     """255 where the frame differs from the background (empty unless state is "ok" or "relit")."""
-    moving: Mask
-    """255 where the frame differs from the previous frame."""
+    difference: FrameDifference
+    """Where the frame differs from the previous frame (:attr:`moving`)."""
     state: MotionState
     """"warmup": still learning; "ok"; "relit": a global light change was compensated by a gain;
     "reinit": the background was re-initialised from this frame (nothing reported); "moving": the
@@ -75,6 +101,11 @@ class Motion:
     @property
     def reportable(self) -> bool:
         return self.state in ("ok", "relit")
+
+    @property
+    def moving(self) -> Mask:
+        """255 where the frame differs from the previous frame."""
+        return self.difference()
 
 
 class BackgroundModel:
@@ -110,7 +141,7 @@ class BackgroundModel:
         """Per-pixel changed threshold (8-bit): ``fg_threshold``, or more where the image is noisy or swings."""
         self._thr_weak: Mask | None = None
         """Per-pixel threshold (8-bit, at most ``_thr``) beyond which a pixel connected to changed pixels
-        changed too (None: the noise tail is not measured yet)."""
+        changed too (None: the noise tail is not measured yet, or the threshold is ``_thr`` everywhere)."""
         self._sigma: npt.NDArray[np.float32] | None = None
         """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
         self.tail_sigmas: float | None = None
@@ -119,7 +150,12 @@ class BackgroundModel:
         for Gaussian noise; more for compressed video (blocks, ringing)."""
         self._colour_bg: npt.NDArray[np.float32] | None = None
         """Reduced colour background (the frames' :attr:`PanoFrame.small`), for the shadow test."""
-        self._colour_now: Mask | None = None
+        self._colour_now: ReducedColour | None = None
+        self._colour_rows: tuple[int, int] = (0, 1 << 30)
+        """Rows [r0, r1) of the colour background the shadow test reads: the floor's (the ``floor`` given to
+        :meth:`shadows`) and the texture window's reach around them. Only they are learnt (the floor is
+        the same for a model's life: a camera that turns gets a new model)."""
+        self._floor: Mask | None = None
         self._bg_spread: npt.NDArray[np.float32] | None = None
         """The colour background's local texture (:func:`sensor_node.background.shadows.local_spread`),
         computed when the shadow test first needs it after the colour background changed."""
@@ -204,7 +240,10 @@ class BackgroundModel:
         if self.tail_sigmas is None:
             self._thr_weak = None
         else:
-            self._thr_weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
+            weak = cv2.min(cv2.convertScaleAbs(sigma, alpha=max(s.fg_sigmas, self.tail_sigmas)), thr)
+            # Nowhere below the changed threshold (a noise tail as long as it: compressed video): hysteresis
+            # would join nothing; it is skipped until the thresholds change.
+            self._thr_weak = weak if cv2.countNonZero(cv2.subtract(thr, weak)) else None
 
     def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
         """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
@@ -217,36 +256,44 @@ class BackgroundModel:
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return None
         small = self._colour_now
-        if small.shape[:2] != self._colour_bg.shape[:2]:
+        if small.small_shape != self._colour_bg.shape[:2]:
             return None
+        if floor is not self._floor:
+            self._floor = floor
+            self._colour_rows = _rows_read(floor, self._colour_bg.shape[0])
+            self._bg_spread = None
         if self._bg_spread is None:
-            self._bg_spread = local_spread(self._colour_bg)
+            r0, r1 = self._colour_rows
+            self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
+            if r1 > r0:
+                self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
         return shadow_mask(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
 
-    def apply(self, grey: Mask, stamp_ns: int | None = None, colour: Mask | None = None) -> Motion:
+    def apply(self, grey: Mask, stamp_ns: int | None = None, colour: ReducedColour | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
 
         Args:
             grey: the frame.
             stamp_ns: its capture time: the warm-up spans ``warmup_s`` of it (None: frames are counted,
                 every ``warmup_stride``-th taken).
-            colour: the frame's reduced colour image (:attr:`PanoFrame.small`), for the colour
-                background that tells shadows from objects (:meth:`shadows`); None: grey only.
+            colour: the frame's reduced colour image (a :class:`~sensor_node.unwarp.PanoFrame`: the shadow
+                test reads its candidates' pixels, the colour background's update the rows it reads), for the
+                colour background that tells shadows from objects (:meth:`shadows`); None: grey only.
         """
         s = self.settings
         self._frames += 1
         self._colour_now = colour
         prev = self._prev
         self._prev = grey
-        moving = _threshold(cv2.absdiff(grey, prev), s.diff_threshold) if prev is not None else np.zeros_like(grey)
-        empty = np.zeros_like(grey)
+        moving = FrameDifference(grey, prev, s.diff_threshold)
         ego = prev is not None and self._camera_moves(grey, prev, moving)
         if ego:
             self.ego_frames += 1
         if self._bg is None:
-            if ego or (prev is not None and cv2.countNonZero(moving) > 0.5 * s.abnormal_frac * grey.size):
+            empty = np.zeros_like(grey)
+            if ego or (prev is not None and cv2.countNonZero(moving()) > 0.5 * s.abnormal_frac * grey.size):
                 # The camera is moving (or the light flickers): learn only from a still view.
                 self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
                 if ego:
@@ -254,7 +301,7 @@ class BackgroundModel:
             elif self._take_warm(stamp_ns):
                 self._warm.append(grey.copy())
                 if colour is not None:
-                    self._warm_colour.append(colour.copy())
+                    self._warm_colour.append(colour.small.copy())
             if len(self._warm) >= s.warmup_frames:
                 self._learn_warm()
             return Motion(empty, moving, "warmup", 0.0)
@@ -262,7 +309,7 @@ class BackgroundModel:
             # Known ego-motion is not available: the background no longer fits the view. Forget it
             # now (not after it has soaked up the moving scene) and learn it afresh once stopped.
             self._restart(1.0, 1.0, "the camera moves")
-            return Motion(empty, moving, "moving", 1.0)
+            return Motion(np.zeros_like(grey), moving, "moving", 1.0)
         bg_u8 = self._bg_u8
         assert bg_u8 is not None and self._thr is not None
         diff = cv2.absdiff(grey, bg_u8)
@@ -303,10 +350,10 @@ class BackgroundModel:
             self.still.forget_under()
             logger.info("sudden light change (gain %.3f, %.0f%% changed): background rescaled", gain, 100 * frac)
             # The frame of the jump is not reported: frame differencing is meaningless across it.
-            return Motion(empty, empty, "relit", frac, gain)
+            return Motion(np.zeros_like(grey), FrameDifference.none(grey), "relit", frac, gain)
         return self._restart(frac, gain, "not explained by a light change")
 
-    def _camera_moves(self, grey: Mask, prev: Mask, moving: Mask) -> bool:
+    def _camera_moves(self, grey: Mask, prev: Mask, moving: FrameDifference) -> bool:
         """Frame differencing says the camera itself moves: motion in most directions at once.
 
         People move in a few compact column ranges; when the robot carrying the
@@ -317,7 +364,7 @@ class BackgroundModel:
         frac = self.settings.ego_motion_frac
         if frac >= 1.0 or not self.mobile:
             return False
-        cols = cv2.reduce(moving, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        cols = cv2.reduce(moving(), 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
         n = cols.size - cols.size % EGO_SECTORS
         if n < EGO_SECTORS:
             return False
@@ -342,7 +389,7 @@ class BackgroundModel:
         self.reinits += 1
         logger.info("abnormal change (%.0f%% of pixels changed, gain %.3f, %s): relearning", 100 * frac, gain, why)
         empty = np.zeros(self._prev.shape if self._prev is not None else (1, 1), np.uint8)
-        return Motion(empty, empty, "reinit", frac, gain)
+        return Motion(empty, FrameDifference.none(empty), "reinit", frac, gain)
 
     def update(self, grey: Mask, fg: Mask | None = None, boxes: list[tuple[int, int, int, int]] | None = None) -> None:
         """Weighted-average update of the background outside object regions.
@@ -379,7 +426,7 @@ class BackgroundModel:
             outside = cv2.bitwise_not(objects)
             # Means over the outside as dot products with its 0/1 weights (cv2.mean with a mask costs 10x).
             weights = np.float32(outside.ravel()) * np.float32(1.0 / 255.0)
-            n_out = max(float(weights.sum()), 1.0)
+            n_out = max(float(cv2.countNonZero(outside)), 1.0)  # the weights' sum, counted on 8 bits
             before = float(np.dot(self._bg.ravel(), weights)) / n_out
             cv2.accumulateWeighted(grey, self._bg, alpha, mask=outside)
             after = float(np.dot(self._bg.ravel(), weights)) / n_out
@@ -396,7 +443,7 @@ class BackgroundModel:
         diff = cv2.absdiff(grey, self._bg_u8)
         self._update_tail(diff, objects, alpha)
         cap = self._dev * np.float32(1.0 + DEV_STEP) + np.float32(1.0)
-        sample = cv2.min(diff.astype(np.float32), cap)
+        sample = np.minimum(diff, cap)  # float32, without converting the differences first
         people = _object_mask(grey.shape, None, boxes)
         cv2.accumulateWeighted(sample, self._dev, alpha, mask=None if people is None else cv2.bitwise_not(people))
         self._refresh_threshold()
@@ -428,16 +475,22 @@ class BackgroundModel:
         self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
 
     def _update_colour(self, objects: Mask | None, alpha: float) -> None:
-        colour = self._colour_now
-        if self._colour_bg is None or colour is None or colour.shape[:2] != self._colour_bg.shape[:2]:
+        now = self._colour_now
+        if self._colour_bg is None or now is None or now.small_shape != self._colour_bg.shape[:2]:
             return
         self._bg_spread = None
-        if objects is None:
-            cv2.accumulateWeighted(colour, self._colour_bg, alpha)
-            return
+        # Only the rows the shadow test reads (the rest of the colour background is never read).
         h, w = self._colour_bg.shape[:2]
+        r0, r1 = self._colour_rows[0], min(self._colour_rows[1], h)
+        if r1 <= r0:
+            return
+        colour = now.small if (r0, r1) == (0, h) else now.small_box(0, r0, w, r1 - r0)
+        learnt = self._colour_bg[r0:r1]
+        if objects is None:
+            cv2.accumulateWeighted(colour, learnt, alpha)
+            return
         small_objects = cv2.resize(cv2.dilate(objects, _K5), (w, h), interpolation=cv2.INTER_NEAREST)
-        cv2.accumulateWeighted(colour, self._colour_bg, alpha, mask=cv2.bitwise_not(small_objects))
+        cv2.accumulateWeighted(colour, learnt, alpha, mask=cv2.bitwise_not(small_objects[r0:r1]))
 
 
 WARM_SLACK_NS = 2_000_000
@@ -502,7 +555,8 @@ def _object_mask(shape: tuple[int, ...], fg: Mask | None, boxes: list[tuple[int,
 
 
 def _hysteresis(strong: Mask, weak: Mask) -> Mask:
-    """``strong`` and the pixels of ``weak`` connected to it through ``weak``, but for those touching ``strong``.
+    """``strong`` and the pixels of ``weak`` connected to it through ``weak``, but for those touching ``strong``
+    (``weak`` holds ``strong``: a lower threshold).
 
     Connectivity is judged on 2 x 2 cells (a cell is weak or strong if any of its pixels is): the labelling
     costs a quarter, and a faint part one pixel from a contrasted one is still the same object.
@@ -512,23 +566,53 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     stays out, as it would without hysteresis; between the contrasted part and a faint one (hair and a face
     of the wall's grey) both sides are set and the vote fills it.
     """
-    if cv2.countNonZero(weak) == cv2.countNonZero(strong):
-        return strong
     height, width = weak.shape
     size = (max(1, width // HYSTERESIS_CELL_PX), max(1, height // HYSTERESIS_CELL_PX))
     weak_cells = cv2.resize(weak, size, interpolation=cv2.INTER_AREA)
     strong_cells = cv2.resize(strong, size, interpolation=cv2.INTER_AREA)
-    n, labels = cv2.connectedComponents(weak_cells, connectivity=8, ltype=cv2.CV_32S)
-    seeded = np.zeros(n, np.uint8)
+    # 16-bit labels where they fit (at most one region per 2 x 2 block of cells): labelling, gathering and
+    # converting them cost less than 32-bit ones.
+    fits = ((size[0] + 1) // 2) * ((size[1] + 1) // 2) < np.iinfo(np.uint16).max
+    n, labels = cv2.connectedComponents(weak_cells, connectivity=8, ltype=cv2.CV_16U if fits else cv2.CV_32S)
+    seeded = np.zeros(max(n, 256), np.uint8)
     seeded[labels[strong_cells > 0]] = 255
     seeded[0] = 0
-    # The seeded labels' cells: an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
-    cells = cv2.LUT(cv2.convertScaleAbs(labels), np.resize(seeded, 256)) if n <= 256 else seeded[labels]
-    joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
+    cell = HYSTERESIS_CELL_PX
+    if (cell * size[0], cell * size[1]) == (width, height):
+        # Each cell is a block of the image: ``weak`` without the blocks of its regions that hold no strong
+        # cell (a few specks of noise), cleared in place -- scaling the seeded cells back up and masking
+        # costs several times more.
+        lone = 255 - seeded
+        lone[0] = 0
+        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
+        lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
+        joined = weak.copy()
+        points = cv2.findNonZero(lone_cells)
+        if points is not None:
+            xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
+            joined.reshape(size[1], cell, size[0], cell)[ys, :, xs, :] = 0
+    else:
+        cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:256]) if n <= 256 else seeded[labels]
+        joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
     beyond = cv2.subtract(joined, cv2.dilate(strong, _K3))  # faint parts, not touching the contrasted ones
     # strong | beyond | ring, where the ring is what of ``joined`` touches both ``strong`` and ``beyond``:
-    # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so one mask does.
-    return cv2.bitwise_or(strong, cv2.bitwise_and(joined, cv2.dilate(beyond, _K3)))
+    # ``beyond`` lies inside its own dilation and ``strong`` inside ``joined``, so ``joined`` where that
+    # dilation is and ``strong`` elsewhere.
+    out = strong.copy()
+    cv2.copyTo(joined, cv2.dilate(beyond, _K3), out)
+    return out
+
+
+def _rows_read(floor: Mask | None, height: int) -> tuple[int, int]:
+    """Rows [r0, r1) of a reduced colour image the shadow test reads for this ``floor``: the floor's rows and
+    the texture window's reach beyond them (all rows without a floor)."""
+    if floor is None:
+        return 0, height
+    _, y, _, h = cv2.boundingRect(floor)
+    if h == 0:
+        return 0, 0
+    m = TEXTURE_WINDOW // 2
+    return max(y - m, 0), min(y + h + m, height)
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

@@ -21,7 +21,7 @@ view every camera type has), on the changed pixels only.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, cast
 
 import cv2
 import numpy as np
@@ -34,8 +34,11 @@ __all__ = [
     "CHROMA_TOLERANCE",
     "HIGHLIGHT_MAX_RATIO",
     "SHADOW_MIN_RATIO",
+    "ColourImage",
+    "ReducedColour",
     "local_spread",
     "shadow_mask",
+    "spread_at",
 ]
 
 Mask = npt.NDArray[Any]
@@ -71,6 +74,48 @@ TEXTURE_KEPT = 0.5
 ratio); cloth of the floor's colour shows little of it."""
 
 
+class ReducedColour(Protocol):
+    """A frame's reduced colour image, read in parts: a panorama's is sampled from the annular frame, and
+    the shadow test reads a few thousand of its pixels (:class:`sensor_node.unwarp.PanoFrame` is one)."""
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the image."""
+        ...
+
+    @property
+    def small(self) -> Mask:
+        """The whole (rows, columns, 3) BGR image."""
+        ...
+
+    def small_at(self, at: npt.NDArray[np.integer]) -> Mask:
+        """(N, 3) BGR pixels at the flat indices ``at`` (row * columns + column)."""
+        ...
+
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        """The (h, w, 3) box at column ``c0``, row ``r0``."""
+        ...
+
+
+class ColourImage:
+    """A reduced colour image already made, as a :class:`ReducedColour`."""
+
+    __slots__ = ("small",)
+
+    def __init__(self, small: Mask) -> None:
+        self.small = small
+
+    @property
+    def small_shape(self) -> tuple[int, int]:
+        return self.small.shape[0], self.small.shape[1]
+
+    def small_at(self, at: npt.NDArray[np.integer]) -> Mask:
+        return np.take(self.small.reshape(-1, 3), at, axis=0)
+
+    def small_box(self, c0: int, r0: int, w: int, h: int) -> Mask:
+        return np.ascontiguousarray(self.small[r0 : r0 + h, c0 : c0 + w])
+
+
 def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
     """Per pixel: grey-level variance over ``TEXTURE_WINDOW`` pixels (the texture a shadow keeps)."""
     g = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
@@ -79,8 +124,35 @@ def local_spread(bgr: Mask) -> npt.NDArray[np.float32]:
     return cv2.blur(g * g, k) - m * m
 
 
+_WINDOW_OFFSETS = np.arange(TEXTURE_WINDOW) - TEXTURE_WINDOW // 2
+
+
+def spread_at(
+    colour: ReducedColour, rows: npt.NDArray[np.integer], cols: npt.NDArray[np.integer]
+) -> npt.NDArray[np.float32]:
+    """:func:`local_spread` of the reduced colour image at the pixels (``rows``, ``cols``) only, the same values.
+
+    A frame's textured shadow candidates are a few dozen pixels: their windows are gathered (mirrored at
+    the image's edges, as the box filter's default border is) rather than the image made and filtered
+    around them. The window sums of integer grey levels are exact in float64, so scaling them as the
+    box filter does gives its float32 results bit for bit.
+    """
+    h, w = colour.small_shape
+    r = np.abs(rows[:, None] + _WINDOW_OFFSETS)
+    r = np.where(r >= h, 2 * (h - 1) - r, r)
+    c = np.abs(cols[:, None] + _WINDOW_OFFSETS)
+    c = np.where(c >= w, 2 * (w - 1) - c, c)
+    # One row of pixels: OpenCV converts row by row, and a column of single pixels costs several times more.
+    px = colour.small_at((r[:, :, None] * w + c[:, None, :]).ravel()).reshape(1, -1, 3)
+    g = cv2.cvtColor(px, cv2.COLOR_BGR2GRAY).reshape(rows.size, -1).astype(np.float64)
+    scale = 1.0 / g.shape[1]
+    mean = (g.sum(axis=1) * scale).astype(np.float32)
+    mean_sq = ((g * g).sum(axis=1) * scale).astype(np.float32)
+    return mean_sq - mean * mean
+
+
 def shadow_mask(
-    small: Mask,
+    small: Mask | ReducedColour,
     colour_bg: npt.NDArray[np.float32],
     fg: Mask,
     noise_sigma: float,
@@ -92,7 +164,8 @@ def shadow_mask(
     """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
 
     Args:
-        small: the frame's reduced BGR image.
+        small: the frame's reduced BGR image (or a view that reads it in parts: only the candidates'
+            pixels and the texture windows of the textured ones are read).
         colour_bg: the background in the same reduced BGR (float).
         fg: (H, W) changed pixels (255) at full resolution.
         noise_sigma: the image's noise (grey levels, per channel).
@@ -104,21 +177,30 @@ def shadow_mask(
     """
     if not settings.shadows:
         return None
-    sh, sw = small.shape[:2]
+    colour = ColourImage(small) if isinstance(small, np.ndarray) else small
+    sh, sw = colour.small_shape
     h, w = fg.shape
+    # The candidates: changed pixels on the floor, looked for in the floor's box only (on a panorama the
+    # rows below the horizon).
+    x0, y0, bw, bh = (0, 0, sw, sh) if floor is None or floor.shape != (sh, sw) else cv2.boundingRect(floor)
+    if bw == 0:
+        return None
     if h % sh == 0 and w % sw == 0:  # what the nearest-neighbour resize picks, without its cost
-        fg_small = np.ascontiguousarray(fg[:: h // sh, :: w // sw])
+        ky, kx = h // sh, w // sw
+        fg_small = np.ascontiguousarray(fg[y0 * ky : (y0 + bh) * ky : ky, x0 * kx : (x0 + bw) * kx : kx])
     else:
-        fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)
-    if floor is not None and floor.shape == fg_small.shape:
-        fg_small = cv2.bitwise_and(fg_small, floor)
+        fg_small = cv2.resize(fg, (sw, sh), interpolation=cv2.INTER_NEAREST)[y0 : y0 + bh, x0 : x0 + bw]
+    if floor is not None and floor.shape == (sh, sw):
+        fg_small = cv2.bitwise_and(fg_small, floor[y0 : y0 + bh, x0 : x0 + bw])
     points = cv2.findNonZero(fg_small)  # a tenth of np.nonzero's time
     if points is None:
         return None
-    xs, ys = points.reshape(-1, 2).T
+    xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
+    if x0 or y0:
+        xs, ys = xs + x0, ys + y0
     # Pixels gathered by flat index along one axis (a third of the time of indexing by rows and columns).
     at = ys * sw + xs
-    frame_px = np.take(small.reshape(-1, 3), at, axis=0).astype(np.float32)
+    frame_px = colour.small_at(at).astype(np.float32)
     bg_px = np.take(colour_bg.reshape(-1, 3), at, axis=0)
     bb = np.einsum("ij,ij->i", bg_px, bg_px)
     ratio = np.einsum("ij,ij->i", frame_px, bg_px) / np.maximum(bb, 1.0)
@@ -133,7 +215,7 @@ def shadow_mask(
         return None
     # Texture: a shadow keeps the surface's texture, dimmed with it; cloth of the floor's colour (legs in
     # grey trousers on a tiled floor) shows none of it. Where the background is flat, nothing to tell;
-    # the frame's texture is measured around the other candidates only (the window's reach beyond them).
+    # the frame's texture is measured at the other candidates only.
     ys, xs, at, ratio = ys[is_shadow], xs[is_shadow], at[is_shadow], ratio[is_shadow]
     if bg_spread is None:
         bg_spread = local_spread(colour_bg)
@@ -141,23 +223,23 @@ def shadow_mask(
     textured = vb >= (TEXTURE_SIGMAS * sigma) ** 2
     if textured.any():
         ty, tx = ys[textured], xs[textured]
-        m = TEXTURE_WINDOW // 2
-        r0, r1 = max(int(ty.min()) - m, 0), min(int(ty.max()) + m + 1, sh)
-        c0, c1 = max(int(tx.min()) - m, 0), min(int(tx.max()) + m + 1, sw)
-        var_f = local_spread(np.ascontiguousarray(small[r0:r1, c0:c1]))
-        lost = np.take(var_f, (ty - r0) * (c1 - c0) + (tx - c0)) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
+        lost = spread_at(colour, ty, tx) < (TEXTURE_KEPT * ratio[textured]) ** 2 * vb[textured]
         keep = np.ones(ys.size, bool)
         keep[np.flatnonzero(textured)[lost]] = False
         ys, xs = ys[keep], xs[keep]
     if ys.size == 0:
         return None
+    full = np.zeros((h, w), np.uint8)
+    if h % sh == 0 and w % sw == 0:
+        # Back to full resolution: each reduced pixel's block, set in place (scaling a mask up costs more).
+        full.reshape(sh, h // sh, sw, w // sw)[ys, :, xs, :] = 255
+        return cv2.bitwise_and(full, fg)
     # Back to full resolution over the shadow pixels' box only (nearest: each reduced pixel's block).
     r0, r1, c0, c1 = int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1
     box_small = np.zeros((r1 - r0, c1 - c0), np.uint8)
     box_small[ys - r0, xs - c0] = 255
     sy, sx = h / sh, w / sw
     fr0, fr1, fc0, fc1 = round(r0 * sy), round(r1 * sy), round(c0 * sx), round(c1 * sx)
-    full = np.zeros((h, w), np.uint8)
     up = cv2.resize(box_small, (fc1 - fc0, fr1 - fr0), interpolation=cv2.INTER_NEAREST)
     full[fr0:fr1, fc0:fc1] = cv2.bitwise_and(up, fg[fr0:fr1, fc0:fc1])
     return full

@@ -27,6 +27,7 @@ overwrote (outside start-up holes) is kept a while and put back where the frame 
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -90,6 +91,8 @@ class StillRegions:
         self._born_first: Mask | None = None
         """Changed pixels that have stayed changed since the model was learnt: someone who came in later
         cannot be among them."""
+        self._born_live = self._born_first_live = True
+        """The born masks may still hold changed pixels (once empty they stay so)."""
         self._under: UnderGhosts | None = None
         """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
         self.ghosts = 0
@@ -109,13 +112,16 @@ class StillRegions:
         """Drop what absorptions overwrote (the model was rescaled by a light change: it no longer fits)."""
         self._under = None
 
-    def update(self, grey: Mask, fg: Mask, moving: Mask, *, bg: FloatImage, bg_u8: Mask, frame: int) -> bool:
+    def update(
+        self, grey: Mask, fg: Mask, moving: Callable[[], Mask], *, bg: FloatImage, bg_u8: Mask, frame: int
+    ) -> bool:
         """Follow one normal frame; absorb ghosts into ``bg`` (in place). True if ``bg`` changed.
 
         Args:
             grey: the frame.
             fg: its changed pixels (255) against the model.
-            moving: its moving pixels (frame differencing).
+            moving: its moving pixels (frame differencing), computed when first called: only the sampling
+                frames (every ``STATIC_EVERY``-th) read them.
             bg: the float model, updated in place.
             bg_u8: the model as 8-bit grey levels before this frame's changes.
             frame: the model's frame count (sampling and the age of what absorptions overwrote).
@@ -127,17 +133,23 @@ class StillRegions:
         self._born_age += 1
         if self._born is None or self._born_first is None:
             self._born, self._born_first = fg.copy(), fg.copy()
+            self._born_live = self._born_first_live = True
         else:
-            cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
+            if self._born_first_live:
+                cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
             if self._born_age == BORN_FRAMES:
-                self._born = fg.copy()
-            else:
+                self._born, self._born_live = fg.copy(), True
+            elif self._born_live:
                 cv2.bitwise_and(self._born, fg, dst=self._born)
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
         if frame % STATIC_EVERY:
             return False
-        still = cv2.bitwise_and(fg, cv2.bitwise_not(moving))
+        # A born mask that emptied stays empty (each frame can only clear more of it): no more ANDs.
+        self._born_first_live = self._born_first_live and cv2.countNonZero(self._born_first) > 0
+        self._born_live = self._born_live and cv2.countNonZero(self._born) > 0
+        moved = moving()
+        still = cv2.bitwise_and(fg, cv2.bitwise_not(moved))
         if self._static is None:
             self._static = np.zeros_like(grey)
         self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
@@ -180,7 +192,7 @@ class StillRegions:
                 # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
                 # wall's grey in front of a poster) comes back when they walk on.
                 if int(self._static[y : y + h, x : x + w][mask].max()) >= long_still and self._absorb(
-                    grey, fg, moving, mask, (x, y), bg=bg, frame=frame, keep=True, fringe=False
+                    grey, fg, moved, mask, (x, y), bg=bg, frame=frame, keep=True, fringe=False
                 ):
                     changed = True
                     logger.debug("still fragment of %d px at column %d absorbed", area, x)
@@ -238,7 +250,7 @@ class StillRegions:
                     continue
             # Anything but a hole since the model was learnt may be a mistake -- a born region too:
             # someone in view since the model was young who stood still -- keep what was there.
-            if self._absorb(grey, fg, moving, mask, (x, y), bg=bg, frame=frame, keep=not first):
+            if self._absorb(grey, fg, moved, mask, (x, y), bg=bg, frame=frame, keep=not first):
                 changed = True
                 logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
         return changed

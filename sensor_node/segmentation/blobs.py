@@ -60,8 +60,6 @@ class RawBlob:
     area_px: int
     changed_frac: float
     """Changed pixels / box area."""
-    moving_frac: float
-    """Fraction of the blob's pixels that also moved since the previous frame."""
 
 
 def roi(image: npt.NDArray[np.generic], u0: int, v0: int, w: int, h: int) -> npt.NDArray[np.generic]:
@@ -76,7 +74,10 @@ def roi(image: npt.NDArray[np.generic], u0: int, v0: int, w: int, h: int) -> npt
 def _groups(adj: npt.NDArray[np.bool_]) -> list[list[int]]:
     """Connected components of a small symmetric adjacency matrix (a frame's few regions: plain lists)."""
     n = adj.shape[0]
-    rows: list[list[bool]] = adj.tolist()
+    # Each region's neighbours in increasing order (a sparse matrix: a region touches a few others).
+    neighbours: list[list[int]] = [[] for _ in range(n)]
+    for j, k in zip(*(x.tolist() for x in np.nonzero(adj)), strict=True):
+        neighbours[j].append(k)
     seen = [False] * n
     out: list[list[int]] = []
     for i in range(n):
@@ -87,9 +88,8 @@ def _groups(adj: npt.NDArray[np.bool_]) -> list[list[int]]:
         while stack:
             j = stack.pop()
             members.append(j)
-            row = rows[j]
-            for k in range(n):
-                if row[k] and not seen[k]:
+            for k in neighbours[j]:
+                if not seen[k]:
                     seen[k] = True
                     stack.append(k)
         out.append(members)
@@ -109,7 +109,6 @@ def _circular_start(a0: IntArray, a1: IntArray, width: int) -> int:
 
 def find_blobs(
     fg: Mask,
-    moving: Mask,
     settings: PipelineSettings,
     wrap: bool = True,
     *,
@@ -126,7 +125,6 @@ def find_blobs(
 
     Args:
         fg: (H, W) 255 = changed against the background.
-        moving: (H, W) 255 = changed since the previous frame (frame differencing).
         settings: grouping and validation knobs.
         wrap: the image is a 360-degree panorama (columns wrap around).
         check_frac: drop blobs with less than ``min_changed_frac`` of their box changed. False: the
@@ -164,21 +162,23 @@ def find_blobs(
     if links is not None:
         adj |= _bridged(links, k, (a0, a1, b0, b1), (gap_x, gap_y), gy)
     out: list[RawBlob] = []
+    # A frame's few groups of a few regions each: their boxes from plain ints.
+    area, left, right, top, bottom = (x.tolist() for x in (st[:, cv2.CC_STAT_AREA], a0, a1, b0, b1))
     for members in _groups(adj):
-        m = np.asarray(members)
-        if int(st[m, cv2.CC_STAT_AREA].sum()) * k * k < settings.min_blob_px:
+        if sum(area[i] for i in members) * k * k < settings.min_blob_px:
             continue
-        if wrap and len(m) > 1 and int(a1[m].max() - a0[m].min()) >= width_s // 2:
+        u0, u1 = min(left[i] for i in members), max(right[i] for i in members)
+        if wrap and len(members) > 1 and u1 - u0 >= width_s // 2:
             # Only a group spanning half the panorama or more may be shorter across the seam.
+            m = np.asarray(members)
             u0 = _circular_start(a0[m], a1[m], width_s)
             s0 = np.where(a0[m] < u0, a0[m] + width_s, a0[m])
             ws = int((s0 + (a1[m] - a0[m])).max()) - u0 + 1
         else:
-            u0 = int(a0[m].min())
-            ws = int(a1[m].max()) - u0 + 1
-        v0 = int(b0[m].min())
-        box = (u0 * k, v0 * k, min(ws * k, width), (int(b1[m].max()) - v0 + 1) * k)
-        blob = _cut(fg, moving, box, wrap)
+            ws = u1 - u0 + 1
+        v0 = min(top[i] for i in members)
+        box = (u0 * k, v0 * k, min(ws * k, width), (max(bottom[i] for i in members) - v0 + 1) * k)
+        blob = _cut(fg, box, wrap)
         if blob is None or blob.area_px < settings.min_blob_px or blob.h < settings.min_blob_height_px:
             continue
         if blob.w < settings.min_blob_width_px:
@@ -224,7 +224,7 @@ def _bridged(
     return out
 
 
-def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
+def _cut(fg: Mask, box: tuple[int, int, int, int], wrap: bool) -> RawBlob | None:
     """The blob in a full-resolution box (u0, v0, w, h): its changed pixels, the box trimmed to them."""
     height, width = fg.shape
     u0, v0, w, h = box
@@ -238,5 +238,4 @@ def _cut(fg: Mask, moving: Mask, box: tuple[int, int, int, int], wrap: bool) -> 
     sub = sub[r0 : r0 + h, c0 : c0 + w]
     u0, v0 = (u0 + c0) % width, v0 + r0
     area = cv2.countNonZero(sub)
-    moving_px = cv2.countNonZero(cv2.bitwise_and(np.asarray(roi(moving, u0, v0, w, h)), sub))
-    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h), moving_px / max(area, 1))
+    return RawBlob(u0, v0, w, h, sub > 0, area, area / float(w * h))

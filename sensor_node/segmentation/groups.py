@@ -226,16 +226,21 @@ def _top_near(top: npt.NDArray[np.int64], x: int, y: int, pred: float, side: int
 
 
 def split_by_tracks(
-    blob: RawBlob, predicted_u: list[float], moving: Mask, settings: PipelineSettings, width_px: int
+    blob: RawBlob,
+    predicted_u: list[float],
+    settings: PipelineSettings,
+    width_px: int,
+    *,
+    top: npt.NDArray[np.int64] | None = None,
 ) -> list[RawBlob]:
     """The blob cut between the predicted head columns of the tracks inside it (``[blob]`` if none).
 
     Args:
         blob: a blob (after :func:`sensor_node.segmentation.head_splits.split_at_heads`).
         predicted_u: predicted head columns of the confirmed 2D tracks (image columns).
-        moving: (H, W) frame-difference mask (for the parts' motion fractions).
         settings: the blob checks.
         width_px: image width (blob columns wrap on a panorama).
+        top: the blob's :func:`~sensor_node.segmentation.head_splits.top_profile`, if known (None: computed).
     """
     if not predicted_u or blob.w < 2 * settings.min_blob_width_px:
         return [blob]
@@ -243,7 +248,8 @@ def split_by_tracks(
     inside = rel[(rel >= 0.0) & (rel <= blob.w - 1)]
     if inside.size == 0:
         return [blob]
-    top = top_profile(blob.mask)
+    if top is None:
+        top = top_profile(blob.mask)
     inside = np.sort(np.concatenate([inside, _head_bumps(top, inside, -blob.v0, blob.mask.shape[0])]))
     if inside.size < 2:
         return [blob]
@@ -275,5 +281,5 @@ def split_by_tracks(
     if len(edges) == 1:
         return [blob]
     edges.append(blob.w)
-    parts = [p for x, y in itertools.pairwise(edges) if (p := blob_part(blob, x, y, moving, width_px)) is not None]
+    parts = [p for x, y in itertools.pairwise(edges) if (p := blob_part(blob, x, y, width_px)) is not None]
     return parts if len(parts) > 1 else [blob]

@@ -32,7 +32,7 @@ import numpy.typing as npt
 from scipy import ndimage
 
 from sensor_node.config import PipelineSettings
-from sensor_node.segmentation.blobs import RawBlob, roi
+from sensor_node.segmentation.blobs import RawBlob
 
 __all__ = ["blob_part", "has_head", "ok_part", "split_at_heads", "top_profile"]
 
@@ -228,7 +228,9 @@ def _merge_weak(edges: list[int], ok: Callable[[int, int], bool]) -> list[int]:
     return edges
 
 
-def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, width_px: int) -> list[RawBlob]:
+def split_at_heads(
+    blob: RawBlob, settings: PipelineSettings, width_px: int, *, top: npt.NDArray[np.int64] | None = None
+) -> list[RawBlob]:
     """The blob's objects, one blob each (``[blob]`` when it holds one).
 
     First at the gaps of the vertical projection profile (``split_gap_cols``): grouping joined
@@ -240,20 +242,24 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
 
     Args:
         blob: a validated blob.
-        moving: (H, W) frame-difference mask of the frame (for the parts' motion fractions).
         settings: ``split_gap_cols``, ``split_dip_px`` and the blob checks.
         width_px: image width (blob columns wrap on a panorama).
+        top: the blob's :func:`top_profile`, if known (None: computed when needed).
     """
     dip = settings.split_dip_px
     if blob.w < 2 * settings.min_blob_width_px:
         return [blob]
     col_px = _column_counts(blob.mask)  # changed pixels per column: gaps, part widths, dips
     gaps = _gaps(col_px, settings.split_gap_cols)
-    top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
+    if top is None:
+        top = top_profile(blob.mask) if gaps or dip > 0 else np.zeros(0, np.int64)
     head_dip = dip if dip > 0 else GAP_HEAD_DIP_PX
 
-    widest = max(
-        (int(np.count_nonzero(col_px[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w])), default=0
+    # The widest part between gaps (only parts between gaps read it).
+    widest = (
+        max(int(np.count_nonzero(col_px[a:b] > GAP_MAX_PX)) for a, b in itertools.pairwise([0, *gaps, blob.w]))
+        if gaps
+        else 0
     )
 
     def ok_gap(a: int, b: int) -> bool:
@@ -302,11 +308,11 @@ def split_at_heads(blob: RawBlob, moving: Mask, settings: PipelineSettings, widt
         edges = fine
     if len(edges) == 2:
         return [blob]
-    parts = [p for a, b in itertools.pairwise(edges) if (p := blob_part(blob, a, b, moving, width_px)) is not None]
+    parts = [p for a, b in itertools.pairwise(edges) if (p := blob_part(blob, a, b, width_px)) is not None]
     return parts or [blob]
 
 
-def blob_part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> RawBlob | None:
+def blob_part(blob: RawBlob, a: int, b: int, width_px: int) -> RawBlob | None:
     """Columns [a, b) of a blob as a blob of its own, trimmed to its pixels (end columns of a speck dropped)."""
     sub = blob.mask[:, a:b]
     counts = _column_counts(sub)
@@ -322,5 +328,4 @@ def blob_part(blob: RawBlob, a: int, b: int, moving: Mask, width_px: int) -> Raw
     mask = sub[r0 : r1 + 1]
     u0, v0, w, h = (blob.u0 + a + c0) % width_px, blob.v0 + r0, c1 - c0 + 1, r1 - r0 + 1
     area = int(np.count_nonzero(mask))
-    moving_px = int(np.count_nonzero(np.asarray(roi(moving, u0, v0, w, h))[mask]))
-    return RawBlob(u0, v0, w, h, mask, area, area / float(w * h), moving_px / max(area, 1))
+    return RawBlob(u0, v0, w, h, mask, area, area / float(w * h))

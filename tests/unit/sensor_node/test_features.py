@@ -17,7 +17,7 @@ from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 
 
 def _raw(img: np.ndarray, u0: int, v0: int, w: int, h: int, mask: np.ndarray) -> RawBlob:
-    return RawBlob(u0, v0, w, h, mask, int(mask.sum()), float(mask.mean()), 1.0)
+    return RawBlob(u0, v0, w, h, mask, int(mask.sum()), float(mask.mean()))
 
 
 def test_panoramic_annotation_matches_camera_model() -> None:

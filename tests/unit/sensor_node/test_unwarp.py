@@ -8,7 +8,7 @@ import pytest
 
 from common.cameras import design_pal
 from common.errors import SourceError
-from sensor_node.unwarp import Unwarper
+from sensor_node.unwarp import PanoFrame, Unwarper
 from tests.unit.sensor_node.sn_synth import backdrop, draw_person
 
 
@@ -50,3 +50,22 @@ def test_wrong_frame_size_is_a_source_error() -> None:
         Unwarper(model).apply(np.zeros((480, 640, 3), np.uint8))
     with pytest.raises(SourceError):
         Unwarper(model).frame(np.zeros((480, 640, 3), np.uint8))
+
+
+def test_parts_of_the_reduced_colour_image_are_its_pixels() -> None:
+    """The shadow test and the blob boxes read the reduced colour image in parts, before (or without) it
+    being made whole: the same pixels as the whole image, for a panorama and for a perspective frame."""
+    model, _ = design_pal()
+    annular = _annular(backdrop(5), model)
+    rng = np.random.default_rng(2)
+    for lazy, whole in (
+        (Unwarper(model).frame(annular), Unwarper(model).frame(annular)),
+        (PanoFrame.from_image(annular), PanoFrame.from_image(annular)),
+    ):
+        small = whole.small
+        assert lazy.small_shape == small.shape[:2]
+        rows = rng.integers(0, small.shape[0], 200)
+        cols = rng.integers(0, small.shape[1], 200)
+        assert np.array_equal(lazy.small_at(rows * small.shape[1] + cols), small[rows, cols])
+        assert np.array_equal(lazy.small_box(7, 3, 40, 20), small[3:23, 7:47])
+        assert np.array_equal(whole.small_at(rows * small.shape[1] + cols), small[rows, cols])

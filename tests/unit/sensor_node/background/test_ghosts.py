@@ -52,3 +52,32 @@ def test_a_later_absorption_keeps_the_copy_alive() -> None:
     # The window's own copy is as old as before: not put back after RESTORE_FRAMES.
     back, regions = kept.restore(frame, still, model, frame=11 + RESTORE_FRAMES, match_level=16, least_px=40)
     assert back is None and regions == 0
+
+
+def test_a_sliver_kept_alone_is_put_back_too() -> None:
+    """What is kept may be a sliver a few pixels wide (a fragment of a ghost's edge): put back like a region."""
+    model = np.full((H, W), 90.0, np.float32)
+    kept = UnderGhosts((H, W))
+    sub = model[40:100, 300:303]
+    sub[:] = 230.0
+    kept.keep((300, 40), np.ones((60, 3), bool), sub, frame=10)
+    sub[:] = 90.0  # the absorption
+    frame = np.full((H, W), 90, np.uint8)
+    frame[40:100, 300:303] = 230
+    still = np.zeros((H, W), np.uint8)
+    still[40:100, 300:303] = 255
+    back, regions = kept.restore(frame, still, model, frame=20, match_level=16, least_px=40)
+    assert regions == 1 and back is not None and (back[40:100, 300:303] > 0).all()
+    assert float(model[40:100, 300:303].min()) == 230.0
+
+
+def test_a_single_pixel_kept_is_put_back_as_any_region() -> None:
+    model = np.full((H, W), 90.0, np.float32)
+    kept = UnderGhosts((H, W))
+    kept.keep((300, 40), np.ones((1, 1), bool), model[40:41, 300:301], frame=10)
+    model[40, 300] = 200.0  # the absorption
+    frame = np.full((H, W), 90, np.uint8)
+    still = np.zeros((H, W), np.uint8)
+    still[40, 300] = 255
+    back, regions = kept.restore(frame, still, model, frame=20, match_level=16, least_px=1)
+    assert regions == 1 and back is not None and back[40, 300] == 255 and float(model[40, 300]) == 90.0

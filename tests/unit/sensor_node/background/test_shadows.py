@@ -7,7 +7,14 @@ import msgspec
 import numpy as np
 import pytest
 
-from sensor_node.background.shadows import SHADOW_MIN_RATIO, TEXTURE_WINDOW, local_spread, shadow_mask
+from sensor_node.background.shadows import (
+    SHADOW_MIN_RATIO,
+    TEXTURE_WINDOW,
+    ColourImage,
+    local_spread,
+    shadow_mask,
+    spread_at,
+)
 from sensor_node.config import PipelineSettings
 
 SMALL_H, SMALL_W = 60, 80
@@ -105,3 +112,13 @@ def test_local_spread_is_the_grey_level_variance_of_the_texture() -> None:
     stripes[:, ::2] = 100  # +-10 grey levels: variance 100
     assert float(local_spread(flat)[15, 15]) == pytest.approx(0.0, abs=1e-3)
     assert float(local_spread(stripes)[15, 15]) == pytest.approx(100.0, rel=0.1)
+
+
+def test_the_spread_at_some_pixels_is_the_spread_image_there() -> None:
+    """The shadow test reads the frame's texture at its candidates only: the same values as the whole
+    image's, bit for bit, at the edges too (mirrored windows)."""
+    frame, _, _ = _scene()
+    rng = np.random.default_rng(5)
+    rows = np.concatenate([[0, 1, SMALL_H - 1, SMALL_H - 2], rng.integers(0, SMALL_H, 300)])
+    cols = np.concatenate([[0, SMALL_W - 1, 1, SMALL_W - 2], rng.integers(0, SMALL_W, 300)])
+    assert np.array_equal(spread_at(ColourImage(frame), rows, cols), local_spread(frame)[rows, cols])

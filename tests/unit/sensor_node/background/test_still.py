@@ -28,7 +28,8 @@ def _run(regions: StillRegions, frame: np.ndarray, bg: np.ndarray, frames: range
     for k in frames:
         bg_u8 = bg.astype(np.uint8)
         fg = np.where(np.abs(grey.astype(np.float32) - bg) > 25.0, 255, 0).astype(np.uint8)
-        regions.update(grey, fg, fg.copy() if moving else np.zeros_like(fg), bg=bg, bg_u8=bg_u8, frame=k)
+        moved = fg.copy() if moving else np.zeros_like(fg)
+        regions.update(grey, fg, lambda moved=moved: moved, bg=bg, bg_u8=bg_u8, frame=k)
 
 
 def test_a_ghost_left_by_someone_who_stood_while_the_model_learnt_is_absorbed() -> None:

@@ -44,14 +44,11 @@ def _draw(
     draw_person(img, near_u, shirt=near_bgr, head=near_bgr, **NEAR)  # type: ignore[arg-type]
 
 
-def _group_blob(
-    near_u: float, far_u: float, s: PipelineSettings, far: dict[str, int] = FAR
-) -> tuple[RawBlob, np.ndarray]:
+def _group_blob(near_u: float, far_u: float, s: PipelineSettings, far: dict[str, int] = FAR) -> RawBlob:
     img = np.zeros((H, W, 3), np.uint8)
     _draw(img, near_u, far_u, WHITE, WHITE, far)
-    fg = mask_of(img)
-    (blob,) = find_blobs(fg, fg, s)
-    return blob, fg
+    (blob,) = find_blobs(mask_of(img), s)
+    return blob
 
 
 def _heads(parts: list[RawBlob], s: PipelineSettings) -> list[float]:
@@ -61,9 +58,9 @@ def _heads(parts: list[RawBlob], s: PipelineSettings) -> list[float]:
 @pytest.mark.parametrize(("near_u", "far_u"), [(316.0, 330.0), (344.0, 330.0), (1075.0, 9.0)])
 def test_a_far_head_coming_out_from_behind_a_near_one_is_cut_off_at_its_edge(near_u: float, far_u: float) -> None:
     s = PipelineSettings()
-    blob, fg = _group_blob(near_u, far_u, s)
-    assert split_at_heads(blob, fg, s, W) == [blob]  # no valley between the heads: one blob
-    parts = split_by_tracks(blob, [near_u + 0.7, far_u % W - 0.6], fg, s, W)
+    blob = _group_blob(near_u, far_u, s)
+    assert split_at_heads(blob, s, W) == [blob]  # no valley between the heads: one blob
+    parts = split_by_tracks(blob, [near_u + 0.7, far_u % W - 0.6], s, W)
     assert len(parts) == 2
     # The near body hides the far head's nearest column: its visible part's centre is up to 1 px off.
     assert _heads(parts, s) == pytest.approx(sorted([near_u % W, far_u % W]), abs=1.5)
@@ -76,9 +73,9 @@ def test_two_heads_with_a_shallow_valley_are_cut_at_its_bottom() -> None:
         draw_person(img, u, top=40, head_w=10, body_w=16, shirt=WHITE, head=WHITE)
     img[44:53, 403:412] = WHITE  # hands raised between them fill the valley up to 4 rows below the heads
     fg = mask_of(img)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_at_heads(blob, fg, s, W) == [blob]
-    parts = split_by_tracks(blob, [399.0, 415.0], fg, s, W)
+    (blob,) = find_blobs(fg, s)
+    assert split_at_heads(blob, s, W) == [blob]
+    parts = split_by_tracks(blob, [399.0, 415.0], s, W)
     assert len(parts) == 2
     assert _heads(parts, s) == pytest.approx([400.0, 414.0], abs=1.0)
 
@@ -90,12 +87,12 @@ def test_a_far_head_beside_a_tracked_near_one_is_cut_off_without_a_track_of_its_
     # The far person never stood alone (no track): their head is a bump beside the near one's
     # shoulder, lower than it, dropping to their own shoulders on the far side.
     s = PipelineSettings()
-    blob, fg = _group_blob(near_u, far_u, s, FAR_NECK)
-    assert split_at_heads(blob, fg, s, W) == [blob]  # no valley deep enough between the heads
-    parts = split_by_tracks(blob, [near_u + 0.7], fg, s, W)
+    blob = _group_blob(near_u, far_u, s, FAR_NECK)
+    assert split_at_heads(blob, s, W) == [blob]  # no valley deep enough between the heads
+    parts = split_by_tracks(blob, [near_u + 0.7], s, W)
     assert len(parts) == 2
     assert _heads(parts, s) == pytest.approx(sorted([near_u % W, far_u % W]), abs=1.5)
-    assert split_by_tracks(blob, [], fg, s, W) == [blob]  # no track: nothing says the blob holds a person
+    assert split_by_tracks(blob, [], s, W) == [blob]  # no track: nothing says the blob holds a person
 
 
 @pytest.mark.parametrize("offset", [-4.0, 0.0, 3.0])
@@ -105,9 +102,9 @@ def test_a_lone_tracked_person_keeps_their_shoulders(offset: float, head_w: int,
     img = np.zeros((H, W, 3), np.uint8)
     draw_person(img, 500.0, top=35, head_w=head_w, body_w=body_w, body_offset=offset, shirt=WHITE, head=WHITE)
     fg = mask_of(img)
-    (blob,) = find_blobs(fg, fg, s)
+    (blob,) = find_blobs(fg, s)
     for pred in (496.0, 500.0, 504.0):
-        assert split_by_tracks(blob, [pred], fg, s, W) == [blob]
+        assert split_by_tracks(blob, [pred], s, W) == [blob]
 
 
 def test_a_notch_on_a_near_shoulder_above_a_far_body_is_no_far_head() -> None:
@@ -119,21 +116,21 @@ def test_a_notch_on_a_near_shoulder_above_a_far_body_is_no_far_head() -> None:
     draw_person(img, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
     img[43:46, 507:509] = 0
     fg = mask_of(img)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_by_tracks(blob, [500.0], fg, s, W) == [blob]
+    (blob,) = find_blobs(fg, s)
+    assert split_by_tracks(blob, [500.0], s, W) == [blob]
 
 
 def test_no_cut_for_predictions_too_close_or_outside_the_blob() -> None:
     s = PipelineSettings()
-    blob, fg = _group_blob(316.0, 330.0, s, FAR_NECK)
-    assert split_by_tracks(blob, [316.0, 317.5, 318.5], fg, s, W) != [blob]  # the far head is a bump
-    assert split_by_tracks(blob, [600.0, 50.0], fg, s, W) == [blob]
+    blob = _group_blob(316.0, 330.0, s, FAR_NECK)
+    assert split_by_tracks(blob, [316.0, 317.5, 318.5], s, W) != [blob]  # the far head is a bump
+    assert split_by_tracks(blob, [600.0, 50.0], s, W) == [blob]
     side = np.zeros((H, W, 3), np.uint8)
     draw_person(side, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
     draw_person(side, 501.5, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
     fg = mask_of(side)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_by_tracks(blob, [500.0, 501.5], fg, s, W) == [blob]  # one occludes the other
+    (blob,) = find_blobs(fg, s)
+    assert split_by_tracks(blob, [500.0, 501.5], s, W) == [blob]  # one occludes the other
 
 
 def test_a_body_is_not_cut_off_its_own_shoulder() -> None:
@@ -142,8 +139,8 @@ def test_a_body_is_not_cut_off_its_own_shoulder() -> None:
     img = np.zeros((H, W, 3), np.uint8)
     draw_person(img, 500.0, shirt=WHITE, head=WHITE, **NEAR)  # type: ignore[arg-type]
     fg = mask_of(img)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_by_tracks(blob, [500.0, 509.0], fg, s, W) == [blob]
+    (blob,) = find_blobs(fg, s)
+    assert split_by_tracks(blob, [500.0, 509.0], s, W) == [blob]
 
 
 def _walk(settings: PipelineSettings) -> list[tuple[float, float, list[float]]]:

@@ -21,8 +21,8 @@ def _mask(people: list[tuple[float, int]]) -> np.ndarray:
 
 
 def _split(fg: np.ndarray, settings: PipelineSettings) -> list:
-    (blob,) = find_blobs(fg, fg, settings)  # grouping merges them into one blob
-    return split_at_heads(blob, fg, settings, W)
+    (blob,) = find_blobs(fg, settings)  # grouping merges them into one blob
+    return split_at_heads(blob, settings, W)
 
 
 @pytest.mark.parametrize(
@@ -41,9 +41,9 @@ def test_one_person_is_not_split_by_an_arm_or_a_flat_shoulder() -> None:
     fg[75:120, 384:388] = 255  # an arm held out beside the body, its top a narrow spike below the head
     fg[70:162, 411:424] = 255  # a flat-topped thing (a bag, a ghost) touching them
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
-    blobs = find_blobs(fg, fg, s)
+    blobs = find_blobs(fg, s)
     assert len(blobs) == 1
-    assert split_at_heads(blobs[0], fg, s, W) == blobs
+    assert split_at_heads(blobs[0], s, W) == blobs
 
 
 def test_a_gap_in_the_projection_profile_parts_what_grouping_joined() -> None:
@@ -52,21 +52,19 @@ def test_a_gap_in_the_projection_profile_parts_what_grouping_joined() -> None:
     fg[70:162, 420:440] = 255  # a thing 8 columns away: grouping joins it, the gap parts it again
     fg[100:101, 414] = 255  # a noise speck in the gap does not bridge it
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
-    (blob,) = find_blobs(fg, fg, s)
-    parts = split_at_heads(blob, fg, s, W)
+    (blob,) = find_blobs(fg, s)
+    parts = split_at_heads(blob, s, W)
     assert [(p.u0, p.w) for p in parts] == [(384, 28), (420, 20)]
     head = annotate(parts[0], None, ColumnGeometry(), s.head_ratio)
     assert head.head_u_px == pytest.approx(400.0, abs=0.5)
     # A fragment too small to be a blob stays with its neighbour; off (0) keeps the blob whole.
     fg[70:162, 420:440] = 0
     fg[150:155, 420:424] = 255
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_at_heads(blob, fg, s, W) == [blob]
+    (blob,) = find_blobs(fg, s)
+    assert split_at_heads(blob, s, W) == [blob]
     fg[70:162, 420:440] = 255
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_at_heads(blob, fg, PipelineSettings(merge_gap_px=[12, 8], split_gap_cols=0, split_dip_px=0), W) == [
-        blob
-    ]
+    (blob,) = find_blobs(fg, s)
+    assert split_at_heads(blob, PipelineSettings(merge_gap_px=[12, 8], split_gap_cols=0, split_dip_px=0), W) == [blob]
 
 
 def test_splitting_off_when_dip_is_zero_and_profile_of_a_blob() -> None:
@@ -84,9 +82,9 @@ def test_a_person_beside_a_sparse_region_survives_the_changed_fraction_check() -
     fg[20:162:3, 418:520:3] = 255
     fg[20:162, 418] = 255  # the region's edge column, so the gap is clean
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8, min_changed_frac=0.3)
-    assert find_blobs(fg, fg, s) == []
-    (blob,) = find_blobs(fg, fg, s, check_frac=False)
-    parts = [p for p in split_at_heads(blob, fg, s, W) if p.changed_frac >= s.min_changed_frac]
+    assert find_blobs(fg, s) == []
+    (blob,) = find_blobs(fg, s, check_frac=False)
+    parts = [p for p in split_at_heads(blob, s, W) if p.changed_frac >= s.min_changed_frac]
     assert len(parts) == 1
     assert annotate(parts[0], None, ColumnGeometry(), s.head_ratio).head_u_px == pytest.approx(400.0, abs=0.5)
 
@@ -97,8 +95,8 @@ def test_an_arm_swung_clear_of_the_body_stays_with_it() -> None:
     fg = _mask([(400.0, 40)])
     fg[62:130, 381:387] = 255
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_at_heads(blob, fg, s, W) == [blob]
+    (blob,) = find_blobs(fg, s)
+    assert split_at_heads(blob, s, W) == [blob]
 
 
 def test_an_arm_with_a_ragged_top_beside_the_body_stays_with_it() -> None:
@@ -109,13 +107,13 @@ def test_an_arm_with_a_ragged_top_beside_the_body_stays_with_it() -> None:
     fg[56:120, 413:419] = 255
     fg[56:66, 418] = 0
     s = PipelineSettings(merge_gap_px=[12, 8], split_dip_px=8)
-    (blob,) = find_blobs(fg, fg, s)
-    assert split_at_heads(blob, fg, s, W) == [blob]
+    (blob,) = find_blobs(fg, s)
+    assert split_at_heads(blob, s, W) == [blob]
     # A person there (a head narrower than the body below it) is still parted at the gap.
     fg[56:120, 413:419] = 0
     draw_person_mask = _mask([(400.0, 40), (425.0, 50)])
-    (blob,) = find_blobs(draw_person_mask, draw_person_mask, s)
-    assert len(split_at_heads(blob, draw_person_mask, s, W)) == 2
+    (blob,) = find_blobs(draw_person_mask, s)
+    assert len(split_at_heads(blob, s, W)) == 2
 
 
 def test_a_far_person_much_narrower_than_a_near_one_beside_them_is_split_off() -> None:
