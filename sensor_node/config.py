@@ -261,7 +261,8 @@ class PipelineSettings(ConfigStruct, frozen=True):
     """Take every N-th frame for the warm-up instead (0: spread over ``warmup_s`` by the stamps)."""
     ghost_frames: PosInt = 10
     """Frames a changed region must stay still before it is tested for being a ghost (something that
-    left the background). Lower: ghosts vanish sooner, more tests; higher: the opposite."""
+    left the background; a start-up hole is tested at its first still sample, by the surface beside it).
+    Lower: ghosts vanish sooner, more tests; higher: the opposite."""
     group_scale: PosInt = 2
     """Reduction of the mask that connected components and grouping run on (1: full resolution).
     Higher: cheaper; thin or tiny regions may be missed. Boxes and heads stay full resolution."""

@@ -3,11 +3,11 @@
 Panoramic cameras, in the order :meth:`ImagePipeline.process` runs them: annular frame -> unwarp
 (grey panorama, reduced colour) -> background model (changed pixels) -> shadows and highlights
 removed, majority vote -> segmentation: blobs -> split at head valleys -> split between the 2D
-tracks' predicted heads -> (robot bodies removed) -> head + annotation -> 2D tracks -> Features,
-then the background update outside this frame's objects; with the sightings of other robots
-(Eq. 3) every ``sighting_every`` frames. Two results feed later frames: the 2D tracks' predicted
-heads drive the next frame's group splits, and each frame's objects keep the background update off
-the people. Perspective (PTZ) cameras skip the unwarp and the sightings and report world
+tracks' predicted heads -> (robot bodies, and the holes robots left in the model, removed) -> head +
+annotation -> 2D tracks -> Features, then the background update outside this frame's objects; with the
+sightings of other robots (Eq. 3) every ``sighting_every`` frames. Two results feed later frames: the
+2D tracks' predicted heads drive the next frame's group splits, and each frame's objects keep the
+background update off the people. Perspective (PTZ) cameras skip the unwarp and the sightings and report world
 azimuths; the background model restarts whenever the head moves.
 
 Performance: the background model works on one grey channel at panorama
@@ -40,7 +40,7 @@ from sensor_node.features import (
 from sensor_node.segmentation.blobs import RawBlob, find_blobs
 from sensor_node.segmentation.groups import split_by_tracks
 from sensor_node.segmentation.head_splits import split_at_heads, top_profile
-from sensor_node.sightings import BandFinder, BodySighting, is_body_blob
+from sensor_node.sightings import BandFinder, BodySighting, LeftPlaces, is_body_blob
 from sensor_node.tracks2d import Tracker2D
 from sensor_node.unwarp import PanoFrame, Unwarper
 
@@ -210,6 +210,8 @@ class ImagePipeline:
         )
         self._tracker: Tracker2D | None = None
         self._last_sightings: list[BodySighting] = []
+        self._left = LeftPlaces(geometry.camera.width_px if isinstance(geometry, PanoramicGeometry) else 0, settings)
+        """Where robots that stood in the background model drove off from: their holes are no people."""
         self._frames = 0
         self.seq = 0
         self._floor_key: tuple[int, int, int] | None = None
@@ -250,6 +252,7 @@ class ImagePipeline:
             objects_mask(motion, self.background, self._floor(pf)) if motion.reportable else (motion.fg, motion.fg)
         )
         sightings = self._sightings(pf)
+        left = self._left_places(sightings, motion.state)
         tracker = self._tracks(pf.grey.shape[1])
         predicted_heads = self._split_heads(tracker)
         objects = (
@@ -262,7 +265,7 @@ class ImagePipeline:
             pf,
             self.geometry,
             s,
-            sightings=sightings,
+            sightings=sightings + left,
             background=self.background.background if s.head_edges else None,
         )
         ids = tracker.update(self._head_points(people, pf.grey.shape[1]), cut)
@@ -296,6 +299,13 @@ class ImagePipeline:
             self._last_sightings = self.bands.find(pf)
         self._frames += 1
         return self._last_sightings
+
+    def _left_places(self, sightings: list[BodySighting], state: MotionState) -> list[BodySighting]:
+        """Where robots that stood in the background model have lately driven off from (:class:`LeftPlaces`)."""
+        if state not in ("ok", "relit"):
+            self._left.reset()  # learning, or relearning: a new model, new places
+            return []
+        return self._left.update(sightings, self._frames)
 
     def _tracks(self, width: int) -> Tracker2D:
         """The 2D tracks (started on the first frame after a reset)."""

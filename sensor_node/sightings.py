@@ -20,7 +20,8 @@ In the panorama:
    (the paper's beta).
 
 :func:`is_body_blob` tells the pipeline which motion blobs are a robot that
-moves, so bodies are never reported as people.
+moves, so bodies are never reported as people; :class:`LeftPlaces` keeps where a
+robot that stood in the background model drove off from, so its hole is not either.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from sensor_node.config import BodySpec, PipelineSettings
 from sensor_node.segmentation.blobs import roi
 from sensor_node.unwarp import PanoFrame
 
-__all__ = ["BandFinder", "BodySighting", "is_body_blob"]
+__all__ = ["BandFinder", "BodySighting", "LeftPlaces", "drove_off", "is_body_blob"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -310,6 +311,70 @@ def _median(values: Image) -> float:
     s = np.sort(values)
     m = s.size // 2
     return float(s[m]) if s.size % 2 else (float(s[m - 1]) + float(s[m])) / 2.0
+
+
+DROVE_OFF_FRAC = 0.25
+"""Share of the columns a body covered that it no longer covers when it has driven off (its sightings' noise
+is a fraction of a pixel; lower: a smaller move counts)."""
+
+
+def drove_off(was: BodySighting, now: BodySighting, width_px: int) -> bool:
+    """True if the body sighted at ``was`` has moved so that ``now`` leaves ``DROVE_OFF_FRAC`` of its columns free.
+
+    Sideways or towards or away from the camera alike: the columns of ``was`` that ``now`` does not cover.
+    """
+    span = was.right_col - was.left_col
+    if span <= 0:
+        return False
+    was_mid, now_mid = 0.5 * (was.left_col + was.right_col), 0.5 * (now.left_col + now.right_col)
+    unwrap = was_mid + math.remainder(now_mid - was_mid, width_px) - now_mid  # the same side of the seam
+    lo, hi = now.left_col + unwrap, now.right_col + unwrap
+    covered = max(0.0, min(hi, was.right_col) - max(lo, was.left_col))
+    return span - covered >= DROVE_OFF_FRAC * span
+
+
+class LeftPlaces:
+    """Where known robot bodies that stood in a background model have driven off from, for a while.
+
+    A robot standing in view while the model was learnt is in the model; when it drives off, its place is a
+    hole the model knows nothing of, changed like someone standing there until the ghost tests absorb it (at
+    the latest ``still_absorb_frames`` later). Its sightings say where it stood and that it left: a blob
+    there no taller than the robot was is its hole (:func:`is_body_blob` against the old sighting), not a
+    person. Where a body is first sighted after the model was learnt is taken for where it stood then
+    (someone in front of it may have hidden it at first); if it came later, its old place holds no hole.
+
+    Args:
+        width_px: the panorama's width (columns wrap).
+        settings: ``still_absorb_frames``.
+    """
+
+    def __init__(self, width_px: int, settings: PipelineSettings) -> None:
+        self.width_px = width_px
+        self.settings = settings
+        self._stood: dict[str, BodySighting | None] = {}
+        """Per body: where it stood in the current model; None once it drove off."""
+        self._left: list[tuple[BodySighting, int]] = []
+        """Places bodies drove off from, with the last frame their hole may still show."""
+
+    def reset(self) -> None:
+        """The model is learnt afresh: whoever stands in view then is in it."""
+        self._stood, self._left = {}, []
+
+    def update(self, sightings: list[BodySighting], frame: int) -> list[BodySighting]:
+        """Follow one frame's sightings (of a learnt model); returns the places left lately (as sightings)."""
+        for now in sightings:
+            target = now.sighting.target_id
+            if not target:
+                continue
+            if target not in self._stood:
+                self._stood[target] = now
+                continue
+            was = self._stood[target]
+            if was is not None and drove_off(was, now, self.width_px):
+                self._left.append((was, frame + self.settings.still_absorb_frames))
+                self._stood[target] = None  # it stands nowhere in this model any more
+        self._left = [(b, last) for b, last in self._left if frame <= last]
+        return [b for b, _ in self._left]
 
 
 def is_body_blob(

@@ -7,7 +7,8 @@ while the model was learnt). The helpers:
 * :func:`surround_deviation` -- how far the frame and the model inside a still
   region are from the surface beside it: a hole shows in the frame what
   continues on both sides, while the model still holds whoever left;
-  :func:`start_up_hole` judges a region changed since the model was young by it;
+  :func:`start_up_hole` judges a region changed since the model was young by it, and
+  :func:`hole_columns` each column of one that holds both a hole and the one walking out of it;
 * :class:`UnderGhosts` -- the model as it was under absorbed ghosts, put back
   where the frame shows it again (the absorption was a mistake: someone in
   front of a narrow bright window looks like a ghost of the window).
@@ -24,7 +25,7 @@ import numpy.typing as npt
 
 from sensor_node.components import components
 
-__all__ = ["UnderGhosts", "start_up_hole", "surround_deviation"]
+__all__ = ["UnderGhosts", "hole_columns", "start_up_hole", "surround_deviation"]
 
 logger = logging.getLogger(__name__)
 
@@ -40,6 +41,9 @@ the model is, is a ghost: a hole left by someone who walked away."""
 SURROUND_MIN_DEV = 15.0
 """Mean grey-level deviation from the surface beside a still region that is a clear departure (the model
 holds someone there, or the frame does); below it, the surface continues."""
+
+MIN_COLUMN_PX = 5
+"""Fewest pixels of a region in one column (on rows with side pixels) for :func:`hole_columns` to judge it."""
 
 RESTORE_FRAMES = 90
 """Frames (6 s at 15 fps) for which the model from under an absorbed ghost is kept for putting back."""
@@ -96,6 +100,59 @@ def surround_deviation(
     dev_cur = float((np.abs(cur_mean - side_mean) * weight).sum()) / total
     dev_bg = float((np.abs(bg_mean - side_mean) * weight).sum()) / total
     return dev_cur, dev_bg
+
+
+def hole_columns(
+    grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
+) -> npt.NDArray[np.bool_]:
+    """The columns of a still region (in its box) that are a start-up hole, each judged on its own.
+
+    Someone who stood while the model was learnt and walks off is beside their hole for a while: the
+    still inside of them (a plain shirt does not change from frame to frame) and the hole behind them
+    make one region, which is neither a hole nor a person as a whole. Column by column they part: in
+    the hole's columns the frame continues the surface beside the region and the model departs from
+    it; in the person's the reverse. Each column's frame and model deviations are the mean absolute
+    grey-level differences of its region pixels from the row's side surface (as
+    :func:`surround_deviation`). Only a clear hole counts (the model departs by ``SURROUND_MIN_DEV``, the
+    frame is ``SURROUND_GHOST`` as close): a column where neither departs is the edge of whoever stands
+    there, not a hole (:func:`start_up_hole`'s undecided case is for whole regions).
+
+    Args:
+        grey: the frame (H, W) uint8.
+        bg: the model (H, W) uint8.
+        fg: the changed pixels (255) of the frame.
+        mask: the region inside its bounding box.
+        origin: (column, row) of the box's top-left corner.
+
+    Returns:
+        One flag per column of the box: a hole there (False where no row has side pixels to compare).
+    """
+    x, y = origin
+    h, w = mask.shape
+    cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
+    rows = slice(y, y + h)
+    g = grey[rows][:, cols].astype(np.float32)
+    b = bg[rows][:, cols].astype(np.float32)
+    inside = np.zeros(g.shape, bool)
+    inside[:, SIDE_PX : SIDE_PX + w] = mask
+    side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
+    n_side = side.sum(axis=1)
+    ok = n_side >= 3
+    out = np.zeros(w, bool)
+    if not ok.any():
+        return out
+    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    ins = inside[ok][:, SIDE_PX : SIDE_PX + w]
+    n_col = ins.sum(axis=0)
+    have = n_col >= MIN_COLUMN_PX
+    if not have.any():
+        return out
+    dev_cur = (np.abs(g[ok][:, SIDE_PX : SIDE_PX + w] - side_mean[:, None]) * ins).sum(axis=0)
+    dev_bg = (np.abs(b[ok][:, SIDE_PX : SIDE_PX + w] - side_mean[:, None]) * ins).sum(axis=0)
+    dev_cur = dev_cur / np.maximum(n_col, 1)
+    dev_bg = dev_bg / np.maximum(n_col, 1)
+    out[:] = have & (dev_bg >= SURROUND_MIN_DEV) & (dev_cur <= SURROUND_GHOST * dev_bg)
+    return out
 
 
 def start_up_hole(dev_cur: float, dev_bg: float) -> bool:

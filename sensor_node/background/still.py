@@ -18,7 +18,10 @@ The surface beside a region is a second test (:func:`~sensor_node.background.gho
 a region changed ever since the model was young (*born*) is a start-up hole unless the frame,
 not the model, clearly departs from the surface beside it (:func:`~sensor_node.background.ghosts.start_up_hole`),
 absorbed at its first test whatever its outline says (a plain shirt before a textured wall; a
-grey shirt held where the frame shows a bright ceiling corner); an outline "ghost" whose frame
+grey shirt held where the frame shows a bright ceiling corner), and tested from its first still
+sample (``ghost_frames`` is the outline test's wait). Someone walking out of their own hole is
+beside it for a while, one region with it: there the hole's columns go
+(:func:`~sensor_node.background.ghosts.hole_columns`) and they stay. An outline "ghost" whose frame
 is no closer to its surroundings than the model is, is not absorbed. What an absorption
 overwrote (outside start-up holes) is kept a while and put back where the frame shows it again
 (:class:`~sensor_node.background.ghosts.UnderGhosts`).
@@ -34,7 +37,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.ghosts import UnderGhosts, start_up_hole, surround_deviation
+from sensor_node.background.ghosts import UnderGhosts, hole_columns, start_up_hole, surround_deviation
 from sensor_node.components import components
 from sensor_node.config import PipelineSettings
 
@@ -50,7 +53,7 @@ STATIC_EVERY = 4
 
 BORN_FRAMES = 30
 """Normal frames (2 s at 15 fps) after the model is learnt during which someone who stood in the view while
-it was learnt can walk off and leave a start-up hole (changed pixels still changed at the end of them)."""
+it was learnt can walk off and leave a start-up hole (pixels that turn changed during them and stay so)."""
 
 GHOST_EDGE = 10.0
 """Least mean edge strength (grey levels, 3x3 morphological gradient) of a ghost's outline in the background."""
@@ -83,16 +86,19 @@ class StillRegions:
     def __init__(self, settings: PipelineSettings) -> None:
         self.settings = settings
         self._born_age = 0
-        """Normal frames seen since the model was learnt (up to the re-seeding of ``_born``)."""
+        """Normal frames seen since the model was learnt."""
         self._static: Mask | None = None
         self._born: Mask | None = None
-        """Changed pixels that have stayed changed since the model was learnt, or since the last of its first
-        ``BORN_FRAMES`` normal frames: where a start-up hole can be."""
+        """Changed pixels that have stayed changed since the model was learnt, or since they turned changed
+        during its first ``BORN_FRAMES`` normal frames: where a start-up hole can be."""
         self._born_first: Mask | None = None
         """Changed pixels that have stayed changed since the model was learnt: someone who came in later
         cannot be among them."""
         self._born_live = self._born_first_live = True
-        """The born masks may still hold changed pixels (once empty they stay so)."""
+        """The born masks may still hold changed pixels (an emptied one stays so, once the model is no longer
+        young)."""
+        self._last_fg: Mask | None = None
+        """The last frame's changed pixels, while the model is young."""
         self._under: UnderGhosts | None = None
         """The model from under absorbed ghosts: put back where the frame shows it again (a mistake)."""
         self.ghosts = 0
@@ -105,7 +111,7 @@ class StillRegions:
     def reset(self) -> None:
         """Forget every region (the model is learnt afresh); the counters go on."""
         self._born_age = 0
-        self._static = self._born = self._born_first = None
+        self._static = self._born = self._born_first = self._last_fg = None
         self._under = None
 
     def forget_under(self) -> None:
@@ -127,9 +133,8 @@ class StillRegions:
             frame: the model's frame count (sampling and the age of what absorptions overwrote).
         """
         # Born: changed ever since the model was learnt. Someone standing in the view while it was
-        # learnt is in the model, and their hole opens only as they walk off: what is changed at the
-        # end of the model's first BORN_FRAMES counts too (not what changed meanwhile and left: anyone
-        # in view then would count).
+        # learnt is in the model, and their hole opens only as they walk off: what turns changed during
+        # the model's first BORN_FRAMES and stays so counts too (not what changed meanwhile and left).
         self._born_age += 1
         if self._born is None or self._born_first is None:
             self._born, self._born_first = fg.copy(), fg.copy()
@@ -137,15 +142,20 @@ class StillRegions:
         else:
             if self._born_first_live:
                 cv2.bitwise_and(self._born_first, fg, dst=self._born_first)
-            if self._born_age == BORN_FRAMES:
-                self._born, self._born_live = fg.copy(), True
-            elif self._born_live:
+            if self._born_age <= BORN_FRAMES and self._last_fg is not None:
+                # While the model is young, a pixel that turns changed and stays so may be a hole opening:
+                # the part of someone in the model that they covered in the frame too until they moved.
+                cv2.bitwise_or(self._born, cv2.bitwise_not(self._last_fg), dst=self._born)
+                self._born_live = True
+            if self._born_live:
                 cv2.bitwise_and(self._born, fg, dst=self._born)
+        self._last_fg = fg.copy() if self._born_age < BORN_FRAMES else None
         s = self.settings
         # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
         if frame % STATIC_EVERY:
             return False
-        # A born mask that emptied stays empty (each frame can only clear more of it): no more ANDs.
+        # A born mask that emptied stays empty (past the model's youth each frame can only clear more of it):
+        # no more ANDs.
         self._born_first_live = self._born_first_live and cv2.countNonZero(self._born_first) > 0
         self._born_live = self._born_live and cv2.countNonZero(self._born) > 0
         moved = moving()
@@ -167,6 +177,11 @@ class StillRegions:
                 changed = True
         samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
+        if self._born is not None:
+            # A born region is tested from its first still sample: the surface beside it tells a start-up
+            # hole from someone who stands (start_up_hole) without waiting for an outline to settle; a
+            # hole left as a blob meanwhile is reported as someone standing where they stood.
+            cv2.bitwise_or(old, cv2.bitwise_and(self._born, still), dst=old)
         if cv2.countNonZero(old) == 0:
             return changed
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
@@ -239,6 +254,32 @@ class StillRegions:
                 dev_cur,
                 dev_bg,
             )
+            if born and not ghost:
+                # Someone who stood while the model was learnt walks out of their hole: the hole's
+                # columns are absorbed now, the one beside them is tested again later.
+                part = mask & hole_columns(grey, bg_u8, fg, mask, (x, y))[None, :]
+                n_part = int(np.count_nonzero(part))
+                if n_part >= s.min_blob_px:
+                    first_part = self._born_first is not None and bool(
+                        np.count_nonzero(self._born_first[y : y + h, x : x + w][part]) >= 0.5 * n_part
+                    )
+                    if self._absorb(
+                        grey,
+                        fg,
+                        moved,
+                        part,
+                        (x, y),
+                        bg=bg,
+                        frame=frame,
+                        keep=not first_part,
+                        fringe=False,
+                        beside=mask,
+                    ):
+                        changed = True
+                        logger.debug("hole of %d px beside someone at column %d absorbed", n_part, x)
+                    continue
+            if age < samples and not hole:
+                continue  # still too briefly for any test but the start-up hole's
             if not ghost:
                 # A paused person is the reverse: the silhouette is an edge of the current frame, not of
                 # the background. They stay an object region (never learnt) however long they stand;
@@ -267,6 +308,7 @@ class StillRegions:
         frame: int,
         keep: bool,
         fringe: bool = True,
+        beside: npt.NDArray[np.bool_] | None = None,
     ) -> bool:
         """Copy a still region (``mask`` in its box at ``origin`` = (column, row)) of the frame into the model.
 
@@ -274,7 +316,8 @@ class StillRegions:
         region (not the edge of someone walking past it); without, the region's own not moving pixels
         only (a fragment: what is around it may be someone whose rest matches the wall). Not if the
         region continues into changed pixels all around (``GHOST_RING_CHANGED``). ``keep``: remember the model it
-        overwrote (:class:`UnderGhosts`). Returns whether it was absorbed into ``bg``.
+        overwrote (:class:`UnderGhosts`). ``beside`` (the box's shape): pixels known to be someone next to
+        the region, not counted in that ring. Returns whether it was absorbed into ``bg``.
         """
         assert self._static is not None
         x, y = origin
@@ -284,6 +327,8 @@ class StillRegions:
         region[y - y0 : y - y0 + h, x - x0 : x - x0 + w][mask] = 255
         grown = cv2.dilate(region, _K9) > 0
         ring = grown & (region == 0)
+        if beside is not None:
+            ring[y - y0 : y - y0 + h, x - x0 : x - x0 + w] &= ~beside
         around = np.count_nonzero(ring & (fg[y0:y1, x0:x1] > 0))
         if around > GHOST_RING_CHANGED * np.count_nonzero(ring):
             # A ghost is the whole changed region (beyond it the frame matches the model); this one

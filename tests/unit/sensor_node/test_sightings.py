@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from common.cameras import design_pal
+from common.schema import Sighting
 from sensor_node.config import BodySpec, PipelineSettings
-from sensor_node.sightings import BandFinder, _hue_ranges, _runs, is_body_blob
+from sensor_node.sightings import BandFinder, BodySighting, LeftPlaces, _hue_ranges, _runs, drove_off, is_body_blob
 from sensor_node.unwarp import PanoFrame
 from tests.unit.sensor_node.sn_synth import backdrop as _backdrop
 
@@ -110,3 +111,41 @@ def test_is_body_blob() -> None:
     horizon = CAM.v0_px
     assert s.top_row < horizon and is_body_blob(499, 24, 1080, [s], v0=round(s.top_row) + 2)
     assert not is_body_blob(499, 24, 1080, [s], v0=round(horizon) - 25)
+
+
+def _at(left: float, right: float, target: str = "robot1") -> BodySighting:
+    """A sighting of ``target`` between columns ``left`` and ``right`` (top row 70)."""
+    s = Sighting(target_id=target, left_rad=0.0, right_rad=0.1, alpha_rad=0.1, bearing_rad=0.05, distance_m=2.0,
+                 body_radius_m=0.18)  # fmt: skip
+    return BodySighting(s, left, right, (80, 90), top_row=70.0)
+
+
+@pytest.mark.parametrize(
+    ("now", "off"),
+    [
+        ((500.2, 520.1), False),  # the same place, a fraction of a pixel of noise
+        ((503.0, 523.0), False),  # 3 of 20 columns free: a nudge
+        ((506.0, 526.0), True),  # a quarter free: it drives off sideways
+        ((505.0, 515.0), True),  # narrower (driving away from the camera): both edges free
+        ((-4.3, 15.7), False),  # the same place, numbered from the other side of the seam (columns wrap)
+        ((1.5, 21.5), True),  # across the seam, a quarter free
+    ],
+)
+def test_drove_off(now: tuple[float, float], off: bool) -> None:
+    was = _at(500.0, 520.0) if now[0] > 100 else _at(1075.5, 1095.5)
+    assert drove_off(was, _at(*now), 1080) is off
+
+
+def test_a_robot_that_drove_off_leaves_its_place_for_still_absorb_frames() -> None:
+    settings = PipelineSettings()
+    left = LeftPlaces(1080, settings)
+    assert left.update([_at(500.0, 520.0)], frame=1) == []  # stands where the model learnt it
+    assert left.update([_at(500.1, 520.0)], frame=2) == []
+    (place,) = left.update([_at(510.0, 530.0)], frame=3)  # drove off: its old place is a hole
+    assert (place.left_col, place.right_col) == (500.0, 520.0)
+    assert is_body_blob(502, 12, 1080, [place], v0=72)  # a blob there no taller than the robot: no person
+    assert not is_body_blob(502, 12, 1080, [place], v0=40)  # someone taller standing there is one
+    assert left.update([_at(530.0, 550.0)], frame=3 + settings.still_absorb_frames) != []
+    assert left.update([_at(540.0, 560.0)], frame=4 + settings.still_absorb_frames) == []  # absorbed by then
+    left.reset()  # a new model: it stands in it where it is now
+    assert left.update([_at(540.0, 560.0)], frame=100) == []

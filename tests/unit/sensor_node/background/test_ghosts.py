@@ -1,10 +1,11 @@
-"""Ghost helpers of the background model: the model kept from under absorbed ghosts, and its expiry."""
+"""Ghost helpers of the background model: the model kept from under absorbed ghosts, its expiry, and the hole
+columns of a region that holds both a start-up hole and the one walking out of it."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from sensor_node.background.ghosts import RESTORE_FRAMES, UnderGhosts
+from sensor_node.background.ghosts import RESTORE_FRAMES, UnderGhosts, hole_columns
 from tests.unit.sensor_node.sn_synth import H, W
 
 
@@ -81,3 +82,18 @@ def test_a_single_pixel_kept_is_put_back_as_any_region() -> None:
     still[40, 300] = 255
     back, regions = kept.restore(frame, still, model, frame=20, match_level=16, least_px=1)
     assert regions == 1 and back is not None and back[40, 300] == 255 and float(model[40, 300]) == 90.0
+
+
+def test_hole_columns_part_a_hole_from_the_one_walking_out_of_it() -> None:
+    # The model holds someone (grey 40) at columns 100..119 in front of a wall of grey 120; in the frame
+    # they have moved to 110..129. One changed region, 100..129: columns 100..109 are their hole (the
+    # frame continues the wall), 110..119 them in both (unchanged), 120..129 them over the wall.
+    model = np.full((H, W), 120, np.uint8)
+    model[30:130, 100:120] = 40
+    frame = np.full((H, W), 120, np.uint8)
+    frame[30:130, 110:130] = 40
+    fg = np.where(np.abs(frame.astype(np.int16) - model) > 25, 255, 0).astype(np.uint8)
+    mask = np.ones((100, 30), bool)  # the region's box, (100, 30) .. (130, 130)
+    holes = hole_columns(frame, model, fg, mask, (100, 30))
+    assert holes[:10].all()
+    assert not holes[10:].any()
