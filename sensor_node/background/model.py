@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_mask
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, remove_shadows
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -245,19 +245,20 @@ class BackgroundModel:
             # would join nothing; it is skipped until the thresholds change.
             self._thr_weak = weak if cv2.countNonZero(cv2.subtract(thr, weak)) else None
 
-    def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
-        """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
-        found, or no colour): the frame there is the background dimmed or brightened, hue kept.
+    def without_shadows(self, fg: Mask, floor: Mask | None = None) -> Mask:
+        """``fg`` without the changed pixels of this frame that are a cast shadow or a highlight on the background
+        (``fg`` itself if there are none, or no colour): the frame there is the background dimmed or brightened,
+        hue kept.
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
         :func:`sensor_node.background.shadows.shadow_mask`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
-            return None
+            return fg
         small = self._colour_now
         if small.small_shape != self._colour_bg.shape[:2]:
-            return None
+            return fg
         if floor is not self._floor:
             self._floor = floor
             self._colour_rows = _rows_read(floor, self._colour_bg.shape[0])
@@ -267,7 +268,7 @@ class BackgroundModel:
             self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
             if r1 > r0:
                 self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
-        return shadow_mask(
+        return remove_shadows(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
 
