@@ -585,10 +585,13 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
         # costs several times more.
         lone = 255 - seeded
         lone[0] = 0
-        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
-        lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
         joined = weak.copy()
-        points = cv2.findNonZero(lone_cells)
+        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x);
+        # not looked for when every region is seeded (about every other frame).
+        points = None
+        if lone[1:n].any():
+            lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
+            points = cv2.findNonZero(lone_cells)
         if points is not None:
             xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
             joined.reshape(size[1], cell, size[0], cell)[ys, :, xs, :] = 0
