@@ -177,10 +177,11 @@ class StillRegions:
                 changed = True
         samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
-        if self._born is not None:
+        if self._born is not None and self._born_live:
             # A born region is tested from its first still sample: the surface beside it tells a start-up
             # hole from someone who stands (start_up_hole) without waiting for an outline to settle; a
-            # hole left as a blob meanwhile is reported as someone standing where they stood.
+            # hole left as a blob meanwhile is reported as someone standing where they stood. (An emptied
+            # born mask, most of a model's life, adds nothing.)
             cv2.bitwise_or(old, cv2.bitwise_and(self._born, still), dst=old)
         if cv2.countNonZero(old) == 0:
             return changed
@@ -226,8 +227,10 @@ class StillRegions:
             # both sides, while the model holds the one who left. It overrules the outline test when
             # the frame is no closer to the surroundings than the model is (someone standing in front
             # of a window: its frame is a strong outline of the model, but that is no ghost).
-            born = self._born is not None and bool(
-                np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area
+            born = (
+                self._born is not None
+                and self._born_live
+                and bool(np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area)
             )
             # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
             dev_cur, dev_bg = surround_deviation(grey, bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
