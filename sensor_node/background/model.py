@@ -144,6 +144,8 @@ class BackgroundModel:
         changed too (None: the noise tail is not measured yet, or the threshold is ``_thr`` everywhere)."""
         self._sigma: npt.NDArray[np.float32] | None = None
         """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
+        self._tail_bin: int | None = None
+        """The noise tail's bin at the last update (where the next one's search starts)."""
         self.tail_sigmas: float | None = None
         """The image's noise tail: how many of their own sigmas the background pixels' differences pass in a
         fraction ``WEAK_FALSE_RATE`` of them (measured outside objects at each update, smoothed). About 3.7
@@ -458,8 +460,8 @@ class BackgroundModel:
         """
         if self._sigma is None:
             return
-        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond): 8-bit images
-        # are what calcHist counts fast; objects' pixels are put in bin 0 and taken out of it.
+        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond); objects' pixels
+        # are put in bin 0, which is never above any bin.
         z = cv2.convertScaleAbs(diff / self._sigma, alpha=TAIL_BINS / TAIL_MAX_SIGMAS)
         n = diff.size
         if objects is not None:
@@ -467,10 +469,8 @@ class BackgroundModel:
             n -= cv2.countNonZero(objects)
         if n * WEAK_FALSE_RATE < TAIL_MIN_PX:
             return
-        hist = cv2.calcHist([z], [0], None, [TAIL_BINS], [0, TAIL_BINS]).ravel()
-        hist[0] -= diff.size - n
-        above = n - np.cumsum(hist)  # pixels in the bins above each
-        k = int(np.argmax(above <= WEAK_FALSE_RATE * n))
+        k = _tail_bin(z, WEAK_FALSE_RATE * n, self._tail_bin)
+        self._tail_bin = k
         level = (k + 0.5) * TAIL_MAX_SIGMAS / TAIL_BINS
         prev = self.tail_sigmas
         self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
@@ -516,7 +516,7 @@ TAIL_MIN_PX = 4.0
 
 TAIL_BINS = 256
 TAIL_MAX_SIGMAS = 32.0
-"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS)."""
+"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS), one per 8-bit level."""
 
 DEV_STEP = 1.0
 """Largest relative rise of a pixel's deviation from one update sample (1: it may double)."""
@@ -617,6 +617,45 @@ def _rows_read(floor: Mask | None, height: int) -> tuple[int, int]:
         return 0, 0
     m = TEXTURE_WINDOW // 2
     return max(y - m, 0), min(y + h + m, height)
+
+
+def _tail_bin(z: Mask, limit: float, hint: int | None) -> int:
+    """The first bin k of ``z`` (8-bit bins 0 .. ``TAIL_BINS`` - 1) with at most ``limit`` pixels above it.
+
+    Found by counting the pixels above a few bins, from ``hint`` (the last update's bin: the tail moves
+    little between updates) outwards, then by halving: a threshold and a count are a few microseconds
+    each on a panorama, a histogram of it a few hundred. The counts are compared as 32-bit floats, as
+    a histogram's cumulative counts were.
+    """
+    lim = np.float32(limit)
+
+    def few_above(k: int) -> bool:
+        return bool(np.float32(cv2.countNonZero(cv2.threshold(z, k, 255, cv2.THRESH_BINARY)[1])) <= lim)
+
+    last = TAIL_BINS - 1  # nothing is above the last bin's level: it always qualifies
+    k = min(max(hint if hint is not None else TAIL_BINS // 8, 0), last)
+    # Bracket: ``bad`` does not qualify (or is -1), ``good`` does.
+    if few_above(k):
+        good, step = k, 1
+        bad = good - step
+        while bad >= 0 and few_above(bad):
+            good, step = bad, 2 * step
+            bad = good - step
+        bad = max(bad, -1)
+    else:
+        bad, step = k, 1
+        good = bad + step
+        while good < last and not few_above(good):
+            bad, step = good, 2 * step
+            good = bad + step
+        good = min(good, last)
+    while good - bad > 1:
+        mid = (bad + good) // 2
+        if few_above(mid):
+            good = mid
+        else:
+            bad = mid
+    return good
 
 
 def _threshold(diff: Mask, level: int) -> Mask:
