@@ -29,7 +29,6 @@ overwrote (outside start-up holes) is kept a while and put back where the frame 
 
 from __future__ import annotations
 
-import bisect
 import logging
 from collections.abc import Callable
 from typing import Any
@@ -39,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.background.ghosts import UnderGhosts, hole_columns, start_up_hole, surround_deviation
-from sensor_node.components import components
+from sensor_node.components import ColumnRuns, components
 from sensor_node.config import PipelineSettings
 
 __all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
@@ -73,56 +72,30 @@ CLOSE_REACH_PX = 4
 
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
+_K9 = np.ones((9, 9), np.uint8)
 
 
 def _closed_regions(old: Mask) -> tuple[int, Mask, npt.NDArray[np.int32], list[int], int]:
     """The regions of the still pixels ``old`` after a 5 x 5 closing: their count (with the background's
-    label 0), labels, statistics (``cv2.connectedComponentsWithStats``'s, in image coordinates), each
+    label 0), labels, statistics (:func:`~sensor_node.components.components`', in image coordinates), each
     one's first column in the labels, and the labels' first image row.
 
     The still pixels are a few regions of a large image, often far apart: the closing and the labelling
-    work on the box around them (with the closing's reach), and in it on the columns that hold them only,
-    set side by side with a margin of empty columns each (the labelling's cost grows with the pixels it
-    scans, its statistics' most). A margin beyond the closing's reach keeps every region and its closing
-    as they are; an even shift of each run of columns keeps the labelling's 2 x 2 blocks, and so the
-    regions' order, as labelling the whole box gives.
+    work on the box around them (with the closing's reach), and in it on the columns that hold them only
+    (:class:`~sensor_node.components.ColumnRuns`, with a margin beyond the closing's reach: every region
+    and its closing stay as they are).
     """
     bx, by, bw, bh = cv2.boundingRect(old)
     x0, y0 = max(bx - CLOSE_REACH_PX, 0), max(by - CLOSE_REACH_PX, 0)
     x1, y1 = min(bx + bw + CLOSE_REACH_PX, old.shape[1]), min(by + bh + CLOSE_REACH_PX, old.shape[0])
     box = old[y0:y1, x0:x1]
-    cols = np.flatnonzero(cv2.reduce(box, 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel())
-    margin = CLOSE_REACH_PX + 1
-    breaks = np.flatnonzero(np.diff(cols) > 2 * margin + 2).tolist()
-    if not breaks:
-        n, labels, stats = components(cv2.morphologyEx(box, cv2.MORPH_CLOSE, _K5))
-        label_x = [0, *stats[1:, 0].tolist()]
-        stats[1:, 0] += x0
-        stats[1:, 1] += y0
-        return n, labels, stats, label_x, y0
-    firsts = [int(cols[0]), *(int(cols[b + 1]) for b in breaks)]
-    lasts = [*(int(cols[b]) for b in breaks), int(cols[-1])]
-    pieces: list[Mask] = []
-    runs: list[tuple[int, int, int]] = []  # (first box column, first packed column, columns)
-    packed = 0
-    for i, (first, last) in enumerate(zip(firsts, lasts, strict=True)):
-        a = 0 if i == 0 else first - margin
-        b = box.shape[1] if i == len(firsts) - 1 else last + 1 + margin
-        a -= (a - packed) % 2
-        pieces.append(box[:, a:b])
-        runs.append((a, packed, b - a))
-        packed += b - a
-    n, labels, stats = components(cv2.morphologyEx(np.concatenate(pieces, axis=1), cv2.MORPH_CLOSE, _K5))
+    runs = ColumnRuns(box, CLOSE_REACH_PX + 1)
+    n, labels, stats = components(cv2.morphologyEx(runs.pack(box) if runs.apart else box, cv2.MORPH_CLOSE, _K5))
     label_x = [0, *stats[1:, 0].tolist()]
-    starts = [p for _, p, _ in runs]
     for k in range(1, n):
-        a, p, _ = runs[bisect.bisect_right(starts, label_x[k]) - 1]
-        stats[k, 0] += x0 + a - p
+        stats[k, 0] = x0 + (runs.unpack(label_x[k]) if runs.apart else label_x[k])
     stats[1:, 1] += y0
     return n, labels, stats, label_x, y0
-
-
-_K9 = np.ones((9, 9), np.uint8)
 
 
 class StillRegions:
