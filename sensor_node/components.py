@@ -32,7 +32,7 @@ def components(mask: Mask) -> tuple[int, Mask, npt.NDArray[np.int32]]:
 class ColumnRuns:
     """A mask's columns that hold set pixels, in runs set side by side (:meth:`pack`), and the way back.
 
-    Runs more than ``2 * margin + 2`` empty columns apart are packed with ``margin`` empty columns on each
+    Runs at least ``2 * margin + 2`` empty columns apart are packed with ``margin`` empty columns on each
     side (the first run from the mask's first column, the last to its last, so the mask's edges stay
     edges); each run is shifted by an even number of columns. Labelling scans the packed mask's pixels
     only; its regions are the mask's, and in the same order: 8-connected labelling assigns labels block by

@@ -587,7 +587,7 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
         lone[0] = 0
         joined = weak.copy()
         # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x);
-        # not looked for when every region is seeded (about every other frame).
+        # not looked for when every region is seeded.
         if lone[1:n].any():
             lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
             # Their blocks cleared within the lone cells' box (finding a few cells in the whole image, or
@@ -624,9 +624,9 @@ def _tail_bin(z: Mask, limit: float, hint: int | None) -> int:
     """The first bin k of ``z`` (8-bit bins 0 .. ``TAIL_BINS`` - 1) with at most ``limit`` pixels above it.
 
     Found by counting the pixels above a few bins, from ``hint`` (the last update's bin: the tail moves
-    little between updates) outwards, then by halving: a threshold and a count are a few microseconds
-    each on a panorama, a histogram of it a few hundred. The counts are compared as 32-bit floats, as
-    a histogram's cumulative counts were.
+    little between updates) outwards, then by halving: a threshold and a count each cost a small fraction
+    of a histogram of the panorama (slow on such images, mostly of a few low bins). The counts are compared
+    as 32-bit floats, as a histogram's cumulative counts were.
     """
     lim = np.float32(limit)
 
