@@ -87,9 +87,12 @@ def extract_head(mask: npt.NDArray[np.bool_], head_ratio: float = 1.5, diff: Dif
         # The crown half: hair all round, so the same contrast on both sides (the face, often
         # close to the wall's brightness, is lower down and on one side only).
         edge_v = row_v[: max(1, math.ceil(HEAD_EDGE_ROWS * head_h))]
-        v0 = edge_v[0]
-        d = diff(top + v0, top + edge_v[-1] + 1)
-        row_u = _row_edges(region[edge_v], d[[v - v0 for v in edge_v]])
+        v0, v1 = edge_v[0], edge_v[-1] + 1
+        d = diff(top + v0, top + v1)
+        if v1 - v0 == len(edge_v):  # consecutive rows (most heads): slices, not gathers
+            row_u = _row_edges(region[v0:v1], d)
+        else:
+            row_u = _row_edges(region[edge_v], d[[v - v0 for v in edge_v]])
     else:
         row_u = (region[row_v] @ np.arange(width, dtype=np.float64)) / np.asarray(counts)[row_v]
     return Head(

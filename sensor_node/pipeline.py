@@ -89,10 +89,7 @@ def objects_mask(motion: Motion, background: BackgroundModel, floor: Mask | None
     thin or sparse in a person (a neck, the outline of a shirt of the wall's grey): grouping joins the
     parts above one another through the mask before it (:func:`sensor_node.segmentation.blobs.find_blobs`).
     """
-    fg = motion.fg
-    shade = background.shadows(fg, floor)
-    if shade is not None:
-        fg = cv2.subtract(fg, shade)
+    fg = background.without_shadows(motion.fg, floor)
     return cv2.medianBlur(fg, 3), fg
 
 

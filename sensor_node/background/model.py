@@ -37,13 +37,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal, cast
+from typing import Any, Literal
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_mask
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, remove_shadows
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -144,6 +144,8 @@ class BackgroundModel:
         changed too (None: the noise tail is not measured yet, or the threshold is ``_thr`` everywhere)."""
         self._sigma: npt.NDArray[np.float32] | None = None
         """Per-pixel noise sigma (grey levels): the pixel's own swing or the image's noise, the larger."""
+        self._tail_bin: int | None = None
+        """The noise tail's bin at the last update (where the next one's search starts)."""
         self.tail_sigmas: float | None = None
         """The image's noise tail: how many of their own sigmas the background pixels' differences pass in a
         fraction ``WEAK_FALSE_RATE`` of them (measured outside objects at each update, smoothed). About 3.7
@@ -245,19 +247,20 @@ class BackgroundModel:
             # would join nothing; it is skipped until the thresholds change.
             self._thr_weak = weak if cv2.countNonZero(cv2.subtract(thr, weak)) else None
 
-    def shadows(self, fg: Mask, floor: Mask | None = None) -> Mask | None:
-        """255 where a changed pixel of this frame is a cast shadow or a highlight on the background (None: none
-        found, or no colour): the frame there is the background dimmed or brightened, hue kept.
+    def without_shadows(self, fg: Mask, floor: Mask | None = None) -> Mask:
+        """``fg`` without the changed pixels of this frame that are a cast shadow or a highlight on the background
+        (``fg`` itself if there are none, or no colour): the frame there is the background dimmed or brightened,
+        hue kept.
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
         :func:`sensor_node.background.shadows.shadow_mask`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
-            return None
+            return fg
         small = self._colour_now
         if small.small_shape != self._colour_bg.shape[:2]:
-            return None
+            return fg
         if floor is not self._floor:
             self._floor = floor
             self._colour_rows = _rows_read(floor, self._colour_bg.shape[0])
@@ -267,7 +270,7 @@ class BackgroundModel:
             self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
             if r1 > r0:
                 self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
-        return shadow_mask(
+        return remove_shadows(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
 
@@ -457,8 +460,8 @@ class BackgroundModel:
         """
         if self._sigma is None:
             return
-        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond): 8-bit images
-        # are what calcHist counts fast; objects' pixels are put in bin 0 and taken out of it.
+        # Sigmas in 8-bit bins of TAIL_MAX_SIGMAS / 256 (the last one holds everything beyond); objects' pixels
+        # are put in bin 0, which is never above any bin.
         z = cv2.convertScaleAbs(diff / self._sigma, alpha=TAIL_BINS / TAIL_MAX_SIGMAS)
         n = diff.size
         if objects is not None:
@@ -466,10 +469,8 @@ class BackgroundModel:
             n -= cv2.countNonZero(objects)
         if n * WEAK_FALSE_RATE < TAIL_MIN_PX:
             return
-        hist = cv2.calcHist([z], [0], None, [TAIL_BINS], [0, TAIL_BINS]).ravel()
-        hist[0] -= diff.size - n
-        above = n - np.cumsum(hist)  # pixels in the bins above each
-        k = int(np.argmax(above <= WEAK_FALSE_RATE * n))
+        k = _tail_bin(z, WEAK_FALSE_RATE * n, self._tail_bin)
+        self._tail_bin = k
         level = (k + 0.5) * TAIL_MAX_SIGMAS / TAIL_BINS
         prev = self.tail_sigmas
         self.tail_sigmas = level if prev is None else prev + alpha * (level - prev)
@@ -515,7 +516,7 @@ TAIL_MIN_PX = 4.0
 
 TAIL_BINS = 256
 TAIL_MAX_SIGMAS = 32.0
-"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS)."""
+"""Histogram of the background's differences in sigmas: bins over [0, TAIL_MAX_SIGMAS), one per 8-bit level."""
 
 DEV_STEP = 1.0
 """Largest relative rise of a pixel's deviation from one update sample (1: it may double)."""
@@ -584,13 +585,17 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
         # costs several times more.
         lone = 255 - seeded
         lone[0] = 0
-        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x).
-        lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
         joined = weak.copy()
-        points = cv2.findNonZero(lone_cells)
-        if points is not None:
-            xs, ys = cast("npt.NDArray[np.intc]", points).reshape(-1, 2).T
-            joined.reshape(size[1], cell, size[0], cell)[ys, :, xs, :] = 0
+        # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x);
+        # not looked for when every region is seeded.
+        if lone[1:n].any():
+            lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
+            # Their blocks cleared within the lone cells' box (finding a few cells in the whole image, or
+            # scaling all of it up, costs several times more).
+            x, y, w, h = cv2.boundingRect(lone_cells)
+            up = cv2.resize(lone_cells[y : y + h, x : x + w], (w * cell, h * cell), interpolation=cv2.INTER_NEAREST)
+            box = joined[y * cell : (y + h) * cell, x * cell : (x + w) * cell]
+            box[...] = cv2.subtract(box, up)
     else:
         cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:256]) if n <= 256 else seeded[labels]
         joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
@@ -613,6 +618,45 @@ def _rows_read(floor: Mask | None, height: int) -> tuple[int, int]:
         return 0, 0
     m = TEXTURE_WINDOW // 2
     return max(y - m, 0), min(y + h + m, height)
+
+
+def _tail_bin(z: Mask, limit: float, hint: int | None) -> int:
+    """The first bin k of ``z`` (8-bit bins 0 .. ``TAIL_BINS`` - 1) with at most ``limit`` pixels above it.
+
+    Found by counting the pixels above a few bins, from ``hint`` (the last update's bin: the tail moves
+    little between updates) outwards, then by halving: a threshold and a count each cost a small fraction
+    of a histogram of the panorama (slow on such images, mostly of a few low bins). The counts are compared
+    as 32-bit floats, as a histogram's cumulative counts were.
+    """
+    lim = np.float32(limit)
+
+    def few_above(k: int) -> bool:
+        return bool(np.float32(cv2.countNonZero(cv2.threshold(z, k, 255, cv2.THRESH_BINARY)[1])) <= lim)
+
+    last = TAIL_BINS - 1  # nothing is above the last bin's level: it always qualifies
+    k = min(max(hint if hint is not None else TAIL_BINS // 8, 0), last)
+    # Bracket: ``bad`` does not qualify (or is -1), ``good`` does.
+    if few_above(k):
+        good, step = k, 1
+        bad = good - step
+        while bad >= 0 and few_above(bad):
+            good, step = bad, 2 * step
+            bad = good - step
+        bad = max(bad, -1)
+    else:
+        bad, step = k, 1
+        good = bad + step
+        while good < last and not few_above(good):
+            bad, step = good, 2 * step
+            good = bad + step
+        good = min(good, last)
+    while good - bad > 1:
+        mid = (bad + good) // 2
+        if few_above(mid):
+            good = mid
+        else:
+            bad = mid
+    return good
 
 
 def _threshold(diff: Mask, level: int) -> Mask:

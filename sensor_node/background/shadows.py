@@ -37,6 +37,7 @@ __all__ = [
     "ColourImage",
     "ReducedColour",
     "local_spread",
+    "remove_shadows",
     "shadow_mask",
     "spread_at",
 ]
@@ -163,6 +164,26 @@ def shadow_mask(
 ) -> Mask | None:
     """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
 
+    Args: as :func:`remove_shadows`.
+    """
+    cells = _shadow_cells(small, colour_bg, fg, noise_sigma, settings, floor=floor, bg_spread=bg_spread)
+    if cells is None:
+        return None
+    return _cells_mask(fg, *cells)
+
+
+def remove_shadows(
+    small: Mask | ReducedColour,
+    colour_bg: npt.NDArray[np.float32],
+    fg: Mask,
+    noise_sigma: float,
+    settings: PipelineSettings,
+    *,
+    floor: Mask | None = None,
+    bg_spread: npt.NDArray[np.float32] | None = None,
+) -> Mask:
+    """``fg`` without its shadow and highlight pixels (:func:`shadow_mask`); ``fg`` itself if it has none.
+
     Args:
         small: the frame's reduced BGR image (or a view that reads it in parts: only the candidates'
             pixels and the texture windows of the textured ones are read).
@@ -175,6 +196,31 @@ def shadow_mask(
             pale wall of the same hue would otherwise pass for a shadow of.
         bg_spread: :func:`local_spread` of ``colour_bg`` (None: computed here, around the candidates).
     """
+    cells = _shadow_cells(small, colour_bg, fg, noise_sigma, settings, floor=floor, bg_spread=bg_spread)
+    if cells is None:
+        return fg
+    ys, xs, sh, sw = cells
+    h, w = fg.shape
+    if h % sh == 0 and w % sw == 0:
+        # Each shadow pixel's block cleared in a copy: what subtracting the shadow mask gives, without
+        # making the mask (two fewer full-size passes).
+        out = fg.copy()
+        out.reshape(sh, h // sh, sw, w // sw)[ys, :, xs, :] = 0
+        return out
+    return cv2.subtract(fg, _cells_mask(fg, ys, xs, sh, sw))
+
+
+def _shadow_cells(
+    small: Mask | ReducedColour,
+    colour_bg: npt.NDArray[np.float32],
+    fg: Mask,
+    noise_sigma: float,
+    settings: PipelineSettings,
+    *,
+    floor: Mask | None,
+    bg_spread: npt.NDArray[np.float32] | None,
+) -> tuple[npt.NDArray[np.intc], npt.NDArray[np.intc], int, int] | None:
+    """The reduced image's shadow pixels (rows, columns) and its size (rows, columns); None if none."""
     if not settings.shadows:
         return None
     colour = ColourImage(small) if isinstance(small, np.ndarray) else small
@@ -229,6 +275,12 @@ def shadow_mask(
         ys, xs = ys[keep], xs[keep]
     if ys.size == 0:
         return None
+    return ys, xs, sh, sw
+
+
+def _cells_mask(fg: Mask, ys: npt.NDArray[np.intc], xs: npt.NDArray[np.intc], sh: int, sw: int) -> Mask:
+    """255 on the pixels of ``fg`` in the blocks of the reduced pixels (``ys``, ``xs``) of an (sh, sw) image."""
+    h, w = fg.shape
     full = np.zeros((h, w), np.uint8)
     if h % sh == 0 and w % sw == 0:
         # Back to full resolution: each reduced pixel's block, set in place (scaling a mask up costs more).

@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from sensor_node.background.ghosts import UnderGhosts, hole_columns, start_up_hole, surround_deviation
-from sensor_node.components import components
+from sensor_node.components import ColumnRuns, components
 from sensor_node.config import PipelineSettings
 
 __all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
@@ -73,6 +73,29 @@ CLOSE_REACH_PX = 4
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
 _K9 = np.ones((9, 9), np.uint8)
+
+
+def _closed_regions(old: Mask) -> tuple[int, Mask, npt.NDArray[np.int32], list[int], int]:
+    """The regions of the still pixels ``old`` after a 5 x 5 closing: their count (with the background's
+    label 0), labels, statistics (:func:`~sensor_node.components.components`', in image coordinates), each
+    one's first column in the labels, and the labels' first image row.
+
+    The still pixels are a few regions of a large image, often far apart: the closing and the labelling
+    work on the box around them (with the closing's reach), and in it on the columns that hold them only
+    (:class:`~sensor_node.components.ColumnRuns`, with a margin beyond the closing's reach: every region
+    and its closing stay as they are).
+    """
+    bx, by, bw, bh = cv2.boundingRect(old)
+    x0, y0 = max(bx - CLOSE_REACH_PX, 0), max(by - CLOSE_REACH_PX, 0)
+    x1, y1 = min(bx + bw + CLOSE_REACH_PX, old.shape[1]), min(by + bh + CLOSE_REACH_PX, old.shape[0])
+    box = old[y0:y1, x0:x1]
+    runs = ColumnRuns(box, CLOSE_REACH_PX + 1)
+    n, labels, stats = components(cv2.morphologyEx(runs.pack(box) if runs.apart else box, cv2.MORPH_CLOSE, _K5))
+    label_x = [0, *stats[1:, 0].tolist()]
+    for k in range(1, n):
+        stats[k, 0] = x0 + (runs.unpack(label_x[k]) if runs.apart else label_x[k])
+    stats[1:, 1] += y0
+    return n, labels, stats, label_x, y0
 
 
 class StillRegions:
@@ -177,27 +200,22 @@ class StillRegions:
                 changed = True
         samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
         old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
-        if self._born is not None:
+        if self._born is not None and self._born_live:
             # A born region is tested from its first still sample: the surface beside it tells a start-up
             # hole from someone who stands (start_up_hole) without waiting for an outline to settle; a
-            # hole left as a blob meanwhile is reported as someone standing where they stood.
+            # hole left as a blob meanwhile is reported as someone standing where they stood. (An emptied
+            # born mask, most of a model's life, adds nothing.)
             cv2.bitwise_or(old, cv2.bitwise_and(self._born, still), dst=old)
         if cv2.countNonZero(old) == 0:
             return changed
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
-        # would measure texture, not the silhouette. Closing and labelling work on the box around the
-        # still pixels (with the closing's reach): they are a few regions of a large image.
-        bx, by, bw, bh = cv2.boundingRect(old)
-        x0, y0 = max(bx - CLOSE_REACH_PX, 0), max(by - CLOSE_REACH_PX, 0)
-        x1, y1 = min(bx + bw + CLOSE_REACH_PX, old.shape[1]), min(by + bh + CLOSE_REACH_PX, old.shape[0])
-        n, labels, stats = components(cv2.morphologyEx(old[y0:y1, x0:x1], cv2.MORPH_CLOSE, _K5))
-        stats[1:, 0] += x0
-        stats[1:, 1] += y0
+        # would measure texture, not the silhouette.
+        n, labels, stats, label_x, y0 = _closed_regions(old)
         long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
         keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
-            mask = labels[y - y0 : y - y0 + h, x - x0 : x - x0 + w] == k
+            mask = labels[y - y0 : y - y0 + h, label_x[k] : label_x[k] + w] == k
             if area < s.min_blob_px or area < 0.3 * w * h:
                 # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
                 # left by an absorption (the model there still holds the person's outline, a few grey
@@ -226,8 +244,10 @@ class StillRegions:
             # both sides, while the model holds the one who left. It overrules the outline test when
             # the frame is no closer to the surroundings than the model is (someone standing in front
             # of a window: its frame is a strong outline of the model, but that is no ghost).
-            born = self._born is not None and bool(
-                np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area
+            born = (
+                self._born is not None
+                and self._born_live
+                and bool(np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area)
             )
             # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
             dev_cur, dev_bg = surround_deviation(grey, bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)

@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.components import components
+from sensor_node.components import packed_components
 from sensor_node.config import PipelineSettings
 
 __all__ = ["RawBlob", "find_blobs", "roi"]
@@ -138,7 +138,7 @@ def find_blobs(
     height, width = fg.shape
     k = settings.group_scale
     small = fg if k == 1 else cv2.resize(fg, (width // k, height // k), interpolation=cv2.INTER_AREA)
-    n, _, stats = components(small)
+    n, stats = packed_components(small)
     if n <= 1:
         return []
     width_s = small.shape[1]

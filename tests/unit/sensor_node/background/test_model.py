@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from sensor_node.background.model import BackgroundModel
+from sensor_node.background.model import TAIL_BINS, BackgroundModel, _tail_bin
 from sensor_node.config import PipelineSettings
 from tests.unit.sensor_node.sn_synth import H, W, backdrop, draw_person, grey, noisy
 
@@ -430,3 +430,17 @@ def test_noise_with_long_tails_raises_the_joining_level() -> None:
     m = model.apply(blocky(_faint_person(wall)))
     assert (m.fg[40:50, 300:312] > 0).mean() > 0.95
     assert (m.fg[60:140, 298:314] > 0).mean() < 0.2  # 12 levels is within this camera's noise: no joining
+
+
+@pytest.mark.parametrize("hint", [None, 0, 9, 31, 255])
+@pytest.mark.parametrize("spread", [1.0, 8.0, 60.0])
+def test_the_noise_tail_bin_is_the_first_with_few_pixels_above_it_from_any_start(
+    hint: int | None, spread: float
+) -> None:
+    """The tail's bin is the histogram's: the first bin with at most the allowed count above it, wherever the
+    search starts."""
+    rng = np.random.default_rng(int(spread))
+    z = np.clip(np.abs(rng.normal(0.0, spread, (H, W))), 0, 255).astype(np.uint8)
+    limit = 1e-3 * z.size
+    above = z.size - np.cumsum(np.bincount(z.ravel(), minlength=TAIL_BINS))
+    assert _tail_bin(z, limit, hint) == int(np.argmax(above <= limit))

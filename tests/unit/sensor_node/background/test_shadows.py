@@ -12,6 +12,7 @@ from sensor_node.background.shadows import (
     TEXTURE_WINDOW,
     ColourImage,
     local_spread,
+    remove_shadows,
     shadow_mask,
     spread_at,
 )
@@ -95,6 +96,22 @@ def test_nothing_to_mark_gives_none() -> None:
     rows, cols = PATCHES["blue_cloth"]
     only_cloth[2 * rows.start : 2 * rows.stop, 2 * cols.start : 2 * cols.stop] = 255
     assert shadow_mask(frame, bg, only_cloth, NOISE, ON) is None
+
+
+@pytest.mark.parametrize("fg_size", [(2 * SMALL_H, 2 * SMALL_W), (2 * SMALL_H + 1, 2 * SMALL_W + 3)])
+def test_removing_shadows_clears_exactly_the_marked_pixels(fg_size: tuple[int, int]) -> None:
+    """The changed pixels without the shadows are the changed pixels less the shadow mask, whether the
+    mask is a whole multiple of the reduced image or not; with nothing marked, the mask itself."""
+    frame, bg, fg = _scene()
+    big = np.zeros(fg_size, np.uint8)
+    big[: fg.shape[0], : fg.shape[1]] = fg
+    mask = shadow_mask(frame, bg, big, NOISE, ON)
+    assert mask is not None
+    kept = remove_shadows(frame, bg, big, NOISE, ON)
+    assert np.array_equal(kept, np.where(mask > 0, 0, big))
+    assert kept.any() and (kept & mask).sum() == 0
+    none = np.zeros_like(big)
+    assert remove_shadows(frame, bg, none, NOISE, ON) is none
 
 
 @pytest.mark.parametrize(("ratio", "marked"), [(SHADOW_MIN_RATIO + 0.1, True), (SHADOW_MIN_RATIO - 0.15, False)])

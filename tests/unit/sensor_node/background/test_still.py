@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
-from sensor_node.background.still import BORN_FRAMES, StillRegions
+from sensor_node.background.still import BORN_FRAMES, CLOSE_REACH_PX, StillRegions, _closed_regions
 from sensor_node.config import PipelineSettings
 
 H, W = 120, 160
@@ -92,3 +93,26 @@ def test_the_hole_beside_someone_walking_out_of_it_goes_and_they_stay() -> None:
     hole, beside = BOX & ~moved, moved & ~BOX
     assert np.abs(bg[hole] - WALL).mean() < 5.0  # the hole's columns hold the wall again
     assert (bg[beside] == WALL).all()  # they were not painted into the model
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_regions_far_apart_are_labelled_as_in_one_box(seed: int) -> None:
+    """Still pixels in column runs far apart are closed and labelled run by run: the same regions, in the
+    same order, with the same boxes, areas and pixels as closing and labelling the box around them all."""
+    rng = np.random.default_rng(seed)
+    old = np.zeros((140, 900), np.uint8)
+    for _ in range(12):
+        x, y = int(rng.integers(0, 880)), int(rng.integers(0, 120))
+        w, h = int(rng.integers(1, 20)), int(rng.integers(1, 20))
+        old[y : y + h, x : x + w] = np.where(rng.random((h, w)) < 0.6, 255, 0)
+    bx, by, bw, bh = cv2.boundingRect(old)
+    x0, y0 = max(bx - CLOSE_REACH_PX, 0), max(by - CLOSE_REACH_PX, 0)
+    box = old[y0 : by + bh + CLOSE_REACH_PX, x0 : bx + bw + CLOSE_REACH_PX]
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(box, cv2.MORPH_CLOSE, np.ones((5, 5))))
+    got_n, got_labels, got_stats, label_x, got_y0 = _closed_regions(old)
+    assert (got_n, got_y0) == (n, y0)
+    for k in range(1, n):
+        x, y, w, h, area = stats[k]
+        assert got_stats[k].tolist() == [x + x0, y + y0, w, h, area]
+        got = got_labels[y : y + h, label_x[k] : label_x[k] + w] == k
+        assert np.array_equal(got, labels[y : y + h, x : x + w] == k)
