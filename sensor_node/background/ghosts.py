@@ -30,6 +30,7 @@ __all__ = ["UnderGhosts", "hole_columns", "start_up_hole", "surround_deviation"]
 logger = logging.getLogger(__name__)
 
 Mask = npt.NDArray[Any]
+FloatImage = npt.NDArray[np.float32]
 
 SIDE_PX = 8
 """Columns either side of a still region whose unchanged model pixels stand for the surface around it."""
@@ -52,6 +53,23 @@ RESTORE_MATCH = 0.7
 """Fraction of a still region over an absorbed ghost that must match the model from before for it to be put back."""
 
 _K5 = np.ones((5, 5), np.uint8)
+
+
+def _beside(
+    grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
+) -> tuple[FloatImage, FloatImage, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """A still region's box widened by ``SIDE_PX`` on both sides (wrapping round the panorama): the frame and
+    the model there as floats, the region's pixels, and the unchanged pixels beside it (clear of its edge)."""
+    x, y = origin
+    h, w = mask.shape
+    cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
+    rows = slice(y, y + h)
+    g = grey[rows][:, cols].astype(np.float32)
+    b = bg[rows][:, cols].astype(np.float32)
+    inside = np.zeros(g.shape, bool)
+    inside[:, SIDE_PX : SIDE_PX + w] = mask
+    side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
+    return g, b, inside, side
 
 
 def surround_deviation(
@@ -78,15 +96,7 @@ def surround_deviation(
         (frame deviation, model deviation): pixel-weighted mean absolute grey-level
         differences over the rows that have both region and side pixels (0, 0 if none).
     """
-    x, y = origin
-    h, w = mask.shape
-    cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
-    rows = slice(y, y + h)
-    g = grey[rows][:, cols].astype(np.float32)
-    b = bg[rows][:, cols].astype(np.float32)
-    inside = np.zeros(g.shape, bool)
-    inside[:, SIDE_PX : SIDE_PX + w] = mask
-    side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
+    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
     n_in = inside.sum(axis=1)
     n_side = side.sum(axis=1)
     ok = (n_in > 0) & (n_side >= 3)
@@ -127,15 +137,8 @@ def hole_columns(
     Returns:
         One flag per column of the box: a hole there (False where no row has side pixels to compare).
     """
-    x, y = origin
-    h, w = mask.shape
-    cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
-    rows = slice(y, y + h)
-    g = grey[rows][:, cols].astype(np.float32)
-    b = bg[rows][:, cols].astype(np.float32)
-    inside = np.zeros(g.shape, bool)
-    inside[:, SIDE_PX : SIDE_PX + w] = mask
-    side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
+    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
+    w = mask.shape[1]
     n_side = side.sum(axis=1)
     ok = n_side >= 3
     out = np.zeros(w, bool)
