@@ -155,7 +155,7 @@ class BackgroundModel:
         self._colour_now: ReducedColour | None = None
         self._colour_rows: tuple[int, int] = (0, 1 << 30)
         """Rows [r0, r1) of the colour background the shadow test reads: the floor's (the ``floor`` given to
-        :meth:`shadows`) and the texture window's reach around them. Only they are learnt (the floor is
+        :meth:`without_shadows`) and the texture window's reach around them. Only they are learnt (the floor is
         the same for a model's life: a camera that turns gets a new model)."""
         self._floor: Mask | None = None
         self._bg_spread: npt.NDArray[np.float32] | None = None
@@ -254,7 +254,7 @@ class BackgroundModel:
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
-        :func:`sensor_node.background.shadows.shadow_mask`.
+        :func:`sensor_node.background.shadows.remove_shadows`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return fg
@@ -283,7 +283,7 @@ class BackgroundModel:
                 every ``warmup_stride``-th taken).
             colour: the frame's reduced colour image (a :class:`~sensor_node.unwarp.PanoFrame`: the shadow
                 test reads its candidates' pixels, the colour background's update the rows it reads), for the
-                colour background that tells shadows from objects (:meth:`shadows`); None: grey only.
+                colour background that tells shadows from objects (:meth:`without_shadows`); None: grey only.
         """
         s = self.settings
         self._frames += 1
