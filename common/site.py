@@ -23,6 +23,9 @@ Example (abridged)::
     room_y_m = 6.0
     people = 4
 
+    [area]                      # optional: where people can be (a polygon), and its exits
+    polygon = [[0.0, 0.0], [8.0, 0.0], [8.0, 6.0], [0.0, 6.0]]
+
     [[camera]]
     id = "pano1"
     kind = "panoramic"
@@ -46,6 +49,7 @@ from typing import Annotated, Literal
 
 import msgspec
 
+from common.area import Area, AreaSpec
 from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, validate_id
@@ -209,6 +213,8 @@ class SiteConfig(ConfigStruct, frozen=True):
     camera: list[CameraSpec] = []
     process: list[ProcessSpec] = []
     dataset: DatasetSpec | None = None
+    area: AreaSpec | None = None
+    """``[area]``: the floor where people can be and its exits (:mod:`common.area`); None: not declared."""
     path: str = ""
     """Where the file was read from (set by :func:`load_site`; not written in the file)."""
 
@@ -251,6 +257,8 @@ def load_site(path: str | Path) -> SiteConfig:
         if proc.name in names:
             raise ConfigError(f"{path}: process name {proc.name!r} appears twice")
         names.add(proc.name)
+    if site.area is not None:
+        Area.of(site.area, f"{path}: area")
     lo, hi = site.world.person_height_m
     if not PERSON_HEIGHT_RANGE_M[0] <= lo <= hi <= PERSON_HEIGHT_RANGE_M[1]:
         raise ConfigError(f"{path}: world.person_height_m must be [low, high] within 0.5-2.5 m, got {[lo, hi]}")

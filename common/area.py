@@ -1,0 +1,183 @@
+"""Where people can be: a site's floor area (a simple polygon) and the parts of its boundary where people come
+and go (exits), with the plane geometry the tracker and the plots need.
+
+A site file states them as facts of the site, in metres in the site's world frame::
+
+    [area]
+    polygon = [[-3.0, -9.0], [9.0, -9.0], [9.0, 27.0], [-3.0, 27.0]]
+    exits = [[[9.0, 0.0], [9.0, 4.0]]]   # optional: a door on the east wall (segments or polygons)
+
+With no ``exits``, people may come and go anywhere on the boundary.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Annotated
+
+import msgspec
+import numpy as np
+
+from common.arrays import BoolArray, FloatArray
+from common.config import ConfigStruct
+from common.errors import ConfigError
+
+__all__ = ["Area", "AreaSpec", "rectangle", "segments_intersect"]
+
+XY = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
+POLYGON_CORNERS = 3
+"""The fewest corners of a polygon."""
+SEGMENT_POINTS = 2
+"""An exit of two points is a segment; of more, a polygon."""
+MIN_AREA_M2 = 1e-6
+"""A polygon enclosing less than this has no inside."""
+
+
+class AreaSpec(ConfigStruct, frozen=True):
+    """``[area]``: the floor where people can be, and where they come and go."""
+
+    polygon: list[XY]
+    """Corners of a simple polygon (at least 3, in order, metres, world frame)."""
+    exits: list[list[XY]] = []
+    """Where people come and go: each a segment (2 points) along the boundary or a polygon (3 or more) around a
+    door; empty: anywhere on the boundary."""
+
+
+def segments_intersect(p1: FloatArray, p2: FloatArray, q1: FloatArray, q2: FloatArray) -> bool:
+    """Whether the closed segments p1-p2 and q1-q2 share a point."""
+
+    def orient(a: FloatArray, b: FloatArray, c: FloatArray) -> float:
+        return float((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+
+    def on(a: FloatArray, b: FloatArray, c: FloatArray) -> bool:
+        return min(a[0], b[0]) <= c[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= c[1] <= max(a[1], b[1])
+
+    d1, d2 = orient(q1, q2, p1), orient(q1, q2, p2)
+    d3, d4 = orient(p1, p2, q1), orient(p1, p2, q2)
+    if ((d1 > 0 > d2) or (d1 < 0 < d2)) and ((d3 > 0 > d4) or (d3 < 0 < d4)):
+        return True
+    return (
+        (d1 == 0 and on(q1, q2, p1))
+        or (d2 == 0 and on(q1, q2, p2))
+        or (d3 == 0 and on(p1, p2, q1))
+        or (d4 == 0 and on(p1, p2, q2))
+    )
+
+
+def _edges(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(k, 2) starts and ends of a closed polygon's edges."""
+    return points, np.roll(points, -1, axis=0)
+
+
+def _segment_distance(xy: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """(n, k) distance of each point ``xy`` (n, 2) to each segment ``a``-``b`` (k, 2)."""
+    ab = b - a
+    length2 = np.maximum(np.einsum("ki,ki->k", ab, ab), 1e-18)
+    ap = xy[:, None, :] - a[None, :, :]
+    s = np.clip(np.einsum("nki,ki->nk", ap, ab) / length2, 0.0, 1.0)
+    near = a[None, :, :] + s[:, :, None] * ab[None, :, :]
+    return np.asarray(np.hypot(*(xy[:, None, :] - near).transpose(2, 0, 1)), dtype=np.float64)
+
+
+def _inside(xy: FloatArray, points: FloatArray) -> BoolArray:
+    """(n,) whether points lie inside a polygon (crossing number; the boundary counts as either)."""
+    a, b = _edges(points)
+    x, y = xy[:, 0:1], xy[:, 1:2]
+    crosses = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+    dy = np.where(b[:, 1] == a[:, 1], 1e-300, b[:, 1] - a[:, 1])
+    x_at = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / dy[None, :]
+    return np.asarray((crosses & (x < x_at)).sum(axis=1) % 2 == 1, dtype=bool)
+
+
+@dataclass(frozen=True, slots=True)
+class Area:
+    """A validated :class:`AreaSpec`, ready for geometry."""
+
+    polygon: FloatArray
+    """(k, 2) corners."""
+    exit_segments: FloatArray
+    """(e, 2, 2) the exits' edges: the whole boundary where no exit is declared."""
+
+    @staticmethod
+    def of(spec: AreaSpec, source: str = "area") -> Area:
+        """The area of a spec.
+
+        Raises:
+            ConfigError: a polygon with fewer than 3 corners, one that crosses itself or encloses nothing, an
+                exit with fewer than 2 points, or numbers that are not finite.
+        """
+        pts = np.asarray(spec.polygon, dtype=np.float64).reshape(-1, 2)
+        if len(pts) < POLYGON_CORNERS:
+            raise ConfigError(f"{source}.polygon needs at least 3 corners, got {len(pts)}")
+        if not np.isfinite(pts).all():
+            raise ConfigError(f"{source}.polygon has a corner that is not a finite number: {spec.polygon!r}")
+        a, b = _edges(pts)
+        k = len(pts)
+        for i in range(k):
+            for j in range(i + 1, k):
+                if j == i + 1 or (i == 0 and j == k - 1):
+                    continue  # neighbours share a corner
+                if segments_intersect(a[i], b[i], a[j], b[j]):
+                    raise ConfigError(
+                        f"{source}.polygon is not simple: its edges {i} and {j} cross ({pts[i].tolist()}-"
+                        f"{pts[(i + 1) % k].tolist()} and {pts[j].tolist()}-{pts[(j + 1) % k].tolist()})"
+                    )
+        if abs(_signed_area(pts)) < MIN_AREA_M2:
+            raise ConfigError(f"{source}.polygon encloses no area: {spec.polygon!r}")
+        segments: list[FloatArray] = []
+        for n, ex in enumerate(spec.exits):
+            e = np.asarray(ex, dtype=np.float64).reshape(-1, 2)
+            if len(e) < SEGMENT_POINTS or not np.isfinite(e).all():
+                raise ConfigError(f"{source}.exits[{n}] must be 2 points (a segment) or 3 or more (a polygon)")
+            ea, eb = (e[:1], e[1:]) if len(e) == SEGMENT_POINTS else _edges(e)
+            segments.extend(np.stack([ea, eb], axis=1))
+        if not segments:
+            segments = list(np.stack([a, b], axis=1))
+        return Area(pts, np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2))
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(x0, y0, x1, y1) of the polygon's bounding box."""
+        lo, hi = self.polygon.min(axis=0), self.polygon.max(axis=0)
+        return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
+
+    @property
+    def area_m2(self) -> float:
+        return abs(_signed_area(self.polygon))
+
+    def contains(self, xy: FloatArray) -> BoolArray:
+        """(n,) whether floor points ``xy`` (n, 2) are inside the area."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return _inside(xy, self.polygon)
+
+    def exit_distance(self, xy: FloatArray) -> FloatArray:
+        """(n,) distance (m) of floor points ``xy`` (n, 2) to the nearest exit."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if not len(xy):
+            return np.zeros(0)
+        return np.asarray(
+            _segment_distance(xy, self.exit_segments[:, 0], self.exit_segments[:, 1]).min(axis=1), dtype=np.float64
+        )
+
+    def boundary_distance(self, xy: FloatArray) -> FloatArray:
+        """(n,) distance (m) of floor points ``xy`` (n, 2) to the polygon's boundary."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if not len(xy):
+            return np.zeros(0)
+        a, b = _edges(self.polygon)
+        return np.asarray(_segment_distance(xy, a, b).min(axis=1), dtype=np.float64)
+
+
+def _signed_area(pts: FloatArray) -> float:
+    a, b = _edges(pts)
+    return 0.5 * float(np.sum(a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1]))
+
+
+def rectangle(x0: float, y0: float, x1: float, y1: float) -> AreaSpec:
+    """The area spec of an axis-aligned rectangle."""
+    if not (math.isfinite(x0) and math.isfinite(y0) and math.isfinite(x1) and math.isfinite(y1)) or not (
+        x0 < x1 and y0 < y1
+    ):
+        raise ConfigError(f"an area rectangle needs X0 < X1 and Y0 < Y1, got {[x0, y0, x1, y1]}")
+    return AreaSpec(polygon=[[x0, y0], [x1, y0], [x1, y1], [x0, y1]])

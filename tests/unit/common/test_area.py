@@ -1,0 +1,55 @@
+"""The site's floor area: inside tests, distances to exits, and clear errors for bad polygons."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from common.area import Area, AreaSpec, rectangle
+from common.errors import ConfigError
+
+L_SHAPE = [[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [2.0, 2.0], [2.0, 4.0], [0.0, 4.0]]
+
+
+@pytest.mark.parametrize(
+    ("xy", "inside"),
+    [((1.0, 1.0), True), ((3.0, 1.0), True), ((1.0, 3.0), True), ((3.0, 3.0), False), ((-0.1, 1.0), False)],
+)
+def test_contains_follows_a_concave_polygon(xy: tuple[float, float], inside: bool) -> None:
+    area = Area.of(AreaSpec(polygon=L_SHAPE))
+    assert bool(area.contains(np.array([xy]))[0]) is inside
+
+
+def test_exits_default_to_the_whole_boundary_and_narrow_when_declared() -> None:
+    everywhere = Area.of(AreaSpec(polygon=L_SHAPE))
+    door = Area.of(AreaSpec(polygon=L_SHAPE, exits=[[[0.0, 1.0], [0.0, 2.0]]]))
+    p = np.array([[3.5, 1.0], [0.5, 1.5]])
+    np.testing.assert_allclose(everywhere.exit_distance(p), [0.5, 0.5])
+    np.testing.assert_allclose(door.exit_distance(p), [3.5, 0.5])
+    np.testing.assert_allclose(door.boundary_distance(p), [0.5, 0.5])
+
+
+def test_an_exit_polygon_counts_by_its_edges() -> None:
+    area = Area.of(AreaSpec(polygon=L_SHAPE, exits=[[[3.0, -0.5], [4.5, -0.5], [4.5, 0.5], [3.0, 0.5]]]))
+    assert area.exit_distance(np.array([[3.5, 0.2]]))[0] == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize(
+    ("polygon", "exits", "says"),
+    [
+        ([[0.0, 0.0], [1.0, 0.0]], [], "at least 3 corners"),
+        ([[0.0, 0.0], [2.0, 2.0], [2.0, 0.0], [0.0, 2.0]], [], "not simple"),
+        ([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]], [], "encloses no area"),
+        ([[0.0, 0.0], [1.0, 0.0], [0.0, float("nan")]], [], "finite"),
+        ([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [[[0.0, 0.0]]], "exits[0]"),
+    ],
+)
+def test_a_bad_area_is_named(polygon: list[list[float]], exits: list[list[list[float]]], says: str) -> None:
+    with pytest.raises(ConfigError, match=says.replace("[", r"\[").replace("]", r"\]")):
+        Area.of(AreaSpec(polygon=polygon, exits=exits))
+
+
+def test_rectangle_checks_its_corners() -> None:
+    assert Area.of(rectangle(0.0, 0.0, 2.0, 1.0)).area_m2 == pytest.approx(2.0)
+    with pytest.raises(ConfigError, match="X0 < X1"):
+        rectangle(2.0, 0.0, 0.0, 1.0)
