@@ -103,9 +103,9 @@ def replay(data: ReplayInput, config: ManagerConfig) -> tuple[list[TrackSet], li
         began = time.perf_counter()
         result = fusion.step(Batch(features=feats, infos=infos), fusion_ns)
         tick_ms.append((time.perf_counter() - began) * 1e3)
-        if not result.skipped:
+        if not result.skipped and result.trackset is not None:
             out.append(result.trackset)
-    return out, tick_ms
+    return out + fusion.flush(), tick_ms
 
 
 def score(

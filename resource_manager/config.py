@@ -55,6 +55,9 @@ __all__ = [
     "load_manager_config",
 ]
 
+MAX_PUBLISH_LAG_S = 60.0
+"""The longest ``[manager] publish_lag_s``: tracks held longer are no longer a live system's."""
+
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
 Frac = Annotated[float, msgspec.Meta(ge=0.0, le=1.0)]
@@ -96,6 +99,11 @@ class ManagerSection(ConfigStruct, frozen=True):
     """Stereo matcher of Eq. 7 by registry name: ``greedy`` (the paper's, O(N^3/3)) or ``global`` (Hungarian)."""
     publish_tentative: bool = False
     """Also publish tracks still waiting for birth confirmation."""
+    publish_lag_s: Annotated[float, msgspec.Meta(ge=0.0, le=MAX_PUBLISH_LAG_S)] = 0.0
+    """Publish each instant's tracks this long after it (0: live), once the ids of that window have settled: a
+    person's first moments under the id their track was confirmed with (a lost person's, taken back, or a new
+    one), and a track that turned out to follow another's person under that one's id. The manager's live state
+    (PTZ pointing, view plans) does not wait."""
     state_dir: str = ""
     """Where the track log and id counter persist (relative to the config file); "" = ``state/{id}``."""
     history_s: Pos = 600.0

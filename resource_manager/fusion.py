@@ -28,6 +28,7 @@ import numpy as np
 from common.angles import wrap_angle
 from common.schema import (
     MAX_SENSORS,
+    MAX_TRACKS,
     DetectorState,
     Features,
     PairChoice,
@@ -45,6 +46,7 @@ from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
+from resource_manager.serve.lag import LaggedInstant, LaggedTracks
 from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
 from resource_manager.views.build import build_views
@@ -96,7 +98,9 @@ class TickCounters:
 
 @dataclass(frozen=True, slots=True)
 class TickResult:
-    trackset: TrackSet
+    trackset: TrackSet | None
+    """The tracks to publish now: this instant's, or with ``publish_lag_s`` an earlier instant's (None while the
+    first ones are held)."""
     pair_choice: PairChoice
     plans: list[ViewPlan]
     ptz_commands: list[PtzCommand]
@@ -148,6 +152,9 @@ class Fusion:
         self.skipped_ticks = 0
         self.last_poses: dict[str, PoseEstimate] = {}
         self.last_result: TickResult | None = None
+        lag = m.publish_lag_s
+        self.lagged = LaggedTracks(int(lag * 1e9)) if lag > 0 else None
+        """Instants held back before they are published (``publish_lag_s``)."""
         self.ptz_answers: list[PtzAnswer] = []
         """Answers to the batches' PTZ requests, for the shell to reply and clear."""
 
@@ -307,14 +314,20 @@ class Fusion:
         show_tentative = self.config.manager.publish_tentative
         return [tr for tr in self.tracker.snapshots() if tr.reported or (show_tentative and not tr.confirmed)]
 
-    def track_message(self, tr: TrackSnapshot) -> Track:
-        tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"
+    def track_message(self, tr: TrackSnapshot, track_id: str = "", seq: int = -1) -> Track:
+        """The message of one track (``track_id``: the id to publish it under, default its own; ``seq``: of the
+        TrackSet it goes out in, default the current one). A track published under an id it was confirmed with
+        later (``publish_lag_s``) is published as confirmed then."""
+        tid = track_id or tr.track_id or f"{self.manager_id}-t{tr.serial}"
+        state = tr.state
+        if track_id and state == "tentative":
+            state = "confirmed" if tr.detected else "coasting"
         x, y, vx, vy = tr.x.tolist()[:4]  # plain floats: np.clip on scalars costs ~10x
         (pxx, pxy), (_, pyy) = tr.p_xy.tolist()
         return Track(
             manager_id=self.manager_id,
-            seq=self.seq,
-            stamp_ns=self.last_t_ns,
+            seq=self.seq if seq < 0 else seq,
+            stamp_ns=tr.t_ns,
             track_id=tid,
             x_m=_clip(x, -1e5, 1e5),
             y_m=_clip(y, -1e5, 1e5),
@@ -324,7 +337,7 @@ class Fusion:
             cov_xx_m2=_clip(pxx, 0.0, 1e10),
             cov_xy_m2=_clip(pxy, -1e10, 1e10),
             cov_yy_m2=_clip(pyy, 0.0, 1e10),
-            state=tr.state,
+            state=state,
             method=tr.method,
             sensors=list(tr.sensors)[:64],
             predicted_error_m=_clip(tr.predicted_error_m, 0.0, 1e5),
@@ -332,6 +345,21 @@ class Fusion:
             hits=min(tr.hits, 2**31 - 1),
             misses=min(tr.misses, 2**31 - 1),
         )
+
+    def lagged_set(self, instant: LaggedInstant) -> TrackSet:
+        """The TrackSet of an instant held back by ``publish_lag_s``."""
+        tracks = [self.track_message(tr, tid, instant.seq) for tr, tid in instant.tracks][:MAX_TRACKS]
+        return TrackSet(
+            manager_id=self.manager_id,
+            seq=instant.seq,
+            stamp_ns=instant.t_ns,
+            tracks=tracks,
+            sensors_used=instant.sensors_used[:64],
+        )
+
+    def flush(self) -> list[TrackSet]:
+        """The TrackSets still held back by ``publish_lag_s`` (the end of a recorded run), oldest first."""
+        return [self.lagged_set(i) for i in self.lagged.flush()] if self.lagged is not None else []
 
     def ptz_targets(self) -> dict[str, PtzTarget]:
         return {
@@ -414,8 +442,17 @@ class Fusion:
     ) -> TickResult:
         if not skipped:
             self.seq += 1
-        tracks = [self.track_message(tr) for tr in self.published_tracks()][:256]
         used = sorted(in_use or [])
+        trackset: TrackSet | None = None
+        if self.lagged is None:
+            tracks = [self.track_message(tr) for tr in self.published_tracks()][:MAX_TRACKS]
+            trackset = TrackSet(
+                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, tracks=tracks, sensors_used=used[:64]
+            )
+        elif not skipped:
+            self.lagged.push(self.seq, self.last_t_ns, used, self.tracker.snapshots())
+            due = self.lagged.due(self.last_t_ns)
+            trackset = self.lagged_set(due) if due is not None else None
         known = self.known_sensors()
         without = sorted(s for s in (aligned or {}) if s not in self.last_poses)
         c = self.ingest.counters
@@ -433,11 +470,9 @@ class Fusion:
             poses=tuple(self.last_poses[sid] for sid in sorted(self.last_poses)),
         )
         result = TickResult(
-            trackset=TrackSet(
-                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, tracks=tracks, sensors_used=used[:64]
-            ),
+            trackset=trackset,
             pair_choice=PairChoice(
-                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, choices=pair_entries[:256]
+                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, choices=pair_entries[:MAX_TRACKS]
             ),
             plans=plans,
             ptz_commands=commands,

@@ -361,11 +361,13 @@ class ManagerNode:
             result = self.fusion.step(Batch(), t_ns)
             fused_s = time.perf_counter() - t0
             self.tick_ms.append(fused_s * 1e3)
-            kept = [tr for tr in result.trackset.tracks if self.store.add(tr)]
-            self.live_ids = {tr.track_id for tr in result.trackset.tracks}
+            published_set = result.trackset
+            kept = [tr for tr in published_set.tracks if self.store.add(tr)] if published_set is not None else []
+            if published_set is not None:
+                self.live_ids = {tr.track_id for tr in published_set.tracks}
             self.store.prune(t_ns)
         self.ticks += 1
-        if result.skipped:
+        if result.skipped or published_set is None:
             return result
         if kept:
             try:
@@ -374,7 +376,7 @@ class ManagerNode:
                 logger.error("cannot write the track log: %s", err.strerror)
         t1 = time.perf_counter()
         published = self.clock.now_ns()
-        self.pub_tracks.put(msgspec.structs.replace(result.trackset, published_ns=published))
+        self.pub_tracks.put(msgspec.structs.replace(published_set, published_ns=published))
         if waited is not None and waited.t_ns == t_ns:
             self.latencies.append(
                 Latency(

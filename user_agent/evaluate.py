@@ -104,6 +104,10 @@ class MotMetrics:
     partially_tracked: int
     mostly_lost: int
     threshold_m: float = math.nan
+    fragmentations: int = 0
+    """Times a person, followed before, was followed again after frames nobody followed them (py-motmetrics' FM)."""
+    ids_per_person: float = math.nan
+    """Distinct track ids matched to each person, on average over the people matched at all."""
 
     def to_dict(self) -> dict[str, float | int | None]:
         """JSON-ready: NaN (undefined, e.g. no objects) becomes None."""
@@ -143,6 +147,11 @@ class MotAccumulator:
     hyp_frames: dict[str, int] = field(default_factory=dict)
     co_valid: dict[tuple[str, str], int] = field(default_factory=dict)
     """(object, hypothesis) -> frames where both exist within the threshold (for IDF1)."""
+    followed: dict[str, bool] = field(default_factory=dict)
+    """Object id -> whether it was matched in its latest frame (for fragmentations)."""
+    fragmentations: int = 0
+    obj_hyps: dict[str, set[str]] = field(default_factory=dict)
+    """Object id -> every hypothesis it was matched to."""
 
     def _count(self, gt_ids: Sequence[str], hyp_ids: Sequence[str], valid: npt.NDArray[np.bool_]) -> None:
         """Count a frame: its objects and hypotheses, and the pairs within the threshold (for IDF1)."""
@@ -208,7 +217,9 @@ class MotAccumulator:
                     events.append((kind, o, h, float(d[i, j])))
                     free_o.discard(i)
                     free_h.discard(j)
+        self._count_fragments(gt_ids, {o for _, o, _, _ in events})
         for kind, o, h, dd in events:
+            self.obj_hyps.setdefault(o, set()).add(h)
             self.last_match[o] = h
             self.distances.append(dd)
             self.obj_tracked[o] = self.obj_tracked.get(o, 0) + 1
@@ -237,6 +248,16 @@ class MotAccumulator:
             r, c = linear_sum_assignment(-tp)
             idtp = int(tp[r, c].sum())
         return idtp, self.hypotheses - idtp, self.objects - idtp
+
+    def _count_fragments(self, gt_ids: Sequence[str], matched: set[str]) -> None:
+        """A person followed before, then not, is followed again: one fragmentation."""
+        for o in gt_ids:
+            if o in matched:
+                if self.followed.get(o) is False:
+                    self.fragmentations += 1
+                self.followed[o] = True
+            elif o in self.followed:
+                self.followed[o] = False
 
     def summary(self, threshold_m: float = math.nan) -> MotMetrics:
         """The metrics of everything accumulated so far."""
@@ -270,6 +291,8 @@ class MotAccumulator:
             partially_tracked=sum(MOSTLY_LOST <= r < MOSTLY_TRACKED for r in ratios),
             mostly_lost=sum(r < MOSTLY_LOST for r in ratios),
             threshold_m=threshold_m,
+            fragmentations=self.fragmentations,
+            ids_per_person=_div(sum(len(h) for h in self.obj_hyps.values()), len(self.obj_hyps)),
         )
 
 

@@ -22,12 +22,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--threshold", type=float, nargs="+", default=[0.5, 1.0], metavar="M", help="match distances (m)"
     )
+    parser.add_argument(
+        "--publish-lag-s",
+        type=float,
+        default=None,
+        metavar="S",
+        help="publish each instant's tracks S seconds late, once their ids have settled ([manager] publish_lag_s; "
+        "the live figures are printed beside)",
+    )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--tracks-csv", default=None, metavar="FILE", help="also write the tracks (frame,id,x_m,y_m)")
 
 
 def run(args: argparse.Namespace) -> int:
-    report, played = evaluate_site(args.site, manager_config=args.config, thresholds_m=args.threshold)
+    report, played = evaluate_site(
+        args.site, manager_config=args.config, thresholds_m=args.threshold, publish_lag_s=args.publish_lag_s
+    )
     if args.tracks_csv:
         from user_agent.report import write_tracks_csv
 
@@ -41,21 +51,28 @@ def run(args: argparse.Namespace) -> int:
         f"played in {report['seconds']['play']:.2f} s ({report['tick_ms_mean']} ms per tick)"
     )
     where = report["scored_area"]
-    print(f"scored {'where the ground truth annotates people' if where == 'ground_truth' else 'everywhere'}:")
+    lag = f", published {report['publish_lag_s']:g} s late" if report["publish_lag_s"] else ""
+    print(f"scored {'where the ground truth annotates people' if where == 'ground_truth' else 'everywhere'}{lag}:")
     _table(report["scores"])
     if where == "ground_truth":
         print("scored everywhere (tracks outside the annotated area count as false positives):")
         _table(report["scores_everywhere"])
+    if "live" in report:
+        print("live (published at once):")
+        _table(report["live"]["scores"])
+    if report.get("tracks_ended_inside") is not None:
+        print(f"tracks that ended inside the area, away from its exits: {report['tracks_ended_inside']}")
     return 0
 
 
 def _table(scores: list[dict[str, float]]) -> None:
-    head = ("threshold", "MOTA", "IDF1", "MOTP m", "FP", "miss", "IDsw", "mean m", "p90 m")
-    print("  {:>9} {:>7} {:>7} {:>7} {:>6} {:>6} {:>5} {:>7} {:>7}".format(*head))
+    head = ("threshold", "MOTA", "IDF1", "IDsw", "ids/pp", "frag", "FP", "miss", "MOTP m", "p90 m")
+    print("  {:>9} {:>7} {:>7} {:>5} {:>6} {:>5} {:>6} {:>6} {:>7} {:>7}".format(*head))
     for s in scores:
         print(
-            f"  {s['threshold_m']:>8g}m {_f(s['mota'])} {_f(s['idf1'])} {_f(s['motp_m'])} {s['false_positives']:>6} "
-            f"{s['misses']:>6} {s['id_switches']:>5} {_f(s['mean_error_m'])} {_f(s['p90_error_m'])}"
+            f"  {s['threshold_m']:>8g}m {_f(s['mota'])} {_f(s['idf1'])} {s['id_switches']:>5} "
+            f"{s['ids_per_person'] or 0:>6.2f} {s['fragmentations']:>5} {s['false_positives']:>6} {s['misses']:>6} "
+            f"{_f(s['motp_m'])} {_f(s['p90_error_m'])}"
         )
 
 

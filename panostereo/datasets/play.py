@@ -21,24 +21,29 @@ Ground truth is read only by the scoring, after the tracks are made.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import msgspec
+import numpy as np
+
+from common.area import Area
 from common.arrays import FloatArray
 from common.errors import ConfigError
 from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
-from resource_manager.config import ManagerConfig, for_site, load_manager_config
+from resource_manager.config import MAX_PUBLISH_LAG_S, ManagerConfig, for_site, load_manager_config
 from resource_manager.fusion import Batch, Fusion
 from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
 from user_agent.evaluate import HypPoint
-from user_agent.groundtruth import read_gt_csv
+from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.report import Scored, score_tracksets
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
@@ -105,8 +110,6 @@ def load_cameras(site: SiteConfig, epoch_ns: int = DATASET_EPOCH_NS) -> list[Dat
 
 
 def _with_epoch(cfg: Any, epoch_ns: int) -> Any:
-    import msgspec
-
     return msgspec.structs.replace(cfg, source=msgspec.structs.replace(cfg.source, epoch_ns=epoch_ns))
 
 
@@ -128,7 +131,7 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
         result = fusion.step(Batch(), t_ns)
         run.tick_ms.append((time.process_time() - began) * 1e3)
         run.ticks += 1
-        if not result.skipped:
+        if not result.skipped and result.trackset is not None:
             run.tracksets.append(result.trackset)
 
     fusion.absorb(Batch(infos=[cam.info for cam in cameras], presence={cam.sensor_id: True for cam in cameras}))
@@ -142,6 +145,7 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
         now_ns = stamp
         fusion.absorb(Batch(features=by_stamp[stamp]))
         fuse_at(stamp)
+    run.tracksets += fusion.flush()  # what publish_lag_s still holds at the end of the dataset
     return run
 
 
@@ -160,8 +164,12 @@ def evaluate_site(
     *,
     manager_config: str | Path | None = None,
     thresholds_m: Sequence[float] = (0.5, 1.0),
+    publish_lag_s: float | None = None,
 ) -> tuple[dict[str, Any], DatasetRun]:
     """Play a dataset site in dataset time and score it at each threshold.
+
+    ``publish_lag_s`` (default: the manager config's): with a lag, the tracks published that late are scored, and
+    the live ones (no lag) beside them, under ``live``.
 
     Returns:
         (a JSON-ready report, the run).
@@ -178,12 +186,60 @@ def evaluate_site(
     if not gt_path.is_file():
         raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({gt_path})")
     config = _manager_config(site, manager_config)
+    if publish_lag_s is not None:
+        if not (math.isfinite(publish_lag_s) and 0.0 <= publish_lag_s <= MAX_PUBLISH_LAG_S):
+            raise ConfigError(f"--publish-lag-s must be in [0, {MAX_PUBLISH_LAG_S:g}] s, got {publish_lag_s}")
+        config = msgspec.structs.replace(
+            config, manager=msgspec.structs.replace(config.manager, publish_lag_s=publish_lag_s)
+        )
     began = time.perf_counter()
     cameras = load_cameras(site)
     loaded = time.perf_counter()
     run = play(cameras, config)
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
+    report = _report(site, run, gt, thresholds_m)
+    report.update(
+        {
+            "cameras": [c.sensor_id for c in cameras],
+            "frames": max((len(c.features) for c in cameras), default=0),
+            "publish_lag_s": config.manager.publish_lag_s,
+            "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
+            "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
+        }
+    )
+    if config.manager.publish_lag_s > 0:
+        live = play(
+            cameras, msgspec.structs.replace(config, manager=msgspec.structs.replace(config.manager, publish_lag_s=0.0))
+        )
+        report["live"] = {k: v for k, v in _report(site, live, gt, thresholds_m).items() if k.startswith("scores")}
+    return report, run
+
+
+ENDED_BEFORE_S = 1.0
+"""A track last published this long before the last TrackSet ended during the run (not just at its end)."""
+
+
+def ended_inside(tracksets: Sequence[TrackSet], area: Area | None) -> int | None:
+    """How many published tracks ended during the run inside the area, a stride (``ENDED_BEFORE_S`` of walking at
+    1 m/s) or more from any exit: people who cannot have left, whose track ended anyway. None without an area."""
+    if area is None or not tracksets:
+        return None
+    last: dict[str, tuple[int, float, float]] = {}
+    for ts in tracksets:
+        for t in ts.tracks:
+            last[t.track_id] = (ts.stamp_ns, t.x_m, t.y_m)
+    end_ns = max(ts.stamp_ns for ts in tracksets)
+    gone = [(x, y) for stamp, x, y in last.values() if stamp < end_ns - ENDED_BEFORE_S * 1e9]
+    if not gone:
+        return 0
+    xy = np.array(gone)
+    return int(np.sum(area.contains(xy) & (area.exit_distance(xy) > ENDED_BEFORE_S * 1.0)))
+
+
+def _report(site: SiteConfig, run: DatasetRun, gt: GroundTruth, thresholds_m: Sequence[float]) -> dict[str, Any]:
+    """The scores of a run (and its tracks at the ground truth's frames, into ``run.hypotheses``)."""
+    assert site.dataset is not None
     hull = gt.area() if site.dataset.scored_area == "ground_truth" else None
     fps = site.dataset.fps
 
@@ -197,14 +253,11 @@ def evaluate_site(
     run.hypotheses = scored[0].hypotheses if scored else {}
     report: dict[str, Any] = {
         "site": site.site.name,
-        "cameras": [c.sensor_id for c in cameras],
         "fps": site.dataset.fps,
-        "frames": max((len(c.features) for c in cameras), default=0),
         "scored_area": "ground_truth" if primary is not None else "everywhere",
         "scores": [s.metrics.to_dict() for s in scored],
         "tracks_published": len({t.track_id for ts in run.tracksets for t in ts.tracks}),
-        "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
-        "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
+        "tracks_ended_inside": ended_inside(run.tracksets, Area.of(site.area) if site.area is not None else None),
     }
     if primary is not None:
         # The same tracks scored everywhere too: those outside the annotated area count as false positives.
@@ -213,4 +266,4 @@ def evaluate_site(
         report["scores_everywhere"] = report["scores"]
         if hull is not None:
             report["scores_annotated"] = [score(t, hull).metrics.to_dict() for t in thresholds_m]
-    return report, run
+    return report

@@ -56,7 +56,7 @@ def manager_status(
         sensors_in_use=(c.sensors_in_use if c else [])[:MAX_SENSORS],
         sensors_known=list(known)[:MAX_SENSORS],
         sensors_without_pose=(c.sensors_without_pose if c else [])[:MAX_SENSORS],
-        tracks=len(result.trackset.tracks) if result else 0,
+        tracks=len(result.trackset.tracks) if result and result.trackset else 0,
         decode_errors=inboxes.decode_errors,
         late_msgs=c.late if c else 0,
         duplicate_msgs=c.duplicate if c else 0,

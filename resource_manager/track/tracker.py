@@ -39,6 +39,7 @@ from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.filter import TrackFilter
 from resource_manager.track.life import (
     CLOSE_M,
+    RETURN_CHI2,
     Coverage,
     Graveyard,
     Lost,
@@ -99,8 +100,12 @@ class TrackSnapshot:
     hits: int
     misses: int
     confirmed: bool
+    detected: bool
+    """Some view detected the person at this tick."""
+    placed: bool
+    """Its position is known to within ``publish_sigma_m``."""
     reported: bool
-    """Published now: confirmed, more likely there than not, and placed to within ``publish_sigma_m``."""
+    """Published now: confirmed, more likely there than not, and placed."""
 
     @property
     def xy(self) -> FloatArray:
@@ -121,6 +126,8 @@ class TrackerOutcome:
     """Tracks no view detected that a new person's detections found again."""
     reidentified: list[str] = field(default_factory=list)
     """Ids of lost tracks given back to a newly confirmed track (the same person back)."""
+    merged: list[tuple[int, int]] = field(default_factory=list)
+    """(serial, older serial) of the tracks that ended as another's person followed twice."""
 
 
 class Tracker:
@@ -186,6 +193,8 @@ class Tracker:
                     hits=tr.hits,
                     misses=tr.misses,
                     confirmed=tr.confirmed,
+                    detected=tr.detected,
+                    placed=sigma[i] <= self.model.publish_sigma_m,
                     reported=published and sigma[i] <= self.model.publish_sigma_m,
                 )
             )
@@ -229,6 +238,7 @@ class Tracker:
             for i, j in _assign(sc):
                 assigned[i].append(Assigned(sid, j))
         # 4. Update.
+        predicted = self.filter.x.copy(), self.filter.p.copy()
         updated = self.updater.update(self.filter, self.tracks, assigned, tick, t_ns)
         out.pair_entries = updated.pair_entries
         out.detected = sum(1 for got in updated.kept if got)
@@ -241,7 +251,7 @@ class Tracker:
         taken = {sid: set(hit.values()) for sid, hit in hits.items()}
         free = {sid: [j for j in range(views[sid].n) if j not in taken[sid]] for sid in scored}
         hyps = self._hypotheses(tick, free)
-        hyps, returned = self._returns(hyps, tick, t_ns, hits)
+        hyps, returned = self._returns(hyps, tick, t_ns, hits, predicted)
         out.returned = len(returned)
         # 6. Existence (of the tracks there were; new ones start from their own evidence).
         coverage = self._coverage(stack)
@@ -250,7 +260,7 @@ class Tracker:
         out.births = self._spawn(hyps, tick, t_ns)
         self._note_apart(hits, views, t_ns)
         # 7. Prune, 8. confirm.
-        out.ended = self._prune(t_ns, coverage)
+        out.ended = self._prune(t_ns, coverage, out.merged)
         out.reidentified = self._confirm(t_ns)
         return out
 
@@ -324,40 +334,54 @@ class Tracker:
         )
 
     def _returns(
-        self, hyps: list[Hypothesis], tick: Tick, t_ns: int, hits: dict[str, dict[int, int]]
+        self,
+        hyps: list[Hypothesis],
+        tick: Tick,
+        t_ns: int,
+        hits: dict[str, dict[int, int]],
+        predicted: tuple[FloatArray, FloatArray],
     ) -> tuple[list[Hypothesis], list[int]]:
-        """New people where a coasting track (confirmed, no view detected it this tick) is predicted are that track
-        found again: it is updated with the hypothesis' blobs. Returns the hypotheses left (new people) and the
-        rows found again; ``hits`` gains their blobs."""
-        missed = np.array([i for i, tr in enumerate(self.tracks) if tr.state() == "coasting"], dtype=np.int64)
-        if not hyps or not len(missed):
-            return hyps, []
+        """New people where a track is predicted, that no view detected this tick (coasting) or whose blobs pulled
+        it far from where it was predicted (it jumped onto someone else's, or a false blob), are that track found
+        again: it is updated, from its prediction (``predicted``: every row's state and covariance before this
+        tick's update), with the hypothesis' blobs instead. Returns the hypotheses left (new people) and the rows
+        found again; ``hits`` follows."""
         f = self.filter
+        x0, p0 = predicted
+        n = len(x0)
+        moved = f.x[:n, :2] - x0[:, :2]
+        jumped = np.einsum("ni,nij,nj->n", moved, np.linalg.inv(p0[:, :2, :2]), moved) > RETURN_CHI2 if n else []
+        rows = [i for i in range(n) if self.tracks[i].state() == "coasting" or (self.tracks[i].confirmed and jumped[i])]
+        if not hyps or not rows:
+            return hyps, []
+        cand = np.array(rows, dtype=np.int64)
         pairs = match_returns(
-            np.array([h.fix.xy for h in hyps]),
-            np.array([h.fix.cov for h in hyps]),
-            f.x[missed, :2],
-            f.p[missed, :2, :2],
+            np.array([h.fix.xy for h in hyps]), np.array([h.fix.cov for h in hyps]), x0[cand, :2], p0[cand, :2, :2]
         )
         if not pairs:
             return hyps, []
-        rows = np.array([missed[b] for _, b in pairs], dtype=np.int64)
+        back = np.array([cand[b] for _, b in pairs], dtype=np.int64)
         gots = [[Assigned(s, j) for s, j in sorted(hyps[a].blobs.items())] for a, _ in pairs]
-        self.updater.fuse(f, rows, gots, tick, lines=False)
-        f.fuse_heights(rows, gots, tick.stack)
-        f.mark_seen(rows)
-        for row, got in zip(rows.tolist(), gots, strict=True):
+        f.x[back], f.p[back] = x0[back], p0[back]
+        for hit in hits.values():  # the blobs it jumped to go back to the unexplained ones
+            for row in back.tolist():
+                hit.pop(row, None)
+        self.updater.fuse(f, back, gots, tick, lines=False)
+        f.fuse_heights(back, gots, tick.stack)
+        f.mark_seen(back)
+        for row, got in zip(back.tolist(), gots, strict=True):
             tr = self.tracks[row]
+            if not tr.detected:
+                tr.hits += 1
             tr.detected, tr.misses, tr.seen_ns, tr.method = True, 0, t_ns, "least_squares"
-            tr.hits += 1
             for sid, j in got:
                 hits[sid][row] = j
         self.updater.learn(
-            [(self.tracks[r], {a.sensor_id: a.blob for a in g}, 1.0) for r, g in zip(rows.tolist(), gots, strict=True)],
+            [(self.tracks[r], {a.sensor_id: a.blob for a in g}, 1.0) for r, g in zip(back.tolist(), gots, strict=True)],
             tick.stack,
         )
         used = {a for a, _ in pairs}
-        return [h for k, h in enumerate(hyps) if k not in used], rows.tolist()
+        return [h for k, h in enumerate(hyps) if k not in used], back.tolist()
 
     def _spawn(self, hyps: list[Hypothesis], tick: Tick, t_ns: int) -> int:
         """Start a tentative track on each new person (existence: the prior and its evidence): at its best pair's
@@ -441,7 +465,7 @@ class Tracker:
         self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], apart, t_ns)
 
     # -- ends and ids ---------------------------------------------------------------------------------
-    def _prune(self, t_ns: int, coverage: Coverage) -> list[str]:
+    def _prune(self, t_ns: int, coverage: Coverage, merged: list[tuple[int, int]]) -> list[str]:
         """End the tracks whose existence is gone, whose position is lost, whose height is no person's, whose
         person left the area, or that follow another track's person (the older keeps its id). Confirmed tracks
         that ended inside the area, not at an exit, are remembered for re-identification."""
@@ -458,10 +482,12 @@ class Tracker:
         for i in sorted(range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, self.tracks[r].serial)):
             tr = self.tracks[i]
             lost = float(f.logodds[i]) < delete or float(sigma[i]) > m.lost_sigma_m
-            twice = any(self._same_person(i, k, t_ns) for k in keep)
-            if not (lost or twice or out_of_area[i] or self._implausible_height(i)):
+            twice = next((k for k in keep if self._same_person(i, k, t_ns)), None)
+            if not (lost or twice is not None or out_of_area[i] or self._implausible_height(i)):
                 keep.append(i)
                 continue
+            if twice is not None:
+                merged.append((tr.serial, self.tracks[twice].serial))
             if tr.track_id:
                 ended.append(tr.track_id)
                 if lost and not exits[i] and m.reid_window_s > 0:

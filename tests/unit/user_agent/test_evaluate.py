@@ -137,3 +137,12 @@ def test_tracksets_are_aligned_to_frames_with_velocity_and_span() -> None:
     assert hyps[11] == []  # tentative tracks are not scored
     _, late = hypotheses_from_tracksets(sets, epoch, 10.0, range(1, 30), max_gap_s=0.25, start_ns=epoch + int(0.7e9))
     assert late == list(range(8, 13))  # a warm-up end at 0.7 s drops frames 1..7
+
+
+def test_fragmentations_and_ids_per_person_count_interruptions_and_the_ids_each_person_had() -> None:
+    acc = MotAccumulator()
+    near, far = [[0.1]], [[math.nan]]
+    for hyp, d in [("a", far), ("a", near), ("a", far), ("a", near), ("b", near), ("b", far), ("b", near)]:
+        acc.update(["p"], [hyp], d)
+    m = acc.summary(0.5)
+    assert m.fragmentations == 2 and m.id_switches == 1 and m.ids_per_person == 2.0

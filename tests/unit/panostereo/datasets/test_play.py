@@ -5,6 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
+from common.area import rectangle
+from common.errors import ConfigError
 from panostereo.datasets.mot import import_mot
 from panostereo.datasets.play import evaluate_site
 from tests.unit.panostereo.mot_synth import write_dataset
@@ -37,3 +41,17 @@ def test_the_scored_area_is_where_the_ground_truth_annotates(made: Path) -> None
     assert area is not None
     assert within_area(area, 4.0, 5.0, 0.5)  # among the people
     assert within_area(area, 1.0 - 0.3, 3.0, 0.5) and not within_area(area, -2.0, 3.0, 0.5)
+
+
+def test_a_declared_area_scores_every_track_and_a_lag_is_reported_beside_the_live_figures(
+    made: Path, tmp_path: Path
+) -> None:
+    site = import_mot(made, tmp_path / "site", fps=5.0, area=rectangle(-5.0, -5.0, 15.0, 15.0)).site
+    report, run = evaluate_site(site, publish_lag_s=1.0)
+    assert report["scored_area"] == "everywhere" and report["scores"] == report["scores_everywhere"]
+    assert report["publish_lag_s"] == 1.0 and report["tracks_ended_inside"] == 0
+    live, late = report["live"]["scores"][0], report["scores"][0]
+    assert late["objects"] == live["objects"] and late["mota"] >= live["mota"] - 0.02  # every frame, flushed at the end
+    assert len(run.tracksets) == 30
+    with pytest.raises(ConfigError, match="publish-lag"):
+        evaluate_site(site, publish_lag_s=-1.0)
