@@ -24,6 +24,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--tracks-csv", default=None, metavar="FILE", help="also write the tracks (frame,id,x_m,y_m)")
+    parser.add_argument(
+        "--plot",
+        default=None,
+        metavar="PNG",
+        help="also draw the run: top view beside the ground truth, and who was followed by which track over time",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,6 +39,10 @@ def run(args: argparse.Namespace) -> int:
 
         rows = write_tracks_csv(args.tracks_csv, played.hypotheses)
         report["tracks_csv"] = {"path": args.tracks_csv, "rows": rows}
+    if args.plot:
+        from panostereo.datasets.play import plot_site
+
+        report["plot"] = str(plot_site(args.site, played, args.plot, threshold_m=args.threshold[0]))
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -46,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
     if "scores_everywhere" in report:
         print("scored everywhere (tracks outside the annotated area count as false positives):")
         _table(report["scores_everywhere"])
+    if "plot" in report:
+        print(f"plot: {report['plot']}")
     return 0
 
 

@@ -41,7 +41,7 @@ from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import read_gt_csv
 from user_agent.report import Scored, score_tracksets
 
-__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
+__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site"]
 
 DATASET_EPOCH_NS = 1_700_000_000_000_000_000
 """World time 0 of a dataset played in dataset time (any fixed instant: the result does not depend on it)."""
@@ -65,6 +65,8 @@ class DatasetRun:
     ticks: int = 0
     tick_ms: list[float] = field(default_factory=list)
     """Process time of each Fusion step (ms)."""
+    infos: list[SensorInfo] = field(default_factory=list)
+    """What each camera is (its SensorInfo), for the picture."""
     hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
     """The tracks at every scored ground-truth frame (set by :func:`evaluate_site`)."""
 
@@ -181,6 +183,7 @@ def evaluate_site(
     cameras = load_cameras(site)
     loaded = time.perf_counter()
     run = play(cameras, config)
+    run.infos = [c.info for c in cameras]
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
     area = gt.area() if site.dataset.scored_area == "ground_truth" else None
@@ -206,3 +209,27 @@ def evaluate_site(
         # The same tracks scored everywhere too: those outside the annotated area count as false positives.
         report["scores_everywhere"] = [score(t, None).metrics.to_dict() for t in thresholds_m]
     return report, run
+
+
+def plot_site(site_path: str | Path, run: DatasetRun, out: str | Path, *, threshold_m: float = 0.5) -> Path:
+    """Draw a played dataset site: its tracks beside the ground truth, and the timeline of who was followed by
+    which track (scored where the ground truth annotates people, as :func:`evaluate_site` does)."""
+    from user_agent.plot import PlotInput, save_top_view
+
+    site = load_site(site_path)
+    if site.dataset is None:
+        raise ConfigError(f"{site.path}: not a dataset site (no [dataset] table)")
+    gt = read_gt_csv(site.resolve(site.dataset.ground_truth))
+    inp = PlotInput(
+        tracksets=run.tracksets,
+        sensor_infos=run.infos,
+        pairs=[],
+        ground_truth=gt,
+        area=[(float(x), float(y)) for x, y in site.area.polygon] if site.area is not None else None,
+        title=f"{site.site.name} (dataset time)",
+        epoch_ns=DATASET_EPOCH_NS,
+        fps=site.dataset.fps,
+        threshold_m=threshold_m,
+        scored_area=gt.area() if site.dataset.scored_area == "ground_truth" else None,
+    )
+    return save_top_view(inp, out)
