@@ -28,8 +28,11 @@ __all__ = ["configure", "main", "run"]
 logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
-FIRST_SCREEN_WAIT_S = 1.5
-"""`watch` waits up to this long for the statuses (1 Hz) before its first screen."""
+STATUS_WAIT_S = 2.5
+"""`watch` and `sensors` wait up to this long for every live sensor's and manager's status (1 Hz) before they show
+them: two and a half periods, so a status put just before the agent subscribed is not missed."""
+TRACKS_WAIT_S = 1.0
+"""`sensors` waits up to this long for the managers' TrackSets (one per fusion tick)."""
 SENSORS_REFRESH_S = 3.0
 """`watch` asks for the sensors again this often (s); tracks and managers every screen."""
 
@@ -162,6 +165,19 @@ def _dump(obj: Any) -> None:
     print(json.dumps(msgspec.to_builtins(obj), indent=2))
 
 
+def _settled(agent: Any, wait_s: float, shutdown: Any = None) -> tuple[list[Any], list[Any]]:
+    """(sensors, managers) once every live one has sent its status, or after ``wait_s``."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        sensors, managers = agent.sensors(timeout_s=0.5), agent.managers(timeout_s=0.3)
+        done = all(v.status is not None for v in sensors if v.alive) and all(
+            m.status is not None for m in managers if m.alive
+        )
+        if done or time.monotonic() >= deadline or (shutdown is not None and shutdown.is_set()):
+            return sensors, managers
+        time.sleep(0.2)
+
+
 def _watch(args: argparse.Namespace) -> int:
     from user_agent.views import CLEAR_SCREEN, watch_screen
 
@@ -169,16 +185,7 @@ def _watch(args: argparse.Namespace) -> int:
     tty = sys.stdout.isatty()
     with _client(args) as agent:
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
-        sensors = agent.sensors(timeout_s=1.0)
-        # Statuses come at 1 Hz: give the first screen a moment to have them.
-        first = time.monotonic()
-        while time.monotonic() - first < FIRST_SCREEN_WAIT_S and not shutdown.is_set():
-            if all(v.status is not None for v in sensors if v.alive) and all(
-                m.status is not None for m in agent.managers(timeout_s=0.3)
-            ):
-                break
-            shutdown.sleep(0.2)
-            sensors = agent.sensors(timeout_s=0.3)
+        sensors, _ = _settled(agent, STATUS_WAIT_S, shutdown)
         last_sensors = time.monotonic()
         while True:
             if time.monotonic() - last_sensors > SENSORS_REFRESH_S:
@@ -342,7 +349,7 @@ def run(args: argparse.Namespace) -> int:
             path = agent.history(args.track_id, args.seconds, timeout_s=args.timeout)
             _dump(path) if args.json else print(history_table(path))
         elif action == "sensors":
-            sensors = agent.sensors(timeout_s=1.5)
+            sensors, managers = _settled(agent, STATUS_WAIT_S)
             if args.json:
                 _dump(
                     [
@@ -359,7 +366,7 @@ def run(args: argparse.Namespace) -> int:
             else:
                 from user_agent.views import watch_screen
 
-                print(watch_screen([], sensors, []), end="")
+                print(watch_screen(agent.tracks(timeout_s=TRACKS_WAIT_S), sensors, managers), end="")
         elif action == "view":
             return _view(args, agent)
     return 0
