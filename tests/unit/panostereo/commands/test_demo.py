@@ -54,5 +54,5 @@ def test_run_times(duration: float | None, warmup: float | None, dataset: bool, 
 
 @pytest.mark.parametrize(("duration", "warmup"), [(0.0, None), (-3.0, None), (float("inf"), None), (5.0, 6.0)])
 def test_run_times_refuse_what_cannot_run(duration: float, warmup: float | None) -> None:
-    with pytest.raises(ConfigError, match="--duration|--warmup"):
+    with pytest.raises(ConfigError, match=r"--duration|--warmup"):
         _run_times(_site(), argparse.Namespace(duration=duration, warmup=warmup))
