@@ -18,7 +18,7 @@ from typing import Any
 
 import msgspec
 
-from common.cli import add_logging_args, run_main, setup_logging
+from common.cli import add_logging_args, non_negative, positive, run_main, setup_logging
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
@@ -49,41 +49,43 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
 
     p = sub.add_parser("watch", help="live terminal view of tracks, sensors and managers")
-    p.add_argument("--interval", type=float, default=0.5, help="refresh period in seconds")
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--interval", type=positive, default=0.5, help="refresh period in seconds")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     p.add_argument("--once", action="store_true", help="print one screen and exit")
     _net(p)
 
     p = sub.add_parser("tracks", help="current tracks (table or --json)")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--timeout", type=float, default=3.0, help="wait this long for a first TrackSet")
+    p.add_argument("--json", action="store_true", help="print the tracks as JSON (the fields of pano.Track)")
+    p.add_argument("--timeout", type=non_negative, default=3.0, help="wait this long for a first TrackSet (s)")
     _net(p)
 
     p = sub.add_parser("history", help="a track's path over the last seconds (table or --json)")
-    p.add_argument("track_id")
-    p.add_argument("--seconds", type=float, default=30.0)
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--timeout", type=float, default=3.0)
+    p.add_argument("track_id", help="the track's id (as agent tracks shows it, e.g. mgr1-3)")
+    p.add_argument("--seconds", type=positive, default=30.0, help="how far back (s, default 30)")
+    p.add_argument("--json", action="store_true", help="print the path as JSON (one pano.Track per state)")
+    p.add_argument("--timeout", type=non_negative, default=3.0, help="wait this long for the manager's answer (s)")
     _net(p)
 
-    p = sub.add_parser("sensors", help="sensors with status and clock offsets (table or --json)")
-    p.add_argument("--json", action="store_true")
+    p = sub.add_parser("sensors", help="sensors with info, status and clock offsets, the tracks and the managers")
+    p.add_argument("--json", action="store_true", help="print the sensors as JSON (info, status, clock offset)")
     _net(p)
 
     p = sub.add_parser(
         "view", help="hold a PTZ view of a track while this runs (renewed; released on exit), or --release one"
     )
-    p.add_argument("track_id")
+    p.add_argument("track_id", help="the track to view (e.g. mgr1-3)")
     p.add_argument(
         "--release", action="store_true", help="release the view held under --agent-id (a running `view` elsewhere)"
     )
-    p.add_argument("--priority", type=int, default=0)
+    p.add_argument("--priority", type=int, default=0, help="a higher priority takes a camera from a lower one")
     p.add_argument("--manager", default=None, help="manager id (default: from the track id)")
-    p.add_argument("--duration", type=float, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)")
+    p.add_argument(
+        "--duration", type=non_negative, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)"
+    )
     _net(p)
 
     p = sub.add_parser("record", help="record everything under {prefix}/@v1/** (or --keys) into MCAP")
-    p.add_argument("out", metavar="OUT.mcap")
+    p.add_argument("out", metavar="OUT.mcap", help="the recording to write")
     p.add_argument(
         "--keys",
         action="append",
@@ -92,36 +94,48 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
         help="record only these key expressions under {prefix}/@v1/ (e.g. tracks, 'track/*', 'manager/*/status'); "
         "repeatable (default: everything)",
     )
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
-    p.add_argument("--site", default=None, metavar="FILE", help="site file: stores prefix, fps and room for evaluate")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument(
+        "--site",
+        default=None,
+        metavar="FILE",
+        help="site file: stores prefix, fps, room and area for evaluate and plot",
+    )
     p.add_argument("--epoch-ns", type=int, default=None, help=f"world epoch (default: env {EPOCH_ENV})")
-    p.add_argument("--fps", type=float, default=None, help="ground-truth frame rate (default: the site's)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth frame rate (default: the site's)")
     _net(p)
 
     p = sub.add_parser("replay", help="republish a recording with its original timing")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--speed", type=float, default=1.0)
+    p.add_argument("input", metavar="IN.mcap", help="the recording")
+    p.add_argument("--speed", type=positive, default=1.0, help="playback speed (2: twice as fast; default 1)")
     _net(p)
 
-    p = sub.add_parser("foxglove", help="serve the live 3D scene to Foxglove over WebSocket (foxglove extra)")
+    p = sub.add_parser("foxglove", help="serve the live 3D scene to Foxglove over WebSocket")
     p.add_argument("--host", default="127.0.0.1", help="WebSocket listen address")
     p.add_argument("--port", type=int, default=8765, help="WebSocket port (0: any free port)")
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     _net(p)
 
-    p = sub.add_parser("plot", help="top-view PNG of a recording (ground truth beside it)")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--out", required=True, metavar="PNG")
-    p.add_argument("--ground-truth", default=None, metavar="GT.csv")
-    p.add_argument("--title", default="")
+    p = sub.add_parser("plot", help="picture of a recording: top view (ground truth beside it) and a timeline")
+    p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, or agent record's)")
+    p.add_argument("--out", required=True, metavar="PNG", help="the picture to write")
+    p.add_argument(
+        "--ground-truth",
+        default=None,
+        metavar="GT.csv",
+        help="frame,id,x_m,y_m: one timeline row per person, who was followed by which track (default: one row "
+        "per track)",
+    )
+    p.add_argument("--title", default="", help="a title above the picture")
+    p.add_argument("--threshold", type=positive, default=0.5, help="with --ground-truth: match distance (m)")
 
     p = sub.add_parser("evaluate", help="MOTA/MOTP, IDF1, ID switches, precision, recall, error of a recording")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--ground-truth", required=True, metavar="GT.csv")
-    p.add_argument("--threshold", type=float, default=0.5, help="match distance in metres")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("input", metavar="IN.mcap", help="the recording")
+    p.add_argument("--ground-truth", required=True, metavar="GT.csv", help="frame,id,x_m,y_m[,z_m], 1-based frames")
+    p.add_argument("--threshold", type=positive, default=0.5, help="match distance in metres")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
-    p.add_argument("--fps", type=float, default=None, help="ground-truth fps (default: from the recording)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth fps (default: from the recording)")
     p.add_argument(
         "--score-from-ns",
         type=int,
@@ -375,7 +389,7 @@ def run(args: argparse.Namespace) -> int:
 def _plot(args: argparse.Namespace) -> int:
     from user_agent.report import plot_recording
 
-    print(plot_recording(args.input, args.out, args.ground_truth, title=args.title))
+    print(plot_recording(args.input, args.out, args.ground_truth, title=args.title, threshold_m=args.threshold))
     return 0
 
 

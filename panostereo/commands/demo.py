@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from common.cli import EXIT_ERROR
+from common.cli import EXIT_ERROR, non_negative, positive
 from common.codec import encode
 from common.errors import ConfigError, SessionError
 from common.keys import Keys
@@ -87,16 +87,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="ENDPOINT",
         help="join a router that is already running there instead of starting one",
     )
-    parser.add_argument("--threshold", type=float, default=0.5, help="evaluation match distance (m)")
+    parser.add_argument("--threshold", type=positive, default=0.5, help="evaluation match distance (m)")
     parser.add_argument(
         "--ready-timeout",
-        type=float,
+        type=positive,
         default=60.0,
         help="wait this long for every process to be up (s); a process that exits meanwhile ends the wait at once",
     )
     parser.add_argument(
         "--warmup",
-        type=float,
+        type=non_negative,
         default=None,
         help="seconds after every process is up that are not scored (background models, track confirmation); "
         "default 5 (at most half the duration), and 0 on a dataset site, which plays from its frame 1 once every "

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
+from common.cli import positive
 from panostereo.datasets.play import evaluate_site
 
 __all__ = ["configure", "run"]
@@ -20,7 +22,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("site", help="a dataset site file (made by `panostereo import`)")
     parser.add_argument("--config", default=None, metavar="MANAGER.toml", help="manager config (default: the site's)")
     parser.add_argument(
-        "--threshold", type=float, nargs="+", default=[0.5, 1.0], metavar="M", help="match distances (m)"
+        "--threshold", type=positive, nargs="+", default=[0.5, 1.0], metavar="M", help="match distances (m)"
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--tracks-csv", default=None, metavar="FILE", help="also write the tracks (frame,id,x_m,y_m)")
@@ -34,6 +36,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     report, played = evaluate_site(args.site, manager_config=args.config, thresholds_m=args.threshold)
+    for warning in report.get("warnings", []):
+        print(f"WARNING: {warning}", file=sys.stderr)
     if args.tracks_csv:
         from user_agent.report import write_tracks_csv
 

@@ -25,6 +25,7 @@ import os
 import time
 from pathlib import Path
 
+from common.cli import non_negative, positive
 from common.errors import ConfigError
 from common.session import install_signal_handlers
 from common.site import load_site
@@ -69,8 +70,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="managers keep their track logs in DIR/<id> (env PANOSTEREO_STATE_DIR)",
     )
-    parser.add_argument("--grace", type=float, default=5.0, help="seconds between SIGTERM and SIGKILL at stop")
-    parser.add_argument("--backoff-max", type=float, default=30.0, help="longest restart delay (s)")
+    parser.add_argument("--grace", type=non_negative, default=5.0, help="seconds between SIGTERM and SIGKILL at stop")
+    parser.add_argument("--backoff-max", type=positive, default=30.0, help="longest restart delay (s)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -38,7 +38,7 @@ from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
 from user_agent.evaluate import HypPoint
-from user_agent.groundtruth import read_gt_csv
+from user_agent.groundtruth import read_gt_csv, speed_warning
 from user_agent.report import Scored, score_tracksets
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site"]
@@ -205,6 +205,9 @@ def evaluate_site(
         "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
         "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
     }
+    warning = speed_warning(gt, fps)
+    if warning:
+        report["warnings"] = [warning]
     if area is not None:
         # The same tracks scored everywhere too: those outside the annotated area count as false positives.
         report["scores_everywhere"] = [score(t, None).metrics.to_dict() for t in thresholds_m]
