@@ -129,6 +129,17 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     p.add_argument("--title", default="", help="a title above the picture")
     p.add_argument("--threshold", type=positive, default=0.5, help="with --ground-truth: match distance (m)")
 
+    p = sub.add_parser("export", help="write a recording's tracks as CSV or MOTChallenge rows (no ground truth needed)")
+    p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, agent record's, a dataset's)")
+    p.add_argument("--out", required=True, metavar="FILE", help="the table to write")
+    p.add_argument(
+        "--format",
+        choices=["csv", "mot"],
+        default="csv",
+        help="csv: frame,time_s,id,x_m,y_m,height_m,vx_mps,vy_mps,state,manager_id (default); mot: MOTChallenge "
+        "3D-style frame,id,-1,-1,-1,-1,1,x,y,z",
+    )
+
     p = sub.add_parser("evaluate", help="MOTA/MOTP, IDF1, ID switches, precision, recall, error of a recording")
     p.add_argument("input", metavar="IN.mcap", help="the recording")
     p.add_argument("--ground-truth", required=True, metavar="GT.csv", help="frame,id,x_m,y_m[,z_m], 1-based frames")
@@ -386,6 +397,22 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    from user_agent.export import export_rows, write_export
+    from user_agent.recording import load_recording
+
+    rec = load_recording(args.input)
+    epoch = rec.meta_int("epoch_ns", -1)
+    rows = export_rows(rec.tracksets, epoch_ns=epoch if epoch >= 0 else None)
+    n = write_export(args.out, rows, args.format)
+    tracks = len({tr.track_id for _, _, tr in rows})
+    frames = len({k for k, _, _ in rows})
+    print(f"wrote {n} rows ({tracks} tracks over {frames} frames) to {args.out} as {args.format}")
+    if not rec.tracksets:
+        print(f"{args.input}: the recording holds no TrackSet: nothing to export", file=sys.stderr)
+    return 0
+
+
 def _plot(args: argparse.Namespace) -> int:
     from user_agent.report import plot_recording
 
@@ -400,6 +427,7 @@ _HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
     "evaluate": _evaluate,
     "foxglove": _foxglove,
     "plot": _plot,
+    "export": _export,
 }
 """The actions that need no agent session of their own (the others query through one)."""
 
