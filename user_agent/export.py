@@ -22,7 +22,7 @@ from common.errors import ConfigError
 from common.schema import Track, TrackSet
 from user_agent.evaluate import DEFAULT_STATES
 
-__all__ = ["EXPORT_FORMATS", "CSV_HEADER", "export_rows", "mot_ids", "write_export"]
+__all__ = ["CSV_HEADER", "EXPORT_FORMATS", "export_rows", "mot_ids", "write_export"]
 
 ExportFormat = Literal["csv", "mot"]
 EXPORT_FORMATS: tuple[ExportFormat, ...] = ("csv", "mot")
