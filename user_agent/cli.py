@@ -235,6 +235,8 @@ def _record(args: argparse.Namespace) -> int:
         prefix = args.prefix or site.site.prefix
         meta.update(site=site.site.name, prefix=prefix, room_x_m=str(site.world.room_x_m))
         meta["room_y_m"] = str(site.world.room_y_m)
+        if site.area is not None:  # where people can be: the plot is sized to it
+            meta["area"] = json.dumps(site.area.polygon)
         if site.dataset is not None:
             fps = fps or site.dataset.fps
             meta.pop("room_x_m")
@@ -372,6 +374,14 @@ def run(args: argparse.Namespace) -> int:
             _dump(tracks) if args.json else print(tracks_table(tracks))
         elif action == "history":
             path = agent.history(args.track_id, args.seconds, timeout_s=args.timeout)
+            if not path:
+                live = ", ".join(t.track_id for t in agent.tracks(timeout_s=1.0)) or "none"
+                print(
+                    f"no manager knows track {args.track_id!r} (or it has no state in the last {args.seconds:g} s); "
+                    f"live tracks: {live}",
+                    file=sys.stderr,
+                )
+                return 1
             _dump(path) if args.json else print(history_table(path))
         elif action == "sensors":
             sensors, managers = _settled(agent, STATUS_WAIT_S)

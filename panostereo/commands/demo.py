@@ -593,6 +593,8 @@ def _finish(
     print(json.dumps(summary, indent=2))
     for level, line in _warnings(lost, strays, refused, started):
         print(f"{level}: {line}")
+    if interrupted:
+        print(f"NOTE: the run was interrupted after {summary['duration_s']} s: the figures cover what ran")
     print(f"summary: {out / 'summary.json'}")
     return 0
 

@@ -120,4 +120,8 @@ def test_up_listen_moves_every_process_and_agent_sensors_shows_the_running_site(
 
     text = wait_for(screen, 60, "tracks in `agent sensors`", poll_s=0.5)
     assert "SENSORS (3 up of 3)" in text and "mgr1" in text.split("MANAGERS", 1)[1], text
+    # A track nobody knows is said so, with the live ones, and the command fails.
+    history = [sys.executable, "-m", "panostereo", "agent", "history", "mgr1-999", "--connect", endpoint]
+    out = subprocess.run(history, capture_output=True, text=True, timeout=60, check=False, cwd=REPO)
+    assert out.returncode == 1 and "no manager knows track 'mgr1-999'" in out.stderr and "mgr1-" in out.stderr
     up.stop(10)
