@@ -45,3 +45,21 @@ def test_agent_help_lists_every_action_and_the_readme_documents_each() -> None:
         assert re.search(rf"^\| `{action}\b", readme, re.MULTILINE), f"README has no row for agent {action}"
     for name in COMMANDS:
         assert f"panostereo {name}" in readme, f"README never names panostereo {name}"
+
+
+SESSION_FLAGS = {"--mode", "--multicast-scouting", "--connect", "--listen", "--zenoh-config"}
+"""The shared zenoh flags: the README documents them once, for every process that joins a site."""
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_the_readme_names_every_option_of_every_command(name: str) -> None:
+    readme = (REPO / "README.md").read_text()
+    assert all(f"`{flag}" in readme for flag in SESSION_FLAGS)
+    missing = [
+        f"{prog} {opt}"
+        for prog, parser in _parsers(name)
+        for a in parser._actions
+        for opt in a.option_strings[-1:]
+        if opt.startswith("--") and opt not in ("--help", "--log-level", *SESSION_FLAGS) and opt not in readme
+    ]
+    assert not missing, f"options the README never names: {missing}"
