@@ -237,7 +237,9 @@ def _place_labels(fig: Figure, ax: Axes, labels: list[_Label], taken: list[Bbox]
         for dx, dy in LABEL_OFFSETS_PT:
             text = ax.annotate(lab.text, (lab.x, lab.y), xytext=(dx, dy), textcoords="offset points", fontsize=7,
                                color=lab.colour, ha="left" if dx >= 0 else "right",
-                               va="bottom" if dy >= 0 else "top", zorder=6)  # fmt: skip
+                               va="bottom" if dy >= 0 else "top", zorder=6,
+                               bbox={"boxstyle": "square,pad=0.1", "facecolor": "white", "alpha": 0.7,
+                                     "linewidth": 0})  # fmt: skip
             box = text.get_window_extent(renderer)
             inside = frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1)
             if inside and not any(box.overlaps(b) for b in taken):
@@ -359,13 +361,10 @@ def _figure(inp: PlotInput) -> Figure:
         track_labels = []
     ax_time = fig.add_subplot(grid[1, :])
     _draw_timeline(ax_time, tl, rows_col, tracks_col, inp)
-    fig.canvas.draw()  # the layout is fixed now: labels can be measured
-    taken: list[Bbox] = []
-    _place_labels(fig, ax_tracks, labels + track_labels, taken)
+    truth_labels: list[_Label] = []
     if inp.ground_truth is not None:
         ax_truth = fig.add_subplot(grid[0, 1], sharex=ax_tracks, sharey=ax_tracks)
         _floor(ax_truth, inp, ext, "ground truth, one colour per person")
-        truth_labels: list[_Label] = []
         if inp.gt_cameras:
             _platforms(ax_truth, inp.gt_cameras, truth_labels)
         else:
@@ -375,7 +374,10 @@ def _figure(inp: PlotInput) -> Figure:
             label = _path(ax_truth, pts, rows_col.get(pid, NOBODY), f"#{pid}", pid not in rows_col)
             if len(inp.ground_truth.person_ids) <= MAX_NAMED_PATHS:
                 truth_labels.append(label)
-        fig.canvas.draw()
+    fig.canvas.draw()  # every panel is in place: the layout is fixed and labels can be measured
+    taken: list[Bbox] = []
+    _place_labels(fig, ax_tracks, labels + track_labels, taken)
+    if inp.ground_truth is not None:
         _place_labels(fig, ax_truth, truth_labels, taken)
     return fig
 
