@@ -260,7 +260,7 @@ def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None)
         text = _zerror_text(err)
         hint = connect_hint(settings, text)
         raise SessionError(
-            f"cannot open a zenoh {settings.mode} session ({where}): {text}" + (f"\n  {hint}" if hint else "")
+            f"cannot open a zenoh {settings.mode} session ({where}): {text}" + (f" -- {hint}" if hint else "")
         ) from err
     try:
         yield session

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from common.keys import Keys
-from tests.support import REPO, client_session, free_port, wait_for, wait_for_liveliness
+from tests.support import REPO, client_session, free_port, start_router, wait_for, wait_for_liveliness
 from tests.unit.panostereo.mot_synth import CAMERAS, write_dataset
 
 pytestmark = pytest.mark.integration
@@ -39,10 +39,12 @@ def _site_with(tmp_path: Path, replace: dict[str, str]) -> Path:
     return site
 
 
-def _demo(site: Path, out: Path) -> subprocess.CompletedProcess[str]:
+def _demo(site: Path, out: Path, *net: str) -> subprocess.CompletedProcess[str]:
+    """The demo on a router of its own on a free port, or with ``net`` (``--connect EP``) joining one."""
+    net = net or ("--listen", f"tcp/127.0.0.1:{free_port()}")
     return subprocess.run(
         [sys.executable, "-m", "panostereo", "demo", "--site", str(site), "--duration", "20", "--out", str(out),
-         "--listen", f"tcp/127.0.0.1:{free_port()}", "--no-view", "--ready-timeout", str(READY_TIMEOUT_S)],
+         *net, "--no-view", "--ready-timeout", str(READY_TIMEOUT_S)],
         capture_output=True, text=True, timeout=180, check=False, cwd=REPO,
     )  # fmt: skip
 
@@ -61,14 +63,20 @@ def test_demo_stops_at_once_when_the_manager_refuses_its_config(tmp_path: Path) 
 
 
 def test_demo_says_which_node_has_a_camera_the_world_does_not(tmp_path: Path) -> None:
+    """...on a router that already runs (``demo --connect``): every process of the site joins it."""
     ghost = tmp_path / "ghost.toml"
     text = (NODES / "pano3.toml").read_text().replace('id = "pano3"', 'id = "ghost"')
     ghost.write_text(text.replace('camera = "pano3"', 'camera = "ghost"').replace("../../sites/demo.toml", str(DEMO)))
-    proc = _demo(_site_with(tmp_path, {"pano3": str(ghost)}), tmp_path / "run")
+    router = start_router(log_dir=tmp_path / "router")
+    try:
+        proc = _demo(_site_with(tmp_path, {"pano3": str(ghost)}), tmp_path / "run", "--connect", router.endpoint)
+    finally:
+        router.stop()
     assert proc.returncode == 1, proc.stdout[-3000:] + proc.stderr[-3000:]
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert "no camera 'ghost'" in summary["failed_to_start"]["pano3"]["reason"]
     assert summary["cameras"]["site"] == 4 and summary["cameras"]["publishing"] == 0
+    assert not (tmp_path / "run" / "logs" / "router.log").exists()  # it started no router of its own
 
 
 @pytest.fixture
@@ -124,4 +132,10 @@ def test_up_listen_moves_every_process_and_agent_sensors_shows_the_running_site(
     history = [sys.executable, "-m", "panostereo", "agent", "history", "mgr1-999", "--connect", endpoint]
     out = subprocess.run(history, capture_output=True, text=True, timeout=60, check=False, cwd=REPO)
     assert out.returncode == 1 and "no manager knows track 'mgr1-999'" in out.stderr and "mgr1-" in out.stderr
+    # The live view shows the same: every sensor's fps and frames, the tracks, the manager.
+    watch = [sys.executable, "-m", "panostereo", "agent", "watch", "--once", "--connect", endpoint]
+    screen_once = subprocess.run(watch, capture_output=True, text=True, timeout=60, check=True, cwd=REPO).stdout
+    assert "SENSORS (3 up of 3)" in screen_once and "mgr1" in screen_once.split("MANAGERS", 1)[1], screen_once
+    rows = [ln.split() for ln in screen_once.split("SENSORS", 1)[1].split("MANAGERS", 1)[0].splitlines()]
+    assert all(r[4] != "-" for r in rows if r and r[0] in CAMERAS), screen_once  # the fps column
     up.stop(10)
