@@ -128,6 +128,8 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     )
     p.add_argument("--title", default="", help="a title above the picture")
     p.add_argument("--threshold", type=positive, default=0.5, help="with --ground-truth: match distance (m)")
+    p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth fps (default: from the recording)")
 
     p = sub.add_parser("export", help="write a recording's tracks as CSV or MOTChallenge rows (no ground truth needed)")
     p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, agent record's, a dataset's)")
@@ -426,7 +428,16 @@ def _export(args: argparse.Namespace) -> int:
 def _plot(args: argparse.Namespace) -> int:
     from user_agent.report import plot_recording
 
-    print(plot_recording(args.input, args.out, args.ground_truth, title=args.title, threshold_m=args.threshold))
+    out = plot_recording(
+        args.input,
+        args.out,
+        args.ground_truth,
+        title=args.title,
+        threshold_m=args.threshold,
+        epoch_ns=args.epoch_ns,
+        fps=args.fps,
+    )
+    print(out)
     return 0
 
 

@@ -142,15 +142,20 @@ def plot_recording(
     threshold_m: float = 0.5,
     area: list[tuple[float, float]] | None = None,
     scored_area: FloatArray | None = None,
+    epoch_ns: int | None = None,
+    fps: float | None = None,
 ) -> Path:
     """Write the picture of a recording: top view (ground truth beside it when given) and the timeline.
 
     ``area`` (the site's ``[area]`` polygon) defaults to the one the recording stores; ``threshold_m`` and
-    ``scored_area`` are the scoring's, so the timeline shows what ``agent evaluate`` counts.
+    ``scored_area`` are the scoring's, so the timeline shows what ``agent evaluate`` counts; ``epoch_ns`` and
+    ``fps`` (ground-truth frame ``k`` at ``(k - 1) / fps`` after the epoch) default to the recording's metadata:
+    without them the ground truth cannot be lined up, and the timeline has one row per track.
     """
     r = rec if isinstance(rec, Recording) else load_recording(rec)
     gt = read_gt_csv(ground_truth) if isinstance(ground_truth, str | Path) else ground_truth
-    epoch, fps = r.meta_int("epoch_ns", -1), r.meta_float("fps", -1.0)
+    epoch = epoch_ns if epoch_ns is not None else r.meta_int("epoch_ns", -1)
+    fps = fps if fps is not None else r.meta_float("fps", -1.0)
     if gt is not None and r.tracksets and epoch >= 0 and fps > 0:
         # Only the recorded span of the ground truth, so both panels show the same time window.
         t0 = (r.tracksets[0].stamp_ns - epoch) / 1e9
