@@ -1,13 +1,15 @@
 # panostereo: two commands do everything on a fresh machine with python3 and make.
 #   make demo   build .venv, install, run the whole network on localhost
 #   make test   build .venv, install test needs (system ones too when root), run pytest
+#   make install  the runtime only (no test or lint tools): what a camera host or a manager host needs
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+RUNTIME_STAMP := $(VENV)/.runtime
 DEMO_ARGS ?=
 
-.PHONY: all demo test check bench .venv clean system-deps
+.PHONY: all demo test check bench .venv install clean system-deps
 
 all: test
 
@@ -15,9 +17,17 @@ $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,dev]'
-	touch $(STAMP)
+	touch $(STAMP) $(RUNTIME_STAMP)
 
 .venv: $(STAMP)
+
+$(RUNTIME_STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e .
+	touch $(RUNTIME_STAMP)
+
+install: $(RUNTIME_STAMP)
 
 demo: $(STAMP)
 	$(BIN)/panostereo demo $(DEMO_ARGS)

@@ -236,7 +236,7 @@ def run(
                 result["manager"] = {
                     "refused_msgs": st.refused_msgs,
                     "refused_partial": st.refused_partial,
-                    "refused": {r.sender_id: [r.unlisted, r.wrong_id, r.skewed] for r in st.refused[:8]},
+                    "refused": {r.sender_id: [r.unlisted, r.wrong_id, r.skewed, r.ahead] for r in st.refused[:8]},
                     "decode_errors": st.decode_errors,
                     "dropped_msgs": st.dropped_msgs,
                 }

@@ -147,11 +147,11 @@ def _node(fs: Any, names: tuple[str, ...]) -> FloatArray | None:
         node = fs.getNode(n)
         if node is None or node.empty():
             continue
-        mat = node.mat()
+        if node.isSeq():  # a plain list of numbers (Wildtrack's rvec, tvec)
+            return np.asarray([node.at(j).real() for j in range(node.size())], np.float64)
+        mat = node.mat() if node.isMap() else None
         if mat is not None:
             return np.asarray(mat, np.float64)
-        if node.isSeq():
-            return np.asarray([node.at(j).real() for j in range(node.size())], np.float64)
     return None
 
 
@@ -162,32 +162,50 @@ def _scalar(fs: Any, name: str) -> float | None:
     return float(node.real())
 
 
-def from_opencv_file(path: Path, *, units_m: float = 1.0, image_size: tuple[int, int] | None = None) -> dict:
-    """An OpenCV calibration file (YAML/XML, ``cv2.FileStorage``) as the project's calibration dict.
-
-    Args:
-        path: the file.
-        units_m: metres per unit of its translation (0.001 for mm).
-        image_size: (w, h) when the file has none.
-
-    Raises:
-        ConfigError: unreadable file, or a missing camera matrix, pose or image size (named).
-    """
+def _storage(path: Path) -> dict[str, Any]:
+    """The entries of an OpenCV FileStorage file the conversion knows, by role (None: absent)."""
     import cv2
 
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such calibration file")
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     if not fs.isOpened():
         raise ConfigError(f"{path}: not a readable OpenCV YAML/XML file")
     try:
-        k = _node(fs, ("camera_matrix", "cameraMatrix", "K", "intrinsic", "M"))
-        dist = _node(fs, ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "dist"))
-        rvec = _node(fs, ("rvec", "rotation_vector"))
-        rmat = _node(fs, ("R", "rotation_matrix", "rotation"))
-        tvec = _node(fs, ("tvec", "T", "translation", "t"))
-        w, h = _scalar(fs, "image_width"), _scalar(fs, "image_height")
-        size_node = _node(fs, ("image_size", "imageSize"))
+        return {
+            "k": _node(fs, ("camera_matrix", "cameraMatrix", "K", "intrinsic", "M")),
+            "dist": _node(fs, ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "dist")),
+            "rvec": _node(fs, ("rvec", "rotation_vector")),
+            "rmat": _node(fs, ("R", "rotation_matrix", "rotation")),
+            "tvec": _node(fs, ("tvec", "T", "translation", "t")),
+            "w": _scalar(fs, "image_width"),
+            "h": _scalar(fs, "image_height"),
+            "size": _node(fs, ("image_size", "imageSize")),
+        }
     finally:
         fs.release()
+
+
+def from_opencv_file(
+    path: Path, *, units_m: float = 1.0, image_size: tuple[int, int] | None = None, extrinsic: Path | None = None
+) -> dict:
+    """An OpenCV calibration file (YAML/XML, ``cv2.FileStorage``) as the project's calibration dict.
+
+    Args:
+        path: the file (the camera matrix, distortion, and the pose unless ``extrinsic`` is given).
+        units_m: metres per unit of its translation (0.001 for mm, 0.01 for Wildtrack's cm).
+        image_size: (w, h) when the file has none.
+        extrinsic: a second file with the pose (``rvec``/``R`` and ``tvec``), as Wildtrack keeps them
+            (``intrinsic_zero/intr_CAM.xml`` beside ``extrinsic/extr_CAM.xml``).
+
+    Raises:
+        ConfigError: unreadable file, or a missing camera matrix, pose or image size (named).
+    """
+    intr = _storage(path)
+    pose = _storage(extrinsic) if extrinsic is not None else intr
+    where = f"{extrinsic}" if extrinsic is not None else f"{path}"
+    k, dist, w, h, size_node = intr["k"], intr["dist"], intr["w"], intr["h"], intr["size"]
+    rvec, rmat, tvec = pose["rvec"], pose["rmat"], pose["tvec"]
     if k is None or k.size != MAT3_VALUES:
         raise ConfigError(f"{path}: expected a 3x3 camera_matrix, got {None if k is None else k.shape}")
     if rmat is not None and rmat.size == MAT3_VALUES:
@@ -195,9 +213,10 @@ def from_opencv_file(path: Path, *, units_m: float = 1.0, image_size: tuple[int,
     elif rvec is not None and rvec.size == VEC3_VALUES:
         r = rotation_from_rvec(rvec.ravel())
     else:
-        raise ConfigError(f"{path}: expected the camera's pose: rvec (3) or R (3x3), with tvec")
+        hint = "" if extrinsic is not None else " (or pass the file that has it: --extrinsic FILE)"
+        raise ConfigError(f"{where}: expected the camera's pose: rvec (3) or R (3x3), with tvec{hint}")
     if tvec is None or tvec.size != VEC3_VALUES:
-        raise ConfigError(f"{path}: expected tvec with 3 values, got {None if tvec is None else tvec.size}")
+        raise ConfigError(f"{where}: expected tvec with 3 values, got {None if tvec is None else tvec.size}")
     if w is not None and h is not None:
         size = (round(w), round(h))
     elif size_node is not None and size_node.size == SIZE_VALUES:

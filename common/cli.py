@@ -9,12 +9,23 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 from collections.abc import Callable
 
 from common.errors import ConfigError, PanoError
 
-__all__ = ["EXIT_BUG", "EXIT_ERROR", "EXIT_USAGE", "add_logging_args", "run_main", "setup_logging"]
+__all__ = [
+    "EXIT_BUG",
+    "EXIT_ERROR",
+    "EXIT_USAGE",
+    "add_logging_args",
+    "non_negative",
+    "positive",
+    "probability",
+    "run_main",
+    "setup_logging",
+]
 
 EXIT_ERROR = 1
 """A clear, expected failure (bad config, unreachable router, corrupt file)."""
@@ -23,8 +34,50 @@ EXIT_BUG = 70
 """An unexpected exception: a bug; the supervisor restarts the process."""
 
 
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from err
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def positive(text: str) -> float:
+    """An argparse ``type``: a positive, finite number (a frame rate, a duration, a distance, a speed factor).
+
+    A bad value stops the command with argparse's one line naming the option, before anything runs.
+    """
+    value = _number(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def non_negative(text: str) -> float:
+    """An argparse ``type``: a finite number >= 0 (a duration where 0 means "none" or "until Ctrl-C")."""
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return value
+
+
+def probability(text: str) -> float:
+    """An argparse ``type``: a number in [0, 1]."""
+    value = _number(text)
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
+    return value
+
+
 def add_logging_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument(
+        "--log-level",
+        default="INFO",
+        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+        help="what is logged (default INFO)",
+    )
 
 
 def setup_logging(level: str = "INFO") -> None:

@@ -431,7 +431,10 @@ class Refusal(_Msg, frozen=True, tag="pano.Refusal"):
     wrong_id: Count = 0
     """The payload named another sender than its key."""
     skewed: Count = 0
-    """Features stamped further from the manager's clock than its ``max_skew_s``: never buffered."""
+    """Features stamped more than the manager's ``max_skew_s`` behind its clock (late frames; never buffered)."""
+    ahead: Count = 0
+    """Features stamped more than the manager's ``max_lead_s`` ahead of its clock (a sender's clock is off; never
+    buffered)."""
 
 
 class SensorTiming(_Msg, frozen=True, tag="pano.SensorTiming"):

@@ -41,6 +41,7 @@ __all__ = [
     "SessionSettings",
     "Shutdown",
     "add_session_args",
+    "connect_hint",
     "install_signal_handlers",
     "open_session",
     "settings_from_args",
@@ -211,6 +212,32 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
     return conf
 
 
+def connect_hint(settings: SessionSettings, error: str) -> str:
+    """What to try when a session cannot open: start the router, check the endpoint, the certificates ("" when
+    the error says nothing a user can act on)."""
+    low = error.lower()
+    if settings.mode == "client" and ("unable to connect" in low or "timeout" in low):
+        endpoints = settings.connect or ([] if settings.config_file else [DEFAULT_ROUTER])
+        listen = endpoints[0] if endpoints else "ENDPOINT"
+        tips = [
+            f"is a router listening there? Start one with `panostereo router --listen {listen}` (or a whole site "
+            "with `panostereo up SITE --router`); check the endpoint (--connect, or [zenoh] connect in the config)"
+        ]
+        secure = settings.config_file or any(e.startswith(("tls/", "quic/")) for e in endpoints)
+        if secure:
+            tips.append(
+                "the router speaks TLS: check the certificates the zenoh config names (CA, this client's certificate "
+                "and key) and that the router's certificate names the host connected to; `panostereo router "
+                "--zenoh-log warn` logs why it refuses a client"
+            )
+        elif any(e.startswith("tcp/") for e in endpoints):
+            tips.append("a router that listens on tls/ takes no tcp/ client: connect with its tls/ endpoint and config")
+        return "; ".join(tips)
+    if "address already in use" in low or "can not create a new" in low:
+        return "another router (or demo) already listens there: choose another port with --listen"
+    return ""
+
+
 @contextmanager
 def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None) -> Iterator[Any]:
     """Open a zenoh session and close it on exit, whatever happens.
@@ -230,7 +257,11 @@ def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None)
         session = zenoh.open(conf)
     except Exception as err:
         where = ", ".join(settings.connect or settings.listen or [DEFAULT_ROUTER])
-        raise SessionError(f"cannot open a zenoh {settings.mode} session ({where}): {_zerror_text(err)}") from err
+        text = _zerror_text(err)
+        hint = connect_hint(settings, text)
+        raise SessionError(
+            f"cannot open a zenoh {settings.mode} session ({where}): {text}" + (f" -- {hint}" if hint else "")
+        ) from err
     try:
         yield session
     finally:

@@ -20,7 +20,10 @@ COMMANDS: Final[dict[str, tuple[str, str]]] = {
     "router": ("panostereo.commands.router", "run a zenoh router (the hub every process connects to)"),
     "node": ("sensor_node.cli", "run one sensor node (same as `sensor-node`)"),
     "manager": ("resource_manager.cli", "run the resource manager (same as `resource-manager`)"),
-    "agent": ("user_agent.cli", "user-agent tools: watch, tracks, history, record, replay, plot, evaluate"),
+    "agent": (
+        "user_agent.cli",
+        "user-agent tools: watch, tracks, history, sensors, view, record, replay, foxglove, plot, evaluate, export",
+    ),
     "plan": ("panostereo.commands.plan", "best stereo configuration and error map for a target (Eqs. 4-6, Fig. 4)"),
     "render": ("panostereo.commands.render", "render one simulated camera frame and its panorama"),
     "import": ("panostereo.commands.import_dataset", "convert a dataset (mot, wildtrack) into a runnable site"),

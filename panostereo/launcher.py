@@ -38,6 +38,7 @@ __all__ = [
     "client_endpoint",
     "process_ids",
     "router_plan",
+    "site_endpoints",
     "site_plans",
 ]
 
@@ -48,6 +49,8 @@ START_ENV = "PANOSTEREO_START_FILE"
 """A file a launcher writes once every process is up; recorded sources play frame 1 at the epoch it holds."""
 SEED_ENV = "PANOSTEREO_SEED"
 STATE_ENV = "PANOSTEREO_STATE_DIR"
+LOG_TAIL_LINES = 8
+"""How many of its last log lines are shown when a process exits before it has run ``stable_s``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,6 +82,8 @@ class _Child:
     next_start: float = 0.0
     last_rc: int | None = None
     gave_up: bool = False
+    log_from: int = 0
+    """Where the current run's output starts in the (appended) log file."""
 
 
 class Supervisor:
@@ -126,6 +131,8 @@ class Supervisor:
             c.plan.log_path.parent.mkdir(parents=True, exist_ok=True)
             if c.log is None:
                 c.log = c.plan.log_path.open("ab")
+            c.log.flush()
+            c.log_from = c.log.tell()
             out = c.log
         try:
             c.popen = subprocess.Popen(  # argv from the site file, no shell
@@ -161,16 +168,21 @@ class Supervisor:
                 c.last_rc = rc
                 c.popen = None
                 ran = now - c.started_at
+                early = ran < self._stable_s
+                tail = self.log_tail(c.plan.name) if early else []
+                said = ("; its log ends:\n    " + "\n    ".join(tail)) if tail else ""
                 if not (self._restart and c.plan.restart):
-                    self._on_event(f"{c.plan.name} exited with code {rc} after {ran:.1f} s")
+                    self._on_event(f"{c.plan.name} exited with code {rc} after {ran:.1f} s{said}")
                     continue
                 if self._max_restarts and c.restarts >= self._max_restarts:
                     c.gave_up = True
-                    self._on_event(f"{c.plan.name} exited with code {rc}; gave up after {c.restarts} restarts")
+                    self._on_event(f"{c.plan.name} exited with code {rc}; gave up after {c.restarts} restarts{said}")
                     continue
                 c.backoff_s = self._bmin if not c.backoff_s else min(self._bmax, c.backoff_s * 2)
                 c.next_start = now + c.backoff_s
-                self._on_event(f"{c.plan.name} exited with code {rc} after {ran:.1f} s; restart in {c.backoff_s:.1f} s")
+                self._on_event(
+                    f"{c.plan.name} exited with code {rc} after {ran:.1f} s; restart in {c.backoff_s:.1f} s{said}"
+                )
             elif not c.gave_up and self._restart and c.plan.restart and c.last_rc is not None and now >= c.next_start:
                 c.restarts += 1
                 self._spawn(c)
@@ -195,6 +207,27 @@ class Supervisor:
 
     def exit_codes(self) -> dict[str, int | None]:
         return {c.plan.name: c.last_rc for c in self._children}
+
+    def exited(self) -> dict[str, int]:
+        """Processes that have exited since they were started (restarted or not), with their last exit code."""
+        return {c.plan.name: c.last_rc for c in self._children if c.last_rc is not None}
+
+    def log_tail(self, name: str, lines: int = LOG_TAIL_LINES) -> list[str]:
+        """The last non-empty lines its latest run wrote to a process's log file (none when its output is not
+        logged to a file)."""
+        c = next(c for c in self._children if c.plan.name == name)
+        path = c.plan.log_path
+        if path is None:
+            return []
+        if c.log is not None:
+            c.log.flush()
+        try:
+            with path.open("rb") as fh:
+                fh.seek(max(c.log_from, path.stat().st_size - 16_384))
+                text = fh.read().decode("utf-8", errors="replace")
+        except OSError:
+            return []
+        return [line.rstrip() for line in text.splitlines() if line.strip()][-lines:]
 
     # -- stopping -----------------------------------------------------------
     @staticmethod
@@ -241,6 +274,35 @@ def client_endpoint(listen: str) -> str:
     if host in ("0.0.0.0", "[::]", "::", ""):
         host = "127.0.0.1"
     return f"{proto}/{host}:{port}"
+
+
+def site_endpoints(
+    site: SiteConfig, *, listen: str | None = None, connect: str | None = None, router: bool = True
+) -> tuple[str | None, str | None]:
+    """Where a site's router listens and where its processes connect: the one rule ``demo`` and ``up`` share.
+
+    Args:
+        listen: where to run the router (default: the site's ``router``).
+        connect: an existing router to join instead (no router is started; ``listen`` must not be given).
+        router: whether a router runs here (``up --router``, ``demo`` unless ``connect``).
+
+    Returns:
+        (the router's listen endpoint, or None when no router runs here; the endpoint every process connects
+        to, or None to leave it to each process's own config: ``up`` on a host without the router).
+
+    Raises:
+        ConfigError: both ``listen`` and ``connect``, or ``listen`` without a router.
+    """
+    if connect and (listen or router):
+        raise ConfigError("--connect joins a router that runs elsewhere: it cannot go with --listen or --router")
+    if connect:
+        return None, connect
+    if not router:
+        if listen:
+            raise ConfigError("--listen says where this host's router listens: add --router (or use --connect)")
+        return None, None
+    where = listen or site.site.router
+    return where, client_endpoint(where)
 
 
 def router_plan(listen: list[str], python: str = sys.executable, log_path: Path | None = None) -> ProcessPlan:

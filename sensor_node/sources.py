@@ -10,6 +10,7 @@ backoff and says so in ``state`` and ``message``, which the node publishes in it
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -81,8 +82,14 @@ class OpenCvFrames:
         self._cap = cap
         if self.is_file:
             rate = self.fps or float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-            self._period_s = 1.0 / rate if rate > 0 else 0.0
+            self._period_s = 1.0 / rate if rate > 0 and math.isfinite(rate) else 0.0
             self._next_due = time.monotonic()
+            if self._period_s:
+                logger.info(
+                    "source %s: played at %g fps (%s)", self.uri, rate, "[source] fps" if self.fps else "the file's"
+                )
+            else:
+                logger.info("source %s: the file gives no frame rate: played as fast as it is read", self.uri)
         return True
 
     def _fail(self, why: str, stop: threading.Event) -> bool:

@@ -18,7 +18,7 @@ from typing import Any
 
 import msgspec
 
-from common.cli import add_logging_args, run_main, setup_logging
+from common.cli import add_logging_args, non_negative, positive, run_main, setup_logging
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
@@ -28,8 +28,11 @@ __all__ = ["configure", "main", "run"]
 logger = logging.getLogger(__name__)
 
 EPOCH_ENV = "PANOSTEREO_EPOCH_NS"
-FIRST_SCREEN_WAIT_S = 1.5
-"""`watch` waits up to this long for the statuses (1 Hz) before its first screen."""
+STATUS_WAIT_S = 2.5
+"""`watch` and `sensors` wait up to this long for every live sensor's and manager's status (1 Hz) before they show
+them: two and a half periods, so a status put just before the agent subscribed is not missed."""
+TRACKS_WAIT_S = 1.0
+"""`sensors` waits up to this long for the managers' TrackSets (one per fusion tick)."""
 SENSORS_REFRESH_S = 3.0
 """`watch` asks for the sensors again this often (s); tracks and managers every screen."""
 
@@ -46,41 +49,43 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
 
     p = sub.add_parser("watch", help="live terminal view of tracks, sensors and managers")
-    p.add_argument("--interval", type=float, default=0.5, help="refresh period in seconds")
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--interval", type=positive, default=0.5, help="refresh period in seconds")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     p.add_argument("--once", action="store_true", help="print one screen and exit")
     _net(p)
 
     p = sub.add_parser("tracks", help="current tracks (table or --json)")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--timeout", type=float, default=3.0, help="wait this long for a first TrackSet")
+    p.add_argument("--json", action="store_true", help="print the tracks as JSON (the fields of pano.Track)")
+    p.add_argument("--timeout", type=non_negative, default=3.0, help="wait this long for a first TrackSet (s)")
     _net(p)
 
     p = sub.add_parser("history", help="a track's path over the last seconds (table or --json)")
-    p.add_argument("track_id")
-    p.add_argument("--seconds", type=float, default=30.0)
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--timeout", type=float, default=3.0)
+    p.add_argument("track_id", help="the track's id (as agent tracks shows it, e.g. mgr1-3)")
+    p.add_argument("--seconds", type=positive, default=30.0, help="how far back (s, default 30)")
+    p.add_argument("--json", action="store_true", help="print the path as JSON (one pano.Track per state)")
+    p.add_argument("--timeout", type=non_negative, default=3.0, help="wait this long for the manager's answer (s)")
     _net(p)
 
-    p = sub.add_parser("sensors", help="sensors with status and clock offsets (table or --json)")
-    p.add_argument("--json", action="store_true")
+    p = sub.add_parser("sensors", help="sensors with info, status and clock offsets, the tracks and the managers")
+    p.add_argument("--json", action="store_true", help="print the sensors as JSON (info, status, clock offset)")
     _net(p)
 
     p = sub.add_parser(
         "view", help="hold a PTZ view of a track while this runs (renewed; released on exit), or --release one"
     )
-    p.add_argument("track_id")
+    p.add_argument("track_id", help="the track to view (e.g. mgr1-3)")
     p.add_argument(
         "--release", action="store_true", help="release the view held under --agent-id (a running `view` elsewhere)"
     )
-    p.add_argument("--priority", type=int, default=0)
+    p.add_argument("--priority", type=int, default=0, help="a higher priority takes a camera from a lower one")
     p.add_argument("--manager", default=None, help="manager id (default: from the track id)")
-    p.add_argument("--duration", type=float, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)")
+    p.add_argument(
+        "--duration", type=non_negative, default=0.0, help="hold the view this many seconds (0: until Ctrl-C)"
+    )
     _net(p)
 
     p = sub.add_parser("record", help="record everything under {prefix}/@v1/** (or --keys) into MCAP")
-    p.add_argument("out", metavar="OUT.mcap")
+    p.add_argument("out", metavar="OUT.mcap", help="the recording to write")
     p.add_argument(
         "--keys",
         action="append",
@@ -89,36 +94,61 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
         help="record only these key expressions under {prefix}/@v1/ (e.g. tracks, 'track/*', 'manager/*/status'); "
         "repeatable (default: everything)",
     )
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
-    p.add_argument("--site", default=None, metavar="FILE", help="site file: stores prefix, fps and room for evaluate")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument(
+        "--site",
+        default=None,
+        metavar="FILE",
+        help="site file: stores prefix, fps, room and area for evaluate and plot",
+    )
     p.add_argument("--epoch-ns", type=int, default=None, help=f"world epoch (default: env {EPOCH_ENV})")
-    p.add_argument("--fps", type=float, default=None, help="ground-truth frame rate (default: the site's)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth frame rate (default: the site's)")
     _net(p)
 
     p = sub.add_parser("replay", help="republish a recording with its original timing")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--speed", type=float, default=1.0)
+    p.add_argument("input", metavar="IN.mcap", help="the recording")
+    p.add_argument("--speed", type=positive, default=1.0, help="playback speed (2: twice as fast; default 1)")
     _net(p)
 
-    p = sub.add_parser("foxglove", help="serve the live 3D scene to Foxglove over WebSocket (foxglove extra)")
+    p = sub.add_parser("foxglove", help="serve the live 3D scene to Foxglove over WebSocket")
     p.add_argument("--host", default="127.0.0.1", help="WebSocket listen address")
     p.add_argument("--port", type=int, default=8765, help="WebSocket port (0: any free port)")
-    p.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
+    p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     _net(p)
 
-    p = sub.add_parser("plot", help="top-view PNG of a recording (ground truth beside it)")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--out", required=True, metavar="PNG")
-    p.add_argument("--ground-truth", default=None, metavar="GT.csv")
-    p.add_argument("--title", default="")
+    p = sub.add_parser("plot", help="picture of a recording: top view (ground truth beside it) and a timeline")
+    p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, or agent record's)")
+    p.add_argument("--out", required=True, metavar="PNG", help="the picture to write")
+    p.add_argument(
+        "--ground-truth",
+        default=None,
+        metavar="GT.csv",
+        help="frame,id,x_m,y_m: one timeline row per person, who was followed by which track (default: one row "
+        "per track)",
+    )
+    p.add_argument("--title", default="", help="a title above the picture")
+    p.add_argument("--threshold", type=positive, default=0.5, help="with --ground-truth: match distance (m)")
+    p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth fps (default: from the recording)")
+
+    p = sub.add_parser("export", help="write a recording's tracks as CSV or MOTChallenge rows (no ground truth needed)")
+    p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, agent record's, a dataset's)")
+    p.add_argument("--out", required=True, metavar="FILE", help="the table to write")
+    p.add_argument(
+        "--format",
+        choices=["csv", "mot"],
+        default="csv",
+        help="csv: frame,time_s,id,x_m,y_m,height_m,vx_mps,vy_mps,state,manager_id (default); mot: MOTChallenge "
+        "3D-style frame,id,-1,-1,-1,-1,1,x,y,z",
+    )
 
     p = sub.add_parser("evaluate", help="MOTA/MOTP, IDF1, ID switches, precision, recall, error of a recording")
-    p.add_argument("input", metavar="IN.mcap")
-    p.add_argument("--ground-truth", required=True, metavar="GT.csv")
-    p.add_argument("--threshold", type=float, default=0.5, help="match distance in metres")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("input", metavar="IN.mcap", help="the recording")
+    p.add_argument("--ground-truth", required=True, metavar="GT.csv", help="frame,id,x_m,y_m[,z_m], 1-based frames")
+    p.add_argument("--threshold", type=positive, default=0.5, help="match distance in metres")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.add_argument("--epoch-ns", type=int, default=None, help="world epoch (default: from the recording)")
-    p.add_argument("--fps", type=float, default=None, help="ground-truth fps (default: from the recording)")
+    p.add_argument("--fps", type=positive, default=None, help="ground-truth fps (default: from the recording)")
     p.add_argument(
         "--score-from-ns",
         type=int,
@@ -162,6 +192,19 @@ def _dump(obj: Any) -> None:
     print(json.dumps(msgspec.to_builtins(obj), indent=2))
 
 
+def _settled(agent: Any, wait_s: float, shutdown: Any = None) -> tuple[list[Any], list[Any]]:
+    """(sensors, managers) once every live one has sent its status, or after ``wait_s``."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        sensors, managers = agent.sensors(timeout_s=0.5), agent.managers(timeout_s=0.3)
+        done = all(v.status is not None for v in sensors if v.alive) and all(
+            m.status is not None for m in managers if m.alive
+        )
+        if done or time.monotonic() >= deadline or (shutdown is not None and shutdown.is_set()):
+            return sensors, managers
+        time.sleep(0.2)
+
+
 def _watch(args: argparse.Namespace) -> int:
     from user_agent.views import CLEAR_SCREEN, watch_screen
 
@@ -169,16 +212,7 @@ def _watch(args: argparse.Namespace) -> int:
     tty = sys.stdout.isatty()
     with _client(args) as agent:
         end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
-        sensors = agent.sensors(timeout_s=1.0)
-        # Statuses come at 1 Hz: give the first screen a moment to have them.
-        first = time.monotonic()
-        while time.monotonic() - first < FIRST_SCREEN_WAIT_S and not shutdown.is_set():
-            if all(v.status is not None for v in sensors if v.alive) and all(
-                m.status is not None for m in agent.managers(timeout_s=0.3)
-            ):
-                break
-            shutdown.sleep(0.2)
-            sensors = agent.sensors(timeout_s=0.3)
+        sensors, _ = _settled(agent, STATUS_WAIT_S, shutdown)
         last_sensors = time.monotonic()
         while True:
             if time.monotonic() - last_sensors > SENSORS_REFRESH_S:
@@ -203,6 +237,8 @@ def _record(args: argparse.Namespace) -> int:
         prefix = args.prefix or site.site.prefix
         meta.update(site=site.site.name, prefix=prefix, room_x_m=str(site.world.room_x_m))
         meta["room_y_m"] = str(site.world.room_y_m)
+        if site.area is not None:  # where people can be: the plot is sized to it
+            meta["area"] = json.dumps(site.area.polygon)
         if site.dataset is not None:
             fps = fps or site.dataset.fps
             meta.pop("room_x_m")
@@ -340,9 +376,17 @@ def run(args: argparse.Namespace) -> int:
             _dump(tracks) if args.json else print(tracks_table(tracks))
         elif action == "history":
             path = agent.history(args.track_id, args.seconds, timeout_s=args.timeout)
+            if not path:
+                live = ", ".join(t.track_id for t in agent.tracks(timeout_s=1.0)) or "none"
+                print(
+                    f"no manager knows track {args.track_id!r} (or it has no state in the last {args.seconds:g} s); "
+                    f"live tracks: {live}",
+                    file=sys.stderr,
+                )
+                return 1
             _dump(path) if args.json else print(history_table(path))
         elif action == "sensors":
-            sensors = agent.sensors(timeout_s=1.5)
+            sensors, managers = _settled(agent, STATUS_WAIT_S)
             if args.json:
                 _dump(
                     [
@@ -359,16 +403,41 @@ def run(args: argparse.Namespace) -> int:
             else:
                 from user_agent.views import watch_screen
 
-                print(watch_screen([], sensors, []), end="")
+                print(watch_screen(agent.tracks(timeout_s=TRACKS_WAIT_S), sensors, managers), end="")
         elif action == "view":
             return _view(args, agent)
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from user_agent.export import export_rows, write_export
+    from user_agent.recording import load_recording
+
+    rec = load_recording(args.input)
+    epoch = rec.meta_int("epoch_ns", -1)
+    rows = export_rows(rec.tracksets, epoch_ns=epoch if epoch >= 0 else None)
+    n = write_export(args.out, rows, args.format)
+    tracks = len({tr.track_id for _, _, tr in rows})
+    frames = len({k for k, _, _ in rows})
+    print(f"wrote {n} rows ({tracks} tracks over {frames} frames) to {args.out} as {args.format}")
+    if not rec.tracksets:
+        print(f"{args.input}: the recording holds no TrackSet: nothing to export", file=sys.stderr)
     return 0
 
 
 def _plot(args: argparse.Namespace) -> int:
     from user_agent.report import plot_recording
 
-    print(plot_recording(args.input, args.out, args.ground_truth, title=args.title))
+    out = plot_recording(
+        args.input,
+        args.out,
+        args.ground_truth,
+        title=args.title,
+        threshold_m=args.threshold,
+        epoch_ns=args.epoch_ns,
+        fps=args.fps,
+    )
+    print(out)
     return 0
 
 
@@ -379,6 +448,7 @@ _HANDLERS: dict[str, Callable[[argparse.Namespace], int]] = {
     "evaluate": _evaluate,
     "foxglove": _foxglove,
     "plot": _plot,
+    "export": _export,
 }
 """The actions that need no agent session of their own (the others query through one)."""
 

@@ -9,6 +9,7 @@ evaluation and plotting read it (ground truth never flows into the pipeline).
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -20,13 +21,19 @@ from scipy.spatial import ConvexHull, QhullError
 from common.arrays import FloatArray
 from common.errors import ConfigError
 
-__all__ = ["GT_HEADER", "GroundTruth", "GtPoint", "read_gt_csv", "write_gt_rows"]
+__all__ = ["GT_HEADER", "WALKING_MPS", "GroundTruth", "GtPoint", "median_speed_mps", "read_gt_csv", "speed_warning",
+           "write_gt_rows"]  # fmt: skip
 
 MIN_HULL_POINTS = 3
 """The scored area is the convex hull of the ground truth's positions: it needs three distinct points."""
 
 
 GT_HEADER = ("frame", "id", "x_m", "y_m", "z_m")
+WALKING_MPS = (0.1, 3.0)
+"""People's median speed over a scene lies in this range; a ground truth that implies another at the given frame
+rate was most likely given the wrong one (a 7 fps set read as 70 fps walks at a tenth of its speed)."""
+MIN_STEPS = 10
+"""A median speed needs at least this many steps of one person between frames."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,6 +79,29 @@ class GroundTruth:
     def track_of(self, person_id: str) -> list[GtPoint]:
         """One person's points in frame order."""
         return [p for k in self.frame_numbers for p in self.frames[k] if p.person_id == person_id]
+
+
+def median_speed_mps(gt: GroundTruth, fps: float) -> float | None:
+    """The median speed of the people between consecutive annotated frames at ``fps`` (None: too few steps)."""
+    steps: list[float] = []
+    for pid in gt.person_ids:
+        pts = gt.track_of(pid)
+        for a, b in itertools.pairwise(pts):
+            if b.frame > a.frame:
+                steps.append(math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) * fps / (b.frame - a.frame))
+    return float(np.median(steps)) if len(steps) >= MIN_STEPS else None
+
+
+def speed_warning(gt: GroundTruth, fps: float) -> str | None:
+    """A warning when the ground truth implies people walk implausibly fast or slowly at ``fps``, else None."""
+    speed = median_speed_mps(gt, fps)
+    if speed is None or WALKING_MPS[0] <= speed <= WALKING_MPS[1]:
+        return None
+    lo, hi = WALKING_MPS
+    return (
+        f"at {fps:g} fps the ground truth ({gt.source or 'gt.csv'}) has people walking at {speed:.2f} m/s (median), "
+        f"outside the {lo:g}-{hi:g} m/s people walk: is the frame rate right?"
+    )
 
 
 def _float(row: dict[str, str], key: str, where: str) -> float:

@@ -10,7 +10,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from common.errors import ConfigError
-from common.schema import ManagerStatus, NodeStatus, PairChoice, SensorInfo, TrackSet, ViewPlan
+from common.schema import Features, ManagerStatus, NodeStatus, PairChoice, SensorInfo, TrackSet, ViewPlan
 from user_agent.messages import decode_on_key
 from user_agent.record import META_NAME, keys_for
 
@@ -77,6 +77,8 @@ class Recording:
     manager_status: dict[str, ManagerStatus] = field(default_factory=dict)
     mutual_paths: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
     """Where the managers placed each mobile camera by mutual calibration, in status order."""
+    frames: dict[str, int] = field(default_factory=dict)
+    """Features recorded per sensor (the cameras that published)."""
     samples: int = 0
     invalid: int = 0
     first_log_ns: int = 0
@@ -112,6 +114,8 @@ def load_recording(path: str | Path) -> Recording:
             rec.invalid += 1
         elif isinstance(msg, TrackSet):
             rec.tracksets.append(msg)
+        elif isinstance(msg, Features):
+            rec.frames[msg.sensor_id] = rec.frames.get(msg.sensor_id, 0) + 1
         elif isinstance(msg, SensorInfo):
             rec.sensor_infos[msg.sensor_id] = msg
         elif isinstance(msg, PairChoice):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +15,10 @@ from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.plot import PlotInput, save_top_view
 from user_agent.recording import Recording, load_recording
 
-__all__ = ["Scored", "plot_recording", "room_of", "score_recording", "score_tracksets", "write_tracks_csv"]
+MIN_POLYGON = 3
+"""An area has at least three corners."""
+
+__all__ = ["Scored", "area_of", "plot_recording", "room_of", "score_recording", "score_tracksets", "write_tracks_csv"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,33 +120,64 @@ def room_of(rec: Recording) -> tuple[float, float, float, float] | None:
         return None
 
 
+def area_of(rec: Recording) -> list[tuple[float, float]] | None:
+    """The site's ``[area]`` polygon from the recording's metadata (``area``: JSON corners), if it was stored."""
+    raw = rec.metadata.get("area")
+    if not raw:
+        return None
+    try:
+        pts = [(float(x), float(y)) for x, y in json.loads(raw)]
+    except (ValueError, TypeError) as err:
+        raise ConfigError(f"the recording's area metadata is not a list of [x, y] corners: {raw[:80]!r}") from err
+    return pts if len(pts) >= MIN_POLYGON else None
+
+
 def plot_recording(
     rec: Recording | str | Path,
     out: str | Path,
     ground_truth: GroundTruth | str | Path | None = None,
     title: str = "",
     gt_cameras: dict[str, list[tuple[float, float]]] | None = None,
+    *,
+    threshold_m: float = 0.5,
+    area: list[tuple[float, float]] | None = None,
+    scored_area: FloatArray | None = None,
+    epoch_ns: int | None = None,
+    fps: float | None = None,
 ) -> Path:
-    """Write the top-view PNG of a recording (ground truth beside it when given)."""
+    """Write the picture of a recording: top view (ground truth beside it when given) and the timeline.
+
+    ``area`` (the site's ``[area]`` polygon) defaults to the one the recording stores; ``threshold_m`` and
+    ``scored_area`` are the scoring's, so the timeline shows what ``agent evaluate`` counts; ``epoch_ns`` and
+    ``fps`` (ground-truth frame ``k`` at ``(k - 1) / fps`` after the epoch) default to the recording's metadata:
+    without them the ground truth cannot be lined up, and the timeline has one row per track.
+    """
     r = rec if isinstance(rec, Recording) else load_recording(rec)
     gt = read_gt_csv(ground_truth) if isinstance(ground_truth, str | Path) else ground_truth
-    if gt is not None and r.tracksets:
+    epoch = epoch_ns if epoch_ns is not None else r.meta_int("epoch_ns", -1)
+    fps = fps if fps is not None else r.meta_float("fps", -1.0)
+    if gt is not None and r.tracksets and epoch >= 0 and fps > 0:
         # Only the recorded span of the ground truth, so both panels show the same time window.
-        epoch, fps = r.meta_int("epoch_ns", -1), r.meta_float("fps", -1.0)
-        if epoch >= 0 and fps > 0:
-            t0 = (r.tracksets[0].stamp_ns - epoch) / 1e9
-            t1 = (r.tracksets[-1].stamp_ns - epoch) / 1e9
-            keep = {k: v for k, v in gt.frames.items() if t0 - 0.5 <= (k - 1) / fps <= t1 + 0.5}
-            gt = GroundTruth(keep, gt.source)
+        t0 = (r.tracksets[0].stamp_ns - epoch) / 1e9
+        t1 = (r.tracksets[-1].stamp_ns - epoch) / 1e9
+        keep = {k: v for k, v in gt.frames.items() if t0 - 0.5 <= (k - 1) / fps <= t1 + 0.5}
+        gt = GroundTruth(keep, gt.source)
+    score_from = r.meta_int("score_from_ns", -1)
     inp = PlotInput(
         tracksets=r.tracksets,
         sensor_infos=list(r.sensor_infos.values()),
         pairs=r.pairs,
         ground_truth=gt,
         room_m=room_of(r),
+        area=area if area is not None else area_of(r),
         title=title,
         gt_cameras=gt_cameras,
         mutual_paths=r.mutual_paths,
+        epoch_ns=epoch if epoch >= 0 else None,
+        fps=fps if fps > 0 else None,
+        threshold_m=threshold_m,
+        scored_area=scored_area,
+        scored_from_s=(score_from - epoch) / 1e9 if score_from >= 0 and epoch >= 0 else 0.0,
     )
     return save_top_view(inp, out)
 

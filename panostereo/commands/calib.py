@@ -31,9 +31,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", required=True)
     conv = sub.add_parser("convert", help="convert a calibration to the project's pinhole JSON")
     conv.add_argument("input", help="the calibration file")
-    conv.add_argument("--from", dest="fmt", required=True, choices=["tsai", "opencv-yaml", "p-matrix"])
+    conv.add_argument(
+        "--from",
+        dest="fmt",
+        required=True,
+        choices=["tsai", "opencv-yaml", "p-matrix"],
+        help="the input's format: a Tsai XML (PETS 2009), an OpenCV FileStorage YAML/XML, or a 3x4 P matrix",
+    )
     conv.add_argument("--out", required=True, help="output JSON")
-    conv.add_argument("--image-size", type=int, nargs=2, metavar=("W", "H"), default=None)
+    conv.add_argument(
+        "--image-size",
+        type=int,
+        nargs=2,
+        metavar=("W", "H"),
+        default=None,
+        help="image width and height in pixels, when the file does not say (p-matrix: always needed)",
+    )
+    conv.add_argument(
+        "--extrinsic",
+        default=None,
+        metavar="FILE",
+        help="opencv-yaml: the pose (rvec or R, tvec) in a second file, as Wildtrack keeps it "
+        "(intrinsic_zero/intr_CAM.xml with --extrinsic extrinsic/extr_CAM.xml)",
+    )
     conv.add_argument("--units", choices=sorted(UNITS), default=None, help="translation units (tsai: always mm)")
 
 
@@ -47,12 +67,15 @@ def run(args: argparse.Namespace) -> int:
     size = tuple(args.image_size) if args.image_size else None
     if size is not None and min(size) < 1:
         raise ConfigError(f"--image-size: expected two positive integers, got {list(size)}")
+    if args.extrinsic and args.fmt != "opencv-yaml":
+        raise ConfigError(f"--extrinsic goes with --from opencv-yaml (a pose in its own file), not {args.fmt}")
     if args.fmt == "tsai":
         if args.units not in (None, "mm"):
             raise ConfigError(f"--units: Tsai calibrations are in mm, got {args.units!r}")
         cal = from_tsai_xml(text, str(src))
     elif args.fmt == "opencv-yaml":
-        cal = from_opencv_file(src, units_m=UNITS[args.units or "m"], image_size=size)
+        extrinsic = Path(args.extrinsic) if args.extrinsic else None
+        cal = from_opencv_file(src, units_m=UNITS[args.units or "m"], image_size=size, extrinsic=extrinsic)
     else:
         if size is None:
             raise ConfigError("--from p-matrix needs --image-size W H")

@@ -19,13 +19,16 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import shutil
 import sys
 import time
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from common.cli import EXIT_ERROR, non_negative, positive
 from common.codec import encode
 from common.errors import ConfigError, SessionError
 from common.keys import Keys
@@ -38,17 +41,16 @@ from panostereo.launcher import (
     START_ENV,
     STATE_ENV,
     Supervisor,
-    client_endpoint,
     process_ids,
     router_plan,
+    site_endpoints,
     site_plans,
 )
 
-__all__ = ["DEFAULT_LISTEN", "configure", "default_site", "run"]
+__all__ = ["configure", "default_site", "run"]
 
 logger = logging.getLogger(__name__)
 
-DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 DEFAULT_WARMUP_S = 5.0
 WAIT_NOTE_S = 5.0
 """While processes come up, who is still awaited is printed this often (s)."""
@@ -71,15 +73,34 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=None, help="seconds of tracking (default: the site's)")
     parser.add_argument("--out", default=None, metavar="DIR", help="output folder (default runs/<time>/)")
     parser.add_argument("--seed", type=int, default=None, help="world seed (default: the site's)")
-    parser.add_argument("--listen", default=DEFAULT_LISTEN, metavar="ENDPOINT", help="router endpoint")
-    parser.add_argument("--threshold", type=float, default=0.5, help="evaluation match distance (m)")
-    parser.add_argument("--ready-timeout", type=float, default=60.0, help="wait this long for every process")
+    net = parser.add_mutually_exclusive_group()
+    net.add_argument(
+        "--listen",
+        default=None,
+        metavar="ENDPOINT",
+        help="where the demo's router listens; every process of the site connects there (default: the site's "
+        "router, tcp/127.0.0.1:7447)",
+    )
+    net.add_argument(
+        "--connect",
+        default=None,
+        metavar="ENDPOINT",
+        help="join a router that is already running there instead of starting one",
+    )
+    parser.add_argument("--threshold", type=positive, default=0.5, help="evaluation match distance (m)")
+    parser.add_argument(
+        "--ready-timeout",
+        type=positive,
+        default=60.0,
+        help="wait this long for every process to be up (s); a process that exits meanwhile ends the wait at once",
+    )
     parser.add_argument(
         "--warmup",
-        type=float,
+        type=non_negative,
         default=None,
         help="seconds after every process is up that are not scored (background models, track confirmation); "
-        "default 5, and 0 on a dataset site, which plays from its frame 1 once every process is up",
+        "default 5 (at most half the duration), and 0 on a dataset site, which plays from its frame 1 once every "
+        "process is up",
     )
     parser.add_argument("--no-view", action="store_true", help="no live view (progress lines only)")
 
@@ -170,36 +191,71 @@ def _run_times(site: SiteConfig, args: argparse.Namespace) -> tuple[float, float
         duration = dataset.frames / dataset.fps + 1.0
     else:
         duration = site.site.duration_s
-    if not duration > 0:
-        raise ConfigError(f"--duration must be > 0 s, got {duration}")
-    warmup = args.warmup if args.warmup is not None else (0.0 if dataset is not None else DEFAULT_WARMUP_S)
+    if not (duration > 0 and math.isfinite(duration)):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration}")
+    if args.warmup is not None:
+        warmup = float(args.warmup)
+    elif dataset is not None:
+        warmup = 0.0
+    else:  # the default never refuses a short run: half of it is scored at least
+        warmup = min(DEFAULT_WARMUP_S, duration / 2)
     if not 0 <= warmup < duration:
         raise ConfigError(f"--warmup must be in [0, duration={duration:g}) s, got {warmup}")
     return duration, warmup
 
 
 def _wait_ready(
-    client: Any, procs: Supervisor, sensors: set[str], managers: set[str], *, shutdown: Shutdown, timeout_s: float
-) -> bool:
+    client: Any,
+    procs: Supervisor,
+    sensors: set[str],
+    managers: set[str],
+    *,
+    shutdown: Shutdown,
+    timeout_s: float,
+    seen_alive: set[str],
+) -> str:
     """Wait until every sensor and manager of the site is alive, and every manager has heard what each of its
     sensors is (its status lists them as known: frames that came before would be held back or fused without
-    them), saying who it waits for now and then."""
+    them), saying who it waits for now and then.
+
+    Returns:
+        ``ready``; ``failed`` as soon as a process has exited (it crashed or refused its config: waiting longer
+        cannot help); ``timeout``; or ``interrupted``. ``seen_alive`` collects the sensors seen up.
+    """
     t0 = time.monotonic()
     last_wait_note = t0
     while not shutdown.is_set() and time.monotonic() - t0 < timeout_s:
         procs.poll()
+        if procs.exited():
+            return "failed"
         up_s = {s.sensor_id for s in client.sensors(timeout_s=0.5) if s.alive}
+        seen_alive |= up_s
         views = client.managers(timeout_s=0.5)
         up_m = {
             m.manager_id for m in views if m.alive and m.status is not None and _knows_its_sensors(m.status, sensors)
         }
         if sensors <= up_s and managers <= up_m:
-            return True
+            return "ready"
         if time.monotonic() - last_wait_note >= WAIT_NOTE_S:
             last_wait_note = time.monotonic()
             print(f"waiting for {sorted((sensors - up_s) | (managers - up_m))} ...", flush=True)
         shutdown.sleep(0.5)
-    return False
+    return "interrupted" if shutdown.is_set() else "timeout"
+
+
+def _start_failures(procs: Supervisor, log_dir: Path) -> dict[str, dict[str, Any]]:
+    """What each process that exited during start-up said last: its exit code, the error line and its log's end."""
+    out: dict[str, dict[str, Any]] = {}
+    for name, rc in procs.exited().items():
+        tail = procs.log_tail(name)
+        errors = [line for line in tail if "error" in line.lower()]
+        out[name] = {
+            "exit_code": rc,
+            "reason": (errors or tail or ["(no output)"])[-1],
+            "log": str(log_dir / f"{name}.log"),
+            "log_tail": tail,
+        }
+    return out
 
 
 def _knows_its_sensors(status: Any, sensors: set[str]) -> bool:
@@ -253,6 +309,8 @@ def _run_facts(site: SiteConfig, epoch_ns: int, fps: float) -> dict[str, str]:
             "seed": str(site.site.seed)}  # fmt: skip
     if site.dataset is None:
         meta |= {"room_x_m": str(site.world.room_x_m), "room_y_m": str(site.world.room_y_m)}
+    if site.area is not None:
+        meta["area"] = json.dumps(site.area.polygon)
     return meta
 
 
@@ -271,7 +329,7 @@ def _mark_start(client: Any, sink: Any, keys: Keys, start_file: Path | None, *, 
 
 
 def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cycle in order, each step a helper
-    """Run the demo; returns 0 when it completed (whatever the scores).
+    """Run the demo; returns 0 when it completed (whatever the scores), 1 when a process could not start.
 
     One sequence, kept whole so its nested clean-up reads in order: router, session, recorder and agent,
     the site's processes; wait until they are up; watch the run; stop them in reverse; score and report.
@@ -287,7 +345,9 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
     out = Path(args.out or Path("runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ids = process_ids(site)
-    endpoint = client_endpoint(args.listen)
+    listen, connect = site_endpoints(site, listen=args.listen, connect=args.connect, router=args.connect is None)
+    assert connect is not None  # the demo always says where its processes connect
+    endpoint = connect
     epoch_ns = time.time_ns()
     env = {EPOCH_ENV: str(epoch_ns), SEED_ENV: str(site.site.seed), STATE_ENV: str(out / "state")}
     start_file = out / "start_ns"
@@ -295,46 +355,62 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
         # Recorded sources wait for this file and play their frame 1 at the epoch it holds (written below).
         start_file.unlink(missing_ok=True)
         env[START_ENV] = str(start_file)
-    plans = site_plans(site, connect=endpoint, env=env, log_dir=out / "logs")
+    log_dir = out / "logs"
+    plans = site_plans(site, connect=endpoint, env=env, log_dir=log_dir)
     if not plans:
         raise ConfigError(f"{site.path}: no [[process]] to run on localhost")
     keys = Keys(site.site.prefix)
     meta = _run_facts(site, epoch_ns, fps)
 
     shutdown = install_signal_handlers()
-    router_log = out / "logs" / "router.log"
+    router_log = log_dir / "router.log"
     recorder: Any = None
     last_status: dict[str, Any] = {}
     seen_sensors: set[str] = set()
-    router = Supervisor([router_plan([args.listen], log_path=router_log)], restart=False, grace_s=3.0)
+    seen_alive: set[str] = set()
+    failed: dict[str, dict[str, Any]] = {}
+    router = Supervisor([router_plan([listen], log_path=router_log)] if listen else [], restart=False, grace_s=3.0)
     procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
     tty = sys.stdout.isatty() and not args.no_view
     router.start()
     sink: Any = None
     recording = out / "recording.mcap"
     t_stop_ns = epoch_ns
+    sensors = {i for c, i in ids.values() if c == "node"}
     try:
-        _wait_router(router, endpoint, router_log)
+        if listen:
+            _wait_router(router, endpoint, router_log)
         settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
-            sensors_started = sorted(i for c, i in ids.values() if c == "node")
-            recorder = Recorder(session, recorded_keys(keys, sensors_started), McapSink(recording, meta))
+            recorder = Recorder(session, recorded_keys(keys, sorted(sensors)), McapSink(recording, meta))
             sink = recorder.sink
-            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo", sensors=sensors_started)
+            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo", sensors=sorted(sensors))
             try:
                 procs.start()
-                sensors = {i for c, i in ids.values() if c == "node"}
                 managers = {i for c, i in ids.values() if c == "manager"}
-                ready = _wait_ready(client, procs, sensors, managers, shutdown=shutdown, timeout_s=args.ready_timeout)
-                if not ready and not shutdown.is_set():
-                    logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
-                start = start_file if dataset is not None else None
-                epoch_ns = _mark_start(client, recorder.sink, keys, start, epoch_ns=epoch_ns, warmup_s=warmup)
-                title = f"site {site.site.name}  out {out}"
-                _watch_run(client, procs, recorder, sensors, shutdown, duration=duration, tty=tty, title=title)
-                t_stop_ns = time.time_ns()
-                last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
-                seen_sensors = {v.sensor_id for v in client.sensors(timeout_s=0.5)}
+                wait = _wait_ready(
+                    client,
+                    procs,
+                    sensors,
+                    managers,
+                    shutdown=shutdown,
+                    timeout_s=args.ready_timeout,
+                    seen_alive=seen_alive,
+                )
+                if wait == "failed":
+                    failed = _start_failures(procs, log_dir)
+                else:
+                    if wait == "timeout":
+                        logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
+                    start = start_file if dataset is not None else None
+                    epoch_ns = _mark_start(client, recorder.sink, keys, start, epoch_ns=epoch_ns, warmup_s=warmup)
+                    title = f"site {site.site.name}  out {out}"
+                    _watch_run(client, procs, recorder, sensors, shutdown, duration=duration, tty=tty, title=title)
+                    t_stop_ns = time.time_ns()
+                    last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
+                    views = client.sensors(timeout_s=0.5)
+                    seen_sensors = {v.sensor_id for v in views}
+                    seen_alive |= {v.sensor_id for v in views if v.alive}
             finally:
                 recorder.stop(close=False)  # the ground-truth scene is added before the file is finished
                 client.close()
@@ -345,6 +421,9 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
         raise
     finally:
         router.stop()
+    if failed:
+        sink.close()
+        return _report_failure(site, out, failed, sensors=sensors, started=seen_alive)
     try:
         return _finish(
             site,
@@ -356,13 +435,42 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
             fps=fps,
             threshold_m=args.threshold,
             restarts=procs.restarts(),
-            started={i for c, i in ids.values() if c == "node"},
+            cameras=Cameras(site=sensors, started=seen_alive),
             recorder=recorder.status() if recorder is not None else None,
             refused=_refusals(last_status),
             seen_sensors=seen_sensors,
+            interrupted=shutdown.is_set(),
         )
     finally:
         sink.close()
+
+
+@dataclass(frozen=True, slots=True)
+class Cameras:
+    """The site's sensor nodes, and those seen up (their liveliness token) during the run."""
+
+    site: set[str]
+    started: set[str]
+
+
+def _report_failure(
+    site: SiteConfig, out: Path, failed: dict[str, dict[str, Any]], *, sensors: set[str], started: set[str]
+) -> int:
+    """A process exited while the site was coming up: say which and why, write it in the summary, exit 1."""
+    summary = {
+        "failed_to_start": failed,
+        "site": site.site.name,
+        "cameras": {"site": len(sensors), "started": len(started & sensors), "publishing": 0, "fused": 0},
+        "logs": str(out / "logs"),
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    for name, why in failed.items():
+        print(f"ERROR: {name} exited with code {why['exit_code']} while the site was starting: {why['reason']}")
+        print(f"  the end of {why['log']}:")
+        for line in why["log_tail"]:
+            print(f"    {line}")
+    print(f"summary: {out / 'summary.json'}")
+    return EXIT_ERROR
 
 
 def _platform_paths(world: Any, t1_s: float) -> dict[str, list[tuple[float, float]]]:
@@ -400,10 +508,11 @@ def _finish(
     fps: float,
     threshold_m: float,
     restarts: dict[str, int],
-    started: set[str],
+    cameras: Cameras,
     recorder: Any,
-    refused: dict[str, int],
+    refused: dict[str, Refused],
     seen_sensors: set[str],
+    interrupted: bool,
 ) -> int:
     from user_agent.groundtruth import read_gt_csv
     from user_agent.recording import load_recording
@@ -435,11 +544,16 @@ def _finish(
         rec,
         out / "top.png",
         gt,
-        title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}",
+        title=f"{site.site.name}  MOTA {m.mota:.3f}  IDF1 {m.idf1:.3f}  id switches {m.id_switches}",
         gt_cameras=gt_cameras,
+        threshold_m=threshold_m,
+        scored_area=area,
     )
+    started = cameras.site
     seen = set(rec.sensor_infos) | set(rec.node_status) | seen_sensors
     strays = sorted((seen | set(refused)) - started)
+    publishing = {sid for sid, n in rec.frames.items() if n > 0} & started
+    fused = {sid for ts in rec.tracksets for sid in ts.sensors_used} & started
     metrics = m.to_dict()
     lost = {
         "dropped": recorder.dropped if recorder else 0,
@@ -448,7 +562,13 @@ def _finish(
         "unscored_s": round(scored.unseen_s, 2),
     }
     summary: dict[str, Any] = {
-        "cameras": len(started),
+        "cameras": {
+            "site": len(started),
+            "started": len(cameras.started & started),
+            "publishing": len(publishing),
+            "fused": len(fused),
+        },
+        "cameras_silent": sorted(started - publishing),
         "people": m.gt_ids if m.frames else len(gt.person_ids),
         "frames": m.frames,
         "tracks_published": scored.tracks_published,
@@ -464,46 +584,93 @@ def _finish(
         "recorded_samples": rec.samples,
         "recording_lost": lost,
         "sensors_not_started": strays,
-        "refused_by_manager": refused,
+        "refused_by_manager": _split_refusals(refused)[0],
+        "refused_by_clock": _split_refusals(refused)[1],
         "restarts": restarts,
+        "interrupted": interrupted,
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     print(json.dumps(summary, indent=2))
-    for line in _warnings(lost, strays, refused, started):
-        print(f"WARNING: {line}")
+    for level, line in _warnings(lost, strays, refused, started):
+        print(f"{level}: {line}")
+    if interrupted:
+        print(f"NOTE: the run was interrupted after {summary['duration_s']} s: the figures cover what ran")
     print(f"summary: {out / 'summary.json'}")
     return 0
 
 
-def _refusals(statuses: dict[str, Any]) -> dict[str, int]:
-    """Sender id -> messages the managers refused from it (their last status)."""
-    out: dict[str, int] = {}
+Refused = dict[str, int]
+"""One sender's refused messages by reason (``unlisted``, ``wrong_id``, ``late``, ``ahead``), nonzero ones only."""
+IMPOSTOR_REASONS = ("unlisted", "wrong_id")
+"""What only a sender that is not who it says does (or a misconfigured one); late and ahead frames are a loaded
+host's or an unsynchronised clock's doing as well."""
+
+
+def _refusals(statuses: dict[str, Any]) -> dict[str, Refused]:
+    """Sender id -> the messages the managers refused from it, by reason (their last status)."""
+    out: dict[str, Refused] = {}
     for st in statuses.values():
         for r in st.refused:
-            out[r.sender_id] = out.get(r.sender_id, 0) + r.unlisted + r.wrong_id + r.skewed
-    return out
+            row = out.setdefault(r.sender_id, {})
+            for reason, n in (("unlisted", r.unlisted), ("wrong_id", r.wrong_id), ("late", r.skewed),
+                              ("ahead", r.ahead)):  # fmt: skip
+                if n:
+                    row[reason] = row.get(reason, 0) + n
+    return {sid: row for sid, row in out.items() if row}
 
 
-def _warnings(lost: dict[str, Any], strays: list[str], refused: dict[str, int], started: set[str]) -> list[str]:
-    """What the summary's reader must not miss: a recording that lost data, sensors nobody started."""
+def _split_refusals(refused: dict[str, Refused]) -> tuple[dict[str, Refused], dict[str, Refused]]:
+    """(impostor refusals, clock refusals): who sent as someone else, and whose frames were late or ahead."""
+    impostor = {s: {k: n for k, n in r.items() if k in IMPOSTOR_REASONS} for s, r in refused.items()}
+    clock = {s: {k: n for k, n in r.items() if k not in IMPOSTOR_REASONS} for s, r in refused.items()}
+    return {s: r for s, r in impostor.items() if r}, {s: r for s, r in clock.items() if r}
+
+
+def _warnings(
+    lost: dict[str, Any], strays: list[str], refused: dict[str, Refused], started: set[str]
+) -> list[tuple[str, str]]:
+    """(level, text): what the summary's reader must not miss: a recording that lost data, sensors nobody
+    started, messages forged under the site's own ids; and, as notes, frames refused for their stamps."""
     out = []
     if lost["dropped"]:
-        out.append(
+        out.append((
+            "WARNING",
             f"the recording lost {lost['dropped']} samples ({lost['dropped_raw']} raw sensor messages) to stay near "
-            f"live; {lost['unscored_s']} s whose tracks it lost were not scored"
-        )
+            f"live; {lost['unscored_s']} s whose tracks it lost were not scored",
+        ))  # fmt: skip
     elif lost["unscored_s"]:
-        out.append(f"{lost['unscored_s']} s of the run's tracks never reached the recording and were not scored")
+        out.append(
+            ("WARNING", f"{lost['unscored_s']} s of the run's tracks never reached the recording and were not scored")
+        )
     if strays:
         n = STRAYS_NAMED
         shown = ", ".join(strays[:n]) + (f" and {len(strays) - n} more" if len(strays) > n else "")
-        out.append(
+        out.append((
+            "WARNING",
             f"sensors this demo did not start were on its network: {shown} "
-            f"(the manager fuses only {', '.join(sorted(started))})"
-        )
-    mine = {sid: n for sid, n in refused.items() if sid in started}
+            f"(the manager fuses only {', '.join(sorted(started))})",
+        ))  # fmt: skip
+    impostor, clock = _split_refusals(refused)
+    mine = {sid: r for sid, r in impostor.items() if sid in started}
     if mine:
-        out.append(f"the manager refused messages under the site's own ids (forged or misconfigured): {mine}")
+        out.append(
+            ("WARNING", f"the manager refused messages under the site's own ids (forged or misconfigured): {mine}")
+        )
+    for sid, r in sorted(clock.items()):
+        if sid not in started:
+            continue
+        if r.get("late"):
+            out.append((
+                "NOTE",
+                f"the manager refused {r['late']} late frame(s) of {sid}: stamped more than its max_skew_s behind "
+                "its clock (a loaded machine, or the camera's clock is behind)",
+            ))  # fmt: skip
+        if r.get("ahead"):
+            out.append((
+                "WARNING",
+                f"the manager refused {r['ahead']} frame(s) of {sid} stamped ahead of its clock by more than its "
+                "max_lead_s: is that host's clock synchronised (agent sensors shows the offsets)?",
+            ))  # fmt: skip
     return out
 
 

@@ -35,6 +35,7 @@ from typing import Any
 import msgspec
 import numpy as np
 
+from common.cli import non_negative, positive
 from common.errors import ConfigError, SourceError
 from user_agent.evaluate2d import Box, Detection2D, read_boxes, score_detections
 
@@ -50,9 +51,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calibration", default=None, metavar="JSON", help="pinhole calibration (bearings)")
     parser.add_argument("--config", default=None, metavar="TOML", help="sensor-node config ([camera], [pipeline])")
     parser.add_argument(
-        "--fps", type=float, default=None, help="video frame rate (default: the config's, else the file's)"
+        "--fps", type=positive, default=None, help="video frame rate (default: the config's, else the file's)"
     )
-    parser.add_argument("--skip-s", type=float, default=2.0, help="seconds from the first frame not scored (default 2)")
+    parser.add_argument(
+        "--skip-s", type=non_negative, default=2.0, help="seconds from the first frame not scored (default 2)"
+    )
     parser.add_argument("--ignore-above-row", type=float, default=0.0, help="unmatched blobs ending above are no FP")
     parser.add_argument("--sensor", default=None, help="recording: the sensor to score (default: the only one)")
     parser.add_argument("--max-frames", type=int, default=0, help="video: stop after this many frames (0: all)")
@@ -73,11 +76,15 @@ class DetectionRun:
     """PinholeCamera for bearings, if known."""
     processing_ms: float = 0.0
     """Mean pipeline time per frame (videos)."""
+    fps: float = 0.0
+    """The frame rate the video was played at (0: a recording, played at its own stamps)."""
+    fps_from: str = ""
+    """Where that rate came from: ``--fps``, the node config, or the file."""
 
 
 def _node_config(args: argparse.Namespace, video: Path) -> Any:
     """The node config to run the video through: ``--config`` (its source replaced), else a pinhole camera."""
-    from sensor_node.config import load_node_config, validate
+    from sensor_node.config import load_node_config
 
     if args.config:
         cfg = load_node_config(args.config)
@@ -87,9 +94,9 @@ def _node_config(args: argparse.Namespace, video: Path) -> Any:
             data["camera"]["calibration"] = str(Path(args.calibration).resolve())
         from sensor_node.config import NodeConfig
 
-        return validate(msgspec.convert(data, NodeConfig))
+        return _validated(data, NodeConfig, args.config)
     if not args.calibration:
-        raise ConfigError("evaluate-detections: a video needs --calibration (pinhole JSON) or --config (node config)")
+        raise ConfigError("a video needs --calibration (pinhole JSON) or --config (node config)")
     from sensor_node.config import NodeConfig
 
     data = {
@@ -97,7 +104,17 @@ def _node_config(args: argparse.Namespace, video: Path) -> Any:
         "source": {"kind": "opencv", "uri": str(video), "fps": args.fps or 0.0},
         "camera": {"model": "pinhole", "calibration": str(Path(args.calibration).resolve())},
     }
-    return validate(msgspec.convert(data, NodeConfig))
+    return _validated(data, NodeConfig, "--calibration")
+
+
+def _validated(data: dict[str, Any], kind: type, where: str) -> Any:
+    """The node config the command built, validated; a value it refuses is named, never a traceback."""
+    from sensor_node.config import validate
+
+    try:
+        return validate(msgspec.convert(data, kind))
+    except msgspec.ValidationError as err:
+        raise ConfigError(f"{where}: {err}") from err
 
 
 def detect_video(cfg: Any, *, fps: float | None = None, max_frames: int = 0) -> DetectionRun:
@@ -115,13 +132,18 @@ def detect_video(cfg: Any, *, fps: float | None = None, max_frames: int = 0) -> 
     cap = cv2.VideoCapture(str(path))
     if not cap.isOpened():
         raise SourceError(f"cannot open video {str(path)!r}")
-    rate = fps or cfg.source.fps or float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-    if not rate > 0:
+    file_fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+    rate, source = next(
+        ((r, name) for r, name in ((fps, "--fps"), (cfg.source.fps, "the node config"), (file_fps, "the file")) if r),
+        (0.0, ""),
+    )
+    if not (rate > 0 and math.isfinite(rate)):
         cap.release()
         raise SourceError(f"{path}: the file gives no frame rate: pass --fps")
     parts = build_node(cfg, lambda: 0)
     parts.source.close()
     run = DetectionRun({}, {}, None, getattr(getattr(parts.processor, "pipeline", None), "geometry", None))
+    run.fps, run.fps_from = rate, source
     run.camera = getattr(run.camera, "camera", None)
     k = 0
     spent = 0.0
@@ -200,7 +222,9 @@ def run(args: argparse.Namespace) -> int:
     """Score and print; returns 0."""
     source = Path(args.source)
     if not source.is_file():
-        raise ConfigError(f"evaluate-detections: {source}: no such file")
+        raise ConfigError(f"{source}: no such file")
+    if args.max_frames < 0:
+        raise ConfigError(f"--max-frames must be >= 0 (0: all), got {args.max_frames}")
     truth = read_boxes(Path(args.ground_truth))
     if source.suffix.lower() == ".mcap":
         det = detect_recording(source, args.sensor)
@@ -231,12 +255,15 @@ def run(args: argparse.Namespace) -> int:
         "startup_s": round(det.stamps_s[first], 3) if first is not None else None,
         "first_reported_frame": first,
         "processing_ms_per_frame": round(det.processing_ms, 3) if det.processing_ms else None,
+        "fps": det.fps or None,
+        "fps_from": det.fps_from or "the recording's stamps",
         **{f"iou_{s.iou:g}": s.summary() for s in scores},
     }
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    print(f"{source.name}: {result['frames']} frames, scored {len(frames)} from {args.skip_s:g} s; "
+    rate = f"played at {det.fps:g} fps (from {det.fps_from})" if det.fps else "at the recording's own stamps"
+    print(f"{source.name}: {result['frames']} frames {rate}, scored {len(frames)} from {args.skip_s:g} s; "
           f"start-up {result['startup_s']} s")  # fmt: skip
     cols = ("recall", "precision", "moda", "merged_frac", "no_blob_frac", "too_wide_frac", "bearing_err_deg_median")
     print("IoU   " + "  ".join(f"{c:>22}" for c in cols))

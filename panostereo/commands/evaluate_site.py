@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
+from common.cli import positive
 from panostereo.datasets.play import evaluate_site
 
 __all__ = ["configure", "run"]
@@ -20,7 +22,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("site", help="a dataset site file (made by `panostereo import`)")
     parser.add_argument("--config", default=None, metavar="MANAGER.toml", help="manager config (default: the site's)")
     parser.add_argument(
-        "--threshold", type=float, nargs="+", default=[0.5, 1.0], metavar="M", help="match distances (m)"
+        "--threshold", type=positive, nargs="+", default=[0.5, 1.0], metavar="M", help="match distances (m)"
     )
     parser.add_argument(
         "--publish-lag-s",
@@ -32,17 +34,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--tracks-csv", default=None, metavar="FILE", help="also write the tracks (frame,id,x_m,y_m)")
+    parser.add_argument(
+        "--plot",
+        default=None,
+        metavar="PNG",
+        help="also draw the run: top view beside the ground truth, and who was followed by which track over time",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     report, played = evaluate_site(
         args.site, manager_config=args.config, thresholds_m=args.threshold, publish_lag_s=args.publish_lag_s
     )
+    for warning in report.get("warnings", []):
+        print(f"WARNING: {warning}", file=sys.stderr)
     if args.tracks_csv:
         from user_agent.report import write_tracks_csv
 
         rows = write_tracks_csv(args.tracks_csv, played.hypotheses)
         report["tracks_csv"] = {"path": args.tracks_csv, "rows": rows}
+    if args.plot:
+        from panostereo.datasets.play import plot_site
+
+        report["plot"] = str(plot_site(args.site, played, args.plot, threshold_m=args.threshold[0]))
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
@@ -62,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         _table(report["live"]["scores"])
     if report.get("tracks_ended_inside") is not None:
         print(f"tracks that ended inside the area, away from its exits: {report['tracks_ended_inside']}")
+    if "plot" in report:
+        print(f"plot: {report['plot']}")
     return 0
 
 

@@ -17,9 +17,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import asdict
+from pathlib import Path
 
 from common.area import AreaSpec, rectangle
+from common.cli import non_negative, positive, probability
 from common.errors import ConfigError
 from panostereo.datasets.mot import import_mot
 from panostereo.datasets.wildtrack import GridSpec, import_wildtrack
@@ -34,12 +37,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("format", choices=["mot", "wildtrack"], help="dataset layout")
     parser.add_argument("path", help="dataset folder")
     parser.add_argument("--out", required=True, metavar="DIR", help="where to write the site")
-    parser.add_argument("--noise-px", type=float, default=0.0, help="Gaussian noise on box edges (pixels, 1 sigma)")
-    parser.add_argument("--drop-rate", type=float, default=0.0, help="fraction of boxes dropped (missed detections)")
+    parser.add_argument(
+        "--noise-px", type=non_negative, default=0.0, help="Gaussian noise on box edges (pixels, 1 sigma)"
+    )
+    parser.add_argument(
+        "--drop-rate", type=probability, default=0.0, help="fraction of boxes dropped (missed detections)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise and drops")
     parser.add_argument("--name", default="", help="the site's name (default: the dataset folder's)")
     mot = parser.add_argument_group("mot")
-    mot.add_argument("--fps", type=float, default=None, help="mot: the dataset's frame rate (frame k at (k-1)/fps)")
+    mot.add_argument("--fps", type=positive, default=None, help="mot: the dataset's frame rate (frame k at (k-1)/fps)")
     mot.add_argument(
         "--area",
         default=None,
@@ -64,8 +71,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="wildtrack: positionID grid: origin (m), step (m), cells per row (Wildtrack: -3 -9 0.025 480)",
     )
     wt.add_argument("--grid-rows", type=int, default=1440, help="wildtrack: positionID grid cells per column")
-    wt.add_argument("--extrinsic-unit-m", type=float, default=0.01, help="wildtrack: metres per tvec unit (cm: 0.01)")
-    wt.add_argument("--image-size", type=int, nargs=2, default=[1920, 1080], metavar=("W", "H"))
+    wt.add_argument(
+        "--extrinsic-unit-m", type=positive, default=0.01, help="wildtrack: metres per tvec unit (cm: 0.01)"
+    )
+    wt.add_argument(
+        "--image-size",
+        type=int,
+        nargs=2,
+        default=[1920, 1080],
+        metavar=("W", "H"),
+        help="wildtrack: the cameras' image size in pixels (default 1920 1080)",
+    )
 
 
 def parse_area(text: str) -> AreaSpec:
@@ -122,6 +138,22 @@ def run(args: argparse.Namespace) -> int:
             site_name=args.name,
         )
     print(json.dumps({k: str(v) if k == "site" else v for k, v in asdict(res).items()}, indent=2))
+    _check_speed(res.site)
     print(f"run it: panostereo demo --site {res.site}")
     print(f"play it in dataset time: panostereo evaluate-site {res.site}")
     return 0
+
+
+def _check_speed(site_path: str | Path) -> None:
+    """Warn when the imported ground truth implies implausible walking speeds at the site's frame rate."""
+    from common.site import load_site
+    from user_agent.groundtruth import read_gt_csv, speed_warning
+
+    site = load_site(site_path)
+    if site.dataset is None or not site.dataset.ground_truth:
+        return
+    gt_path = site.resolve(site.dataset.ground_truth)
+    if gt_path.is_file():
+        warning = speed_warning(read_gt_csv(gt_path), site.dataset.fps)
+        if warning:
+            print(f"WARNING: {warning}", file=sys.stderr)

@@ -43,10 +43,10 @@ from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
 from user_agent.evaluate import HypPoint
-from user_agent.groundtruth import GroundTruth, read_gt_csv
+from user_agent.groundtruth import GroundTruth, read_gt_csv, speed_warning
 from user_agent.report import Scored, score_tracksets
 
-__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play"]
+__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site"]
 
 DATASET_EPOCH_NS = 1_700_000_000_000_000_000
 """World time 0 of a dataset played in dataset time (any fixed instant: the result does not depend on it)."""
@@ -70,6 +70,8 @@ class DatasetRun:
     ticks: int = 0
     tick_ms: list[float] = field(default_factory=list)
     """Process time of each Fusion step (ms)."""
+    infos: list[SensorInfo] = field(default_factory=list)
+    """What each camera is (its SensorInfo), for the picture."""
     hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
     """The tracks at every scored ground-truth frame (set by :func:`evaluate_site`)."""
 
@@ -196,6 +198,7 @@ def evaluate_site(
     cameras = load_cameras(site)
     loaded = time.perf_counter()
     run = play(cameras, config)
+    run.infos = [c.info for c in cameras]
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
     report = _report(site, run, gt, thresholds_m)
@@ -259,6 +262,9 @@ def _report(site: SiteConfig, run: DatasetRun, gt: GroundTruth, thresholds_m: Se
         "tracks_published": len({t.track_id for ts in run.tracksets for t in ts.tracks}),
         "tracks_ended_inside": ended_inside(run.tracksets, Area.of(site.area) if site.area is not None else None),
     }
+    warning = speed_warning(gt, fps)
+    if warning:
+        report["warnings"] = [warning]
     if primary is not None:
         # The same tracks scored everywhere too: those outside the annotated area count as false positives.
         report["scores_everywhere"] = [score(t, None).metrics.to_dict() for t in thresholds_m]
@@ -267,3 +273,27 @@ def _report(site: SiteConfig, run: DatasetRun, gt: GroundTruth, thresholds_m: Se
         if hull is not None:
             report["scores_annotated"] = [score(t, hull).metrics.to_dict() for t in thresholds_m]
     return report
+
+
+def plot_site(site_path: str | Path, run: DatasetRun, out: str | Path, *, threshold_m: float = 0.5) -> Path:
+    """Draw a played dataset site: its tracks beside the ground truth, and the timeline of who was followed by
+    which track (scored where the ground truth annotates people, as :func:`evaluate_site` does)."""
+    from user_agent.plot import PlotInput, save_top_view
+
+    site = load_site(site_path)
+    if site.dataset is None:
+        raise ConfigError(f"{site.path}: not a dataset site (no [dataset] table)")
+    gt = read_gt_csv(site.resolve(site.dataset.ground_truth))
+    inp = PlotInput(
+        tracksets=run.tracksets,
+        sensor_infos=run.infos,
+        pairs=[],
+        ground_truth=gt,
+        area=[(float(x), float(y)) for x, y in site.area.polygon] if site.area is not None else None,
+        title=f"{site.site.name} (dataset time)",
+        epoch_ns=DATASET_EPOCH_NS,
+        fps=site.dataset.fps,
+        threshold_m=threshold_m,
+        scored_area=gt.area() if site.dataset.scored_area == "ground_truth" and site.area is None else None,
+    )
+    return save_top_view(inp, out)

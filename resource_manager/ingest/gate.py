@@ -8,8 +8,8 @@ Three checks, in the order a message meets them:
    (``sensor/{id}/features`` carries ``Features.sensor_id == id``); a message
    that speaks for another sender is refused, so a certificate that may only
    publish its own keys cannot file data under another sensor's id;
-3. *clock*: Features stamped further than ``max_skew_ns`` from the manager's
-   own NTP-corrected clock, or more than ``max_lead_ns`` ahead of it (nothing is
+3. *clock*: Features stamped further than ``max_skew_ns`` behind the manager's
+   own NTP-corrected clock (``skewed``), or more than ``max_lead_ns`` ahead of it (``ahead``) (nothing is
    captured in the future: only the hosts' NTP error), are refused and never
    buffered, so a frame from 2262 cannot become a sensor's "newest frame", one
    from 1970 cannot restart its buffer, and forged frames stamped just ahead
@@ -29,12 +29,16 @@ from typing import Final, Literal
 
 from common.schema import Features, PtzState, Refusal, SensorInfo
 
-__all__ = ["ANY_SENSOR", "RefusalCounter", "RefusalReason", "SenderGate", "sender_in_key"]
+__all__ = ["ANY_SENSOR", "REASONS", "RefusalCounter", "RefusalReason", "SenderGate", "sender_in_key"]
 
 ANY_SENSOR: Final = "*"
 """The sensor list entry that accepts any sensor (``[manager] sensors = ["*"]``)."""
 
-RefusalReason = Literal["unlisted", "wrong_id", "skewed"]
+RefusalReason = Literal["unlisted", "wrong_id", "skewed", "ahead"]
+REASONS: Final[tuple[RefusalReason, ...]] = ("unlisted", "wrong_id", "skewed", "ahead")
+"""In the order of a counter's row. ``unlisted`` and ``wrong_id`` are what an impostor does; ``skewed`` (stamped
+too far behind: a late frame, or a frame from 1970) and ``ahead`` (stamped in the future) are what a loaded host
+or a clock off its NTP server does, as well as a forger."""
 
 _ID_RE: Final = re.compile(r"^[a-z0-9][a-z0-9-]{0,47}$")
 
@@ -59,7 +63,7 @@ class RefusalCounter:
     reserved: frozenset[str] = frozenset()
     """Ids always counted by name (the listed sensors): a flood of fresh ids cannot crowd them out."""
     counts: dict[str, list[int]] = field(default_factory=dict)
-    """Sender id -> [unlisted, wrong_id, skewed]."""
+    """Sender id -> counts in the order of :data:`REASONS`."""
     others: int = 0
     """Refusals of senders beyond ``max_senders``, or whose key chunk is not a valid id."""
     total: int = 0
@@ -71,13 +75,13 @@ class RefusalCounter:
             if sender_id not in self.reserved and (len(self.counts) >= self.max_senders or not _ID_RE.match(sender_id)):
                 self.others += n
                 return
-            row = self.counts[sender_id] = [0, 0, 0]
-        row[("unlisted", "wrong_id", "skewed").index(reason)] += n
+            row = self.counts[sender_id] = [0] * len(REASONS)
+        row[REASONS.index(reason)] += n
 
     def top(self, n: int) -> list[Refusal]:
         """The ``n`` senders with the most refusals, most first."""
         rows = sorted(self.counts.items(), key=lambda kv: (-sum(kv[1]), kv[0]))[:n]
-        return [Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s) for sid, (u, w, s) in rows]
+        return [Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s, ahead=a) for sid, (u, w, s, a) in rows]
 
     def senders(self) -> set[str]:
         return set(self.counts)
@@ -125,8 +129,11 @@ class SenderGate:
         if msg.sensor_id != key_id:
             self.refusals.add(key_id, "wrong_id")
             return False
-        ahead = msg.stamp_ns - now_ns
-        if ahead > self.max_lead_ns or -ahead > self.max_skew_ns:
+        lead_ns = msg.stamp_ns - now_ns
+        if lead_ns > self.max_lead_ns:
+            self.refusals.add(key_id, "ahead")
+            return False
+        if -lead_ns > self.max_skew_ns:
             self.refusals.add(key_id, "skewed")
             return False
         return True

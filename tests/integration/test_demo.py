@@ -64,8 +64,10 @@ def test_demo_tracks_people_accurately(demo_run: tuple[Path, dict]) -> None:
     for key in ("cameras", "people", "frames", "tracks_published", "mota", "motp_m", "idf1", "id_switches",
                 "mean_error_m", "p90_error_m", "recording", "plot"):  # fmt: skip
         assert key in s
-    assert s["cameras"] == 4 and s["people"] == 4
-    assert s["sensors_not_started"] == [] and s["refused_by_manager"] == {}, s  # a clean run: nobody else there
+    assert s["cameras"]["site"] == s["cameras"]["started"] == s["cameras"]["publishing"] == 4 and s["people"] == 4
+    assert s["cameras"]["fused"] >= 3 and s["cameras_silent"] == [] and s["interrupted"] is False
+    # A clean run: nobody else there, nobody forged (a late frame on a loaded machine is no forgery).
+    assert s["sensors_not_started"] == [] and s["refused_by_manager"] == {}, s
     assert set(s["recording_lost"]) == {"dropped", "dropped_raw", "max_lag_s", "unscored_s"}
     assert s["frames"] >= 10 * 15  # at least 10 s of the run scored at the site's 15 fps
     assert s["mota"] >= 0.9, s  # issue 7's goal, on every run (live runs differ in start-up and frame timing)

@@ -23,8 +23,6 @@ NOT_TESTED_BY_DESIGN = {
     "resource_manager/cli.py",
     "sensor_node/cli.py",
     "user_agent/cli.py",
-    "panostereo/cli.py",
-    "panostereo/commands/demo.py",
     "panostereo/commands/router.py",
     "panostereo/commands/up.py",
     # The shells that own a zenoh session (habit 2): tested on loopback by tests/integration.

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 
 from common.errors import ConfigError, SessionError
@@ -305,3 +306,25 @@ def test_client_gives_up_when_no_router_comes(spawn: Callable[..., ManagedProces
     assert proc.wait(15.0) == 1
     assert f"tcp/127.0.0.1:{port}" in proc.stderr_text()
     assert "Traceback" not in proc.stderr_text()
+
+
+@pytest.mark.parametrize(
+    ("settings", "says"),
+    [
+        (SessionSettings(connect=["tcp/127.0.0.1:PORT"]), ["panostereo router --listen tcp/127.0.0.1:PORT", "tls/"]),
+        (
+            SessionSettings(connect=["tls/127.0.0.1:PORT"]),
+            ["panostereo router --listen tls/127.0.0.1:PORT", "certificates"],
+        ),
+    ],
+)
+def test_a_client_with_no_router_is_told_what_to_try(settings: SessionSettings, says: list[str]) -> None:
+    port = str(free_port())
+    s = msgspec.structs.replace(settings, connect=[e.replace("PORT", port) for e in settings.connect],
+                                connect_timeout_ms=300)  # fmt: skip
+    with pytest.raises(SessionError) as err, open_session(s):
+        pass
+    text = str(err.value)
+    assert "cannot open a zenoh client session" in text
+    for part in says:
+        assert part.replace("PORT", port) in text, text

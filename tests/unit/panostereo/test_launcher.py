@@ -100,3 +100,33 @@ def test_site_plans_pick_host_and_build_argv(tmp_path: Path) -> None:
     assert local[1].argv[:6] == ["py", "-m", "panostereo", "agent", "record", "x.mcap"]
     assert [p.name for p in site_plans(site, host="cam1")] == ["n1"]
     assert "--connect" not in site_plans(site, host="cam1")[0].argv
+
+
+def test_one_rule_says_where_a_site_s_router_listens_and_its_processes_connect(tmp_path: Path) -> None:
+    from common.errors import ConfigError
+    from panostereo.launcher import site_endpoints
+
+    (tmp_path / "site.toml").write_text('[site]\nname = "s"\nrouter = "tcp/0.0.0.0:7447"\n')
+    site = load_site(tmp_path / "site.toml")
+    assert site_endpoints(site) == ("tcp/0.0.0.0:7447", "tcp/127.0.0.1:7447")
+    assert site_endpoints(site, listen="tcp/127.0.0.1:7500") == ("tcp/127.0.0.1:7500", "tcp/127.0.0.1:7500")
+    assert site_endpoints(site, connect="tcp/10.0.0.1:7447", router=False) == (None, "tcp/10.0.0.1:7447")
+    assert site_endpoints(site, router=False) == (None, None)  # each process's own config
+    for bad in ({"connect": "tcp/h:1", "listen": "tcp/h:2"}, {"listen": "tcp/h:2", "router": False}):
+        with pytest.raises(ConfigError, match="--"):
+            site_endpoints(site, **bad)  # type: ignore[arg-type]
+
+
+def test_a_process_that_exits_early_is_reported_with_the_end_of_its_own_log(tmp_path: Path) -> None:
+    events: list[str] = []
+    code = "import sys; print('starting'); print('error: unknown key x', file=sys.stderr); sys.exit(1)"
+    plan = ProcessPlan("bad", [sys.executable, "-c", code], log_path=tmp_path / "bad.log")
+    sup = Supervisor([plan], backoff_min_s=0.05, max_restarts=1, on_event=events.append)
+    sup.start()
+    try:
+        wait_for(lambda: (sup.poll(), any("gave up" in e for e in events))[1], 20, "two exits")
+    finally:
+        sup.stop()
+    assert sup.exited() == {"bad": 1}
+    assert sup.log_tail("bad") == ["starting", "error: unknown key x"]  # this run's lines only, not the first run's
+    assert all("its log ends:" in e and "error: unknown key x" in e for e in events if "exited" in e)

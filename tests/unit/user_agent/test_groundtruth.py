@@ -45,3 +45,17 @@ def test_bad_files_are_refused_naming_the_line(tmp_path: Path, text: str, messag
 def test_a_missing_file_is_a_config_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="no such ground-truth file"):
         read_gt_csv(tmp_path / "none.csv")
+
+
+@pytest.mark.parametrize(("fps", "warns"), [(10.0, False), (100.0, True), (0.5, True), (7e9, True)])
+def test_a_frame_rate_that_makes_people_walk_implausibly_is_named(fps: float, warns: bool) -> None:
+    from user_agent.groundtruth import GroundTruth, GtPoint, median_speed_mps, speed_warning
+
+    # Two people 0.12 m apart from frame to frame (1.2 m/s at 10 fps), one standing.
+    gt = GroundTruth({k: [GtPoint(k, "a", 0.12 * k, 0.0), GtPoint(k, "b", 0.0, 0.12 * k), GtPoint(k, "c", 5.0, 5.0)]
+                      for k in range(1, 30)}, "gt.csv")  # fmt: skip
+    assert median_speed_mps(gt, 10.0) == pytest.approx(1.2)
+    warning = speed_warning(gt, fps)
+    assert (warning is not None) == warns
+    if warning:
+        assert f"at {fps:g} fps" in warning and "is the frame rate right?" in warning

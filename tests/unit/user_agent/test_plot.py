@@ -1,73 +1,107 @@
-"""The top view: each track drawn in its id's colour where it walked (x right, y up), ground truth beside, a PNG."""
+"""The picture: tracks coloured like the person each followed, ground truth beside, a timeline below in which an
+id switch shows; colours from a colour-blind-safe palette; the view sized to where people are, not the cameras."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import cv2
-import msgspec
+import matplotlib.colors as mcolors
 import numpy as np
 import pytest
 
 from common.errors import ConfigError
 from common.schema import TrackSet
 from tests.unit.user_agent.recorded_run import EPOCH, sensor_info, track
-from user_agent.colors import id_color_bgr
 from user_agent.groundtruth import GroundTruth, GtPoint
-from user_agent.plot import PlotInput, render_top_view, save_top_view
+from user_agent.plot import PALETTE, PlotInput, _extent, colours_of, render_top_view, save_top_view
+from user_agent.timeline import timeline_with_truth
 
+FPS = 10.0
 ROOM = (0.0, 0.0, 8.0, 6.0)
 
 
-def _input(with_gt: bool = False, state: str = "confirmed") -> PlotInput:
-    sets = []
-    for i in range(30):
-        x = 1.0 + 6.0 * i / 29
-        low, high = track("mgr1-1", x, 1.0, EPOCH + i), track("mgr1-2", x, 5.0, EPOCH + i)
-        sets.append(
-            TrackSet(
-                manager_id="mgr1", seq=i, stamp_ns=EPOCH + i, tracks=[low, msgspec.structs.replace(high, state=state)]
-            )
-        )
-    gt = GroundTruth({k: [GtPoint(k, "7", 4.0, 1.0 + 4.0 * k / 29)] for k in range(30)}) if with_gt else None
+def _input(*, with_gt: bool = True, switch: bool = False, far_camera: bool = False, room: bool = True) -> PlotInput:
+    """Person "1" walks y = 1, person "2" y = 5, x 1 -> 7 over 30 frames; with ``switch`` person 1's track changes
+    id halfway (mgr1-1 -> mgr1-3)."""
+    sets, truth = [], {}
+    for k in range(1, 31):
+        x, stamp = 1.0 + 6.0 * (k - 1) / 29, EPOCH + round((k - 1) / FPS * 1e9)
+        first = "mgr1-3" if switch and k > 15 else "mgr1-1"
+        sets.append(TrackSet(manager_id="mgr1", seq=k, stamp_ns=stamp,
+                             tracks=[track(first, x, 1.0, stamp), track("mgr1-2", x, 5.0, stamp)]))  # fmt: skip
+        truth[k] = [GtPoint(k, "1", x, 1.0), GtPoint(k, "2", x, 5.0)]
     infos = [sensor_info("pano1", 0.5, 0.5), sensor_info("pano2", 7.5, 0.5)]
-    return PlotInput(tracksets=sets, sensor_infos=infos, pairs=[], ground_truth=gt, room_m=ROOM)
+    if far_camera:
+        infos.append(sensor_info("far", 60.0, -40.0))
+    return PlotInput(tracksets=sets, sensor_infos=infos, pairs=[], ground_truth=GroundTruth(truth) if with_gt else None,
+                     room_m=ROOM if room else None, epoch_ns=EPOCH, fps=FPS)  # fmt: skip
 
 
-def _where(img: np.ndarray, bgr: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
-    rows, cols = np.nonzero((np.abs(img.astype(int) - bgr) <= 2).all(axis=2))
-    assert rows.size > 50, f"colour {bgr} not drawn"
-    return rows, cols
+def _rgb(colour: str) -> tuple[int, int, int]:
+    r, g, b = mcolors.to_rgb(colour)
+    return (round(r * 255), round(g * 255), round(b * 255))
 
 
-def test_each_track_is_drawn_in_its_colour_where_it_walked() -> None:
+def _pixels(img: np.ndarray, colour: str, rows: slice = slice(None), tol: int = 3) -> int:
+    return int((np.abs(img[rows].astype(int) - _rgb(colour)) <= tol).all(axis=2).sum())
+
+
+def test_palette_is_matplotlib_s_colour_blind_safe_one_and_people_get_distinct_colours() -> None:
+    import matplotlib.pyplot as plt
+
+    assert list(PALETTE) == plt.style.library["petroff10"]["axes.prop_cycle"].by_key()["color"]
+    inp = _input(switch=True)
+    assert inp.ground_truth is not None
+    tl = timeline_with_truth(inp.tracksets, inp.ground_truth, epoch_ns=EPOCH, fps=FPS)
+    rows, tracks = colours_of(tl)
+    assert rows == {"1": PALETTE[0], "2": PALETTE[1]}
+    # Each track is coloured like the person it followed: both of person 1's ids in person 1's colour.
+    assert tracks == {"mgr1-1": PALETTE[0], "mgr1-3": PALETTE[0], "mgr1-2": PALETTE[1]}
+
+
+def test_an_id_switch_is_a_black_bar_in_the_person_s_row_of_the_timeline() -> None:
+    clean, switched = render_top_view(_input()), render_top_view(_input(switch=True))
+    assert clean.shape == switched.shape
+    lower = slice(clean.shape[0] // 2, None)  # the timeline is below the top views
+    black = (0, 0, 0)
+    assert _pixels(clean, "#000000", lower) < _pixels(switched, "#000000", lower)
+    assert (np.abs(switched[lower].astype(int) - black) <= 3).all(axis=2).any(axis=0).sum() >= 2
+    # Both people's rows are there, each in its person's colour.
+    for colour in PALETTE[:2]:
+        assert _pixels(clean, colour, lower) > 2000
+
+
+def test_tracks_and_ground_truth_panels_draw_each_person_in_one_colour() -> None:
     img = render_top_view(_input())
-    low_rows, low_cols = _where(img, id_color_bgr("mgr1-1"))
-    high_rows, high_cols = _where(img, id_color_bgr("mgr1-2"))
-    width = img.shape[1]
-    # Both walked x = 1 -> 7 of an 8 m room: most of the width, left to right.
-    for cols in (low_cols, high_cols):
-        assert np.ptp(cols) > 0.6 * width
-    assert np.median(low_rows) > np.median(high_rows) + 0.4 * img.shape[0]  # y = 1 below y = 5 (y up)
+    upper = slice(0, img.shape[0] // 2)
+    half = img.shape[1] // 2
+    for colour in PALETTE[:2]:
+        left = _pixels(img[:, :half], colour, upper, tol=40)  # thin anti-aliased lines
+        right = _pixels(img[:, half:], colour, upper, tol=40)
+        assert left > 100 and right > 100, (colour, left, right)
 
 
-def test_only_the_chosen_states_are_drawn() -> None:
-    img = render_top_view(_input(state="tentative"))
-    _where(img, id_color_bgr("mgr1-1"))
-    assert (np.abs(img.astype(int) - id_color_bgr("mgr1-2")) <= 2).all(axis=2).sum() < 10  # a tentative track
+def test_the_view_is_the_people_s_floor_not_the_cameras() -> None:
+    ext = _extent(_input(far_camera=True, room=False))
+    assert ext[0] > -1.0 and ext[2] < 9.0 and ext[1] > -1.0 and ext[3] < 7.0  # the camera at (60, -40) is not in it
+    area = [(0.0, 0.0), (10.0, 0.0), (10.0, 8.0), (0.0, 8.0)]
+    inp = _input(room=False)
+    declared = PlotInput(tracksets=inp.tracksets, sensor_infos=inp.sensor_infos, pairs=[], area=area)
+    assert _extent(declared) == (-0.5, -0.5, 10.5, 8.5)
 
 
-def test_ground_truth_goes_in_a_second_panel_of_the_same_size() -> None:
-    alone, both = render_top_view(_input()), render_top_view(_input(with_gt=True))
-    assert both.shape[0] == alone.shape[0] and both.shape[1] == 2 * alone.shape[1] + 12
-    rows, cols = _where(both, id_color_bgr("gt-7"))
-    assert cols.min() > alone.shape[1]  # in the right-hand panel
-    assert np.ptp(rows) > np.ptp(cols) * 3  # walked along y: a vertical line
+def test_without_ground_truth_one_row_per_track() -> None:
+    img = render_top_view(_input(with_gt=False, switch=True))
+    lower = slice(img.shape[0] // 2, None)
+    for colour in PALETTE[:3]:  # three tracks, three rows, three colours
+        assert _pixels(img, colour, lower) > 500
 
 
 def test_save_writes_a_png_and_refuses_what_cannot_be_written(tmp_path: Path) -> None:
     out = save_top_view(_input(), tmp_path / "sub" / "top.png")
-    assert out.is_file() and cv2.imread(str(out)).shape == render_top_view(_input()).shape
+    img = cv2.imread(str(out))
+    assert img is not None and img.shape[:2] == render_top_view(_input()).shape[:2]
     with pytest.raises(ConfigError, match=r"top\.unknown"):
         save_top_view(_input(), tmp_path / "top.unknown")
     empty = PlotInput(tracksets=[], sensor_infos=[], pairs=[], room_m=(1.0, 1.0, 1.0, 4.0))

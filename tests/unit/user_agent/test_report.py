@@ -95,3 +95,20 @@ def test_lost_tracksets_are_not_scored_but_a_silent_manager_is(recorded: tuple[P
     # Frames 1 and 2 come before the first TrackSet (both people missed there); the lost span costs nothing.
     assert lost.metrics.misses == 4 and lost.metrics.false_positives == 0
     assert silent.metrics.misses > 4 and silent.frames_scored > lost.frames_scored
+
+
+def test_a_recording_without_its_epoch_is_lined_up_with_the_ground_truth_when_told(
+    recorded: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import user_agent.report as report
+
+    mcap, gt_path = recorded
+    rec = load_recording(mcap)
+    rec.metadata.pop("epoch_ns")
+    rec.metadata.pop("fps")
+    seen: list[Any] = []
+    monkeypatch.setattr(report, "save_top_view", lambda inp, out: seen.append(inp) or Path(out))
+    plot_recording(rec, tmp_path / "a.png", gt_path)
+    plot_recording(rec, tmp_path / "b.png", gt_path, epoch_ns=EPOCH, fps=FPS)
+    assert (seen[0].epoch_ns, seen[0].fps) == (None, None)  # the timeline then has a row per track
+    assert (seen[1].epoch_ns, seen[1].fps) == (EPOCH, FPS)

@@ -74,7 +74,7 @@ def test_watch_screen_names_refused_senders_and_sensors_no_manager_fuses() -> No
     assert next(ln for ln in lines if ln.startswith("stray")).split()[1:4] == ["up", "(not", "fused)"]
     assert "(not fused)" not in next(ln for ln in lines if ln.startswith("pano1"))
     assert "REFUSED (1203 messages; a flood paused counting: at least)" in lines
-    assert ["mgr1", "evil", "1200", "0", "0"] in [ln.split() for ln in lines]
+    assert ["mgr1", "evil", "1200", "0", "0", "0"] in [ln.split() for ln in lines]
     assert lines[-1] == "recording: nothing lost"
     quiet = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0)
     assert "REFUSED" not in watch_screen([], sensors, [ManagerView("mgr1", True, quiet)])

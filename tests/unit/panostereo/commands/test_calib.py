@@ -75,3 +75,35 @@ def test_an_unreadable_input_and_tsai_in_metres_are_refused(tmp_path: Path, caps
     xml.write_text("<Camera/>")
     assert main(["calib", "convert", str(xml), "--from", "tsai", "--units", "m", "--out", out]) == 1
     assert "Tsai calibrations are in mm" in capsys.readouterr().err
+
+
+def test_a_two_file_calibration_as_wildtrack_keeps_it_converts_like_its_importer(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import cv2
+
+    from panostereo.datasets.wildtrack import GridSpec, calibration
+
+    rvec, _ = cv2.Rodrigues(R)
+    tvec_cm = -R @ CENTRE_M / 0.01
+    root = tmp_path / "wt"
+    (root / "calibrations" / "intrinsic_zero").mkdir(parents=True)
+    (root / "calibrations" / "extrinsic").mkdir(parents=True)
+    intr = root / "calibrations" / "intrinsic_zero" / "intr_Cam1.xml"
+    extr = root / "calibrations" / "extrinsic" / "extr_Cam1.xml"
+    k_text = " ".join(repr(float(v)) for v in K.ravel())
+    intr.write_text('<?xml version="1.0"?>\n<opencv_storage>\n<camera_matrix type_id="opencv-matrix">\n<rows>3</rows>'
+                    f"<cols>3</cols><dt>d</dt><data>{k_text}</data></camera_matrix>\n</opencv_storage>\n")  # fmt: skip
+    extr.write_text(f'<?xml version="1.0"?>\n<opencv_storage>\n<rvec>{" ".join(map(repr, rvec.ravel().tolist()))}'
+                    f"</rvec>\n<tvec>{' '.join(map(repr, tvec_cm.tolist()))}</tvec>\n</opencv_storage>\n")  # fmt: skip
+    out = tmp_path / "cam.json"
+    args = ["calib", "convert", str(intr), "--from", "opencv-yaml", "--extrinsic", str(extr), "--units", "cm"]
+    assert main([*args, "--image-size", "1920", "1080", "--out", str(out)]) == 0
+    got = json.loads(out.read_text())
+    want = calibration(root, "Cam1", GridSpec(), (1920, 1080))
+    for key in ("K", "R", "t", "image_size"):
+        assert np.asarray(got[key]) == pytest.approx(np.asarray(want[key]), abs=1e-9)
+    assert PinholeCamera.from_calibration(got, "cam.json").center_world == pytest.approx(CENTRE_M, abs=1e-6)
+    # Alone, the intrinsic file has no pose: the message says which flag brings it.
+    assert main(["calib", "convert", str(intr), "--from", "opencv-yaml", "--out", str(out)]) == 1
+    assert "--extrinsic FILE" in capsys.readouterr().err

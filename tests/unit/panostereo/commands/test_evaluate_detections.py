@@ -96,4 +96,46 @@ def test_a_missing_source_or_a_video_without_calibration_is_refused(
     video = tmp_path / "clip.avi"
     video.write_bytes(b"\0" * 16)
     assert main(["evaluate-detections", str(video), "--ground-truth", str(truth)]) == 1
-    assert "needs --calibration" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "needs --calibration" in err and err.count("evaluate-detections") == 1  # the prefix once, not twice
+
+
+@pytest.mark.parametrize("fps", ["0", "-1", "inf", "nan", "seven"])
+def test_a_rate_that_is_not_a_positive_number_is_refused_where_it_enters(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fps: str
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(["evaluate-detections", str(_recording(tmp_path)), "--ground-truth", str(_truth(tmp_path)), "--fps", fps])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --fps:" in err and "Traceback" not in err
+
+
+def _video(tmp_path: Path, fps: float) -> tuple[Path, Path]:
+    import cv2
+    import numpy as np
+
+    path = tmp_path / "clip.avi"
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, (320, 240))
+    for k in range(12):
+        img = np.full((240, 320, 3), 120, np.uint8)
+        cv2.rectangle(img, (40 + 10 * k, 60), (70 + 10 * k, 180), (20, 20, 20), -1)
+        out.write(img)
+    out.release()
+    calib = tmp_path / "cam.json"
+    calib.write_text(json.dumps({"model": "pinhole", "image_size": [320, 240],
+                                 "K": [[300, 0, 160], [0, 300, 120], [0, 0, 1]], "dist": [],
+                                 "R": [[1, 0, 0], [0, 0, -1], [0, 1, 0]], "t": [0, 1.5, 0]}))  # fmt: skip
+    return path, calib
+
+
+@pytest.mark.parametrize(
+    ("given", "want"), [([], "played at 10 fps (from the file)"), (["--fps", "4"], "played at 4 fps (from --fps)")]
+)
+def test_a_video_s_rate_is_printed_with_where_it_came_from(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], given: list[str], want: str
+) -> None:
+    video, calib = _video(tmp_path, 10.0)
+    args = ["evaluate-detections", str(video), "--ground-truth", str(_truth(tmp_path)), "--calibration", str(calib)]
+    assert main([*args, "--skip-s", "0", *given]) == 0
+    assert want in capsys.readouterr().out

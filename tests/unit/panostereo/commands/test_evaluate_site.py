@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from panostereo.datasets.mot import import_mot
 from tests.support import REPO
 
@@ -28,3 +30,16 @@ def test_the_cli_prints_json_and_writes_the_tracks(made: Path, tmp_path: Path) -
         check=False,
     )
     assert bad.returncode != 0 and "nope.toml" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_a_wrong_frame_rate_is_warned_about_and_the_run_is_drawn(
+    made: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from panostereo.cli import main
+
+    site = import_mot(made, tmp_path / "site", fps=50.0).site  # the set is 5 fps: people would run at 5 m/s
+    png = tmp_path / "top.png"
+    assert main(["evaluate-site", str(site), "--plot", str(png)]) == 0
+    out, err = capsys.readouterr()
+    assert "WARNING: at 50 fps the ground truth" in err and f"plot: {png}" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

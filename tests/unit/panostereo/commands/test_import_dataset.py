@@ -68,3 +68,21 @@ def test_import_mot_without_a_frame_rate_is_refused(
     assert main(["import", "mot", str(made), "--out", str(tmp_path / "site")]) == 1
     assert "--fps is required" in capsys.readouterr().err
     assert not (tmp_path / "site").exists()
+
+
+@pytest.mark.parametrize("fps", ["0", "-1", "inf", "nan"])
+def test_a_frame_rate_that_is_no_rate_is_refused_before_anything_is_written(
+    made: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], fps: str
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(["import", "mot", str(made), "--out", str(tmp_path / "site"), "--fps", fps])
+    assert stop.value.code == 2 and "argument --fps" in capsys.readouterr().err
+    assert not (tmp_path / "site").exists()
+
+
+def test_a_frame_rate_that_makes_people_run_is_warned_about(
+    made: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["import", "mot", str(made), "--out", str(tmp_path / "site"), "--fps", "50"]) == 0
+    err = capsys.readouterr().err
+    assert "WARNING: at 50 fps the ground truth" in err and "is the frame rate right?" in err

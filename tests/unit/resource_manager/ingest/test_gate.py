@@ -49,8 +49,9 @@ def test_gate_lists_refuses_and_counts_by_reason() -> None:
     state = PtzState(sensor_id="pano1", seq=0, stamp_ns=0, pan_rad=0.0, tilt_rad=0.0, zoom=1.0)
     assert gate.same_sender("pano1", state) and not gate.same_sender("pano2", state)
     assert gate.same_agent("a1", "a1") and not gate.same_agent("a2", "a1")
-    top = {r.sender_id: (r.unlisted, r.wrong_id, r.skewed) for r in gate.refusals.top(10)}
-    assert top == {"evil": (40, 0, 0), "pano2": (0, 2, 0), "pano1": (0, 0, 4), "a2": (0, 1, 0)}
+    top = {r.sender_id: (r.unlisted, r.wrong_id, r.skewed, r.ahead) for r in gate.refusals.top(10)}
+    # 1970 and just too old are late (skewed); 2262 and just ahead are stamped in the future (ahead).
+    assert top == {"evil": (40, 0, 0, 0), "pano2": (0, 2, 0, 0), "pano1": (0, 0, 2, 2), "a2": (0, 1, 0, 0)}
     assert gate.refusals.total == 47
     assert [r.sender_id for r in gate.refusals.top(1)] == ["evil"]
 
