@@ -46,8 +46,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         description="Estimate every camera's pose (intrinsics kept) from the people the cameras see, starting "
         "from the site's current calibrations, and write the same site with the refined ones under --out.",
     )
-    ref.add_argument("site", help="the site file (a dataset site, or the live site a --recording was made of)")
-    ref.add_argument("--out", required=True, help="folder for the refined site (the site's files, new calibrations)")
+    ref.add_argument(
+        "site", metavar="SITE", help="the site file (a dataset site, or the live site a --recording was made of)"
+    )
+    ref.add_argument(
+        "--out", required=True, metavar="DIR", help="folder for the refined site (the site's files, new calibrations)"
+    )
     ref.add_argument(
         "--fix",
         action="append",
@@ -55,8 +59,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="CAM",
         help="a camera whose pose is surveyed: kept as it is, it holds the world frame (repeat for more)",
     )
-    ref.add_argument("--frames", type=int, default=0, help="use at most N instants, evenly spread (0: all)")
-    ref.add_argument("--recording", default=None, help="an MCAP recording of the live site (agent record)")
+    ref.add_argument(
+        "--frames", type=int, default=0, metavar="N", help="use at most N instants, evenly spread (0: all)"
+    )
+    ref.add_argument(
+        "--recording", default=None, metavar="REC.mcap", help="an MCAP recording of the live site (agent record)"
+    )
     ref.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
 
 

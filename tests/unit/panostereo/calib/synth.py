@@ -132,3 +132,60 @@ def write_site_dir(
         (root / "detections" / f"{cid}.txt").write_text("\n".join(rows) + "\n")
     (root / "gt.csv").write_text("\n".join(gt) + "\n")
     return write_site(root, name="synth", cameras=list(truth), fps=fps, frames=frames, has_gt=True)
+
+
+PANORAMAS = {"pano1": (1.0, 1.0, 1.1, 0.0), "pano2": (11.0, 1.5, 1.2, 2.0), "pano3": (6.0, 11.0, 1.15, -1.5)}
+"""Panoramic camera id -> (x, y, height, yaw rad) of a static camera on a post."""
+
+
+def write_panoramic_recording(
+    root: Path, start: Mapping[str, tuple[float, float, float, float]], *, seconds: float = 20.0, fps: float = 10.0
+) -> tuple[Path, Path]:
+    """A live site of the panoramic cameras (node configs with a ``[pose]`` from ``start``) and a recording of it:
+    every camera's SensorInfo (its ``start`` pose) and Features whose blobs the true cameras (``PANORAMAS``) saw,
+    stamps jittered as a live network's are. Returns (site file, recording)."""
+    from common.codec import encode
+    from common.keys import Keys
+    from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo
+    from user_agent.record import McapSink
+
+    keys = Keys("pano")
+    epoch = 1_700_000_000_000_000_000
+    rng = np.random.default_rng(4)
+    frames = int(seconds * fps)
+    paths = walkers(5, frames, fps, rng)
+    (root / "nodes").mkdir(parents=True, exist_ok=True)
+    procs = []
+    for sid, (x, y, z, yaw) in start.items():
+        (root / "nodes" / f"{sid}.toml").write_text(
+            f'[node]\nid = "{sid}"\n\n[source]\nkind = "sim"\nsite = "../site.toml"\ncamera = "{sid}"\n\n'
+            f"[pose]    # surveyed\nx_m = {x}\ny_m = {y}\nz_m = {z}\nyaw_deg = {math.degrees(yaw)}\n"
+        )
+        procs.append(f'[[process]]\nname = "{sid}"\ncommand = "node"\nconfig = "nodes/{sid}.toml"\n')
+    site = root / "site.toml"
+    site.write_text('[site]\nname = "panos"\n\n' + "\n".join(procs))
+    sink = McapSink(root / "rec.mcap")
+    model = PanoramicModel(width_px=1080, height_px=162, f_v_px=256.0, v0_px=93.0)
+    for sid, (x, y, z, yaw) in start.items():
+        pose = Pose(x_m=x, y_m=y, z_m=z, yaw_rad=yaw)
+        info = SensorInfo(
+            sensor_id=sid, seq=0, stamp_ns=epoch, kind="panoramic", model=model, pose=pose, pose_source="surveyed"
+        )
+        sink.write(keys.sensor_info(sid), encode(info), epoch)
+    for k in range(frames):
+        for sid, (x, y, z, yaw) in PANORAMAS.items():
+            blobs = []
+            for p, (px, py, h) in enumerate(paths[k]):
+                rho = math.hypot(px - x, py - y)
+                bearing = math.remainder(math.atan2(py - y, px - x) - yaw + rng.normal(0.0, 0.003), 2 * math.pi)
+                top = math.atan2(h - z, rho) + rng.normal(0.0, 0.003)
+                bottom = math.atan2(-z, rho) + rng.normal(0.0, 0.003)
+                blobs.append(
+                    Blob(local_id=p, bearing_rad=bearing, width_rad=0.45 / rho, top_elev_rad=top,
+                         bottom_elev_rad=bottom, bbox_u_px=0.0, bbox_v_px=10.0, bbox_w_px=10.0, bbox_h_px=50.0)
+                )  # fmt: skip
+            stamp = epoch + int(k / fps * 1e9) + int(rng.integers(0, 3_000_000))
+            f = Features(sensor_id=sid, seq=k, stamp_ns=stamp, frame_index=k, blobs=blobs)
+            sink.write(keys.sensor_features(sid), encode(f), stamp + 5_000_000)
+    sink.close()
+    return site, root / "rec.mcap"
