@@ -460,9 +460,10 @@ class SensorAgreement(_Msg, frozen=True, tag="pano.SensorAgreement"):
 
     sensor_id: Id
     residual_m: PosMetres
-    """Median floor distance from its blobs' rays to the nearest person the others localised, over the window."""
+    """Median floor distance from its blobs' rays to the nearest person the others localised, over the window (a
+    blob that finds nobody within the manager's gate counts as the gate)."""
     blobs: Count
-    """Blobs behind that median (those that found a person within the manager's gate)."""
+    """Blobs behind that median."""
     unexplained_frac: Unit = 0.0
     """Share of its blobs in the window that found nobody within the gate."""
     disagrees: bool = False

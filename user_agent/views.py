@@ -228,7 +228,7 @@ def agreement_lines(managers: Sequence[ManagerView]) -> list[str]:
     rows = [
         (
             a.sensor_id,
-            f"{a.residual_m:6.2f}" if a.blobs else "     -",
+            f"{a.residual_m:6.2f}",
             a.blobs,
             f"{100 * a.unexplained_frac:5.1f}",
             "DISAGREES" if a.disagrees else "ok",

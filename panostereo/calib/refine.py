@@ -53,8 +53,11 @@ class RefineSettings:
     """The last association's gate: a few sigmas of where a box's rays put a person."""
     min_people: int = 30
     """A camera sharing fewer person-instants with the others is left as it was (undetermined)."""
-    max_rounds: int = 8
-    settled_m: float = 0.002
+    max_people: int = 5000
+    """The adjustment uses at most this many person-instants, spread over the data: more cost time and move a
+    camera by less than the people's own noise."""
+    max_rounds: int = 6
+    settled_m: float = 0.005
     settled_rad: float = math.radians(0.02)
     """Rounds stop once no camera moves more than this between two."""
 
@@ -174,7 +177,6 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
     use = [True] * n
     rounds = 0
     assoc = None
-    person = np.zeros((0, 3))
     counts = np.zeros(n, dtype=np.int64)
     height = s.height
     for rounds in range(1, s.max_rounds + 1):
@@ -192,9 +194,10 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         moving = [i for i in free if use[i]]
         if not moving or assoc.member_camera.size == 0:
             break
-        res = adjust(cams, poses, moving, assoc, prior=height, tolerance=s.tolerance, scale_m=gate / 2.0)
+        sub = _spread_people(assoc, s.max_people)
+        res = adjust(cams, poses, moving, sub, prior=height, tolerance=s.tolerance, scale_m=gate / 2.0)
         change = [pose_change(poses[i], res.poses[i]) for i in moving]
-        poses, person = res.poses, res.person
+        poses = res.poses
         height = replace(height, mean_m=res.mean_height_m)
         logger.info(
             "round %d: gate %.2f m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg",
@@ -208,8 +211,25 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         )
         if frac >= 1.0 and all(d <= s.settled_m and a <= s.settled_rad for d, a in change):
             break
-    reports = _report(cams, start, poses, fixed_idx, use, assoc, person, counts, s)
+    reports = _report(cams, start, poses, fixed_idx, use, assoc, counts, s)
     return Refined(poses, reports, rounds)
+
+
+def _spread_people(assoc: Association, most: int) -> Association:
+    """At most ``most`` of the people of ``assoc``, evenly spread over them (they are in instant order)."""
+    n = assoc.person.shape[0]
+    if n <= most:
+        return assoc
+    keep = np.unique(np.linspace(0, n - 1, most).round().astype(np.int64))
+    new_id = np.full(n, -1, dtype=np.int64)
+    new_id[keep] = np.arange(keep.size)
+    sel = new_id[assoc.member_person] >= 0
+    return Association(
+        person=assoc.person[keep],
+        member_person=new_id[assoc.member_person[sel]],
+        member_camera=assoc.member_camera[sel],
+        member_index=assoc.member_index[sel],
+    )
 
 
 def _person_counts(assoc: Association, n: int) -> np.ndarray:
@@ -224,7 +244,6 @@ def _report(  # noqa: PLR0917 - one private call site, every value it reports
     fixed_idx: list[int],
     use: list[bool],
     assoc: Association | None,
-    person: np.ndarray,
     counts: np.ndarray,
     s: RefineSettings,
 ) -> list[CameraReport]:
@@ -232,7 +251,7 @@ def _report(  # noqa: PLR0917 - one private call site, every value it reports
     if assoc is not None and assoc.member_camera.size:
         before_people = _triangulate_with(cams, start, assoc, s.height)
         before = _medians(cams, start, assoc, before_people)
-        after = _medians(cams, poses, assoc, person)
+        after = _medians(cams, poses, assoc, _triangulate_with(cams, poses, assoc, s.height))
     else:
         before = after = [(math.nan, math.nan)] * n
     out = []

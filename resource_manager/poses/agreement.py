@@ -3,18 +3,19 @@
 Every fusion tick, for each camera's view: the published tracks that at least two *other* cameras localised
 (their positions do not rest on this camera) are the people it should see. Each of its blobs is a bearing ray from
 its centre; the blob's residual is the floor distance from that ray to the nearest such person in front of it.
-Over the last ``window_s`` the median residual of the blobs that found a person within ``gate_m`` is the camera's
-agreement; a camera whose median exceeds ``disagree_m`` (with at least ``min_blobs`` blobs) is reported as
-disagreeing: its pose is no longer what its calibration says, and ``panostereo calib refine`` with a recording of
-the site fixes it. Blobs that find no person within the gate are counted apart (``unexplained``): clutter, or a
-camera turned so far that its blobs point at no one.
+A blob that finds no person within ``gate_m`` counts as ``gate_m`` (and as unexplained: clutter, someone the
+others do not see, or a camera turned so far that its rays point at no one). Over the last ``window_s`` the median
+is the camera's residual; a camera whose residual exceeds ``disagree_m`` (with at least ``min_blobs`` blobs) is
+reported as disagreeing: its pose is no longer what its calibration says, and ``panostereo calib refine`` with a
+recording of the site fixes it. A camera in place keeps most of its rays within a person's width of the people
+the others place, whatever clutter it also sees; a camera turned by a few degrees puts most of them a metre off,
+or next to the wrong person.
 
 Pure: reads the views and the published tracks, changes neither.
 """
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -34,8 +35,8 @@ MIN_OTHER_CAMERAS = 2
 class AgreementParams:
     window_s: float = 10.0
     """The residual is the median over this many seconds of blobs."""
-    gate_m: float = 2.0
-    """A blob whose ray passes further than this from every person explains none (counted as unexplained)."""
+    gate_m: float = 1.0
+    """A blob whose ray passes further than this from every person explains none: it counts as this far."""
     disagree_m: float = 0.5
     """A camera whose median residual exceeds this disagrees with the others (a person's width: a camera in
     place puts its rays well within it)."""
@@ -74,9 +75,8 @@ class Agreement:
             best = across.min(axis=1)
             h = self._hist.setdefault(sid, _History())
             for d in best:
-                if d <= p.gate_m:
-                    h.residuals.append((t_ns, float(d)))
-                else:
+                h.residuals.append((t_ns, min(float(d), p.gate_m)))
+                if d > p.gate_m:
                     h.unexplained.append(t_ns)
         oldest = t_ns - int(p.window_s * 1e9)
         for h in self._hist.values():
@@ -90,16 +90,16 @@ class Agreement:
         out = []
         for sid, h in self._hist.items():
             n, u = len(h.residuals), len(h.unexplained)
-            if n + u == 0:
+            if n == 0:
                 continue
-            med = float(np.median([d for _, d in h.residuals])) if n else math.inf
+            med = float(np.median([d for _, d in h.residuals]))
             out.append(
                 SensorAgreement(
                     sensor_id=sid,
-                    residual_m=min(med, 1e4),
+                    residual_m=med,
                     blobs=n,
-                    unexplained_frac=u / (n + u),
-                    disagrees=n + u >= self.params.min_blobs and med > self.params.disagree_m,
+                    unexplained_frac=u / n,
+                    disagrees=n >= self.params.min_blobs and med > self.params.disagree_m,
                 )
             )
         out.sort(key=lambda a: -a.residual_m)
