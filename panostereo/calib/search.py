@@ -42,6 +42,10 @@ MIN_TRAVEL_M = 0.5
 SCORE_INSTANTS = 80
 """Instants the hypotheses are scored at (spread over the data)."""
 YAW_STEP_RAD = math.radians(0.5)
+CLEARLY_MORE = 1.2
+MIN_GAIN = 10
+"""The search's best hypothesis replaces the guess when it explains at least CLEARLY_MORE times as many blobs
+as the guess, and MIN_GAIN more (a guess within the association's reach is left to the adjustment)."""
 MIN_PNP_POINTS = 4
 """Perspective-n-point needs four correspondences here (feet and heads of two instants)."""
 MIN_LEVEL_POINTS = 3
@@ -225,7 +229,7 @@ def find_pose(
     start = score(guess)
     cam_rows = _by_track(cam.track, cam.instant)
     anchor_rows = _by_track(people.track, people.instant)
-    best, best_score, tried = guess, start, 0
+    best, best_score, tried = guess, -1, 0
     window_m, window_rad = 2.0 * tolerance.centre_m, 2.0 * tolerance.turn_rad
     for t, u in _track_pairs(cam, people):
         common = sorted(set(cam_rows[t]) & set(anchor_rows[u]))
@@ -250,4 +254,8 @@ def find_pose(
         s = score(hyp)
         if s > best_score:
             best, best_score = hyp, s
+    # A hypothesis is one track pair's pose, rougher than a good guess: it replaces the guess only when it
+    # explains clearly more of the camera's blobs.
+    if best_score < CLEARLY_MORE * start + MIN_GAIN:
+        return Found(guess, start, start, tried)
     return Found(best, best_score, start, tried)
