@@ -3,7 +3,7 @@
 Usage::
 
     python -m benchmarks.bench_calib [--datasets ../shared/datasets] [--sets wildtrack,pets] [--seeds 5]
-                                     [--cases 0.5:5,1.5:15] [--out DIR]
+                                     [--first-seed 1] [--cases 0.5:5,1.5:15] [--out DIR]
 
 Per set: the official site is imported; then, per case (a shift in metres and a turn in degrees) and seed, every
 camera but the first (the fixed one, ``--fix``) is moved by the shift in a random direction and turned by the
@@ -105,13 +105,13 @@ def _pose_errors(official: Path, site: Path) -> dict[str, list[float]]:
     return out
 
 
-def run_set(name: str, datasets: Path, work: Path, seeds: int, cases: list[tuple[float, float]]) -> dict[str, Any]:
+def run_set(name: str, datasets: Path, work: Path, seeds: range, cases: list[tuple[float, float]]) -> dict[str, Any]:
     official = _import(name, datasets, work / name / "official")
     cams, _ = _cameras(official)
     fixed = cams[0].sensor_id
     result: dict[str, Any] = {"fixed": fixed, "official": _tracking(official), "cases": []}
-    runs = [(0.0, 0.0, 0)] if name == "pets" else []
-    runs += [(shift, turn, seed) for shift, turn in cases for seed in range(1, seeds + 1)]
+    runs = [(0.0, 0.0, 0)] if name == "pets" and seeds.start == 1 else []
+    runs += [(shift, turn, seed) for shift, turn in cases for seed in seeds]
     for shift, turn, seed in runs:
         tag = f"s{shift:g}_t{turn:g}_seed{seed}"
         sys.stderr.write(f"{name} {tag} ...\n")
@@ -147,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--datasets", default=str(REPO.parent / "shared" / "datasets"), help="folder of the datasets")
     p.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)}")
     p.add_argument("--seeds", type=int, default=5, help="seeds per case")
+    p.add_argument("--first-seed", type=int, default=1, help="the first seed (seeds run from it)")
     p.add_argument("--cases", default="0.5:5,1.5:15", help="SHIFT_M:TURN_DEG,... (Wildtrack; PETS: the first)")
     p.add_argument("--out", default=None, metavar="DIR", help="where the sites go (default: a temporary folder)")
     args = p.parse_args(argv)
@@ -158,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
         for name in args.sets.split(","):
             if name not in SETS:
                 p.error(f"--sets: unknown set {name!r} (choose from {', '.join(SETS)})")
-            out[name] = run_set(name, datasets, work, args.seeds, cases if name == "wildtrack" else cases[:1])
+            seeds = range(args.first_seed, args.first_seed + args.seeds)
+            out[name] = run_set(name, datasets, work, seeds, cases if name == "wildtrack" else cases[:1])
     sys.stdout.write(json.dumps(out, indent=1) + "\n")
     return 0
 
