@@ -385,7 +385,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     from resource_manager.poses.solver import PoseEstimate
     from resource_manager.stereo.localize import localize_least_squares
     from resource_manager.stereo.pairs import CameraGeom, rank_pairs
-    from resource_manager.track.tracker import MAX_PAIR_CAMERAS
+    from resource_manager.track.update import MAX_PAIR_CAMERAS
     from resource_manager.views.build import build_views
     from sensor_node.detections import features_from_detections, read_mot
 

@@ -36,7 +36,7 @@ from common.config import resolve_path
 from common.errors import ConfigError
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import load_site
-from resource_manager.config import ManagerConfig, load_manager_config
+from resource_manager.config import ManagerConfig, for_site, load_manager_config
 from resource_manager.fusion import Batch, Fusion
 from user_agent.groundtruth import GroundTruth, read_gt_csv
 from user_agent.messages import decode_on_key
@@ -146,15 +146,16 @@ def score(
 
 
 def _manager_config(run_dir: Path, metadata: dict[str, str], given: str | None) -> ManagerConfig:
-    if given:
-        return load_manager_config(given)
     name = metadata.get("site", "")
     site_path = Path(name) if name.endswith(".toml") else SITES / f"{name}.toml"
-    if name and site_path.is_file():
-        site = load_site(site_path)
+    site = load_site(site_path) if name and site_path.is_file() else None
+    if given:
+        cfg = load_manager_config(given)
+        return for_site(cfg, site) if site is not None else cfg
+    if site is not None:
         for proc in site.process:
             if proc.command == "manager":
-                return load_manager_config(resolve_path(site.path, proc.config))
+                return for_site(load_manager_config(resolve_path(site.path, proc.config)), site)
     raise ConfigError(f"{run_dir}: site {name!r} of the recording has no manager in {SITES}: pass --manager-config")
 
 

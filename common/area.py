@@ -7,7 +7,8 @@ A site file states them as facts of the site, in metres in the site's world fram
     polygon = [[-3.0, -9.0], [9.0, -9.0], [9.0, 27.0], [-3.0, 27.0]]
     exits = [[[9.0, 0.0], [9.0, 4.0]]]   # optional: a door on the east wall (segments or polygons)
 
-With no ``exits``, people may come and go anywhere on the boundary.
+With no ``exits``, people may come and go anywhere on the boundary; ``exits = []`` says nobody does (a closed
+room).
 """
 
 from __future__ import annotations
@@ -39,9 +40,9 @@ class AreaSpec(ConfigStruct, frozen=True):
 
     polygon: list[XY]
     """Corners of a simple polygon (at least 3, in order, metres, world frame)."""
-    exits: list[list[XY]] = []
+    exits: list[list[XY]] | None = None
     """Where people come and go: each a segment (2 points) along the boundary or a polygon (3 or more) around a
-    door; empty: anywhere on the boundary."""
+    door. Not given: anywhere on the boundary; ``[]``: nowhere (a closed room: nobody leaves it)."""
 
 
 def segments_intersect(p1: FloatArray, p2: FloatArray, q1: FloatArray, q2: FloatArray) -> bool:
@@ -126,13 +127,13 @@ class Area:
         if abs(_signed_area(pts)) < MIN_AREA_M2:
             raise ConfigError(f"{source}.polygon encloses no area: {spec.polygon!r}")
         segments: list[FloatArray] = []
-        for n, ex in enumerate(spec.exits):
+        for n, ex in enumerate(spec.exits or []):
             e = np.asarray(ex, dtype=np.float64).reshape(-1, 2)
             if len(e) < SEGMENT_POINTS or not np.isfinite(e).all():
                 raise ConfigError(f"{source}.exits[{n}] must be 2 points (a segment) or 3 or more (a polygon)")
             ea, eb = (e[:1], e[1:]) if len(e) == SEGMENT_POINTS else _edges(e)
             segments.extend(np.stack([ea, eb], axis=1))
-        if not segments:
+        if spec.exits is None:
             segments = list(np.stack([a, b], axis=1))
         return Area(pts, np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2))
 
@@ -152,10 +153,12 @@ class Area:
         return _inside(xy, self.polygon)
 
     def exit_distance(self, xy: FloatArray) -> FloatArray:
-        """(n,) distance (m) of floor points ``xy`` (n, 2) to the nearest exit."""
+        """(n,) distance (m) of floor points ``xy`` (n, 2) to the nearest exit (infinite where there is none)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         if not len(xy):
             return np.zeros(0)
+        if not len(self.exit_segments):
+            return np.full(len(xy), np.inf)
         return np.asarray(
             _segment_distance(xy, self.exit_segments[:, 0], self.exit_segments[:, 1]).min(axis=1), dtype=np.float64
         )

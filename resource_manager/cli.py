@@ -14,7 +14,6 @@ from pathlib import Path
 import msgspec
 
 from common.cli import add_logging_args, run_main, setup_logging
-from common.errors import ConfigError
 from common.session import add_session_args, settings_from_args
 
 __all__ = ["configure", "main", "run"]
@@ -33,7 +32,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--site",
         default=None,
         metavar="FILE",
-        help="the site file: the manager fuses exactly its sensor nodes (replaces [manager] sensors)",
+        help="the site file: the manager fuses exactly its sensor nodes (replaces [manager] sensors) and knows its "
+        "[area]",
     )
     add_session_args(parser)
 
@@ -44,14 +44,12 @@ def run(args: argparse.Namespace) -> int:
     from resource_manager.node import run as run_manager
 
     cfg = load_manager_config(args.config)
-    manager = cfg.manager
     if args.site:
-        from common.site import load_site, site_sensor_ids
+        from common.site import load_site
+        from resource_manager.config import for_site
 
-        sensors = site_sensor_ids(load_site(args.site))
-        if not sensors:
-            raise ConfigError(f"{args.site}: the site runs no sensor node, so its manager would fuse nothing")
-        manager = msgspec.structs.replace(manager, sensors=sensors)
+        cfg = for_site(cfg, load_site(args.site))
+    manager = cfg.manager
     env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))

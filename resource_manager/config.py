@@ -34,12 +34,14 @@ from typing import Annotated, Literal
 
 import msgspec
 
+from common.area import Area, AreaSpec
 from common.clock import ClockSettings
 from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings
-from resource_manager.track.model import PERSON_RADIUS_M
+from common.site import SiteConfig, site_sensor_ids
+from resource_manager.track.model import TrackModel
 
 __all__ = [
     "ManagerConfig",
@@ -49,7 +51,7 @@ __all__ = [
     "PlannerSection",
     "PoseOverride",
     "PtzSection",
-    "TrackerSection",
+    "for_site",
     "load_manager_config",
 ]
 
@@ -172,56 +174,6 @@ class MatchSection(ConfigStruct, frozen=True):
     distance ``z / tan(-elev)``, a second measurement beside the bearing. 0: feet distances are not used."""
 
 
-class TrackerSection(ConfigStruct, frozen=True):
-    """``[tracker]``: the tracker's model of people and cameras (resource_manager/track/), all in physical units."""
-
-    mode: Literal["model", "paper"] = "model"
-    """``model``: every view assigned to a person updates them, each with its own covariance. ``paper``: the pair
-    of those views the error model ranks best localises them (Eq. 1, or Eq. 2 near colinearity)."""
-    speed_sigma_mps: Pos = 0.8
-    """Spread of a walker's velocity along each axis. Raising it follows turns and starts faster, lowering it
-    smooths more."""
-    turn_time_s: Pos = 2.0
-    """How long a walker keeps a velocity; a person nobody sees is predicted to stop within about this."""
-    body_sigma_m: Pos = 0.1
-    """Spread of the point a camera sees (head, box bottom) around the person's floor position, for a sensor whose
-    SensorInfo does not state its own (``point_sigma_m``)."""
-    outlier_prob: Annotated[float, msgspec.Meta(gt=0.0, lt=0.5)] = 0.05
-    """Share of detections whose point is off by several sigmas (a badly drawn box, someone bending)."""
-    height_prior_m: Pos = 1.7
-    """Head-top height of a person before any view measured it."""
-    height_sigma_m: Pos = 0.15
-    """Spread of people's heights."""
-    p_detect: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.9
-    """Probability that a camera detects a person in its picture whom nobody hides."""
-    p_detect_hidden: Annotated[float, msgspec.Meta(ge=0.0, lt=1.0)] = 0.3
-    """...and a person wholly covered in the picture by people nearer to the camera (in between: by the share of
-    their silhouette that shows)."""
-    clutter_per_view: Pos = 1.0
-    """Expected false detections per view and frame. Raising it asks more evidence of people."""
-    evidence_time_s: Pos = 0.5
-    """One view's detections within this time are one piece of evidence: existence moves at most one view's
-    worth per this much time, whatever the frame rate. Raising it confirms and ends tracks more slowly."""
-    p_birth: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.1
-    """Prior probability that unexplained blobs that agree across views are a new person."""
-    p_confirm: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.9
-    """A track is published once its existence probability reaches this."""
-    p_delete: Annotated[float, msgspec.Meta(gt=0.0, lt=1.0)] = 0.1
-    """A track ends when its existence probability falls below this."""
-    publish_sigma_m: Pos = 2.0 * PERSON_RADIUS_M
-    """A confirmed track is reported only while its position is known to within this (1 sigma, its worst
-    direction): by default a person's width, beyond which it cannot say which of two people side by side it is.
-    Until its views pin it down again it is held, with its id, unreported. Raising it reports vaguer positions."""
-    lost_sigma_m: Pos = 2.0
-    """A track whose position is this uncertain (1 sigma) has lost its person: it ends."""
-    colour_sigma: Pos = 0.15
-    """Spread of the Bhattacharyya distance between a person's blobs and their look in one view."""
-    link_odds: Annotated[float, msgspec.Meta(ge=1.0)] = 4.0
-    """How much likelier a blob that continues a node's 2D track is that track's person than anyone else."""
-    room_margin_m: NonNeg = 0.5
-    """How far outside ``[planner] room`` (when given) a new person may still be started."""
-
-
 class MutualSection(ConfigStruct, frozen=True):
     """``[mutual]``: mutual calibration (Eq. 3) of mobile panoramic cameras."""
 
@@ -244,7 +196,8 @@ class PlannerSection(ConfigStruct, frozen=True):
     enabled: bool = True
     period_s: Pos = 0.5
     room: list[float] = []
-    """``[x_min, y_min, x_max, y_max]`` the goals are clipped to; empty = no bounds."""
+    """``[x_min, y_min, x_max, y_max]`` the goals are clipped to; empty: the bounds of the site's ``[area]``, or
+    none."""
     margin_m: NonNeg = 0.4
     min_move_m: NonNeg = 0.15
     """A new goal closer than this to the previous one is not re-issued."""
@@ -301,11 +254,16 @@ class ManagerConfig(ConfigStruct, frozen=True):
     zenoh: SessionSettings = msgspec.field(default_factory=SessionSettings)
     clock: ClockSettings = msgspec.field(default_factory=ClockSettings)
     match: MatchSection = msgspec.field(default_factory=MatchSection)
-    tracker: TrackerSection = msgspec.field(default_factory=TrackerSection)
+    tracker: TrackModel = msgspec.field(default_factory=TrackModel)
+    """``[tracker]``: the tracker's model of people and cameras (:class:`resource_manager.track.model.TrackModel`,
+    where every knob is documented)."""
     mutual: MutualSection = msgspec.field(default_factory=MutualSection)
     planner: PlannerSection = msgspec.field(default_factory=PlannerSection)
     ptz: PtzSection = msgspec.field(default_factory=PtzSection)
     pose: list[PoseOverride] = []
+    area: AreaSpec | None = None
+    """``[area]``: where people can be and its exits (:mod:`common.area`), a fact of the site: normally the site
+    file's (``--site``, which replaces this), given here only for a manager run without one."""
 
     @property
     def keys(self) -> Keys:
@@ -335,9 +293,16 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
         raise ConfigError(
             f'{source}: manager.sensors is either ["*"] (any sensor) or a list of ids, got {cfg.manager.sensors!r}'
         )
+    if cfg.area is not None:
+        Area.of(cfg.area, f"{source}: area")
     ids = [p.id for p in cfg.pose]
     if len(set(ids)) != len(ids):
         raise ConfigError(f"{source}: pose ids must be unique, got {ids!r}")
+    if cfg.tracker.p_max_inside < cfg.tracker.p_max:
+        raise ConfigError(
+            f"{source}: tracker.p_max_inside ({cfg.tracker.p_max_inside}) must be >= tracker.p_max "
+            f"({cfg.tracker.p_max})"
+        )
     if cfg.tracker.p_delete >= cfg.tracker.p_confirm:
         raise ConfigError(
             f"{source}: tracker.p_delete ({cfg.tracker.p_delete}) must be < tracker.p_confirm ({cfg.tracker.p_confirm})"
@@ -356,3 +321,17 @@ def load_manager_config(path: str | Path) -> ManagerConfig:
     state = cfg.manager.state_dir or f"state/{cfg.manager.id}"
     resolved = str(resolve_path(path, state))
     return msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, state_dir=resolved))
+
+
+def for_site(cfg: ManagerConfig, site: SiteConfig) -> ManagerConfig:
+    """``cfg`` as the manager of ``site``: it fuses exactly the site's sensor nodes, and knows the site's area.
+
+    Raises:
+        ConfigError: the site runs no sensor node (its manager would fuse nothing), or a process config is
+            unreadable.
+    """
+    sensors = site_sensor_ids(site)
+    if not sensors:
+        raise ConfigError(f"{site.path}: the site runs no sensor node, so its manager would fuse nothing")
+    manager = msgspec.structs.replace(cfg.manager, sensors=sensors)
+    return msgspec.structs.replace(cfg, manager=manager, area=site.area if site.area is not None else cfg.area)

@@ -46,7 +46,7 @@ from resource_manager.ingest.buffers import Ingest
 from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
-from resource_manager.track.state import TrackRecord
+from resource_manager.track.tracker import TrackSnapshot
 from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import build_views
 
@@ -305,15 +305,16 @@ class Fusion:
         return out
 
     # -- outputs --------------------------------------------------------------
-    def published_tracks(self) -> list[TrackRecord]:
-        """The tracks a TrackSet reports (:meth:`Tracker.reported`); tentative ones too with ``publish_tentative``."""
+    def published_tracks(self) -> list[TrackSnapshot]:
+        """The tracks a TrackSet reports (:attr:`TrackSnapshot.reported`); tentative ones too with
+        ``publish_tentative``."""
         show_tentative = self.config.manager.publish_tentative
-        return [tr for tr in self.tracker.tracks if self.tracker.reported(tr) or (show_tentative and not tr.confirmed)]
+        return [tr for tr in self.tracker.snapshots() if tr.reported or (show_tentative and not tr.confirmed)]
 
-    def track_message(self, tr: TrackRecord) -> Track:
+    def track_message(self, tr: TrackSnapshot) -> Track:
         tid = tr.track_id or f"{self.manager_id}-t{tr.serial}"
         x, y, vx, vy = tr.x.tolist()[:4]  # plain floats: np.clip on scalars costs ~10x
-        (pxx, pxy), (_, pyy) = tr.p[:2, :2].tolist()
+        (pxx, pxy), (_, pyy) = tr.p_xy.tolist()
         return Track(
             manager_id=self.manager_id,
             seq=self.seq,
@@ -339,7 +340,7 @@ class Fusion:
     def ptz_targets(self) -> dict[str, PtzTarget]:
         return {
             tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), tr.height_m)
-            for tr in self.tracker.tracks
+            for tr in self.tracker.snapshots()
             if tr.track_id
         }
 
@@ -362,7 +363,7 @@ class Fusion:
                 tr.sensors,
                 tr.height_m if tr.height_m > 0 else HEAD_HEIGHT_M,
             )
-            for tr in self.tracker.tracks
+            for tr in self.tracker.snapshots()
             if tr.track_id and tr.state == "confirmed"
         ]
         out = []

@@ -1,5 +1,6 @@
 """The manager's stages built from its config (``[manager]``, ``[mutual]``, ``[[pose]]``, ``[tracker]``,
-``[planner]``, ``[ptz]``): config units (s, deg) turned into each stage's own (ns, rad)."""
+``[planner]``, ``[ptz]``, ``[area]``): config units (s, deg) turned into each stage's own (ns, rad); the tracker
+reads its ``[tracker]`` table as it is."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import math
 from collections.abc import Callable
 
 from common.angles import wrap_angle
+from common.area import Area
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignParams
 from resource_manager.ingest.schedule import ScheduleParams, Scheduler
@@ -15,19 +17,20 @@ from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
 from resource_manager.serve.ptz import PtzAllocator, PtzParams
 from resource_manager.stereo.match import MatchParams, get_matcher
 from resource_manager.track.births import BirthParams
-from resource_manager.track.model import TrackModel
+from resource_manager.track.model import Scene
 from resource_manager.track.tracker import Tracker
 from resource_manager.views.build import FeetModel
 from resource_manager.views.settling import SettleParams, ViewTrust
 
 __all__ = [
     "align_params",
+    "area",
     "feet_model",
     "match_params",
     "pose_solver",
     "ptz_allocator",
+    "scene",
     "schedule",
-    "track_model",
     "tracker",
     "view_planner",
     "view_trust",
@@ -73,33 +76,9 @@ def pose_solver(config: ManagerConfig) -> PoseSolver:
     return solver
 
 
-def track_model(config: ManagerConfig) -> TrackModel:
-    """``[tracker]`` (and the room, the range) as the tracker's model."""
-    t, pl = config.tracker, config.planner
-    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == 4 else None
-    return TrackModel(
-        mode=t.mode,
-        speed_sigma_mps=t.speed_sigma_mps,
-        turn_time_s=t.turn_time_s,
-        body_sigma_m=t.body_sigma_m,
-        outlier_prob=t.outlier_prob,
-        height_prior_m=t.height_prior_m,
-        height_sigma_m=t.height_sigma_m,
-        p_detect=t.p_detect,
-        p_detect_hidden=t.p_detect_hidden,
-        clutter_per_view=t.clutter_per_view,
-        evidence_time_s=t.evidence_time_s,
-        p_birth=t.p_birth,
-        p_confirm=t.p_confirm,
-        p_delete=t.p_delete,
-        publish_sigma_m=t.publish_sigma_m,
-        lost_sigma_m=t.lost_sigma_m,
-        colour_sigma=t.colour_sigma,
-        link_odds=t.link_odds,
-        room=room,
-        room_margin_m=t.room_margin_m,
-        max_range_m=config.match.max_range_m,
-    )
+def scene(config: ManagerConfig) -> Scene:
+    """What the tracker knows of the site: its area, and how far its cameras see anyone (``[match]``)."""
+    return Scene(area=area(config), max_range_m=config.match.max_range_m)
 
 
 def match_params(config: ManagerConfig) -> MatchParams:
@@ -121,7 +100,8 @@ def feet_model(config: ManagerConfig) -> FeetModel | None:
     mc = config.match
     if mc.feet_sigma_deg <= 0:
         return None
-    return FeetModel(math.radians(mc.feet_sigma_deg), 0.0, mc.max_range_m)
+    t = config.tracker
+    return FeetModel(math.radians(mc.feet_sigma_deg), 0.0, mc.max_range_m, (t.height_prior_m, t.height_sigma_m))
 
 
 def tracker(config: ManagerConfig, new_id: Callable[[], str]) -> Tracker:
@@ -133,12 +113,20 @@ def tracker(config: ManagerConfig, new_id: Callable[[], str]) -> Tracker:
         max_pairs=mc.max_birth_pairs,
         width_rel_sigma=mc.width_rel_sigma,
     )
-    return Tracker(track_model(config), births, new_id, pair_choice=mc.pair_choice)
+    return Tracker(config.tracker, births, new_id, scene=scene(config), pair_choice=mc.pair_choice)
+
+
+def area(config: ManagerConfig) -> Area | None:
+    """The site's area (``[area]``), validated."""
+    return Area.of(config.area) if config.area is not None else None
 
 
 def view_planner(config: ManagerConfig) -> ViewPlanner:
     pl = config.planner
+    site_area = area(config)
     room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == 4 else None
+    if room is None and site_area is not None:
+        room = site_area.bounds
     return ViewPlanner(
         PlannerParams(
             enabled=pl.enabled,

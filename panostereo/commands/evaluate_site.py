@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     where = report["scored_area"]
     print(f"scored {'where the ground truth annotates people' if where == 'ground_truth' else 'everywhere'}:")
     _table(report["scores"])
-    if "scores_everywhere" in report:
+    if where == "ground_truth":
         print("scored everywhere (tracks outside the annotated area count as false positives):")
         _table(report["scores_everywhere"])
     return 0

@@ -2,10 +2,10 @@
 
 * ``mot``: any calibrated multi-view detection dataset laid out as ``calib/<cam>.json``,
   ``detections/<cam>.txt`` (MOTChallenge) and an optional ``gt.csv``
-  (:mod:`panostereo.datasets.mot`); ``--fps`` is required, ``--room`` optional.
+  (:mod:`panostereo.datasets.mot`); ``--fps`` is required, ``--area`` optional.
 * ``wildtrack``: a Wildtrack-format dataset (Wildtrack; MultiviewX with ``--grid``
   options): annotations and calibrations, turned into the ``mot`` layout
-  (:mod:`panostereo.datasets.wildtrack`).
+  (:mod:`panostereo.datasets.wildtrack`); its annotated ground grid is the site's area.
 
 Both write per-process configs and ``site.toml``, which ``panostereo demo
 --site DIR/site.toml`` runs and ``panostereo evaluate-site DIR/site.toml``
@@ -19,11 +19,15 @@ import argparse
 import json
 from dataclasses import asdict
 
+from common.area import AreaSpec, rectangle
 from common.errors import ConfigError
 from panostereo.datasets.mot import import_mot
 from panostereo.datasets.wildtrack import GridSpec, import_wildtrack
 
-__all__ = ["configure", "run"]
+__all__ = ["configure", "parse_area", "run"]
+
+RECTANGLE_VALUES = 4
+"""``--area`` is X0,Y0,X1,Y1."""
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -37,12 +41,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     mot = parser.add_argument_group("mot")
     mot.add_argument("--fps", type=float, default=None, help="mot: the dataset's frame rate (frame k at (k-1)/fps)")
     mot.add_argument(
-        "--room",
-        type=float,
-        nargs=4,
+        "--area",
         default=None,
-        metavar=("X0", "Y0", "X1", "Y1"),
-        help="mot: the floor area people can be in (m), if known",
+        metavar="X0,Y0,X1,Y1",
+        help="mot: the floor people can be in (m, world frame), if known: the site's [area], where people are "
+        "started and every track is scored (edit site.toml for a polygon or exits)",
     )
     mot.add_argument(
         "--min-confidence",
@@ -60,8 +63,24 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar=("X0", "Y0", "STEP", "WIDTH"),
         help="wildtrack: positionID grid: origin (m), step (m), cells per row (Wildtrack: -3 -9 0.025 480)",
     )
+    wt.add_argument("--grid-rows", type=int, default=1440, help="wildtrack: positionID grid cells per column")
     wt.add_argument("--extrinsic-unit-m", type=float, default=0.01, help="wildtrack: metres per tvec unit (cm: 0.01)")
     wt.add_argument("--image-size", type=int, nargs=2, default=[1920, 1080], metavar=("W", "H"))
+
+
+def parse_area(text: str) -> AreaSpec:
+    """``X0,Y0,X1,Y1`` as the area of that rectangle.
+
+    Raises:
+        ConfigError: not four numbers, or a rectangle with no inside.
+    """
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError as err:
+        raise ConfigError(f"--area must be X0,Y0,X1,Y1 (four numbers, metres), got {text!r}") from err
+    if len(values) != RECTANGLE_VALUES:
+        raise ConfigError(f"--area must be X0,Y0,X1,Y1 (four numbers, metres), got {text!r}")
+    return rectangle(*values)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
             args.path,
             args.out,
             fps=args.fps,
-            room=args.room,
+            area=parse_area(args.area) if args.area is not None else None,
             min_confidence=args.min_confidence,
             noise_px=args.noise_px,
             drop_rate=args.drop_rate,
@@ -80,10 +99,17 @@ def run(args: argparse.Namespace) -> int:
             name=args.name,
         )
     else:
-        grid = GridSpec(extrinsic_unit_m=args.extrinsic_unit_m)
+        grid = GridSpec(rows=args.grid_rows, extrinsic_unit_m=args.extrinsic_unit_m)
         if args.grid is not None:
             x0, y0, step, width = args.grid
-            grid = GridSpec(x0_m=x0, y0_m=y0, step_m=step, width=int(width), extrinsic_unit_m=args.extrinsic_unit_m)
+            grid = GridSpec(
+                x0_m=x0,
+                y0_m=y0,
+                step_m=step,
+                width=int(width),
+                rows=args.grid_rows,
+                extrinsic_unit_m=args.extrinsic_unit_m,
+            )
         res = import_wildtrack(
             args.path,
             args.out,

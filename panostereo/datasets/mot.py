@@ -9,7 +9,8 @@ Input layout (``DIR``)::
 
 Every camera with both a calibration and a detection file becomes a sensor node; frame ``k`` of every file is
 the same instant, world time ``(k - 1) / fps``. The frame rate is the dataset's fact, so it is given
-(``--fps``); so is the room (``--room X0 Y0 X1 Y1``, the floor area people can be in), when known.
+(``--fps``); so is the area (``--area X0,Y0,X1,Y1``, the floor people can be in), when known: it is written to
+the site's ``[area]``, where the tracker starts people and scores every track.
 
 Output (``--out SITE_DIR``)::
 
@@ -19,7 +20,7 @@ Output (``--out SITE_DIR``)::
     gt.csv                  copied (when given)
     nodes/<cam>.toml        a detection-source node per camera; nodes/manager.toml
 
-The configs hold only the site's facts (ids, frame rate, room, where the files are) and no tuning: the
+The configs hold only the site's facts (ids, frame rate, area, where the files are) and no tuning: the
 manager runs its defaults, as on every other site. ``panostereo demo --site SITE_DIR/site.toml`` runs the
 site through the network; ``panostereo evaluate-site SITE_DIR/site.toml`` plays it in dataset time.
 """
@@ -37,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.area import Area, AreaSpec
 from common.errors import ConfigError
 from common.pinhole import PinholeCamera
 from user_agent.groundtruth import read_gt_csv
@@ -46,8 +48,6 @@ __all__ = ["ImportResult", "camera_id", "import_mot", "write_site"]
 logger = logging.getLogger(__name__)
 
 _ID_CLEAN = re.compile(r"[^a-z0-9-]+")
-ROOM_VALUES = 4
-"""``--room`` is X0 Y0 X1 Y1."""
 MIN_BOX_PX = 2.0
 """Boxes narrower or lower than this after noise and clipping are dropped (no person is two pixels tall)."""
 
@@ -139,7 +139,16 @@ def _last_frame(path: Path) -> tuple[int, int]:
     return boxes, last
 
 
-def _site_toml(name: str, cams: Sequence[str], fps: float, frames: int, has_gt: bool) -> str:
+def _area_toml(area: AreaSpec) -> list[str]:
+    corners = ", ".join(f"[{x:g}, {y:g}]" for x, y in area.polygon)
+    lines = ["", "[area]  # the floor where people can be (a fact of the site, metres)", f"polygon = [{corners}]"]
+    if area.exits is not None:
+        exits = ", ".join("[" + ", ".join(f"[{x:g}, {y:g}]" for x, y in ex) + "]" for ex in area.exits)
+        lines.append(f"exits = [{exits}]")
+    return lines
+
+
+def _site_toml(name: str, cams: Sequence[str], fps: float, frames: int, *, has_gt: bool, area: AreaSpec | None) -> str:
     lines = [
         f"# A dataset site made by `panostereo import`: {len(cams)} calibrated cameras' detection files"
         + (" and their ground truth." if has_gt else "."),
@@ -160,6 +169,8 @@ def _site_toml(name: str, cams: Sequence[str], fps: float, frames: int, has_gt: 
     ]
     if has_gt:
         lines.append('ground_truth = "gt.csv"')
+    if area is not None:
+        lines += _area_toml(area)
     for cid in cams:
         lines += ["", "[[process]]", f'name = "{cid}"', 'command = "node"', f'config = "nodes/{cid}.toml"']
     lines += ["", "[[process]]", 'name = "manager"', 'command = "manager"', 'config = "nodes/manager.toml"']
@@ -186,8 +197,7 @@ min_confidence = {min_confidence:g}
 """
 
 
-def _manager_toml(room: Sequence[float] | None) -> str:
-    text = """# Resource manager of the imported dataset site: the defaults, as on every site.
+MANAGER_TOML = """# Resource manager of the imported dataset site: the defaults, as on every site.
 
 [manager]
 id = "mgr1"
@@ -198,13 +208,6 @@ state_dir = ""
 mode = "client"
 connect = ["tcp/127.0.0.1:7447"]
 """
-    if room is not None:
-        x0, y0, x1, y1 = room
-        text += f"""
-[planner]
-room = [{x0:g}, {y0:g}, {x1:g}, {y1:g}]    # the floor area people can be in (a fact of the site)
-"""
-    return text
 
 
 def write_site(
@@ -215,24 +218,24 @@ def write_site(
     fps: float,
     frames: int,
     has_gt: bool,
-    room: Sequence[float] | None = None,
+    area: AreaSpec | None = None,
     min_confidence: float = 0.0,
 ) -> Path:
     """Write ``site.toml`` and the per-process configs for files already under ``out/calib``, ``out/detections``."""
     (out / "nodes").mkdir(parents=True, exist_ok=True)
     for cid in cameras:
         (out / "nodes" / f"{cid}.toml").write_text(_node_toml(cid, fps, min_confidence), encoding="utf-8")
-    (out / "nodes" / "manager.toml").write_text(_manager_toml(room), encoding="utf-8")
+    (out / "nodes" / "manager.toml").write_text(MANAGER_TOML, encoding="utf-8")
     site = out / "site.toml"
-    site.write_text(_site_toml(name, cameras, fps, frames, has_gt), encoding="utf-8")
+    site.write_text(_site_toml(name, cameras, fps, frames, has_gt=has_gt, area=area), encoding="utf-8")
     return site
 
 
-def _check_args(fps: float, room: Sequence[float] | None, noise_px: float, drop_rate: float, min_conf: float) -> None:
+def _check_args(fps: float, area: AreaSpec | None, noise_px: float, drop_rate: float, min_conf: float) -> None:
     if not (math.isfinite(fps) and fps > 0):
         raise ConfigError(f"--fps must be > 0 (the dataset's frame rate), got {fps}")
-    if room is not None and (len(room) != ROOM_VALUES or not room[0] < room[2] or not room[1] < room[3]):
-        raise ConfigError(f"--room must be X0 Y0 X1 Y1 with X0 < X1 and Y0 < Y1, got {list(room)}")
+    if area is not None:
+        Area.of(area, "--area")
     if noise_px < 0 or not math.isfinite(noise_px):
         raise ConfigError(f"--noise-px must be >= 0, got {noise_px}")
     if not 0.0 <= drop_rate < 1.0:
@@ -246,7 +249,7 @@ def import_mot(
     out: str | Path,
     *,
     fps: float,
-    room: Sequence[float] | None = None,
+    area: AreaSpec | None = None,
     min_confidence: float = 0.0,
     noise_px: float = 0.0,
     drop_rate: float = 0.0,
@@ -257,7 +260,7 @@ def import_mot(
 
     Args:
         fps: the dataset's frame rate (frame k is world time (k - 1) / fps).
-        room: ``(x0, y0, x1, y1)`` of the floor area people can be in, if known.
+        area: the floor people can be in (and its exits), if known: the site's ``[area]``.
         min_confidence: the nodes ignore boxes whose ``conf`` column is lower (the detector's operating point).
         noise_px: std-dev of Gaussian noise added to each box edge (pixels): a robustness study.
         drop_rate: probability that a box is left out (a missed detection): a robustness study.
@@ -270,7 +273,7 @@ def import_mot(
     src, dst = Path(root), Path(out)
     if not src.is_dir():
         raise ConfigError(f"{src}: no such dataset folder")
-    _check_args(fps, room, noise_px, drop_rate, min_confidence)
+    _check_args(fps, area, noise_px, drop_rate, min_confidence)
     if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
         raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
     calib_dir, det_dir = src / "calib", src / "detections"
@@ -318,7 +321,7 @@ def import_mot(
         fps=fps,
         frames=frames,
         has_gt=gt is not None,
-        room=room,
+        area=area,
         min_confidence=min_confidence,
     )
     logger.info("imported %d cameras, %d frames, %d boxes (%d dropped) into %s", len(ids), frames, boxes, dropped, dst)

@@ -32,7 +32,7 @@ from common.errors import ConfigError
 from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
-from resource_manager.config import ManagerConfig, load_manager_config
+from resource_manager.config import ManagerConfig, for_site, load_manager_config
 from resource_manager.fusion import Batch, Fusion
 from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
@@ -146,11 +146,12 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
 
 
 def _manager_config(site: SiteConfig, given: str | Path | None) -> ManagerConfig:
+    """The site's manager config (or ``given``) as the manager of this site: its sensors, its area."""
     if given:
-        return load_manager_config(given)
+        return for_site(load_manager_config(given), site)
     for proc in site.process:
         if proc.command == "manager":
-            return load_manager_config(site.resolve(proc.config))
+            return for_site(load_manager_config(site.resolve(proc.config)), site)
     raise ConfigError(f"{site.path}: no manager process: pass --config MANAGER.toml")
 
 
@@ -183,26 +184,33 @@ def evaluate_site(
     run = play(cameras, config)
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
-    area = gt.area() if site.dataset.scored_area == "ground_truth" else None
+    hull = gt.area() if site.dataset.scored_area == "ground_truth" else None
     fps = site.dataset.fps
 
     def score(t: float, where: FloatArray | None) -> Scored:
         return score_tracksets(run.tracksets, gt, epoch_ns=DATASET_EPOCH_NS, fps=fps, threshold_m=t, area=where)
 
-    scored = [score(t, area) for t in thresholds_m]
+    # A site that declares its area says where people are: every track counts, first. Without one, the ground
+    # truth's hull is where anyone can say whether someone is there.
+    primary = None if site.area is not None else hull
+    scored = [score(t, primary) for t in thresholds_m]
     run.hypotheses = scored[0].hypotheses if scored else {}
     report: dict[str, Any] = {
         "site": site.site.name,
         "cameras": [c.sensor_id for c in cameras],
         "fps": site.dataset.fps,
         "frames": max((len(c.features) for c in cameras), default=0),
-        "scored_area": site.dataset.scored_area if area is not None else "everywhere",
+        "scored_area": "ground_truth" if primary is not None else "everywhere",
         "scores": [s.metrics.to_dict() for s in scored],
         "tracks_published": len({t.track_id for ts in run.tracksets for t in ts.tracks}),
         "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
         "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
     }
-    if area is not None:
+    if primary is not None:
         # The same tracks scored everywhere too: those outside the annotated area count as false positives.
         report["scores_everywhere"] = [score(t, None).metrics.to_dict() for t in thresholds_m]
+    else:
+        report["scores_everywhere"] = report["scores"]
+        if hull is not None:
+            report["scores_annotated"] = [score(t, hull).metrics.to_dict() for t in thresholds_m]
     return report, run

@@ -37,6 +37,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from common.area import rectangle
 from common.errors import ConfigError
 from panostereo.datasets.mot import MIN_BOX_PX, ImportResult, camera_id, import_mot
 from user_agent.groundtruth import GtPoint, write_gt_rows
@@ -54,6 +55,8 @@ class GridSpec:
     y0_m: float = -9.0
     step_m: float = 0.025
     width: int = 480
+    rows: int = 1440
+    """Cells per column: the grid spans ``width`` x ``rows`` cells, the annotated area."""
     extrinsic_unit_m: float = 0.01
     """Metres per unit of ``tvec`` (Wildtrack: centimetres)."""
     video_fps: float = 10.0
@@ -199,6 +202,15 @@ def import_wildtrack(
             (stage / "calib" / f"{cid}.json").write_text(json.dumps(calib, indent=1) + "\n", encoding="utf-8")
             (stage / "detections" / f"{cid}.txt").write_text("\n".join(dets[i]) + "\n", encoding="utf-8")
         write_gt_rows(stage / "gt.csv", gt, with_z=False)
+        # The annotated ground grid is where the dataset says people are: the site's area.
+        area = rectangle(g.x0_m, g.y0_m, g.x0_m + g.step_m * g.width, g.y0_m + g.step_m * g.rows)
         return import_mot(
-            stage, dst, fps=fps, noise_px=noise_px, drop_rate=drop_rate, seed=seed, name=site_name or "wildtrack"
+            stage,
+            dst,
+            fps=fps,
+            area=area,
+            noise_px=noise_px,
+            drop_rate=drop_rate,
+            seed=seed,
+            name=site_name or "wildtrack",
         )

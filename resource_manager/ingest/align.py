@@ -52,6 +52,8 @@ class AlignedBlob(NamedTuple):
     border does not show the feet, whatever the node says."""
     top_px: float = -1.0
     """Image row of the blob's top edge (-1: unknown): 0 means the head is cut by the upper border."""
+    confidence: float = 1.0
+    """The node's confidence in the blob (a detector's score): the lower of the two frames'."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,6 +95,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
             b0.feet_visible and b1.feet_visible,
             max(v0 + b0.bbox_h_px, v1 + b1.bbox_h_px),
             min(v0, v1),
+            min(b0.confidence, b1.confidence),
         )
     b = b1 if b1 is not None else b0
     assert b is not None
@@ -106,6 +109,7 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
         b.feet_visible,
         b.bbox_v_px + b.bbox_h_px,
         b.bbox_v_px,
+        b.confidence,
     )
 
 

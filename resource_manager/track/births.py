@@ -5,14 +5,16 @@
    pair's rays give a hypothesised person (Eq. 1, or Eq. 2 near colinearity). Where no second camera has a
    clear view (out of every other picture, or hidden there by people nearer to it), stereo cannot start anyone:
    there a blob whose feet a calibrated camera places on the floor to within ``publish_sigma_m`` is a
-   hypothesis of its own, which starts tentative and is confirmed over time.
+   hypothesis of its own, which starts tentative and is confirmed over time. Only blobs the nodes are sure of
+   (``birth_confidence``) define hypotheses, and only inside the site's area.
 2. Each hypothesis is put to every view as a provisional track (:mod:`.observe`): a view whose unexplained
    blob fits it supports it, a view that should see it and has nothing there counts against it. The sum is
    the log likelihood ratio of "a new person" against "false detections that happen to agree".
 3. Hypotheses are taken best first; each takes its supporting blobs, so the other hypotheses built on those
    blobs (the same person from other pairs, or ghosts of crossing rays) lose them. A hypothesis is started
    only if the prior ``p_birth`` times that evidence leaves it above ``p_delete``, and nobody stands within two
-   person radii of a track.
+   person radii of a track a view detected (next to a track nobody detected, it may be that track found
+   again: :mod:`.life`).
 4. Its first position comes, in ``paper`` mode, from the pair of its supporting views the error model ranks best
    (Eq. 1 or Eq. 2); in ``model`` mode from all its views at once. The error model's best pair is reported.
 """
@@ -29,7 +31,7 @@ import numpy.typing as npt
 
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
-from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
+from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
 from resource_manager.track.observe import Spread, TrackTable, ViewStack, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -38,8 +40,6 @@ from resource_manager.views.build import subset_view
 __all__ = ["BirthParams", "Hypothesis", "find_births"]
 
 FloatArray = npt.NDArray[np.float64]
-PRIOR_SIGMA_M = 1.0
-"""Position spread of the prior a new person's first fix starts from (the pair's point, loosely)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,30 +115,38 @@ def _singles(
     return out
 
 
-def _provisional(fix: Measurement, model: TrackModel) -> TrackRecord:
-    """A hypothesis as a track to score the views against."""
-    p = np.zeros((4, 4))
-    p[:2, :2] = fix.cov + model.body_sigma_m**2 * np.eye(2)  # the prior spread: the pair's points scatter too
-    p[2, 2] = p[3, 3] = model.speed_sigma_mps**2
-    height = fix.height_m if fix.height_m > 0 else model.height_prior_m
-    return TrackRecord(
-        serial=0,
-        x=np.array([fix.xy[0], fix.xy[1], 0.0, 0.0]),
-        p=p,
-        t_ns=0,
-        born_ns=0,
-        logodds=0.0,
-        height_m=height,
-        height_var=model.height_sigma_m**2,
-    )
+def _provisional(
+    found: list[tuple[Measurement, str, int, str, int]], views: dict[str, ViewBlobs], model: TrackModel
+) -> tuple[TrackTable, list[TrackRecord]]:
+    """Hypotheses as tracks to score the views against: their places (the pair's points scatter too: the prior
+    spread is the fix's and a body's) and heights, and as their looks the colours of their defining blobs (the
+    other views' blobs are compared with them: Eq. 7's r_is across views)."""
+    xy = np.array([fix.xy for fix, *_ in found], dtype=np.float64).reshape(-1, 2)
+    cov = np.array([fix.cov + model.body_sigma_m**2 * np.eye(2) for fix, *_ in found]).reshape(-1, 2, 2)
+    height = np.array([fix.height_m if fix.height_m > 0 else model.height_prior_m for fix, *_ in found])
+    table = TrackTable(xy, cov, height, np.full(len(found), model.height_sigma_m**2))
+    records = []
+    for _, a, ia, b, ib in found:
+        tr = TrackRecord(serial=0, born_ns=0)
+        for sid, j in ((a, ia), (b, ib)):
+            hs = views[sid].hist_sqrt if sid else None
+            if hs is not None:
+                tr.looks[sid] = hs[j].copy()
+                tr.look_s[sid] = model.look_min_s
+        records.append(tr)
+    return table, records
 
 
-def _in_room(xy: FloatArray, model: TrackModel) -> bool:
-    if model.room is None:
-        return True
-    x0, y0, x1, y1 = model.room
-    m = model.room_margin_m
-    return x0 - m <= float(xy[0]) <= x1 + m and y0 - m <= float(xy[1]) <= y1 + m
+def _in_area(xy: FloatArray, scene: Scene) -> bool:
+    """Whether a person at ``xy`` stands inside the site's area (anywhere, where it declares none)."""
+    return scene.area is None or bool(scene.area.contains(xy[None, :])[0])
+
+
+def _sure(v: ViewBlobs, blobs: list[int], birth_confidence: float) -> list[int]:
+    """The blobs among ``blobs`` of ``v`` sure enough to start a person."""
+    if v.confidence is None:
+        return list(blobs)
+    return [j for j in blobs if float(v.confidence[j]) >= birth_confidence]
 
 
 def _near(xy: FloatArray, track_xy: FloatArray) -> bool:
@@ -149,10 +157,11 @@ def _near(xy: FloatArray, track_xy: FloatArray) -> bool:
 def find_births(
     views: dict[str, ViewBlobs],
     free: dict[str, list[int]],
-    tracks: list[TrackRecord],
+    blockers: TrackTable,
     model: TrackModel,
-    params: BirthParams,
     *,
+    scene: Scene,
+    params: BirthParams,
     spread: Callable[[str], Spread],
     tick: int,
     min_evidence: float,
@@ -160,37 +169,38 @@ def find_births(
 ) -> list[Hypothesis]:
     """The new people among the unexplained blobs ``free`` (sensor id -> blob indices), best first.
 
-    ``min_evidence``: the log likelihood ratio a hypothesis needs (the prior and the deletion threshold).
-    ``stack``: ``views`` stacked in order of sensor ids with their ``spread`` (default: stacked here).
+    ``blockers``: the tracks the views detected: nobody is started within two person radii of one, and they hide
+    the hypotheses from the cameras behind them. Only blobs sure enough (``birth_confidence``) define a
+    hypothesis; any unexplained blob may support one. ``min_evidence``: the log likelihood ratio a hypothesis
+    needs (the prior and the deletion threshold). ``stack``: ``views`` stacked in order of sensor ids with their
+    ``spread`` (default: stacked here).
     """
     sids = sorted(views)
     with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
     sub = {sids[i]: subset_view(views[sids[i]], free[sids[i]]) for i in with_free}
-    found = _hypotheses(sub, free, params, tick) + _singles(sub, free, model.publish_sigma_m)
-    track_xy = np.array([tr.x[:2] for tr in tracks]).reshape(-1, 2)
-    # Nobody is started within two person radii of a track: those hypotheses go before they are scored.
-    found = [h for h in found if _in_room(h[0].xy, model) and not _near(h[0].xy, track_xy)]
+    sure = {sid: _sure(views[sid], blobs, model.birth_confidence) for sid, blobs in free.items()}
+    sure_sub = {sid: subset_view(views[sid], blobs) for sid, blobs in sure.items() if blobs}
+    found = _hypotheses(sure_sub, sure, params, tick) + _singles(sure_sub, sure, model.publish_sigma_m)
+    # Nobody is started outside the area, nor within two person radii of a track: those go before they are scored.
+    found = [h for h in found if _in_area(h[0].xy, scene) and not _near(h[0].xy, blockers.xy)]
     if not found:
         return []
-    cands = [_provisional(fix, model) for fix, *_ in found]
-    for tr, (_, a, ia, b, ib) in zip(cands, found, strict=True):
-        # The pair's colours: the other views' blobs are compared with them (Eq. 7's r_is across views).
-        for sid, j in ((a, ia), (b, ib)):
-            if not sid:
-                continue  # a one-view hypothesis
-            hs = views[sid].hist_sqrt
-            if hs is not None:
-                tr.looks[sid] = hs[j].copy()
-                tr.look_s[sid] = model.look_min_s
-    cand_table = TrackTable.of(cands)
+    cand_table, cands = _provisional(found, views, model)
     # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
     every = stack if stack is not None else ViewStack.of([views[sid] for sid in sids], [spread(sid) for sid in sids])
-    pd = visibility_many(every, cand_table, model, blockers=TrackTable.of(tracks))
+    pd = visibility_many(every, cand_table, model, scene.max_range_m, blockers=blockers)
     misses = np.zeros(len(cands))
     for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
         misses += row
     unexplained = every.subset([sub[sids[i]] for i in with_free], with_free, [free[sids[i]] for i in with_free])
-    scores = score_views(unexplained, cands, cand_table, pd[with_free], model=model)
+    scores = score_views(
+        unexplained,
+        cands,
+        cand_table,
+        pd[with_free],
+        model=model,
+        max_range_m=scene.max_range_m,
+    )
     # The unexplained blobs side by side, view after view: (hypothesis, blob) gains, each blob's view and index.
     gain = np.concatenate([sc.gain for sc in scores], axis=1)
     starts = unexplained.offsets[:-1]
@@ -205,6 +215,7 @@ def find_births(
             others = np.delete(pd[:, k], row[a])
             alive[k] = not bool(np.any(others > model.p_detect_hidden + 1e-9))
     out: list[Hypothesis] = []
+    taken_xy = blockers.xy.reshape(-1, 2)
     while alive.any():
         # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
         open_gain = np.where(open_, gain, -np.inf)
@@ -224,10 +235,10 @@ def find_births(
         alive[c] = False
         if blobs.get(a) != ia or (b and blobs.get(b) != ib):
             continue  # its own pair no longer fits it best: another hypothesis of those blobs will say
-        if _near(fix.xy, track_xy):
+        if _near(fix.xy, taken_xy):
             continue  # beside a person started before it in this tick
         out.append(Hypothesis(fix, blobs, float(evidence[c])))
-        track_xy = np.vstack([track_xy, fix.xy[None, :]])
+        taken_xy = np.vstack([taken_xy, fix.xy[None, :]])
         for sid, j in blobs.items():
             open_[column[sid, j]] = False
         for k2, (_, a2, i2, b2, j2) in enumerate(found):

@@ -4,13 +4,14 @@ A track keeps, per camera, a running mean of the square-rooted, L1-normalised co
 that localised it (:func:`learn_looks`): the same shirt looks different from another side or under another light.
 Every comparison of colours here is one Bhattacharyya coefficient ``BC(p, q) = Σ √p·√q`` of square-rooted
 histograms, computed by :func:`bhattacharyya` in whatever shape it is asked: blobs of a view against the tracks'
-looks there (the support assignment), the blobs of a fix against one track (is the fix in its colours?), and
-two tracks against each other over the views both have (are they one person?).
+looks there (:mod:`.observe`), and two tracks against each other over the views both have (is a new track a
+lost one back? :mod:`.life`). A coefficient becomes evidence by :func:`colour_ln_lr`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import math
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
     from resource_manager.track.stack import ViewStack
     from resource_manager.track.state import TrackRecord
 
-__all__ = ["bhattacharyya", "learn_looks", "mean_similarity"]
+__all__ = ["bhattacharyya", "colour_ln_lr", "learn_looks", "looks_ln_odds"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -41,14 +42,32 @@ def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> 
     return out
 
 
-def mean_similarity(pairs: Iterable[tuple[FloatArray | None, FloatArray | None]]) -> float | None:
-    """Mean Bhattacharyya coefficient over (histogram, look) pairs that can be compared; None if none can."""
-    sims = [
-        float(bhattacharyya(h, [look])[0, 0])
-        for h, look in pairs
-        if h is not None and look is not None and h.shape == look.shape
-    ]
-    return sum(sims) / len(sims) if sims else None
+def colour_ln_lr(coefficient: FloatArray, sigma: float, outlier_prob: float) -> FloatArray:
+    """ln of the half-normal density of the Bhattacharyya distance ``1 - BC`` (spread ``sigma``) of one person's
+    colours, with an outlier floor, against a uniform distance for anyone else, at coefficients ``coefficient``."""
+    dist = 1.0 - np.clip(coefficient, 0.0, 1.0)
+    same = 2.0 / (sigma * math.sqrt(2.0 * math.pi)) * np.exp(-0.5 * (dist / sigma) ** 2)
+    return np.asarray(np.log((1.0 - outlier_prob) * same + outlier_prob), dtype=np.float64)
+
+
+def looks_ln_odds(
+    a: Mapping[str, FloatArray],
+    a_s: Mapping[str, float],
+    b: Mapping[str, FloatArray],
+    b_s: Mapping[str, float],
+    *,
+    sigma: float,
+    outlier_prob: float,
+    min_s: float,
+) -> float | None:
+    """ln p(colours | one person) / p(colours | two people) of two tracks' looks, summed over the views where both
+    have one learnt for at least ``min_s`` (None where there is none: colour cannot tell)."""
+    views = [sid for sid in a if sid in b and a_s.get(sid, 0.0) >= min_s and b_s.get(sid, 0.0) >= min_s]
+    pairs = [(a[sid], b[sid]) for sid in views if a[sid].shape == b[sid].shape]
+    if not pairs:
+        return None
+    bc = np.array([float(bhattacharyya(x, [y])[0, 0]) for x, y in pairs])
+    return float(np.sum(colour_ln_lr(bc, sigma, outlier_prob)))
 
 
 def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from resource_manager.track.looks import colour_ln_lr
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
 from resource_manager.track.motion import MIN_RANGE_M, quadratic_form
 from resource_manager.track.stack import Spread, ViewStack, fov_width
@@ -44,6 +45,7 @@ __all__ = [
     "ViewScores",
     "ViewStack",
     "fov_width",
+    "in_any_view",
     "score_view",
     "score_views",
     "visibility",
@@ -55,6 +57,8 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 LN_2PI = math.log(TWO_PI)
+HALF = 0.5
+"""A distance farther than the gate is weighed only for a person more than half covered."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,18 +76,6 @@ class TrackTable:
     @property
     def n(self) -> int:
         return int(self.xy.shape[0])
-
-    @staticmethod
-    def of(tracks: list[TrackRecord]) -> TrackTable:
-        n = len(tracks)
-        if n == 0:
-            return TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0))
-        return TrackTable(
-            xy=np.array([tr.x[:2] for tr in tracks], dtype=np.float64),
-            pos_cov=np.array([tr.p[:2, :2] for tr in tracks], dtype=np.float64),
-            height=np.array([tr.height_m for tr in tracks], dtype=np.float64),
-            height_var=np.array([tr.height_var for tr in tracks], dtype=np.float64),
-        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,37 +99,50 @@ def _wrap(a: FloatArray) -> FloatArray:
     return np.asarray(np.remainder(a + math.pi, TWO_PI) - math.pi, dtype=np.float64)
 
 
-def visibility(v: ViewBlobs, table: TrackTable, model: TrackModel, blockers: TrackTable | None = None) -> FloatArray:
+def visibility(
+    v: ViewBlobs, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
+) -> FloatArray:
     """(n,) detection probability of each track in this view (:func:`visibility_many` of one view)."""
-    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, blockers)[0]
+    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, max_range_m, blockers)[0]
 
 
 def visibility_many(
-    stack: ViewStack, table: TrackTable, model: TrackModel, blockers: TrackTable | None = None
+    stack: ViewStack, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
 ) -> FloatArray:
-    """(s, n) detection probability of each track in each view: 0 out of its picture or range, lower when
+    """(s, n) detection probability of each track in each view: 0 out of its picture or ``max_range_m``, lower when
     someone nearer stands on the same bearing: one of the tracks of ``blockers`` (default: of ``table`` itself;
     new people's hypotheses are hidden by the tracks, not by each other)."""
     n = table.n
     p = np.zeros((stack.n_views, n))
     if n == 0 or stack.n_views == 0:
         return p
-    dist, seen = _in_view(stack, table, model)
+    dist, seen = _in_view(stack, table, max_range_m)
     p[seen] = model.p_detect
     if n + (blockers.n if blockers is not None else 0) > 1:
         hiders, hdist, hseen = (
-            (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, model))
+            (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, max_range_m))
         )
         covered = _covered(stack, table, dist, hiders=hiders, hdist=hdist, hseen=hseen)
         p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
     return p
 
 
-def _in_view(stack: ViewStack, table: TrackTable, model: TrackModel) -> tuple[FloatArray, BoolArray]:
+def in_any_view(stack: ViewStack, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
+    """(n,) whether some camera of ``stack`` has a person ``height_m`` tall standing at ``xy`` (n, 2) in its picture
+    and range."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if not stack.n_views or not len(xy):
+        return np.zeros(len(xy), dtype=bool)
+    n = len(xy)
+    table = TrackTable(xy, np.zeros((n, 2, 2)), np.full(n, height_m), np.zeros(n))
+    return np.asarray(_in_view(stack, table, max_range_m)[1].any(axis=0), dtype=bool)
+
+
+def _in_view(stack: ViewStack, table: TrackTable, max_range_m: float) -> tuple[FloatArray, BoolArray]:
     """(s, n) distance of each track from each camera and whether it is in the camera's picture and range."""
     d = table.xy[None, :, :] - stack.origin[:, None, :]
     dist = np.hypot(d[:, :, 0], d[:, :, 1])
-    seen = (dist > MIN_RANGE_M) & (dist <= model.max_range_m)
+    seen = (dist > MIN_RANGE_M) & (dist <= max_range_m)
     feet = head = None
     for i, v in enumerate(stack.views):
         if v.image is not None:
@@ -201,23 +206,33 @@ def _mixture_ln(d2: FloatArray, ln_det: FloatArray, dim: FloatArray, model: Trac
 
 def score_view(
     v: ViewBlobs,
-    tracks: list[TrackRecord],
+    tracks: Sequence[TrackRecord],
     table: TrackTable,
     p_detect: FloatArray,
     *,
     model: TrackModel,
+    max_range_m: float,
     spread: Spread,
 ) -> ViewScores:
     """Every blob of ``v`` against every track (:func:`score_views` of one view); ``spread``: the camera's own
     spread of points around a person."""
-    return score_views(ViewStack.of([v], [spread]), tracks, table, p_detect[None, :], model=model)[0]
+    return score_views(
+        ViewStack.of([v], [spread]), tracks, table, p_detect[None, :], model=model, max_range_m=max_range_m
+    )[0]
 
 
 def score_views(
-    stack: ViewStack, tracks: Sequence[TrackRecord], table: TrackTable, p_detect: FloatArray, *, model: TrackModel
+    stack: ViewStack,
+    tracks: Sequence[TrackRecord],
+    table: TrackTable,
+    p_detect: FloatArray,
+    *,
+    model: TrackModel,
+    max_range_m: float,
 ) -> list[ViewScores]:
     """Every blob of every view of ``stack`` against every track (see the module docstring); ``p_detect`` (s, n):
-    each track's detection probability in each view."""
+    each track's detection probability in each view; ``tracks``: their looks and links (row for row with
+    ``table``); nobody is seen farther than ``max_range_m``."""
     n, m = table.n, stack.view_of.shape[0]
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
@@ -237,34 +252,40 @@ def score_views(
     gate = d2 <= model.gate_sigmas**2
     ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
     has = np.isfinite(stack.mono_range_m)
-    det = None
+    feet: tuple[FloatArray, FloatArray, FloatArray] | None = None
     if has.any():
+        # The floor distance given the bearing (conditioned on its innovation), with its own outlier model: a box
+        # whose bottom is not the feet (someone nearer hides them) puts the person farther than they are.
         s_td = quadratic_form(jac, pc, unit)[col].T
         rng = np.where(has, stack.mono_range_m, 0.0)
         feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
         s_dd = s_dd_track[col].T + feet_var[None, :]
-        nu_d = rng[None, :] - dist[col].T
-        det = blob_s_tt * s_dd - s_td**2
-        det = np.maximum(det, 1e-18)
-        d2_joint = (s_dd * nu_t**2 - 2.0 * s_td * nu_t * nu_d + blob_s_tt * nu_d**2) / det
-        gate_d = nu_d**2 / s_dd <= model.gate_sigmas**2
-        d2 = np.where(has[None, :], d2_joint, d2)
-        gate &= np.where(has[None, :], gate_d, True)
-        ln_clutter = ln_clutter + np.where(has, -math.log(model.max_range_m), 0.0)
+        range_innovation = rng[None, :] - dist[col].T
+        nu_d = range_innovation - s_td / blob_s_tt * nu_t
+        s_cond = np.maximum(s_dd - s_td**2 / blob_s_tt, 1e-18)
+        near = np.abs(range_innovation) <= model.gate_sigmas * np.sqrt(s_dd)
+        # Farther than the gate only where someone nearer may cut the box above the feet.
+        cut_ok = (covered_share(p_detect, model) > HALF)[col].T
+        far = (nu_d > 0) & cut_ok
+        density_gate = gate & np.where(has[None, :], near, True)
+        gate &= np.where(has[None, :], near | far, True)
+        feet = (nu_d, s_cond, dist[col].T)
+        ln_clutter = ln_clutter + np.where(has, -math.log(max_range_m), 0.0)
+    else:
+        density_gate = gate
     # Other people's blobs near the track are the alternative explanation of a blob there: the local density of
     # blobs in each track's gate beyond the one it would have (non-parametric PDA), when above the view's mean.
-    counted = np.concatenate([np.zeros((n, 1)), np.cumsum(gate, axis=1, dtype=np.float64)], axis=1)
+    counted = np.concatenate([np.zeros((n, 1)), np.cumsum(density_gate, axis=1, dtype=np.float64)], axis=1)
     in_gate = counted[:, stack.offsets[1:]] - counted[:, stack.offsets[:-1]]
     local = np.log(np.maximum(in_gate - 1.0, 1e-9) / (2.0 * model.gate_sigmas * np.sqrt(s_tt.T)))
     # The likelihood ratio where it can be finite: (track, blob) entries in the gate of a track the view can see.
     track, blob = np.nonzero(gate & (p_detect[col].T > 0))
     view = col[blob]
-    ln_det = np.log(s_tt[view, track])
-    dim = np.ones(len(track))
-    if det is not None:
-        ln_det = np.where(has[blob], np.log(det[track, blob]), ln_det)
-        dim = np.where(has[blob], 2.0, dim)
-    ln_g = _mixture_ln(d2[track, blob], ln_det, dim, model)
+    ln_g = _mixture_ln(d2[track, blob], np.log(s_tt[view, track]), np.ones(len(track)), model)
+    if feet is not None:
+        nu_d, s_cond, dist_pred = (a[track, blob] for a in feet)
+        cut = feet_cut_prob(p_detect[view, track], model)
+        ln_g = ln_g + np.where(has[blob], np.logaddexp(*_feet_ln(nu_d, s_cond, dist_pred, cut, model)), 0.0)
     ln_alt = np.maximum(ln_clutter[blob], local[track, view])
     entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
     entry = entry + _height_term(
@@ -275,6 +296,39 @@ def score_views(
     ln_lr = np.full((n, m), -np.inf)
     ln_lr[track, blob] = entry
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
+
+
+def covered_share(p_detect: FloatArray, model: TrackModel) -> FloatArray:
+    """The share of a person's silhouette that nearer people cover in a view, read back from their detection
+    probability there (:func:`visibility_many`)."""
+    span = max(model.p_detect - model.p_detect_hidden, 1e-9)
+    return np.asarray(np.clip((model.p_detect - p_detect) / span, 0.0, 1.0), dtype=np.float64)
+
+
+def feet_cut_prob(p_detect: FloatArray, model: TrackModel) -> FloatArray:
+    """Probability that a box's bottom is not the person's feet: ``feet_hidden_prob`` where nobody stands in front,
+    rising to ``feet_cut_prob_covered`` with the share others cover."""
+    covered = covered_share(p_detect, model)
+    return np.asarray(
+        model.feet_hidden_prob + (model.feet_cut_prob_covered - model.feet_hidden_prob) * covered, dtype=np.float64
+    )
+
+
+def _feet_ln(
+    nu: FloatArray, var: FloatArray, dist: FloatArray, cut: FloatArray, model: TrackModel
+) -> tuple[FloatArray, FloatArray]:
+    """ln of the density of a floor distance's innovation ``nu`` (variance ``var``, given the bearing's) for a
+    person predicted ``dist`` away, as its two parts: the box shows the feet (Gaussian with the wide outlier
+    part), or, with probability ``cut``, a box cut above the feet, which puts them farther by an exponentially
+    distributed distance of mean ``dist``."""
+    eps, k2 = model.outlier_prob, model.outlier_scale**2
+    core = -0.5 * (nu * nu / var + np.log(var) + LN_2PI)
+    wide = -0.5 * (nu * nu / (k2 * var) + np.log(k2 * var) + LN_2PI)
+    normal = np.logaddexp(math.log(1.0 - eps) + core, math.log(eps) + wide)
+    scale = np.maximum(dist, MIN_RANGE_M)
+    farther = np.where(nu > 0, -nu / scale - np.log(scale), -np.inf)
+    cut = np.clip(cut, 1e-300, 1.0 - 1e-9)
+    return np.log1p(-cut) + normal, np.log(cut) + farther
 
 
 def _height_term(
@@ -334,8 +388,10 @@ def _colour_term(
         # Bhattacharyya coefficients of each blob with the track's looks in the blob's view.
         bc_own = np.einsum("ek,ek->e", own[t, v], h)
         bc_others = np.einsum("ek,ek->e", others[t, v], h)
-        term = np.where(own_ok[t, v] > 0, _colour_ln_lr(bc_own, model), 0.0)
-        out[here] = term + np.where(others_ok[t, v], _colour_ln_lr(bc_others, model), 0.0)
+        term = np.where(own_ok[t, v] > 0, colour_ln_lr(bc_own, model.colour_sigma, model.outlier_prob), 0.0)
+        out[here] = term + np.where(
+            others_ok[t, v], colour_ln_lr(bc_others, model.colour_sigma, model.outlier_prob), 0.0
+        )
     return out
 
 
@@ -369,15 +425,6 @@ def _look_arrays(
     each[row * int(count.max()) + slot] = mat
     total = each.reshape(n, -1, bins).sum(axis=1)
     return own.reshape(n, s, bins), own_ok.reshape(n, s), total, count.astype(np.float64)
-
-
-def _colour_ln_lr(coefficient: FloatArray, model: TrackModel) -> FloatArray:
-    """ln of the half-normal density of the Bhattacharyya distance (spread ``colour_sigma``) with an outlier
-    floor, against a uniform distance for anyone else, at Bhattacharyya coefficients ``coefficient``."""
-    dist = 1.0 - np.clip(coefficient, 0.0, 1.0)
-    sig, eps = model.colour_sigma, model.outlier_prob
-    same = 2.0 / (sig * math.sqrt(TWO_PI)) * np.exp(-0.5 * (dist / sig) ** 2)
-    return np.asarray(np.log((1.0 - eps) * same + eps), dtype=np.float64)
 
 
 def _link_term(

@@ -1,26 +1,27 @@
-"""The tracker: every track predicted, every view's blobs assigned, every track updated, people born and ended.
+"""The tracker: every track predicted, every view's blobs assigned, every track updated, people born, found again,
+re-identified and ended.
 
-Each tick, at the fusion instant:
+:meth:`Tracker.step` runs, at the fusion instant, in pipeline order:
 
-1. **Predict** every track to the instant (:mod:`.motion`).
-2. **Assign, per view**: what the camera should see of each track (in its picture, not hidden) and how well each
-   of its blobs fits each track (:mod:`.observe`) give one cost; the blobs are assigned one to one to tracks, or
-   left to clutter and new people (Hungarian, scipy's ``linear_sum_assignment``).
-3. **Update** each track with every view assigned to it, each with its own covariance (``model`` mode), or with
-   the pair of them the error model ranks best, by Eq. (1) or Eq. (2) (``paper`` mode). Head height, colour
-   looks and the nodes' 2D track ids follow.
-4. **Existence**: each view that should see a track raises its existence probability when it detects the person
-   and lowers it when it does not, by the likelihood ratio of step 2, tempered so that a view's frames within
-   ``evidence_time_s`` count once.
-5. **Births** from the blobs no track explains (:mod:`.births`).
-6. **Life cycle**: a track is confirmed (published, given an id) once its existence reaches ``p_confirm``, and ends
-   when it falls below ``p_delete`` or its position is lost (``lost_sigma_m``).
+1. **Predict** every track to the instant (:class:`~.filter.TrackFilter`, the motion model of :mod:`.motion`).
+2. **Expected detections**: what each camera should see of each track: in its picture, in range, not hidden
+   behind someone nearer (:func:`~.observe.visibility_many`).
+3. **Assign, per view**: how well each blob fits each track (:mod:`.observe`) gives one cost; the blobs are
+   assigned one to one to tracks, or left to clutter and new people (Hungarian, scipy's ``linear_sum_assignment``).
+4. **Update** each track with every view assigned to it (:mod:`.update`), its head height, looks and links.
+5. **Births and returns** from the blobs no track explains (:mod:`.births`): a new person next to a track no
+   view detected is that track found again; the others start tentative (:mod:`.life`).
+6. **Existence**: each view that should see a track raises its existence when it detects the person and
+   lowers it when it does not (a detection assigned to a track never counts against it), tempered so that a
+   view's frames within ``evidence_time_s`` count once, and held below where the person could have left.
+7. **Prune**: a track ends when its existence is gone, its position is lost (``lost_sigma_m``), its height is no
+   person's, its person left the area, or it is another track's person followed twice. A confirmed track that
+   ended inside the area is remembered (:class:`~.life.Graveyard`).
+8. **Confirm**: a track whose existence reaches ``p_confirm`` is published, under a lost track's id when it is
+   that person back, else a new one.
 
-Each step works on every track and view of the tick at once, on arrays (the views stacked, :mod:`.stack`; the
-tracks' updates, :mod:`.fuse`): a tick's cost is then a few hundred array operations, not a few dozen per track and
-per view. Only the assignment (one Hungarian problem per view) and the pair report (one fix per track) stay loops.
-
-Only this package changes a track's state; :meth:`Tracker.step` returns what the other stages need.
+Only this package changes a track; :meth:`Tracker.step` returns what the other stages need, and
+:meth:`Tracker.snapshots` what they may read of the tracks.
 """
 
 from __future__ import annotations
@@ -28,36 +29,82 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from common.schema import Method, PairEntry
-from resource_manager.stereo.localize import Measurement, localize_best_pair
-from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
+from common.arrays import FloatArray
+from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
-from resource_manager.track.fuse import Slots, fuse, fuse_heights
-from resource_manager.track.looks import learn_looks
-from resource_manager.track.model import PERSON_RADIUS_M, TrackModel, logit
-from resource_manager.track.motion import MotionModel, predict_many
+from resource_manager.track.filter import TrackFilter
+from resource_manager.track.life import (
+    CLOSE_M,
+    Coverage,
+    Graveyard,
+    Lost,
+    NewTrack,
+    Separation,
+    at_exit,
+    existence_caps,
+    left_area,
+    match_returns,
+)
+from resource_manager.track.looks import looks_ln_odds
+from resource_manager.track.model import Scene, TrackModel, logit
+from resource_manager.track.motion import MotionModel
 from resource_manager.track.observe import (
     Spread,
-    TrackTable,
     ViewScores,
-    ViewStack,
+    in_any_view,
     score_views,
     visibility_many,
 )
+from resource_manager.track.stack import ViewStack
 from resource_manager.track.state import TrackRecord
+from resource_manager.track.update import Assigned, Tick, Updater
 from resource_manager.views.blobs import ViewBlobs
 
-__all__ = ["Tracker", "TrackerOutcome"]
+__all__ = ["TrackSnapshot", "Tracker", "TrackerOutcome"]
 
-FloatArray = npt.NDArray[np.float64]
-MAX_PAIR_CAMERAS = 5
-"""Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
+PRIOR_SIGMA_M = 1.0
+"""Position spread (m) of the prior a new person's first multi-view fix starts from, around the pair's point."""
+HEIGHT_SIGMAS = 4.0
+"""A track whose head height is surely this many of the population's sigmas from its mean is no person (a false
+blob's ray crossing someone's, a robot's body): 1.1-2.3 m with the default 1.7 +- 0.15 m."""
+SAME_PERSON_CHI2 = 9.21
+"""Two tracks whose positions differ by less than this (Mahalanobis², 2 dof: 99 %) and by less than a person's width
+are one person followed twice (a detector's double box, two views' calibrations that disagree), unless some view
+has shown them apart (:class:`~.life.Separation`)."""
+
+
+@dataclass(frozen=True, slots=True)
+class TrackSnapshot:
+    """What the other stages may read of one track, at the latest tick (a copy: changing it changes nothing)."""
+
+    serial: int
+    track_id: str
+    """The published id; "" while tentative."""
+    x: FloatArray
+    """(4,) x, y (m) and vx, vy (m/s) on the floor."""
+    p_xy: FloatArray
+    """(2, 2) position covariance (m²)."""
+    height_m: float
+    existence: float
+    state: TrackState
+    method: Method
+    sensors: tuple[str, ...]
+    predicted_error_m: float
+    born_ns: int
+    t_ns: int
+    hits: int
+    misses: int
+    confirmed: bool
+    reported: bool
+    """Published now: confirmed, more likely there than not, and placed to within ``publish_sigma_m``."""
+
+    @property
+    def xy(self) -> FloatArray:
+        return self.x[:2]
 
 
 @dataclass(slots=True)
@@ -70,43 +117,20 @@ class TrackerOutcome:
     """Ids of the confirmed tracks that ended."""
     births: int = 0
     detected: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class _Tick:
-    """What every stage of one tick reads: the views, their evidence weights, the cameras' position errors."""
-
-    views: dict[str, ViewBlobs]
-    weights: dict[str, tuple[float, float]]
-    """sensor id -> (position, existence) weight of its evidence at this tick (:meth:`Tracker._weights`)."""
-    pose_sigma: dict[str, float]
-    stack: ViewStack
-    """The views stacked into arrays, in order of sensor ids."""
-    position_weight: FloatArray
-    """(s,) the position weight of each view of ``stack``."""
-
-
-class _Ranking(NamedTuple):
-    """The pair of a track's cameras chosen (:meth:`Tracker._rank`) among how many."""
-
-    best: PairCandidate | None
-    candidates: int
-
-
-class _Assigned(NamedTuple):
-    """One view's blob assigned to a track."""
-
-    sensor_id: str
-    blob: int
+    returned: int = 0
+    """Tracks no view detected that a new person's detections found again."""
+    reidentified: list[str] = field(default_factory=list)
+    """Ids of lost tracks given back to a newly confirmed track (the same person back)."""
 
 
 class Tracker:
     """All tracks of one manager.
 
     Args:
-        model: the tracker's model (:class:`~resource_manager.track.model.TrackModel`).
+        model: the tracker's model (the ``[tracker]`` table).
         births: how new people are found (Eq. 7).
-        new_id: returns the next unique track id (called once per confirmed track).
+        new_id: returns the next unique track id (called once per confirmed track that is nobody back).
+        scene: the site's area and the cameras' range.
         pair_choice: ``error_model`` (the paper), or ``random``: a baseline the error model is measured against.
     """
 
@@ -116,24 +140,56 @@ class Tracker:
         births: BirthParams,
         new_id: Callable[[], str],
         *,
+        scene: Scene | None = None,
         pair_choice: str = "error_model",
         seed: int = 0,
     ) -> None:
         self.model = model
         self.birth_params = births
         self.new_id = new_id
+        self.scene = scene if scene is not None else Scene()
         self.pair_choice = pair_choice
         self.motion = MotionModel(model.speed_sigma_mps, model.turn_time_s)
+        self.filter = TrackFilter(self.motion, model.height_change_mps)
         self.tracks: list[TrackRecord] = []
+        """Row for row with :attr:`filter`."""
+        self.updater = Updater(model, births.width_rel_sigma, pair_choice, seed)
+        self.separation = Separation()
+        self.graveyard = Graveyard()
         self._serial = 0
         self._t_ns = 0
         self._tick = 0
-        self._rng = np.random.default_rng(seed)
 
-    def reported(self, tr: TrackRecord) -> bool:
-        """Whether the manager reports ``tr`` now: published (confirmed, more likely there than not) and placed to
-        within ``publish_sigma_m``; a vaguer one is held, with its id, until its views pin it down again."""
-        return tr.published and tr.position_sigma_m <= self.model.publish_sigma_m
+    # -- reading --------------------------------------------------------------------------------------
+    def snapshots(self) -> list[TrackSnapshot]:
+        """Every track as the other stages may read it."""
+        f = self.filter
+        sigma = f.position_sigma().tolist()
+        existence = f.existence().tolist()
+        out = []
+        for i, tr in enumerate(self.tracks):
+            published = tr.confirmed and float(f.logodds[i]) >= 0.0
+            out.append(
+                TrackSnapshot(
+                    serial=tr.serial,
+                    track_id=tr.track_id,
+                    x=f.x[i].copy(),
+                    p_xy=f.p[i, :2, :2].copy(),
+                    height_m=float(f.height[i]),
+                    existence=existence[i],
+                    state=tr.state(),
+                    method=tr.method,
+                    sensors=tr.sensors,
+                    predicted_error_m=tr.predicted_error_m,
+                    born_ns=tr.born_ns,
+                    t_ns=int(f.t_ns[i]),
+                    hits=tr.hits,
+                    misses=tr.misses,
+                    confirmed=tr.confirmed,
+                    reported=published and sigma[i] <= self.model.publish_sigma_m,
+                )
+            )
+        return out
 
     # -- the tick -------------------------------------------------------------------------------------
     def step(
@@ -155,77 +211,48 @@ class Tracker:
         self._t_ns = t_ns
         self._tick += 1
         out = TrackerOutcome()
-        self._predict(t_ns)
-        table = TrackTable.of(self.tracks)
+        # 1. Predict.
+        self.filter.predict(t_ns)
+        # 2. Expected detections.
         evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
         sids = sorted(views)
         stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
-        tick = _Tick(views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]))
-        pd = visibility_many(stack, table, self.model)
+        tick = Tick(views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]))
+        table = self.filter.table()
+        pd = visibility_many(stack, table, self.model, self.scene.max_range_m)
         pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
-        scored = dict(zip(sids, score_views(stack, self.tracks, table, pd, model=self.model), strict=True))
-        assigned: list[list[_Assigned]] = [[] for _ in self.tracks]
-        for sid, scores in scored.items():
-            for i, j in _assign(scores):
-                assigned[i].append(_Assigned(sid, j))
-        kept = self._update_all(assigned, tick, out)
+        # 3. Assign, per view.
+        scores = score_views(stack, self.tracks, table, pd, model=self.model, max_range_m=self.scene.max_range_m)
+        scored = dict(zip(sids, scores, strict=True))
+        assigned: list[list[Assigned]] = [[] for _ in self.tracks]
+        for sid, sc in scored.items():
+            for i, j in _assign(sc):
+                assigned[i].append(Assigned(sid, j))
+        # 4. Update.
+        updated = self.updater.update(self.filter, self.tracks, assigned, tick, t_ns)
+        out.pair_entries = updated.pair_entries
+        out.detected = sum(1 for got in updated.kept if got)
+        self.filter.mark_seen(np.array([i for i, got in enumerate(updated.kept) if got], dtype=np.int64))
         hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
-        for i, got in enumerate(kept):
+        for i, got in enumerate(updated.kept):
             for sid, j in got:
                 hits[sid][i] = j
-        self._existence(scored, hits, tick)
+        # 5. Births and returns.
         taken = {sid: set(hit.values()) for sid, hit in hits.items()}
         free = {sid: [j for j in range(views[sid].n) if j not in taken[sid]] for sid in scored}
-        out.births = self._births(tick, free, t_ns)
-        out.ended = self._prune()
+        hyps = self._hypotheses(tick, free)
+        hyps, returned = self._returns(hyps, tick, t_ns, hits)
+        out.returned = len(returned)
+        # 6. Existence (of the tracks there were; new ones start from their own evidence).
+        coverage = self._coverage(stack)
+        exits = at_exit(self.filter.x[:, :2], self.filter.position_sigma(), self.model, self.scene, coverage)
+        self._existence(scored, hits, tick, existence_caps(exits, self.model, self.scene))
+        out.births = self._spawn(hyps, tick, t_ns)
+        self._note_apart(hits, views, t_ns)
+        # 7. Prune, 8. confirm.
+        out.ended = self._prune(t_ns, coverage)
+        out.reidentified = self._confirm(t_ns)
         return out
-
-    def _predict(self, t_ns: int) -> None:
-        """Every track predicted to the instant ``t_ns`` (all at once)."""
-        if not self.tracks:
-            return
-        gaps_s = [(t_ns - tr.t_ns) / 1e9 for tr in self.tracks]
-        xs, ps = predict_many(
-            np.array([tr.x for tr in self.tracks]),
-            np.array([tr.p for tr in self.tracks]),
-            np.array(gaps_s),
-            self.motion,
-        )
-        for tr, x, p, gap_s in zip(self.tracks, xs, ps, gaps_s, strict=True):
-            tr.x, tr.p = x, p
-            tr.height_var += self.model.height_change_mps**2 * max(gap_s, 0.0)
-            tr.t_ns = t_ns
-
-    def _update_all(self, assigned: list[list[_Assigned]], tick: _Tick, out: TrackerOutcome) -> list[list[_Assigned]]:
-        """Update every track with the blobs assigned to it (:meth:`_update`); returns those each keeps.
-
-        In ``model`` mode the tracks' filters are updated all at once (:meth:`_fuse_tracks`) and the pairs of the
-        cameras that detected each are ranked all at once; then each track's pair is reported, and its head height,
-        looks and links learnt (all tracks at once).
-        """
-        fused = [i for i, got in enumerate(assigned) if got] if self.model.mode == "model" else []
-        weights = self._fuse_tracks([self.tracks[i] for i in fused], [assigned[i] for i in fused], tick)
-        weight_of = dict(zip(fused, weights, strict=True))
-        kept: list[list[_Assigned]] = []
-        rankings: list[_Ranking | None] = []
-        for i, (tr, got) in enumerate(zip(self.tracks, assigned, strict=True)):
-            keep, ranking = self._update(tr, got, tick, out, weight_of.get(i))
-            kept.append(keep)
-            rankings.append(ranking)
-        later = [i for i, (got, r) in enumerate(zip(kept, rankings, strict=True)) if got and r is None]
-        xys = np.array([self.tracks[i].x[:2] for i in later]).reshape(-1, 2)
-        ranked = self._rank_many(xys, [sorted(a.sensor_id for a in kept[i]) for i in later], tick)
-        for i, ranking in zip(later, ranked, strict=True):
-            rankings[i] = ranking
-        learnt: list[tuple[TrackRecord, dict[str, int], float]] = []
-        for tr, got, ranking in zip(self.tracks, kept, rankings, strict=True):
-            if got and ranking is not None:
-                by_sid = {a.sensor_id: a.blob for a in got}
-                self._report(tr, ranking, by_sid, tick, out)
-                learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in got)))
-        self._heights([(tr, got) for tr, got in zip(self.tracks, kept, strict=True) if got], tick.stack)
-        self._learn(learnt, tick.stack)
-        return kept
 
     def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
         """(position, existence) weight of a view's evidence at this tick.
@@ -240,258 +267,139 @@ class Tracker:
         w_exist = min(w_pos, dt_s / self.model.evidence_time_s, 1.0)
         return max(w_pos, 1e-3), w_exist
 
-    def _existence(self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: _Tick) -> None:
-        """Raise the existence of the tracks each view detects (``hits``: per view, track -> blob), lower that of
-        those it should see but misses; view after view in order of sensor ids, each capped at ``p_max``."""
-        if not self.tracks:
-            return
-        cap = logit(self.model.p_max)
-        views = list(scored.values())
-        p_detect = np.array([sc.p_detect for sc in views])
-        # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
-        delta = np.array([sc.ln_miss for sc in views])
-        hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
-        if hit:
-            rows, cols = np.array([h[0] for h in hit]), np.array([h[1] for h in hit])
-            ln_lr = np.array([views[h[0]].ln_lr[h[1], h[2]] for h in hit])
-            delta[rows, cols] = np.log(1.0 - p_detect[rows, cols] + np.exp(np.minimum(ln_lr, 50.0)))
-        logodds = np.array([tr.logodds for tr in self.tracks])
-        for row, sid in enumerate(scored):
-            moved = np.minimum(logodds + tick.weights[sid][1] * delta[row], cap)
-            logodds = np.where(p_detect[row] > 0, moved, logodds)
-        for tr, lo in zip(self.tracks, logodds.tolist(), strict=True):
-            tr.logodds = lo
-
-    def _update(
-        self, tr: TrackRecord, got: list[_Assigned], tick: _Tick, out: TrackerOutcome, weight: FloatArray | None = None
-    ) -> tuple[list[_Assigned], _Ranking | None]:
-        """Update a track with the blobs assigned to it; returns those it keeps (a blob that the others show to be
-        someone else's, in ``model`` mode, goes back to the unexplained ones), whose looks the caller learns, and
-        in ``paper`` mode the ranking of their cameras' pairs (``model`` mode: the caller ranks every track's at
-        once, :meth:`_rank_many`).
-
-        ``weight``: the weight of each assigned blob when :meth:`_fuse` has already updated the track with them.
-        """
-        paper = bool(got) and weight is None and self.model.mode == "paper"
-        ranking = self._rank(tr.x[:2], [a.sensor_id for a in got], tick) if paper else None
-        fix: Measurement | None = None
-        if ranking is not None and ranking.best is not None:
-            fix = self._pair_fix(ranking.best, {a.sensor_id: a.blob for a in got}, tick)
-        method: Method = "predicted"
-        if fix is not None:
-            tr.x, tr.p = _position_update(tr.x, tr.p, fix)
-            method = fix.method
-        elif got:
-            if weight is None:
-                (weight,) = self._fuse_tracks([tr], [got], tick)
-            got = [a for a, w in zip(got, weight.tolist(), strict=True) if w >= OUTLIER_RELEASE]
-            method = "least_squares"
-        tr.detected = bool(got)
-        if not got:
-            tr.misses += 1
-            tr.method, tr.sensors = "predicted", ()
-            return [], None
-        tr.hits += 1
-        tr.misses = 0
-        out.detected += 1
-        tr.method = method
-        if fix is None:
-            ranking = self._rank(tr.x[:2], sorted(a.sensor_id for a in got), tick) if paper else None
-        return got, ranking
-
-    def _fuse(
-        self, xs: FloatArray, ps: FloatArray, gots: list[list[_Assigned]], tick: _Tick, *, lines: bool = True
-    ) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
-        """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with every view assigned to each
-        (``gots``), all at once (:func:`~resource_manager.track.fuse.fuse`), with (``lines``) the size-ratio lines
-        among each one's first ``2 * MAX_PAIR_CAMERAS`` views. Also returns each one's weight of each of its
-        assigned blobs (low: an outlier)."""
-        m = self.model
-        xs, ps, resp = fuse(
-            xs,
-            ps,
-            Slots.of(gots, tick.stack),
-            tick.stack,
-            position_weight=tick.position_weight,
-            outlier=(m.outlier_prob, m.outlier_scale),
-            width_rel_sigma=self.birth_params.width_rel_sigma,
-            line_views=2 * MAX_PAIR_CAMERAS if lines else 0,
-        )
-        return xs, ps, [resp[k, : len(got)] for k, got in enumerate(gots)]
-
-    def _fuse_tracks(self, trs: list[TrackRecord], gots: list[list[_Assigned]], tick: _Tick) -> list[FloatArray]:
-        """:meth:`_fuse` tracks ``trs`` in place; returns each one's weight of each of its assigned blobs."""
-        if not trs:
-            return []
-        xs, ps, weights = self._fuse(np.array([tr.x for tr in trs]), np.array([tr.p for tr in trs]), gots, tick)
-        for tr, x, p in zip(trs, xs, ps, strict=True):
-            tr.x, tr.p = x.copy(), p.copy()
-        return weights
-
     def _spread(self, v: ViewBlobs) -> Spread:
         """The spread of a view's points around a person: what its sensor states, else the model's default."""
         sigma = v.point_sigma_m if v.point_sigma_m > 0 else self.model.body_sigma_m
         return Spread(sigma * sigma, sigma * sigma)
 
-    def _rank(self, xy: FloatArray, sids: list[str], tick: _Tick) -> _Ranking:
-        """The best pair of cameras ``sids`` by the error model (or at random: ``pair_choice = random``)."""
-        return self._rank_many(xy[None, :], [sids], tick)[0]
+    def _coverage(self, stack: ViewStack) -> Coverage:
+        """Where the cameras of this tick see a person of the usual height (their joint view)."""
+        return lambda xy: in_any_view(stack, xy, self.model.height_prior_m, self.scene.max_range_m)
 
-    def _rank_many(self, xys: FloatArray, sids: list[list[str]], tick: _Tick) -> list[_Ranking]:
-        """:meth:`_rank` of many tracks at once (``xys`` (k, 2), each with its cameras ``sids``)."""
-        st = tick.stack
-        width = max((len(ids) for ids in sids), default=0)
-        view = np.zeros((len(sids), width), dtype=np.int64)
-        for i, ids in enumerate(sids):
-            view[i, : len(ids)] = [st.rows[s] for s in ids]
-        pose_sigma = np.array([tick.pose_sigma.get(v.sensor_id, 0.0) for v in st.views])
-        random = self.pair_choice == "random"
-        a, b, err, count = rank_pairs_many(
-            xys,
-            st.origin[view],
-            st.sigma_rad[view],
-            pose_sigma[view],
-            count=np.array([len(ids) for ids in sids], dtype=np.int64),
-            max_cameras=width if random else MAX_PAIR_CAMERAS,
-        )
-        out: list[_Ranking] = []
-        for i, (ids, n) in enumerate(zip(sids, count.tolist(), strict=True)):
-            if n == 0:
-                out.append(_Ranking(None, 0))
-                continue
-            # pair_choice = random: the pairs shuffled, the first taken.
-            q = int(self._rng.permutation(n)[0]) if random else 0
-            out.append(_Ranking(PairCandidate(ids[a[i, q]], ids[b[i, q]], float(err[i, q])), n))
-        return out
-
-    def _pair_fix(self, pair: PairCandidate, by_sid: dict[str, int], tick: _Tick) -> Measurement | None:
-        """The paper's localisation: Eq. (1) or, near colinearity, Eq. (2) with one pair of views."""
-        return localize_best_pair(
-            tick.views[pair.a],
-            by_sid[pair.a],
-            tick.views[pair.b],
-            by_sid[pair.b],
-            sigma_xy_a=tick.pose_sigma.get(pair.a, 0.0),
-            sigma_xy_b=tick.pose_sigma.get(pair.b, 0.0),
-            width_rel_sigma=self.birth_params.width_rel_sigma,
-        )
-
-    def _report(
-        self, tr: TrackRecord, ranking: _Ranking, by_sid: dict[str, int], tick: _Tick, out: TrackerOutcome
+    def _existence(
+        self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: Tick, caps: FloatArray
     ) -> None:
-        """Which pair the error model ranks best for the track, with its predicted error (the ``pairs`` key)."""
-        best = ranking.best
-        if best is None:
-            tr.sensors = tuple(by_sid)
-            tr.predicted_error_m = tr.position_sigma_m
+        """Raise the existence of the tracks each view detects (``hits``: per view, track -> blob), lower that of
+        those it should see but misses; view after view in order of sensor ids, each held below ``caps`` (where
+        the track's person could have left: :func:`~.life.existence_caps`)."""
+        n = len(self.tracks)
+        if not n:
             return
-        tr.sensors = (best.a, best.b)
-        fix = self._pair_fix(best, by_sid, tick)
-        # The error of the method the crossover rule picks for this pair: Eq. 1's, or Eq. 2's near colinearity.
-        err = fix.predicted_error_m if fix is not None else best.error_m
-        tr.predicted_error_m = err if math.isfinite(err) else tr.position_sigma_m
-        if tr.track_id and fix is not None:
-            out.pair_entries.append(
-                PairEntry(
-                    track_id=tr.track_id,
-                    sensor_a=best.a,
-                    sensor_b=best.b,
-                    predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
-                    method=fix.method,
-                    candidates=ranking.candidates,
-                )
-            )
+        views = list(scored.values())
+        p_detect = np.array([sc.p_detect for sc in views]).reshape(-1, n)
+        # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
+        delta = np.array([sc.ln_miss for sc in views]).reshape(-1, n)
+        hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
+        if hit:
+            rows, cols = np.array([h[0] for h in hit]), np.array([h[1] for h in hit])
+            ln_lr = np.array([views[h[0]].ln_lr[h[1], h[2]] if h[2] >= 0 else -np.inf for h in hit])
+            lr = np.log(1.0 - p_detect[rows, cols] + np.exp(np.minimum(ln_lr, 50.0)))
+            delta[rows, cols] = np.maximum(lr, 0.0)  # a detection assigned to a track never counts against it
+            # A view that detected a track it did not expect to see (a return) counts as seeing it.
+            p_detect[rows, cols] = np.maximum(p_detect[rows, cols], 1e-6)
+        weight = np.array([tick.weights[sid][1] for sid in scored])
+        self.filter.existence_update(delta, weight, p_detect > 0, caps)
 
-    def _heights(self, seen: list[tuple[TrackRecord, list[_Assigned]]], stack: ViewStack) -> None:
-        """Fuse into each track the head-top heights its views imply at its updated distance (all tracks at
-        once: :func:`~resource_manager.track.fuse.fuse_heights`)."""
-        if not seen:
-            return
-        height, height_var = fuse_heights(
-            np.array([tr.x[:2] for tr, _ in seen]),
-            np.array([tr.height_m for tr, _ in seen]),
-            np.array([tr.height_var for tr, _ in seen]),
-            Slots.of([got for _, got in seen], stack),
-            stack,
-        )
-        for (tr, _), h, hv in zip(seen, height.tolist(), height_var.tolist(), strict=True):
-            tr.height_m, tr.height_var = h, hv
-
-    def _learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
-        """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
-        (track, sensor id -> blob, the evidence weight of those views), all tracks' looks at once."""
-        offsets = stack.offsets.tolist()
-        with_hist = (stack.hist_bins > 0).tolist()
-        entries = [(tr, sid, stack.rows[sid], j) for tr, by_sid, _ in learnt for sid, j in by_sid.items()]
-        local_id = stack.local_id[[offsets[row] + j for _, _, row, j in entries]].tolist()
-        for (tr, sid, _, _), lid in zip(entries, local_id, strict=True):
-            tr.links[sid] = lid
-        looks: list[tuple[TrackRecord, dict[str, int], float]] = []
-        for tr, by_sid, weight in learnt:
-            dt = weight * self.model.evidence_time_s
-            looks.append((tr, by_sid, 1.0 - math.exp(-dt / self.model.look_time_s)))
-            for sid in by_sid:
-                if with_hist[stack.rows[sid]]:
-                    tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
-        learn_looks(looks, stack)
-
-    # -- births and deaths ----------------------------------------------------------------------------
-    def _births(self, tick: _Tick, free: dict[str, list[int]], t_ns: int) -> int:
+    # -- births and returns ---------------------------------------------------------------------------
+    def _hypotheses(self, tick: Tick, free: dict[str, list[int]]) -> list[Hypothesis]:
+        """New people among the unexplained blobs; nobody next to a track a view detected."""
         m = self.model
         w = min((we for _, we in tick.weights.values()), default=1.0)
         if w <= 0:
-            return 0
-        prior = logit(m.p_birth)
+            return []
         # Started only where the evidence, tempered like every update, lifts it above the deletion threshold.
-        need = (logit(m.p_delete) - prior) / w
-        hyps = find_births(
+        need = (logit(m.p_delete) - logit(m.p_birth)) / w
+        detected = np.array([i for i, tr in enumerate(self.tracks) if tr.detected], dtype=np.int64)
+        return find_births(
             tick.views,
             free,
-            self.tracks,
+            self.filter.table(detected),
             m,
-            self.birth_params,
+            scene=self.scene,
+            params=self.birth_params,
             spread=lambda sid: self._spread(tick.views[sid]),
             tick=self._tick,
             min_evidence=need,
             stack=tick.stack,
         )
-        if hyps:
-            self._spawn(hyps, tick, t_ns, [prior + w * h.evidence for h in hyps])
-        return len(hyps)
 
-    def _spawn(self, hyps: list[Hypothesis], tick: _Tick, t_ns: int, logodds: list[float]) -> None:
-        """Start a track on each hypothesis (existence ``logodds``), in order: at its best pair's fix (``paper``
-        mode) or updated from a wide prior there with all its views (all at once)."""
-        m, weights = self.model, tick.weights
-        gots = [[_Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
-        prior = np.diag([PRIOR_SIGMA**2, PRIOR_SIGMA**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
+    def _returns(
+        self, hyps: list[Hypothesis], tick: Tick, t_ns: int, hits: dict[str, dict[int, int]]
+    ) -> tuple[list[Hypothesis], list[int]]:
+        """New people where a coasting track (confirmed, no view detected it this tick) is predicted are that track
+        found again: it is updated with the hypothesis' blobs. Returns the hypotheses left (new people) and the
+        rows found again; ``hits`` gains their blobs."""
+        missed = np.array([i for i, tr in enumerate(self.tracks) if tr.state() == "coasting"], dtype=np.int64)
+        if not hyps or not len(missed):
+            return hyps, []
+        f = self.filter
+        pairs = match_returns(
+            np.array([h.fix.xy for h in hyps]),
+            np.array([h.fix.cov for h in hyps]),
+            f.x[missed, :2],
+            f.p[missed, :2, :2],
+        )
+        if not pairs:
+            return hyps, []
+        rows = np.array([missed[b] for _, b in pairs], dtype=np.int64)
+        gots = [[Assigned(s, j) for s, j in sorted(hyps[a].blobs.items())] for a, _ in pairs]
+        self.updater.fuse(f, rows, gots, tick, lines=False)
+        f.fuse_heights(rows, gots, tick.stack)
+        f.mark_seen(rows)
+        for row, got in zip(rows.tolist(), gots, strict=True):
+            tr = self.tracks[row]
+            tr.detected, tr.misses, tr.seen_ns, tr.method = True, 0, t_ns, "least_squares"
+            tr.hits += 1
+            for sid, j in got:
+                hits[sid][row] = j
+        self.updater.learn(
+            [(self.tracks[r], {a.sensor_id: a.blob for a in g}, 1.0) for r, g in zip(rows.tolist(), gots, strict=True)],
+            tick.stack,
+        )
+        used = {a for a, _ in pairs}
+        return [h for k, h in enumerate(hyps) if k not in used], rows.tolist()
+
+    def _spawn(self, hyps: list[Hypothesis], tick: Tick, t_ns: int) -> int:
+        """Start a tentative track on each new person (existence: the prior and its evidence): at its best pair's
+        fix (``paper`` mode) or updated from a wide prior there with all its views (all at once)."""
+        if not hyps:
+            return 0
+        m = self.model
+        w = min((we for _, we in tick.weights.values()), default=1.0)
+        logodds = [min(logit(m.p_birth) + w * h.evidence, logit(m.p_max)) for h in hyps]
+        gots = [[Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
+        prior = np.diag([PRIOR_SIGMA_M**2, PRIOR_SIGMA_M**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
         xs = np.array([[h.fix.xy[0], h.fix.xy[1], 0.0, 0.0] for h in hyps])
-        ps = np.repeat(prior[None, :, :], len(hyps), axis=0)
-        bests = [r.best for r in self._rank_many(xs[:, :2], [sorted(h.blobs) for h in hyps], tick)]
+        bests = [r.best for r in self.updater.rank_many(xs[:, :2], [sorted(h.blobs) for h in hyps], tick)]
+        first = self.filter.n
+        self.filter.add(
+            xs,
+            np.repeat(prior[None, :, :], len(hyps), axis=0),
+            height=np.full(len(hyps), m.height_prior_m),
+            height_var=np.full(len(hyps), m.height_sigma_m**2),
+            logodds=np.array(logodds),
+            t_ns=t_ns,
+        )
+        rows = np.arange(first, first + len(hyps), dtype=np.int64)
         fixes = [
-            self._pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
+            self.updater.pair_fix(best, h.blobs, tick) if m.mode == "paper" and best is not None else None
             for h, best in zip(hyps, bests, strict=True)
         ]
         fused = [k for k, fix in enumerate(fixes) if fix is None]
         if fused:
-            xs[fused], ps[fused], _ = self._fuse(xs[fused], ps[fused], [gots[k] for k in fused], tick, lines=False)
+            self.updater.fuse(self.filter, rows[fused], [gots[k] for k in fused], tick, lines=False)
         born: list[TrackRecord] = []
         for k, (fix, best) in enumerate(zip(fixes, bests, strict=True)):
-            self._serial += 1
-            x, p = xs[k].copy(), ps[k].copy()
             if fix is not None:
-                p[:2, :2] = fix.cov
-                x[:2] = fix.xy
+                self.filter.p[rows[k], :2, :2] = fix.cov
+                self.filter.x[rows[k], :2] = fix.xy
+            self._serial += 1
             tr = TrackRecord(
                 serial=self._serial,
-                x=x,
-                p=p,
-                t_ns=t_ns,
                 born_ns=t_ns,
-                logodds=min(logodds[k], logit(m.p_max)),
-                height_m=m.height_prior_m,
-                height_var=m.height_sigma_m**2,
+                first_xy=self.filter.x[rows[k], :2].copy(),
                 detected=True,
+                seen_ns=t_ns,
                 hits=1,
                 method=fix.method if fix is not None else "least_squares",
             )
@@ -499,71 +407,167 @@ class Tracker:
                 tr.sensors = (best.a, best.b)
                 tr.predicted_error_m = best.error_m
             born.append(tr)
-        self._heights(list(zip(born, gots, strict=True)), tick.stack)
-        self._learn(
-            [(tr, h.blobs, min(weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)], tick.stack
-        )
         self.tracks.extend(born)
+        self.filter.fuse_heights(rows, gots, tick.stack)
+        self.filter.mark_seen(rows)
+        self.updater.learn(
+            [(tr, h.blobs, min(tick.weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)],
+            tick.stack,
+        )
+        return len(hyps)
 
-    def _prune(self) -> list[str]:
-        """Confirm tracks whose existence reached ``p_confirm``; end those below ``p_delete``, lost, or on the same
-        person as a surer track."""
-        m = self.model
-        confirm, delete = logit(m.p_confirm), logit(m.p_delete)
-        keep: list[TrackRecord] = []
+    def _note_apart(self, hits: dict[str, dict[int, int]], views: dict[str, ViewBlobs], t_ns: int) -> None:
+        """Which close tracks some view showed as two people this tick (:class:`~.life.Separation`)."""
+        f = self.filter
+        apart: list[list[tuple[int, int]]] = []
+        if f.n >= 2:
+            xy = f.x[:, :2]
+            d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+            close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist()
+            for sid, hit in hits.items():
+                v = views[sid]
+                pairs = []
+                for a, b in close:
+                    if a in hit and b in hit:
+                        # The view must tell the two apart (their bearings from it differ by a person's width),
+                        # and its two blobs must each lie on its own track's side.
+                        pa, pb = (math.atan2(xy[r, 1] - v.origin_xy[1], xy[r, 0] - v.origin_xy[0]) for r in (a, b))
+                        ba, bb = float(v.bearing_rad[hit[a]]), float(v.bearing_rad[hit[b]])
+                        width = 0.5 * float(v.width_rad[hit[a]] + v.width_rad[hit[b]])
+                        resolved = _arc(pa, pb) >= self.separation.apart_widths * width
+                        if resolved and _arc(ba, pa) < _arc(ba, pb) and _arc(bb, pb) < _arc(bb, pa):
+                            pairs.append((a, b))
+                apart.append(pairs)
+        self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], apart, t_ns)
+
+    # -- ends and ids ---------------------------------------------------------------------------------
+    def _prune(self, t_ns: int, coverage: Coverage) -> list[str]:
+        """End the tracks whose existence is gone, whose position is lost, whose height is no person's, whose
+        person left the area, or that follow another track's person (the older keeps its id). Confirmed tracks
+        that ended inside the area, not at an exit, are remembered for re-identification."""
+        m, f = self.model, self.filter
+        if not self.tracks:
+            return []
+        delete = logit(m.p_delete)
+        sigma = f.position_sigma()
+        out_of_area = left_area(f.x[:, :2], sigma, self.scene)
+        exits = at_exit(f.x[:, :2], sigma, m, self.scene, coverage)
+        keep: list[int] = []
         ended: list[str] = []
-        # Surest first: a confirmed track before a tentative one, then the longest seen.
-        for tr in sorted(self.tracks, key=lambda t: (not t.confirmed, -t.hits, t.serial)):
-            if (
-                tr.logodds < delete
-                or tr.position_sigma_m > m.lost_sigma_m
-                or _implausible_height(tr, m)
-                or any(_same_person(tr, o) for o in keep)
-            ):
-                if tr.track_id:
-                    ended.append(tr.track_id)
+        # Surest first: a confirmed track before a tentative one, then the oldest.
+        for i in sorted(range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, self.tracks[r].serial)):
+            tr = self.tracks[i]
+            lost = float(f.logodds[i]) < delete or float(sigma[i]) > m.lost_sigma_m
+            twice = any(self._same_person(i, k, t_ns) for k in keep)
+            if not (lost or twice or out_of_area[i] or self._implausible_height(i)):
+                keep.append(i)
                 continue
-            if not tr.confirmed and tr.logodds >= confirm:
-                tr.confirmed = True
-                tr.track_id = self.new_id()
-            keep.append(tr)
-        self.tracks = sorted(keep, key=lambda t: t.serial)
+            if tr.track_id:
+                ended.append(tr.track_id)
+                if lost and not exits[i] and m.reid_window_s > 0:
+                    self.graveyard.remember(self._lost(i, t_ns))
+        keep.sort()
+        self.tracks = [self.tracks[i] for i in keep]
+        f.keep(np.array(keep, dtype=np.int64))
+        self.graveyard.forget_before(t_ns - int(m.reid_window_s * 1e9))
         return ended
 
+    def _lost(self, i: int, t_ns: int) -> Lost:
+        tr, f = self.tracks[i], self.filter
+        return Lost(
+            track_id=tr.track_id,
+            ended_ns=t_ns,
+            seen_ns=tr.seen_ns,
+            x=f.seen_x[i].copy(),
+            p=f.seen_p[i].copy(),
+            height_m=float(f.height[i]),
+            height_var=float(f.height_var[i]),
+            looks=dict(tr.looks),
+            look_s=dict(tr.look_s),
+            serial=tr.serial,
+        )
 
-HEIGHT_SIGMAS = 4.0
-"""A track whose head height is surely this many of the population's sigmas from its mean is no person (a false
-blob's ray crossing someone's, a robot's body): 1.1-2.3 m with the default 1.7 +- 0.15 m."""
+    def _same_person(self, i: int, k: int, t_ns: int) -> bool:
+        """Whether track ``i`` stands where only one person fits beside track ``k``, their estimates agree that
+        they are one, and no view has shown them apart for ``evidence_time_s``."""
+        f = self.filter
+        dx, dy = float(f.x[i, 0] - f.x[k, 0]), float(f.x[i, 1] - f.x[k, 1])
+        if math.hypot(dx, dy) >= CLOSE_M:
+            return False
+        s = f.p[i, :2, :2] + f.p[k, :2, :2]
+        det = float(s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0])
+        if det > 0:
+            d2 = (float(s[1, 1]) * dx * dx - 2.0 * float(s[0, 1]) * dx * dy + float(s[0, 0]) * dy * dy) / det
+            if d2 >= SAME_PERSON_CHI2:
+                return False
+        a, b = self.tracks[i], self.tracks[k]
+        if self.separation.since_apart_s(a.serial, b.serial, t_ns) < self.model.evidence_time_s - 1e-9:
+            return False
+        if not (a.confirmed and b.confirmed):
+            return True
+        # Two published people who meet are likelier two people passing than one followed twice: they are one only
+        # when they also move alike (one person's two tracks share a velocity; people who cross do not) and have
+        # stayed together, never told apart, for ``evidence_time_s``.
+        dv = f.x[i, 2:] - f.x[k, 2:]
+        sv = f.p[i, 2:, 2:] + f.p[k, 2:, 2:]
+        moving_alike = float(dv @ np.linalg.solve(sv, dv)) < SAME_PERSON_CHI2
+        together = self.separation.together_s(a.serial, b.serial, t_ns)
+        return moving_alike and together >= self.model.evidence_time_s - 1e-9
+
+    def _implausible_height(self, i: int) -> bool:
+        """Whether the track's measured head height rules out a person (the height prior, Eq. 7's r_hc in
+        absolute)."""
+        m, f = self.model, self.filter
+        spread = math.sqrt(m.height_sigma_m**2 + float(f.height_var[i]))
+        return abs(float(f.height[i]) - m.height_prior_m) > HEIGHT_SIGMAS * spread
+
+    def _confirm(self, t_ns: int) -> list[str]:
+        """Publish the tracks whose existence reached ``p_confirm``: a lost one's id when it is that person back
+        (:meth:`~.life.Graveyard.match`), else a new id. Returns the ids given back."""
+        m, f = self.model, self.filter
+        rows = [i for i, tr in enumerate(self.tracks) if not tr.confirmed and float(f.logodds[i]) >= logit(m.p_confirm)]
+        if not rows:
+            return []
+        new = [
+            NewTrack(
+                born_ns=self.tracks[i].born_ns,
+                first_xy=self.tracks[i].first_xy,
+                height_m=float(f.height[i]),
+                height_var=float(f.height_var[i]),
+                looks=self.tracks[i].looks,
+                look_s=self.tracks[i].look_s,
+            )
+            for i in rows
+        ]
+
+        def colour(
+            a: dict[str, FloatArray], a_s: dict[str, float], b: dict[str, FloatArray], b_s: dict[str, float]
+        ) -> float | None:
+            return looks_ln_odds(a, a_s, b, b_s, sigma=m.colour_sigma, outlier_prob=m.outlier_prob, min_s=m.look_min_s)
+
+        area_m2 = self.scene.area.area_m2 if self.scene.area is not None else None
+        others = np.array([i for i in range(len(self.tracks)) if i not in set(rows)], dtype=np.int64)
+        back = dict(
+            self.graveyard.match(new, f.x[others, :2], model=m, motion=self.motion, colour_ln=colour, area_m2=area_m2)
+        )
+        for k, i in enumerate(rows):
+            tr = self.tracks[i]
+            tr.confirmed = True
+            if k in back:
+                tr.track_id = back[k].track_id
+                for sid, look in back[k].looks.items():
+                    if sid not in tr.looks:
+                        tr.looks[sid], tr.look_s[sid] = look, back[k].look_s.get(sid, 0.0)
+            else:
+                tr.track_id = self.new_id()
+        ids = [g.track_id for g in back.values()]
+        self.graveyard.take(set(ids))
+        return ids
 
 
-def _implausible_height(tr: TrackRecord, model: TrackModel) -> bool:
-    """Whether the track's measured head height rules out a person (the height prior, Eq. 7's r_hc in absolute)."""
-    spread = math.sqrt(model.height_sigma_m**2 + tr.height_var)
-    return abs(tr.height_m - model.height_prior_m) > HEIGHT_SIGMAS * spread
-
-
-SAME_PERSON_CHI2 = 9.21
-"""Two tracks whose positions differ by less than this (Mahalanobis², 2 dof: 99 %) and by less than a person's width
-are one person followed twice (a detector's double box, two views' calibrations that disagree)."""
-
-
-def _same_person(a: TrackRecord, b: TrackRecord) -> bool:
-    """Whether two tracks stand where only one person fits and their estimates agree that they are one."""
-    dx, dy = float(a.x[0] - b.x[0]), float(a.x[1] - b.x[1])
-    if math.hypot(dx, dy) >= 2.0 * PERSON_RADIUS_M:
-        return False
-    s = a.p[:2, :2] + b.p[:2, :2]
-    det = float(s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0])
-    if det <= 0:
-        return True
-    d2 = (float(s[1, 1]) * dx * dx - 2.0 * float(s[0, 1]) * dx * dy + float(s[0, 0]) * dy * dy) / det
-    return d2 < SAME_PERSON_CHI2
-
-
-OUTLIER_RELEASE = 0.5
-"""An assigned blob that the track's other views make more likely an outlier than not is released."""
-PRIOR_SIGMA = 1.0
-"""Position spread (m) of the prior a new person's first multi-view fix starts from, around the pair's point."""
+def _arc(a: float, b: float) -> float:
+    """The angle between two bearings (rad, in [0, pi])."""
+    return abs(math.remainder(a - b, 2.0 * math.pi))
 
 
 def _assign(scores: ViewScores) -> list[tuple[int, int]]:
@@ -580,14 +584,3 @@ def _assign(scores: ViewScores) -> list[tuple[int, int]]:
     r, c = linear_sum_assignment(sub, maximize=True)
     tracks, blobs = rows.tolist(), cols.tolist()
     return [(tracks[i], blobs[j]) for i, j in zip(r.tolist(), c.tolist(), strict=True) if sub[i, j] > 0]
-
-
-def _position_update(x: FloatArray, p: FloatArray, fix: Measurement) -> tuple[FloatArray, FloatArray]:
-    """Linear Kalman update with a floor position (the paper mode's pair fix)."""
-    h = np.zeros((2, 4))
-    h[0, 0] = h[1, 1] = 1.0
-    s = h @ p @ h.T + fix.cov
-    k = np.linalg.solve(s, h @ p).T
-    x_new = x + k @ (fix.xy - x[:2])
-    p_new = (np.eye(4) - k @ h) @ p
-    return x_new, 0.5 * (p_new + p_new.T)

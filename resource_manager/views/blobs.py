@@ -86,6 +86,9 @@ class ViewBlobs:
     """Frame period of the sensor (0: unknown): successive ticks between two frames see the same evidence."""
     image: ImageBounds | None = None
     """A perspective camera's projection, to tell whether a floor position is in its picture (None: panoramic)."""
+    confidence: FloatArray | None = None
+    """(n,) the node's confidence in each blob (a detector's score; None: all sure): a low one may update a track
+    but never starts one."""
 
     def sees(self, azimuth_rad: float) -> bool:
         """Whether a world azimuth is inside this camera's horizontal field of view."""

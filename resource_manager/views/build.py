@@ -55,6 +55,9 @@ class FeetModel:
     """Added to every floor-distance sigma: the feet are not exactly below the point tracked."""
     max_range_m: float
     """Farther than this a floor distance is not used."""
+    height_m: tuple[float, float] = (1.7, 0.15)
+    """People's head-top heights (mean, spread): a box whose distance from its bottom and whose top put the head
+    at no person's height does not show the feet (someone nearer, or the picture's edge, cut it above them)."""
 
 
 def build_views(
@@ -114,6 +117,7 @@ def build_views(
     yaw = np.array([pose.yaw_rad for _, _, pose in entries], dtype=np.float64)
     bearing_world = tab[:, 0] + yaw[view_of]
     local_id = np.array([b.local_id for b in blobs_all], dtype=np.int64)
+    confidence = np.array([b.confidence for b in blobs_all], dtype=np.float64)
     top_cut = (tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX)
     hist_lens = {len(b.hist) for b in blobs_all}
     hist_all = hist_sqrt_all = None
@@ -140,7 +144,14 @@ def build_views(
         if model is not None and feet is not None:
             cut = tab[sl, 4] >= model.height_px - FEET_CUT_PX
             mono_range, mono_sigma = mono_ranges(
-                np.where(cut, np.nan, bottom), pose.z_m, feet.sigma_elev_rad, feet.base_sigma_m, feet.max_range_m
+                np.where(cut, np.nan, bottom),
+                pose.z_m,
+                feet.sigma_elev_rad,
+                feet.base_sigma_m,
+                feet.max_range_m,
+                top_elev_rad=tab[sl, 2],
+                height_m=feet.height_m,
+                sigma_top_rad=sigma,
             )
         info = infos.get(sid)
         out[sid] = ViewBlobs(
@@ -163,6 +174,7 @@ def build_views(
             point_sigma_m=info.point_sigma_m if info is not None else 0.0,
             period_s=1.0 / info.fps if info is not None and info.fps > 0 else 0.0,
             image=image_bounds(model) if model is not None else None,
+            confidence=confidence[sl],
         )
     return out
 
@@ -259,4 +271,5 @@ def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
         mono_range_m=pick(v.mono_range_m),
         mono_sigma_m=pick(v.mono_sigma_m),
         top_cut=pick(v.top_cut),
+        confidence=pick(v.confidence),
     )

@@ -27,12 +27,27 @@ __all__ = ["MIN_DEPRESSION_RAD", "mono_ranges"]
 FloatArray = npt.NDArray[np.float64]
 MIN_DEPRESSION_RAD = math.radians(1.5)
 """Feet closer to the horizon than this give no usable distance (tan ε → 0)."""
+PLAUSIBLE_SIGMAS = 3.0
+"""A head this many sigmas (people's height spread and the measurement's) from people's mean height is no
+person's head: the box's bottom is not their feet."""
 
 
 def mono_ranges(
-    bottom_elev_rad: FloatArray, z_m: float, sigma_elev_rad: float, base_sigma_m: float, max_range_m: float
+    bottom_elev_rad: FloatArray,
+    z_m: float,
+    sigma_elev_rad: float,
+    base_sigma_m: float,
+    max_range_m: float,
+    *,
+    top_elev_rad: FloatArray | None = None,
+    height_m: tuple[float, float] | None = None,
+    sigma_top_rad: float = 0.0,
 ) -> tuple[FloatArray, FloatArray]:
     """(floor distance, its 1-sigma) of each blob from its feet elevation; NaN where not observable.
+
+    A box whose bottom is not the feet (a nearer person, or a table, hides them and the detector drew only what
+    it saw) puts the person farther than they are, and its top then puts their head at no person's height:
+    given ``top_elev_rad`` and ``height_m``, such a box gives no distance.
 
     Args:
         bottom_elev_rad: (n,) feet elevations (NaN: feet not visible).
@@ -40,6 +55,9 @@ def mono_ranges(
         sigma_elev_rad: error of one feet elevation.
         base_sigma_m: added to every sigma (the body's extent around the point below the head).
         max_range_m: farther than this is not trusted.
+        top_elev_rad: (n,) elevations of the boxes' tops (head tops).
+        height_m: people's head-top heights (mean, spread).
+        sigma_top_rad: error of one top elevation.
     """
     bottom = np.asarray(bottom_elev_rad, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -48,4 +66,10 @@ def mono_ranges(
         ok &= dist <= max_range_m
         dist = np.where(ok, dist, np.nan)
         sigma = np.where(ok, (dist * dist + z_m * z_m) / max(z_m, 1e-6) * sigma_elev_rad + base_sigma_m, np.nan)
+        if top_elev_rad is not None and height_m is not None:
+            tan_top = np.tan(np.asarray(top_elev_rad, dtype=np.float64))
+            head = z_m + dist * tan_top
+            spread = np.hypot(np.hypot(height_m[1], tan_top * sigma), dist * sigma_top_rad * (1.0 + tan_top * tan_top))
+            ok &= (head - height_m[0]) * np.sign(z_m - height_m[0]) >= -PLAUSIBLE_SIGMAS * spread
+            dist, sigma = np.where(ok, dist, np.nan), np.where(ok, sigma, np.nan)
     return dist, sigma

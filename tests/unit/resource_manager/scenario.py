@@ -11,8 +11,9 @@ import msgspec
 import numpy as np
 
 from common.schema import Features
-from resource_manager.config import ManagerConfig, ManagerSection, TrackerSection
+from resource_manager.config import ManagerConfig, ManagerSection
 from resource_manager.fusion import Batch, Fusion, TickResult
+from resource_manager.track.model import TrackModel
 from tests.unit.resource_manager.synth import Cam, Person, features_for, info_for, mota
 
 T0_NS = 1_800_000_000_000_000_000
@@ -41,7 +42,7 @@ def make_config(mid: str = "m1", tracker: dict[str, object] | None = None, **man
     """A manager config with these ``[manager]`` (and ``[tracker]``) keys, defaults elsewhere."""
     return ManagerConfig(
         manager=msgspec.convert({"id": mid, **manager}, ManagerSection),
-        tracker=msgspec.convert(tracker or {}, TrackerSection),
+        tracker=msgspec.convert(tracker or {}, TrackModel),
     )
 
 

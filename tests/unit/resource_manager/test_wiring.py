@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import msgspec
 import pytest
 
+from common.area import rectangle
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig, load_manager_config
 from resource_manager.stereo.matchers import get_matcher
@@ -75,13 +77,17 @@ def test_a_pose_override_is_a_surveyed_pose_with_its_yaw_wrapped(tmp_path: Path)
 
 
 @pytest.mark.parametrize(("room", "expected"), [("", None), ("room = [0, 0, 8, 6]", (0.0, 0.0, 8.0, 6.0))])
-def test_the_room_reaches_the_planner_and_the_tracker_or_neither(
-    tmp_path: Path, room: str, expected: tuple[float, ...] | None
-) -> None:
+def test_the_room_reaches_the_planner(tmp_path: Path, room: str, expected: tuple[float, ...] | None) -> None:
     cfg = _config(tmp_path, room=room)
     assert wiring.view_planner(cfg).params.room == expected
-    assert wiring.track_model(cfg).room == expected
-    assert wiring.track_model(cfg).max_range_m == 12.0
+    assert wiring.scene(cfg).max_range_m == 12.0
+
+
+def test_the_sites_area_reaches_the_tracker_and_bounds_the_planners_goals(tmp_path: Path) -> None:
+    cfg = msgspec.structs.replace(_config(tmp_path), area=rectangle(-1.0, 0.0, 7.0, 5.0))
+    scene = wiring.scene(cfg)
+    assert scene.area is not None and scene.area.bounds == (-1.0, 0.0, 7.0, 5.0)
+    assert wiring.view_planner(cfg).params.room == (-1.0, 0.0, 7.0, 5.0)
 
 
 def test_no_feet_model_without_a_feet_sigma(tmp_path: Path) -> None:

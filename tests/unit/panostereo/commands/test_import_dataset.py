@@ -28,15 +28,25 @@ def test_import_mot_writes_a_runnable_site_and_prints_its_summary(
     made: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "site"
-    args = ["import", "mot", str(made), "--out", str(out), "--fps", "5", "--room", "0", "0", "10", "10"]
+    args = ["import", "mot", str(made), "--out", str(out), "--fps", "5", "--area", "0,0,10,10"]
     assert main([*args, "--min-confidence", "0.4", "--name", "lab"]) == 0
     summary = _summary(capsys)
     assert summary["cameras"] == sorted(CAMERAS) and (summary["frames"], summary["people"]) == (30, 3)
     site = load_site(summary["site"])
     assert Path(summary["site"]) == out / "site.toml" and site.site.name == "lab"
     assert site.dataset is not None and site.dataset.fps == 5.0
+    assert site.area is not None and site.area.polygon == [[0, 0], [10, 0], [10, 10], [0, 10]]
     node = load_node_config(site.resolve("nodes/north.toml"))
     assert isinstance(node.source, DetectionsSource) and node.source.min_confidence == 0.4
+
+
+@pytest.mark.parametrize("area", ["0,0,10", "0,0,a,10", "5,0,1,10"])
+def test_a_bad_area_is_one_clear_error(
+    made: Path, tmp_path: Path, area: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["import", "mot", str(made), "--out", str(tmp_path / "s"), "--fps", "5", "--area", area]) != 0
+    err = capsys.readouterr().err
+    assert "area" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
 def test_noise_and_drops_reach_the_importer_with_their_seed(

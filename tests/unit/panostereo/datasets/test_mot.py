@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.area import AreaSpec, rectangle
 from common.errors import ConfigError
 from common.site import load_site
 from panostereo.datasets.mot import import_mot
@@ -20,7 +21,7 @@ PETS = REPO.parent / "shared" / "datasets" / "pets2009_s2l1"
 
 
 def test_import_writes_a_site_of_the_dataset_facts_only(made: Path, tmp_path: Path) -> None:
-    res = import_mot(made, tmp_path / "site", fps=5.0, room=[0, 0, 10, 10], min_confidence=0.5)
+    res = import_mot(made, tmp_path / "site", fps=5.0, area=rectangle(0, 0, 10, 10), min_confidence=0.5)
     site = load_site(res.site)
     assert res.cameras == sorted(CAMERAS) and res.frames == 30 and res.people == 3
     assert site.dataset is not None and site.dataset.fps == 5.0 and site.dataset.frames == 30
@@ -30,8 +31,10 @@ def test_import_writes_a_site_of_the_dataset_facts_only(made: Path, tmp_path: Pa
     assert node.source.fps == 5.0 and node.source.min_confidence == 0.5
     assert node.resolve(node.source.file).read_text() == (made / "detections" / "north.txt").read_text()
     manager = (tmp_path / "site" / "nodes" / "manager.toml").read_text()
-    # Facts only: the room; no [match] or [tracker] tuning.
-    assert "room = [0, 0, 10, 10]" in manager and "[match]" not in manager and "[tracker]" not in manager
+    # Facts only: the area, in the site; no [match] or [tracker] tuning.
+    assert site.area is not None and site.area.polygon == [[0, 0], [10, 0], [10, 10], [0, 10]]
+    assert site.area.exits is None  # people come and go anywhere on its boundary
+    assert "[match]" not in manager and "[tracker]" not in manager
 
 
 def test_import_perturbs_boxes_when_asked_and_refuses_bad_input(made: Path, tmp_path: Path) -> None:
@@ -42,7 +45,7 @@ def test_import_perturbs_boxes_when_asked_and_refuses_bad_input(made: Path, tmp_
     assert len(b) < len(a) and b[0] != a[0]
     for kwargs, message in [
         ({"fps": 0.0}, "--fps"),
-        ({"fps": 5.0, "room": [0, 0, -1, 4]}, "--room"),
+        ({"fps": 5.0, "area": AreaSpec(polygon=[[0, 0], [1, 1], [2, 2]])}, "--area.polygon encloses no area"),
         ({"fps": 5.0, "drop_rate": 1.0}, "--drop-rate"),
         ({"fps": 5.0, "min_confidence": 2.0}, "--min-confidence"),
     ]:

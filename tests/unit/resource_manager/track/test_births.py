@@ -10,18 +10,23 @@ import numpy as np
 from resource_manager.stereo.match import MatchParams
 from resource_manager.stereo.matchers import get_matcher
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
-from resource_manager.track.model import TrackModel
+from resource_manager.track.model import Scene, TrackModel
+from resource_manager.track.observe import TrackTable
 from resource_manager.track.stack import Spread
-from resource_manager.track.state import TrackRecord
 from tests.unit.resource_manager.synth import view
 
 CAMS = {"p1": (0.0, 0.0), "p2": (8.0, 0.0), "p3": (8.0, 6.0), "p4": (0.0, 6.0)}
 PARAMS = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
 MODEL = TrackModel()
 SIGMA_M = MODEL.body_sigma_m
+NOBODY = TrackTable(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0), np.zeros(0))
 
 
-def _births(people: list[tuple[float, float, float, int]], tracks: list[TrackRecord]) -> list[Hypothesis]:
+def _tracked(x: float, y: float, height: float) -> TrackTable:
+    return TrackTable(np.array([[x, y]]), np.eye(2)[None] * 0.01, np.array([height]), np.array([0.01]))
+
+
+def _births(people: list[tuple[float, float, float, int]], tracks: TrackTable) -> list[Hypothesis]:
     views = {sid: view(sid, o, people) for sid, o in CAMS.items()}
     free = {sid: list(range(len(people))) for sid in CAMS}
     return find_births(
@@ -29,7 +34,8 @@ def _births(people: list[tuple[float, float, float, int]], tracks: list[TrackRec
         free,
         tracks,
         MODEL,
-        PARAMS,
+        scene=Scene(),
+        params=PARAMS,
         spread=lambda sid: Spread(SIGMA_M**2, SIGMA_M**2),
         tick=0,
         min_evidence=math.log(9.0),
@@ -37,7 +43,7 @@ def _births(people: list[tuple[float, float, float, int]], tracks: list[TrackRec
 
 
 def test_one_person_seen_by_every_view_is_one_birth_with_every_views_blob() -> None:
-    (h,) = _births([(3.0, 2.0, 1.75, 1)], [])
+    (h,) = _births([(3.0, 2.0, 1.75, 1)], NOBODY)
     assert math.hypot(h.fix.xy[0] - 3.0, h.fix.xy[1] - 2.0) < 0.05
     assert h.blobs == {"p1": 0, "p2": 0, "p3": 0, "p4": 0}
     assert h.evidence > math.log(9.0)
@@ -45,10 +51,9 @@ def test_one_person_seen_by_every_view_is_one_birth_with_every_views_blob() -> N
 
 def test_two_people_are_two_births_and_nobody_is_started_beside_a_track() -> None:
     people = [(2.0, 2.0, 1.75, 1), (6.0, 4.0, 1.6, 2)]
-    hyps = _births(people, [])
+    hyps = _births(people, NOBODY)
     assert sorted((round(h.fix.xy[0]), round(h.fix.xy[1])) for h in hyps) == [(2, 2), (6, 4)]
-    tracked = TrackRecord(0, np.array([6.1, 4.0, 0.0, 0.0]), np.eye(4) * 0.01, 0, 0, 2.0, 1.6, 0.01)
-    (h,) = _births(people, [tracked])
+    (h,) = _births(people, _tracked(6.1, 4.0, 1.6))
     assert (round(h.fix.xy[0]), round(h.fix.xy[1])) == (2, 2)
 
 
@@ -61,9 +66,10 @@ def _one_camera(p2_fov: tuple[float, float] | None, mono_sigma_m: float = 0.2) -
     return find_births(
         {"p1": p1, "p2": p2},
         {"p1": [0], "p2": []},
-        [],
+        NOBODY,
         MODEL,
-        PARAMS,
+        scene=Scene(),
+        params=PARAMS,
         spread=lambda sid: Spread(SIGMA_M**2, SIGMA_M**2),
         tick=0,
         min_evidence=0.0,

@@ -1,0 +1,292 @@
+"""Track life: where a person can leave, who a new detection is, which two tracks are one person, who came back.
+
+What the strong multi-view trackers do to keep one id per person, as pure functions of the tracks' state:
+
+* **Survival from the site** (:func:`existence_caps`, :func:`left_area`): a person can leave only through an
+  exit of the site's area (by default anywhere on its boundary), or out of every camera's view. Where they can,
+  a track's existence is held below ``p_max``, so it ends within a few missed views; inside the area, away from
+  exits, below ``p_max_inside``, so someone hidden in a crowd keeps their track. A track whose person is
+  outside the area has left: it ends.
+* **Returns** (:func:`match_returns`): a new person's detections next to a track no view detected this tick are
+  that track found again (it lagged, or its views were hidden), not a new person.
+* **One person, two tracks** (:class:`Separation`): two tracks closer than two people can stand are one person
+  followed twice only if no view has given each its own blob for ``evidence_time_s``; the older keeps its id.
+* **Re-identification** (:class:`Graveyard`): a confirmed track that ended inside the area, not through an exit,
+  is remembered for ``reid_window_s``; a newly confirmed track that appeared where that person could have walked
+  since (``max_speed_mps``) and whose height and colour looks agree takes the old id (one assignment over all
+  such pairs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from common.arrays import BoolArray, FloatArray, IntArray
+from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel, logit
+from resource_manager.track.motion import MotionModel
+
+__all__ = [
+    "CLOSE_M",
+    "Graveyard",
+    "Lost",
+    "Separation",
+    "existence_caps",
+    "exit_reach_m",
+    "left_area",
+    "match_returns",
+]
+
+CLOSE_M = 2.0 * PERSON_RADIUS_M
+"""Two tracks closer than this stand where only one person fits, unless some view shows two people."""
+RETURN_CHI2 = 9.21
+"""A track found again lies where it was predicted: within this Mahalanobis² (2 dof: 99 %) of the new fix."""
+ColourLn = Callable[[dict[str, FloatArray], dict[str, float], dict[str, FloatArray], dict[str, float]], float | None]
+"""ln p(looks | one person) / p(looks | two people) of two tracks' per-view looks and their seconds of evidence
+(None: no view where both were learnt, colour cannot tell)."""
+REID_GATE = 3.0
+"""A lost person comes back within this many sigmas of where their motion puts them."""
+REID_MIN_LN_ODDS = 0.0
+"""A new track takes a lost one's id when the evidence (motion, height, colour) makes them one person more likely
+than two."""
+
+
+def exit_reach_m(sigma_m: FloatArray, model: TrackModel) -> FloatArray:
+    """How close to an exit a track must be for its person to have possibly left through it within one piece of
+    evidence: two sigmas of its position plus a walk at ``speed_sigma_mps`` over ``evidence_time_s``."""
+    return np.asarray(2.0 * sigma_m + model.speed_sigma_mps * model.evidence_time_s, dtype=np.float64)
+
+
+Coverage = Callable[[FloatArray], BoolArray]
+"""Floor points (n, 2) -> (n,) whether some camera sees a person standing there (the cameras' joint view now)."""
+EDGE_DIRECTIONS = 8
+"""Directions in which a track's reach is probed for the edge of the cameras' joint view."""
+
+
+def at_exit(xy: FloatArray, sigma_m: FloatArray, model: TrackModel, scene: Scene, coverage: Coverage) -> BoolArray:
+    """(n,) tracks standing where their person may leave: within reach (:func:`exit_reach_m`) of an exit of the
+    area (by default its whole boundary), outside it, or within reach of the edge of the cameras' joint view (a
+    place no camera sees lies that close); anywhere when the site declares no area."""
+    n = len(xy)
+    if scene.area is None:
+        return np.ones(n, dtype=bool)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    reach = exit_reach_m(sigma_m, model)
+    near = (scene.area.exit_distance(xy) <= reach) | ~scene.area.contains(xy)
+    angles = np.arange(EDGE_DIRECTIONS) * (2.0 * math.pi / EDGE_DIRECTIONS)
+    ring = xy[:, None, :] + reach[:, None, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)[None]
+    inside = scene.area.contains(ring.reshape(-1, 2)).reshape(n, EDGE_DIRECTIONS)
+    unseen = ~coverage(ring.reshape(-1, 2)).reshape(n, EDGE_DIRECTIONS)
+    return np.asarray(near | (inside & unseen).any(axis=1) | ~coverage(xy), dtype=bool)
+
+
+def existence_caps(exits: BoolArray, model: TrackModel, scene: Scene) -> FloatArray:
+    """(n,) the log-odds each track's existence is held below: ``p_max`` where the person may leave (``exits``:
+    :func:`at_exit`; everywhere when the site declares no area), ``p_max_inside`` elsewhere inside the area."""
+    inside = max(logit(model.p_max_inside), logit(model.p_max))
+    if scene.area is None:
+        return np.full(len(exits), logit(model.p_max))
+    return np.where(exits, logit(model.p_max), inside)
+
+
+def left_area(xy: FloatArray, sigma_m: FloatArray, scene: Scene) -> BoolArray:
+    """(n,) tracks whose person is surely outside the site's area (beyond two sigmas and a person's width of it)."""
+    if scene.area is None or not len(xy):
+        return np.zeros(len(xy), dtype=bool)
+    outside = ~scene.area.contains(xy)
+    far = scene.area.boundary_distance(xy) > 2.0 * sigma_m + PERSON_RADIUS_M
+    return np.asarray(outside & far, dtype=bool)
+
+
+def match_returns(
+    hyp_xy: FloatArray, hyp_cov: FloatArray, track_xy: FloatArray, track_cov: FloatArray
+) -> list[tuple[int, int]]:
+    """(hypothesis, track) pairs: new people's fixes ``hyp_xy`` (h, 2) with covariances ``hyp_cov`` (h, 2, 2) that
+    are coasting tracks at ``track_xy`` (t, 2), ``track_cov`` (t, 2, 2) found again; one assignment over all pairs
+    within ``RETURN_CHI2``, by likelihood."""
+    if not len(hyp_xy) or not len(track_xy):
+        return []
+    s = hyp_cov[:, None] + track_cov[None, :]
+    d = hyp_xy[:, None, :] - track_xy[None, :, :]
+    det = s[..., 0, 0] * s[..., 1, 1] - s[..., 0, 1] * s[..., 1, 0]
+    d2 = (
+        s[..., 1, 1] * d[..., 0] ** 2 - 2.0 * s[..., 0, 1] * d[..., 0] * d[..., 1] + s[..., 0, 0] * d[..., 1] ** 2
+    ) / det
+    ok = d2 <= RETURN_CHI2
+    if not ok.any():
+        return []
+    cost = np.where(ok, d2 + np.log(det), 1e12)
+    r, c = linear_sum_assignment(cost)
+    return [(a, b) for a, b in zip(r.tolist(), c.tolist(), strict=True) if ok[a, b]]
+
+
+@dataclass
+class Separation:
+    """For tracks that stand close together, the last instant some view gave each a blob of its own.
+
+    Two people side by side are told apart by the views that see both (two blobs, a person's width apart); one
+    person followed twice never is (each view's one blob goes to one of the two tracks, or a detector draws two
+    boxes on one person, overlapping).
+    """
+
+    apart_widths: float = 1.0
+    """A view tells two tracks apart when their bearings from it differ by at least this many of their blobs'
+    mean angular width (people side by side, not one behind the other or too far to resolve)."""
+    last: dict[tuple[int, int], int] = field(default_factory=dict)
+    """(serial, serial), the smaller first -> the last instant the two were seen apart."""
+    since: dict[tuple[int, int], int] = field(default_factory=dict)
+    """(serial, serial) -> the instant they came close together (and have stayed since)."""
+
+    def note(self, serials: list[int], xy: FloatArray, apart: list[list[tuple[int, int]]], t_ns: int) -> None:
+        """Remember, for every close pair of tracks, whether ``apart`` (per view, the pairs of track rows that view
+        detected as two separate people) shows them apart at ``t_ns``; pairs no longer close are forgotten."""
+        keep: dict[tuple[int, int], int] = {}
+        together: dict[tuple[int, int], int] = {}
+        if len(xy) >= 2:
+            d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+            seen_apart = {(min(a, b), max(a, b)) for view in apart for a, b in view}
+            # Pairs are followed a little beyond where they merge, so that the clock of a pair that hovers about
+            # that distance does not restart.
+            for a, b in np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist():
+                key = (min(serials[a], serials[b]), max(serials[a], serials[b]))
+                if (a, b) in seen_apart:
+                    keep[key] = t_ns
+                elif key in self.last:
+                    keep[key] = self.last[key]
+                if d[a, b] < CLOSE_M:
+                    together[key] = self.since.get(key, t_ns)
+        self.last = keep
+        self.since = together
+
+    def together_s(self, a: int, b: int, t_ns: int) -> float:
+        """Seconds serials ``a`` and ``b`` have stood within ``CLOSE_M`` of each other (0 if they do not)."""
+        key = (min(a, b), max(a, b))
+        return (t_ns - self.since[key]) / 1e9 if key in self.since else 0.0
+
+    def since_apart_s(self, a: int, b: int, t_ns: int) -> float:
+        """Seconds since serials ``a`` and ``b`` were last seen apart (infinite if never)."""
+        key = (min(a, b), max(a, b))
+        return (t_ns - self.last[key]) / 1e9 if key in self.last else math.inf
+
+
+@dataclass(frozen=True, slots=True)
+class Lost:
+    """A confirmed track that ended inside the area: what re-identification compares new tracks with."""
+
+    track_id: str
+    ended_ns: int
+    seen_ns: int
+    """When it was last detected, and where: ``x`` (4,), ``p`` (4, 4) at that instant."""
+    x: FloatArray
+    p: FloatArray
+    height_m: float
+    height_var: float
+    looks: dict[str, FloatArray]
+    look_s: dict[str, float]
+    serial: int
+
+
+@dataclass
+class Graveyard:
+    """Confirmed tracks that ended inside the area, kept ``reid_window_s`` for their people to come back."""
+
+    lost: list[Lost] = field(default_factory=list)
+
+    def remember(self, lost: Lost) -> None:
+        self.lost.append(lost)
+
+    def forget_before(self, t_ns: int) -> None:
+        self.lost = [g for g in self.lost if g.ended_ns >= t_ns]
+
+    def take(self, ids: set[str]) -> None:
+        self.lost = [g for g in self.lost if g.track_id not in ids]
+
+    def match(
+        self,
+        new: list[NewTrack],
+        others_xy: FloatArray,
+        *,
+        model: TrackModel,
+        motion: MotionModel,
+        colour_ln: ColourLn,
+        area_m2: float | None,
+    ) -> list[tuple[int, Lost]]:
+        """(index into ``new``, the lost track it is) for each newly confirmed track that is a lost one back: one
+        assignment over all pairs the speed bound allows and whose first place the lost one's motion puts within
+        ``REID_GATE`` sigmas, each scored by the log likelihood ratio of "one person" over "two people" of where
+        (against a new person anywhere in the area, ``area_m2``, or anywhere the speed bound reaches), how tall and
+        how they look, and taken when above ``REID_MIN_LN_ODDS``.
+
+        Where the two cannot be compared by colour (a node that sends none, or views neither was seen in), motion
+        and height alone decide only when nobody else (``others_xy``: the tracks already there) stands where the
+        lost person could be: in a crowd, where someone lost was last seen says little about who the new one is.
+        """
+        if not new or not self.lost:
+            return []
+        score = np.full((len(new), len(self.lost)), -np.inf)
+        for i, nt in enumerate(new):
+            for j, g in enumerate(self.lost):
+                gap_s = (nt.born_ns - g.seen_ns) / 1e9
+                if gap_s <= 0:
+                    continue  # seen while the lost one still was: another person
+                reach = model.max_speed_mps * gap_s + 2.0 * PERSON_RADIUS_M
+                if float(np.hypot(*(nt.first_xy - g.x[:2]))) > reach:
+                    continue
+                mean, cov = _predicted(g, gap_s, motion)
+                d2 = _mahalanobis2(nt.first_xy, mean, cov)
+                if d2 > REID_GATE**2:
+                    continue
+                colour = colour_ln(nt.looks, nt.look_s, g.looks, g.look_s)
+                if colour is None and bool((_mahalanobis2(others_xy, mean, cov) <= REID_GATE**2).any()):
+                    continue
+                ln_same = -0.5 * (d2 + math.log(float(np.linalg.det(cov)))) - math.log(2.0 * math.pi)
+                ln_other = -math.log(area_m2 if area_m2 else math.pi * reach * reach)
+                score[i, j] = ln_same - ln_other + _height_ln(nt, g, model) + (colour or 0.0)
+        ok = score > REID_MIN_LN_ODDS
+        if not ok.any():
+            return []
+        r, c = linear_sum_assignment(np.where(ok, -score, 1e12))
+        return [(i, self.lost[j]) for i, j in zip(r.tolist(), c.tolist(), strict=True) if ok[i, j]]
+
+
+@dataclass(frozen=True, slots=True)
+class NewTrack:
+    """A newly confirmed track, as re-identification sees it."""
+
+    born_ns: int
+    first_xy: FloatArray
+    height_m: float
+    height_var: float
+    looks: dict[str, FloatArray]
+    look_s: dict[str, float]
+
+
+def _predicted(g: Lost, gap_s: float, motion: MotionModel) -> tuple[FloatArray, FloatArray]:
+    """Where the lost person is, ``gap_s`` after they were last seen: mean (2,) and covariance (2, 2) of their
+    motion from there, a body's width wider."""
+    f, q = motion.transition(gap_s)
+    return (f @ g.x)[:2], (f @ g.p @ f.T + q)[:2, :2] + (PERSON_RADIUS_M**2) * np.eye(2)
+
+
+def _mahalanobis2(xy: FloatArray, mean: FloatArray, cov: FloatArray) -> FloatArray:
+    """Squared Mahalanobis distances of points ``xy`` (..., 2) from ``mean`` (2,) under ``cov`` (2, 2)."""
+    d = np.asarray(xy, dtype=np.float64) - mean
+    return np.asarray(np.einsum("...i,ij,...j->...", d, np.linalg.inv(cov), d), dtype=np.float64)
+
+
+def _height_ln(nt: NewTrack, g: Lost, model: TrackModel) -> float:
+    """ln N(new height; lost height) / N(new height; people's heights): the same person is as tall."""
+    var_same = nt.height_var + g.height_var + 2.0 * (0.5 * model.height_sigma_m) ** 2
+    var_other = nt.height_var + model.height_sigma_m**2
+    same = -0.5 * ((nt.height_m - g.height_m) ** 2 / var_same + math.log(var_same))
+    other = -0.5 * ((nt.height_m - model.height_prior_m) ** 2 / var_other + math.log(var_other))
+    return same - other
+
+
+def rows_of(mask: BoolArray) -> IntArray:
+    return np.flatnonzero(mask).astype(np.int64)

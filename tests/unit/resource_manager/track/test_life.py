@@ -1,0 +1,108 @@
+"""Track life: where people can leave, returns of coasting tracks, one person followed twice, re-identification."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from common.area import Area, AreaSpec
+from resource_manager.track.life import (
+    Graveyard,
+    Lost,
+    NewTrack,
+    Separation,
+    at_exit,
+    existence_caps,
+    left_area,
+    match_returns,
+)
+from resource_manager.track.model import Scene, TrackModel, logit
+from resource_manager.track.motion import MotionModel
+
+MODEL = TrackModel()
+ROOM = Area.of(AreaSpec(polygon=[[0.0, 0.0], [8.0, 0.0], [8.0, 6.0], [0.0, 6.0]], exits=[[[3.0, 0.0], [5.0, 0.0]]]))
+SEES_ALL = lambda xy: np.ones(len(xy), dtype=bool)  # noqa: E731
+
+
+def test_people_may_leave_at_a_door_outside_the_area_or_out_of_the_cameras_sight_only() -> None:
+    xy = np.array([[4.0, 0.3], [1.0, 0.3], [4.0, 3.0], [4.0, -2.0]])
+    sigma = np.full(4, 0.1)
+    near = at_exit(xy, sigma, MODEL, Scene(area=ROOM), SEES_ALL)
+    assert near.tolist() == [True, False, False, True]  # the door; a wall; the middle; outside
+    blind_east = lambda p: p[:, 0] < 4.2  # noqa: E731 - no camera sees east of x = 4.2
+    assert at_exit(xy[2:3], sigma[:1], MODEL, Scene(area=ROOM), blind_east).tolist() == [True]
+    assert at_exit(xy, sigma, MODEL, Scene(), SEES_ALL).all()  # no area declared: anywhere
+    caps = existence_caps(near, MODEL, Scene(area=ROOM))
+    out, inside = logit(MODEL.p_max), logit(MODEL.p_max_inside)
+    assert caps.tolist() == pytest.approx([out, inside, inside, out])
+
+
+def test_a_track_surely_outside_the_area_has_left_one_at_its_edge_has_not() -> None:
+    xy = np.array([[4.0, -1.5], [4.0, -0.1], [4.0, 3.0]])
+    assert left_area(xy, np.full(3, 0.1), Scene(area=ROOM)).tolist() == [True, False, False]
+
+
+def test_a_new_fix_where_a_coasting_track_is_predicted_is_that_track_one_far_off_is_not() -> None:
+    cov = np.repeat(np.eye(2)[None] * 0.04, 2, axis=0)
+    hyps = np.array([[1.1, 1.0], [5.0, 5.0]])
+    tracks = np.array([[1.0, 1.0], [3.0, 3.0]])
+    assert match_returns(hyps, cov, tracks, cov) == [(0, 0)]
+
+
+def test_two_close_tracks_are_apart_once_a_view_shows_them_apart_and_forgotten_once_far() -> None:
+    sep = Separation()
+    xy = np.array([[0.0, 0.0], [0.3, 0.0]])
+    sep.note([1, 2], xy, [[]], 1_000_000_000)
+    assert sep.since_apart_s(1, 2, 1_000_000_000) == math.inf and sep.together_s(2, 1, 1_500_000_000) == 0.5
+    sep.note([1, 2], xy, [[(0, 1)]], 2_000_000_000)
+    assert sep.since_apart_s(2, 1, 2_500_000_000) == pytest.approx(0.5)
+    sep.note([1, 2], np.array([[0.0, 0.0], [3.0, 0.0]]), [[]], 3_000_000_000)
+    assert sep.since_apart_s(1, 2, 3_000_000_000) == math.inf and sep.together_s(1, 2, 3_000_000_000) == 0.0
+
+
+def _lost(xy: tuple[float, float], looks: dict[str, np.ndarray] | None = None) -> Lost:
+    return Lost(
+        track_id="m-1",
+        ended_ns=2_000_000_000,
+        seen_ns=1_000_000_000,
+        x=np.array([xy[0], xy[1], 0.0, 0.0]),
+        p=np.eye(4) * 0.01,
+        height_m=1.8,
+        height_var=0.001,
+        looks=looks or {},
+        look_s=dict.fromkeys(looks or {}, 5.0),
+        serial=1,
+    )
+
+
+def _new(xy: tuple[float, float], height: float = 1.8, looks: dict[str, np.ndarray] | None = None) -> NewTrack:
+    return NewTrack(3_000_000_000, np.array(xy), height, 0.001, looks or {}, dict.fromkeys(looks or {}, 5.0))
+
+
+def _match(new: list[NewTrack], lost: Lost, others: np.ndarray | None = None) -> list[tuple[int, Lost]]:
+    g = Graveyard([lost])
+
+    def colour(a, a_s, b, b_s):  # type: ignore[no-untyped-def]
+        common = set(a) & set(b)
+        return None if not common else sum(2.0 if np.allclose(a[s], b[s]) else -6.0 for s in common)
+
+    return g.match(new, np.zeros((0, 2)) if others is None else others, model=MODEL, motion=MotionModel(0.8, 2.0),
+                   colour_ln=colour, area_m2=48.0)  # fmt: skip
+
+
+def test_a_lost_person_back_where_they_could_be_with_their_height_takes_their_id() -> None:
+    (hit,) = _match([_new((2.3, 2.0))], _lost((2.0, 2.0)))
+    assert hit[0] == 0 and hit[1].track_id == "m-1"
+    assert _match([_new((2.3, 2.0), height=1.45)], _lost((2.0, 2.0))) == []  # not as tall
+    assert _match([_new((7.5, 5.5))], _lost((2.0, 2.0))) == []  # too far for the gap
+
+
+def test_without_colour_a_crowd_where_the_lost_one_could_be_decides_nothing_colour_does() -> None:
+    someone = np.array([[2.2, 2.1]])
+    assert _match([_new((2.3, 2.0))], _lost((2.0, 2.0)), others=someone) == []
+    red = np.array([1.0, 0.0])
+    assert _match([_new((2.3, 2.0), looks={"c": red})], _lost((2.0, 2.0), looks={"c": red}), others=someone)
+    blue = np.array([0.0, 1.0])
+    assert _match([_new((2.3, 2.0), looks={"c": blue})], _lost((2.0, 2.0), looks={"c": red})) == []

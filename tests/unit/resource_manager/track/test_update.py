@@ -1,0 +1,52 @@
+"""The measurement update: every track with its assigned views, the pair that reports it, its looks and links."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from resource_manager.track.filter import TrackFilter
+from resource_manager.track.model import TrackModel
+from resource_manager.track.motion import MotionModel
+from resource_manager.track.stack import Spread, ViewStack
+from resource_manager.track.state import TrackRecord
+from resource_manager.track.update import Assigned, Tick, Updater
+from tests.unit.resource_manager.synth import view
+
+CAMS = {"p1": (0.0, 0.0), "p2": (8.0, 0.0), "p3": (8.0, 6.0)}
+
+
+def _tick(person: tuple[float, float]) -> Tick:
+    views = {sid: view(sid, o, [(person[0], person[1], 1.75, 1)]) for sid, o in CAMS.items()}
+    views = {sid: dataclasses.replace(v, hist_sqrt=np.sqrt(v.hist)) for sid, v in views.items() if v.hist is not None}
+    sids = sorted(views)
+    stack = ViewStack.of([views[s] for s in sids], [Spread(0.01, 0.01)] * len(sids))
+    return Tick(views, dict.fromkeys(sids, (1.0, 1.0)), {}, stack, np.ones(len(sids)))
+
+
+@pytest.mark.parametrize("mode", ["model", "paper"])
+def test_a_track_is_pulled_onto_its_views_reports_its_best_pair_and_learns_its_looks(mode: str) -> None:
+    f = TrackFilter(MotionModel(0.8, 2.0), 0.05)
+    f.add(np.array([[3.3, 2.2, 0.0, 0.0]]), np.eye(4)[None] * 0.09, height=np.array([1.7]),
+          height_var=np.array([0.02]), logodds=np.array([3.0]), t_ns=0)  # fmt: skip
+    tr = TrackRecord(serial=1, born_ns=0, track_id="m-1", confirmed=True)
+    updater = Updater(TrackModel(mode=mode), width_rel_sigma=0.1, pair_choice="error_model")
+    got = [Assigned(sid, 0) for sid in sorted(CAMS)]
+    out = updater.update(f, [tr], [got], _tick((3.0, 2.0)), t_ns=5)
+    assert math.hypot(f.x[0, 0] - 3.0, f.x[0, 1] - 2.0) < 0.1  # from 0.36 m off, sure of where it was
+    assert f.height[0] == pytest.approx(1.75, abs=0.03)
+    assert tr.detected and tr.hits == 1 and tr.seen_ns == 5 and set(tr.sensors) <= set(CAMS)
+    assert [e.track_id for e in out.pair_entries] == ["m-1"] and out.kept == [got]
+    assert set(tr.looks) == set(CAMS) and tr.links == dict.fromkeys(CAMS, 0)
+
+
+def test_a_track_no_view_detects_coasts() -> None:
+    f = TrackFilter(MotionModel(0.8, 2.0), 0.05)
+    f.add(np.array([[3.0, 2.0, 0.0, 0.0]]), np.eye(4)[None] * 0.01, height=np.array([1.7]),
+          height_var=np.array([0.02]), logodds=np.array([3.0]), t_ns=0)  # fmt: skip
+    tr = TrackRecord(serial=1, born_ns=0, confirmed=True, detected=True)
+    out = Updater(TrackModel(), 0.1, "error_model").update(f, [tr], [[]], _tick((3.0, 2.0)), t_ns=5)
+    assert not tr.detected and tr.misses == 1 and tr.state() == "coasting" and out.pair_entries == []
