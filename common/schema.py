@@ -55,6 +55,7 @@ __all__ = [
     "PtzRequest",
     "PtzState",
     "Refusal",
+    "SensorAgreement",
     "SensorInfo",
     "SensorTiming",
     "Sighting",
@@ -457,6 +458,21 @@ class SensorTiming(_Msg, frozen=True, tag="pano.SensorTiming"):
     """Deadlines it missed (the others were fused without it), so far."""
 
 
+class SensorAgreement(_Msg, frozen=True, tag="pano.SensorAgreement"):
+    """Whether one camera's blobs agree with where the other cameras put the people (a bumped camera does not)."""
+
+    sensor_id: Id
+    residual_m: PosMetres
+    """Median floor distance from its blobs' rays to the nearest person the others localised, over the window (a
+    blob that finds nobody within the manager's gate counts as the gate)."""
+    blobs: Count
+    """Blobs behind that median."""
+    unexplained_frac: Unit = 0.0
+    """Share of its blobs in the window that found nobody within the gate."""
+    disagrees: bool = False
+    """True when the residual is too large for a camera in place: re-calibrate it (``panostereo calib refine``)."""
+
+
 class Latency(_Msg, frozen=True, tag="pano.Latency"):
     """Where the time from capture to a published TrackSet went, medians over the status period."""
 
@@ -515,6 +531,9 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """Capture -> publish of its TrackSets over the status period (None: nothing published in it)."""
     timing: Annotated[list[SensorTiming], msgspec.Meta(max_length=MAX_SENSORS)] = []
     """Per sensor in use: its frames' measured period, delay and jitter, and how late they came."""
+    agreement: Annotated[list[SensorAgreement], msgspec.Meta(max_length=MAX_SENSORS)] = []
+    """Per camera: how well its blobs agree with the other cameras' people, the worst first
+    (:mod:`resource_manager.poses.agreement`)."""
 
 
 # ---------------------------------------------------------------------------

@@ -32,7 +32,10 @@ COMMANDS: Final[dict[str, tuple[str, str]]] = {
         "panostereo.commands.evaluate_detections",
         "score a camera's blobs in the image against ground-truth boxes (a video offline, or a recording)",
     ),
-    "calib": ("panostereo.commands.calib", "calibration tools: convert Tsai, OpenCV YAML or a P matrix to our JSON"),
+    "calib": (
+        "panostereo.commands.calib",
+        "calibration: convert Tsai, OpenCV YAML or a P matrix to our JSON; refine poses from people walking",
+    ),
 }
 
 

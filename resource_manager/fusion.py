@@ -49,6 +49,7 @@ from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve.lag import LaggedInstant, LaggedTracks
 from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
+from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import build_views
 
 __all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
@@ -151,6 +152,8 @@ class Fusion:
         self.ptz_seq = 0
         self.skipped_ticks = 0
         self.last_poses: dict[str, PoseEstimate] = {}
+        self.last_views: dict[str, ViewBlobs] = {}
+        """The views of the last fused instant (read by the cameras' agreement check, poses/agreement.py)."""
         self.last_result: TickResult | None = None
         lag = m.publish_lag_s
         self.lagged = LaggedTracks(int(lag * 1e9)) if lag > 0 else None
@@ -246,6 +249,7 @@ class Fusion:
         )
         seeing = {sid: v for sid, v in aligned.items() if sid not in unsettled}
         views = build_views(seeing, poses, self.poses.infos, self.poses.bearing_sigma, feet=self.feet)
+        self.last_views = views
         outcome = self.tracker.step(
             views,
             t_ns,

@@ -47,6 +47,7 @@ from resource_manager.config import ManagerConfig
 from resource_manager.fusion import Batch, Fusion, TickResult
 from resource_manager.ingest.gate import SenderGate, sender_in_key
 from resource_manager.ingest.infos import InfoGate
+from resource_manager.poses.agreement import Agreement
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.serve.ptz import PtzAnswer, PtzAsk
 from resource_manager.serve.status import InboxCounts, manager_status
@@ -148,6 +149,7 @@ class ManagerNode:
         self.fetcher.start()
         self.tick_ms: list[float] = []
         self.status_seq = 0
+        self.agreement = Agreement()
         self.ticks = 0
         # Last: the token says the manager is ready (its queryables answer).
         self.token = session.liveliness().declare_token(k.manager(self.mid))
@@ -366,6 +368,8 @@ class ManagerNode:
             if published_set is not None:
                 self.live_ids = {tr.track_id for tr in published_set.tracks}
             self.store.prune(t_ns)
+            if not result.skipped:
+                self.agreement.update(t_ns, self.fusion.last_views, result.trackset.tracks)
         self.ticks += 1
         if result.skipped or published_set is None:
             return result
@@ -425,6 +429,8 @@ class ManagerNode:
             schedule=self.fusion.schedule,
             latencies=self.latencies,
         )
+        with self.lock:
+            msg = msgspec.structs.replace(msg, agreement=self.agreement.report()[:MAX_SENSORS])
         self.pub_status.put(msg)
         self.tick_ms.clear()
         self.latencies.clear()

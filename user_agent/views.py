@@ -13,6 +13,7 @@ from user_agent.client import ManagerView, SensorView
 
 __all__ = [
     "CLEAR_SCREEN",
+    "agreement_lines",
     "format_table",
     "history_table",
     "latency_lines",
@@ -221,6 +222,34 @@ def _poses_table(managers: Sequence[ManagerView]) -> str:
     return format_table(("sensor", "pose", "x_m", "y_m", "yaw_deg", "sigma_m", "manager"), rows)
 
 
+def agreement_lines(managers: Sequence[ManagerView]) -> list[str]:
+    """The CAMERA AGREEMENT section: per camera, how far its blobs fall from the people the others see; a camera
+    that disagrees (bumped or moved) is marked, with what to do (empty before any manager measured one)."""
+    rows = [
+        (
+            a.sensor_id,
+            f"{a.residual_m:6.2f}",
+            a.blobs,
+            f"{100 * a.unexplained_frac:5.1f}",
+            "DISAGREES" if a.disagrees else "ok",
+            m.manager_id,
+        )
+        for m in managers
+        if m.status is not None
+        for a in m.status.agreement
+    ]
+    if not rows:
+        return []
+    out = ["", "CAMERA AGREEMENT (median distance of each camera's blobs from the people the others place)"]
+    out.append(format_table(("sensor", "residual_m", "blobs", "unexplained_%", "state", "manager"), rows))
+    if any(r[4] == "DISAGREES" for r in rows):
+        out.append(
+            "a camera that disagrees was bumped or moved: record the site (agent record) while people walk, then "
+            "panostereo calib refine SITE --recording REC.mcap --fix <cameras still in place> --out DIR"
+        )
+    return out
+
+
 def _refused_table(managers: Sequence[ManagerView], most: int = 10) -> str:
     rows = [
         (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed, r.ahead)
@@ -265,6 +294,7 @@ def watch_screen(
         parts.append("")
         parts.append("CAMERA POSES (where the manager places each camera: surveyed, or mutual calibration)")
         parts.append(_poses_table(managers))
+    parts += agreement_lines(managers)
     parts += latency_lines(managers)
     parts += refused_lines(managers)
     parts += list(footer)

@@ -1,7 +1,8 @@
-"""``panostereo calib convert``: a calibration in a common format -> the project's pinhole JSON.
+"""``panostereo calib``: bring a calibration in (``convert``), or refine a site's from people walking (``refine``).
 
 Usage::
 
+    panostereo calib refine SITE --out DIR [--fix CAM ...] [--frames N] [--recording REC.mcap] [--json]
     panostereo calib convert --from tsai View_001.xml --out view001.json
     panostereo calib convert --from opencv-yaml cam.yml --out cam.json [--units mm] [--image-size W H]
     panostereo calib convert --from p-matrix P.txt --image-size 768 576 --out cam.json [--units mm]
@@ -10,6 +11,10 @@ The JSON (``{"model": "pinhole", "image_size", "K", "dist", "R", "t"}``, metres,
 world -> camera) is what ``[camera] calibration`` and ``[source] calibration``
 read; see :mod:`common.calib_formats` for each format's conventions (Tsai:
 millimetres, R = Rz Ry Rx, its radial distortion mapping the other way).
+
+``refine`` takes every camera's current calibration as a starting guess and estimates its pose from the people
+the cameras see (:mod:`panostereo.calib`), from a dataset site's detection files or a recording of the live site,
+then writes the same site with the refined calibrations under ``--out`` and prints what moved.
 """
 
 from __future__ import annotations
@@ -55,9 +60,56 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "(intrinsic_zero/intr_CAM.xml with --extrinsic extrinsic/extr_CAM.xml)",
     )
     conv.add_argument("--units", choices=sorted(UNITS), default=None, help="translation units (tsai: always mm)")
+    ref = sub.add_parser(
+        "refine",
+        help="refine the site's camera poses from people walking; write the refined site",
+        description="Estimate every camera's pose (intrinsics kept) from the people the cameras see, starting "
+        "from the site's current calibrations, and write the same site with the refined ones under --out.",
+    )
+    ref.add_argument(
+        "site", metavar="SITE", help="the site file (a dataset site, or the live site a --recording was made of)"
+    )
+    ref.add_argument(
+        "--out", required=True, metavar="DIR", help="folder for the refined site (the site's files, new calibrations)"
+    )
+    ref.add_argument(
+        "--fix",
+        action="append",
+        default=[],
+        metavar="CAM",
+        help="a camera whose pose is surveyed: kept as it is, it holds the world frame (repeat for more)",
+    )
+    ref.add_argument(
+        "--frames", type=int, default=0, metavar="N", help="use at most N instants, evenly spread (0: all)"
+    )
+    ref.add_argument(
+        "--recording", default=None, metavar="REC.mcap", help="an MCAP recording of the live site (agent record)"
+    )
+    ref.add_argument("--json", action="store_true", help="print a JSON object instead of a table")
 
 
 def run(args: argparse.Namespace) -> int:
+    """The chosen action."""
+    if args.action == "refine":
+        return _refine(args)
+    return _convert(args)
+
+
+def _refine(args: argparse.Namespace) -> int:
+    """Refine, write the site, print per camera what moved and the residuals."""
+    from panostereo.calib.cli import refine_site
+
+    report = refine_site(args.site, args.out, fix=args.fix, frames=args.frames, recording=args.recording)
+    if args.json:
+        print(json.dumps(report, indent=1))
+    else:
+        from panostereo.calib.cli import format_report
+
+        print(format_report(report))
+    return 0
+
+
+def _convert(args: argparse.Namespace) -> int:
     """Convert and write; prints where the camera is."""
     src = Path(args.input)
     try:

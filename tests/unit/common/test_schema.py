@@ -15,7 +15,7 @@ from common.schema import MESSAGE_TYPES
 
 SENDER_FIELDS = {"sensor_id", "manager_id", "agent_id"}
 UNIT_SUFFIXES = ("_ns", "_s", "_ms", "_rad", "_m", "_m2", "_px", "_mps", "_hz")
-UNITLESS_OK = {"confidence", "changed_frac", "zoom", "fps"}
+UNITLESS_OK = {"confidence", "changed_frac", "unexplained_frac", "zoom", "fps"}
 """Numbers without a unit suffix: fractions, a zoom factor, and frames per second (unit in the name)."""
 UNITLESS_LISTS = {"hist", "k", "dist", "r"}
 """Histogram bins and camera matrix coefficients (pixels for K, dimensionless for R and distortion)."""

@@ -1,0 +1,226 @@
+"""Which rays of one instant are one person, given the cameras' current poses.
+
+A person is a vertical segment: feet at ``(x, y, 0)``, top of the head at ``(x, y, h)``. Every foot ray should pass
+through the feet and every head ray through the head; how far a ray passes from its point (the perpendicular
+distance, metres at the person) is the residual, weighted by the camera's ``point_sigma_m``.
+
+Per instant, every pair of blobs from two cameras is triangulated into a person (least squares on the four rays,
+with a weak prior on the height); pairs that fit within the gate, in front of both cameras, at a person's height,
+are taken best first, and each grows by the blob of every other camera that passes within the gate of its person.
+Each blob joins one person at most. A wrong pairing is possible in a crowd: the adjustment's robust loss and the
+next association with better poses take care of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from common.arrays import FloatArray
+from panostereo.calib.observe import CameraRays
+from panostereo.calib.poses import CameraPose
+
+__all__ = ["Association", "HeightPrior", "WorldRays", "associate", "head_projectors", "triangulate", "world_rays"]
+
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+MIN_VIEWS = 2
+"""A person needs two cameras' blobs (one camera alone places nobody here)."""
+
+
+@dataclass(frozen=True, slots=True)
+class HeightPrior:
+    """What people's heights are (m): a mean and spread for the fit, and the range a person may have."""
+
+    mean_m: float = 1.7
+    sigma_m: float = 0.15
+    low_m: float = 1.2
+    high_m: float = 2.2
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class WorldRays:
+    """Every blob of every camera as world rays (one row per blob, cameras concatenated)."""
+
+    camera: IntArray
+    index: IntArray
+    """Row of the blob in its camera's :class:`CameraRays`."""
+    instant: IntArray
+    centre: FloatArray
+    foot: FloatArray
+    head: FloatArray
+    feet_ok: BoolArray
+    head_ok: BoolArray
+    weight: FloatArray
+    """1 / point_sigma_m^2 of the blob's camera."""
+    head_plane: FloatArray
+    """World normal of the head's plane (pinhole boxes, :class:`CameraRays`); zero where the head ray is a point's."""
+
+
+def world_rays(cams: list[CameraRays], poses: list[CameraPose], use: list[bool] | None = None) -> WorldRays:
+    """The blobs of the cameras in ``use`` (default all) as world rays with the given poses."""
+    parts = []
+    for ci, (c, p) in enumerate(zip(cams, poses, strict=True)):
+        if use is not None and not use[ci]:
+            continue
+        parts.append(
+            (
+                np.full(c.n, ci, dtype=np.int64),
+                np.arange(c.n, dtype=np.int64),
+                c.instant,
+                np.broadcast_to(p.centre_m, (c.n, 3)),
+                c.foot @ p.rotation,
+                c.head @ p.rotation,
+                c.feet_ok,
+                c.head_ok,
+                np.full(c.n, 1.0 / c.point_sigma_m**2),
+                np.zeros((c.n, 3)) if c.head_plane is None else c.head_plane @ p.rotation,
+            )
+        )
+    if not parts:
+        z = np.zeros(0, dtype=np.int64)
+        e = np.zeros((0, 3))
+        return WorldRays(z, z, z, e, e, e, z.astype(bool), z.astype(bool), np.zeros(0), e)
+    cols = list(zip(*parts, strict=True))
+    return WorldRays(*(np.concatenate(col) for col in cols))
+
+
+def _normals(r: WorldRays, rows: IntArray) -> tuple[FloatArray, FloatArray]:
+    """Per blob, the normal equations' (3, 3) matrix and (3,) vector of its rays, weighted."""
+    f, h, c = r.foot[rows], r.head[rows], r.centre[rows]
+    eye = np.eye(3)
+    pf = eye - f[:, :, None] * f[:, None, :]
+    ph = head_projectors(h, r.head_plane[rows])
+    wf = (r.weight[rows] * r.feet_ok[rows])[:, None, None]
+    wh = (r.weight[rows] * r.head_ok[rows])[:, None, None]
+    m = wh * ph
+    m[:, :2, :2] += wf[:, :, 0:1] * pf[:, :2, :2]
+    pfc = np.einsum("nij,nj->ni", pf, c)
+    phc = np.einsum("nij,nj->ni", ph, c)
+    b = wh[:, :, 0] * phc
+    b[:, :2] += wf[:, :, 0] * pfc[:, :2]
+    return m, b
+
+
+def head_projectors(head: FloatArray, plane: FloatArray) -> FloatArray:
+    """Per blob, the (3, 3) projector whose norm of ``P (X - C)`` is the head point's distance from what the
+    blob says of it: across the head ray, or off the head's plane where the blob has one (pinhole boxes)."""
+    on_plane = np.any(plane != 0.0, axis=1)[:, None, None]
+    across = np.eye(3) - head[:, :, None] * head[:, None, :]
+    return np.where(on_plane, plane[:, :, None] * plane[:, None, :], across)
+
+
+def _solve(m: FloatArray, b: FloatArray, prior: HeightPrior) -> FloatArray:
+    lam = 1.0 / prior.sigma_m**2
+    m = m.copy()
+    b = b.copy()
+    m[..., 2, 2] += lam
+    b[..., 2] += lam * prior.mean_m
+    return np.asarray(np.linalg.solve(m, b[..., None])[..., 0], dtype=np.float64)
+
+
+def _distances(r: WorldRays, rows: IntArray, person: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """For blobs ``rows`` against persons (same length), the larger of the foot and head ray distances (m), and
+    whether the person is in front of the camera."""
+    feet = person.copy()
+    feet[:, 2] = 0.0
+    vf = feet - r.centre[rows]
+    vh = person - r.centre[rows]
+    af = np.einsum("ni,ni->n", vf, r.foot[rows])
+    ah = np.einsum("ni,ni->n", vh, r.head[rows])
+    df = np.linalg.norm(vf - af[:, None] * r.foot[rows], axis=1)
+    dh = np.linalg.norm(np.einsum("nij,nj->ni", head_projectors(r.head[rows], r.head_plane[rows]), vh), axis=1)
+    d = np.maximum(np.where(r.feet_ok[rows], df, 0.0), np.where(r.head_ok[rows], dh, 0.0))
+    front = (af > 0) & (ah > 0)
+    return d, front
+
+
+def triangulate(r: WorldRays, members: list[IntArray], prior: HeightPrior) -> FloatArray:
+    """The person (x, y, h) of each group of blob rows."""
+    m, b = _normals(r, np.arange(r.camera.size, dtype=np.int64))
+    out = np.empty((len(members), 3))
+    for i, rows in enumerate(members):
+        out[i] = _solve(m[rows].sum(axis=0), b[rows].sum(axis=0), prior)
+    return out
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Association:
+    """People found at every instant, and which blobs saw them."""
+
+    person: FloatArray
+    """(p, 3) x, y, h of each person-instant."""
+    member_person: IntArray
+    """(m,) person of each membership."""
+    member_camera: IntArray
+    member_index: IntArray
+    """(m,) row of the blob in its camera's rays."""
+
+    def per_camera(self, n_cameras: int) -> IntArray:
+        """How many blobs of each camera were put with a person."""
+        return np.bincount(self.member_camera, minlength=n_cameras).astype(np.int64)
+
+
+def associate(r: WorldRays, gate_m: float, prior: HeightPrior, max_range_m: float) -> Association:
+    """Group the blobs of each instant into people (see the module docstring)."""
+    m_all, b_all = _normals(r, np.arange(r.camera.size, dtype=np.int64))
+    order = np.argsort(r.instant, kind="stable")
+    bounds = np.flatnonzero(np.diff(r.instant[order])) + 1
+    persons: list[FloatArray] = []
+    mem_p: list[int] = []
+    mem_rows: list[int] = []
+    for rows in np.split(order, bounds):
+        if rows.size < MIN_VIEWS or np.unique(r.camera[rows]).size < MIN_VIEWS:
+            continue
+        ia, ib = np.triu_indices(rows.size, k=1)
+        cross = r.camera[rows[ia]] != r.camera[rows[ib]]
+        ia, ib = ia[cross], ib[cross]
+        if ia.size == 0:
+            continue
+        pa, pb = rows[ia], rows[ib]
+        x = _solve(m_all[pa] + m_all[pb], b_all[pa] + b_all[pb], prior)
+        da, fa = _distances(r, pa, x)
+        db, fb = _distances(r, pb, x)
+        cost = np.maximum(da, db)
+        reach = np.maximum(np.hypot(*(x[:, :2] - r.centre[pa, :2]).T), np.hypot(*(x[:, :2] - r.centre[pb, :2]).T))
+        ok = (cost <= gate_m) & fa & fb & (x[:, 2] >= prior.low_m) & (x[:, 2] <= prior.high_m) & (reach <= max_range_m)
+        cand = np.flatnonzero(ok)
+        if cand.size == 0:
+            continue
+        cand = cand[np.argsort(cost[cand], kind="stable")]
+        used = np.zeros(rows.size, dtype=bool)
+        for c in cand:
+            a, b = ia[c], ib[c]
+            if used[a] or used[b]:
+                continue
+            group = [a, b]
+            person = x[c]
+            free = np.flatnonzero(~used)
+            free = free[(free != a) & (free != b)]
+            if free.size:
+                d, front = _distances(r, rows[free], np.broadcast_to(person, (free.size, 3)).copy())
+                fit = front & (d <= gate_m)
+                taken = {int(r.camera[rows[a]]), int(r.camera[rows[b]])}
+                for j in free[fit][np.argsort(d[fit], kind="stable")]:
+                    cam = int(r.camera[rows[j]])
+                    if cam not in taken:
+                        taken.add(cam)
+                        group.append(int(j))
+                if len(group) > MIN_VIEWS:
+                    g = rows[np.array(group)]
+                    person = _solve(m_all[g].sum(axis=0), b_all[g].sum(axis=0), prior)
+            used[group] = True
+            pid = len(persons)
+            persons.append(person)
+            mem_p.extend([pid] * len(group))
+            mem_rows.extend(int(rows[j]) for j in group)
+    rows_arr = np.array(mem_rows, dtype=np.int64)
+    return Association(
+        person=np.array(persons, dtype=np.float64).reshape(-1, 3),
+        member_person=np.array(mem_p, dtype=np.int64),
+        member_camera=r.camera[rows_arr] if rows_arr.size else np.zeros(0, dtype=np.int64),
+        member_index=r.index[rows_arr] if rows_arr.size else np.zeros(0, dtype=np.int64),
+    )

@@ -1,0 +1,299 @@
+"""The whole refinement: from every camera's rays and starting guess to refined poses and a report.
+
+1. **Anchors.** The cameras named fixed (surveyed) keep their poses and hold the world frame. With none fixed,
+   the camera with the most blobs anchors the search for a while, and every camera is then adjusted with a weak
+   pull towards its starting guess, so the site as a whole stays where the guesses put it.
+2. **Search** (:mod:`.search`): every other camera is found against the anchors' people, within twice the
+   install tolerance of its guess; a camera the anchors share too few people with is searched again against all
+   the cameras placed so far.
+3. **Association and adjustment**, repeated (:mod:`.associate`, :mod:`.adjust`): with the current poses the
+   blobs of each instant are grouped into people within a gate, then the free cameras and the people are
+   adjusted to fit; the gate narrows from ``start_gate_m`` to ``final_gate_m`` as the poses improve, and the
+   rounds stop when no camera moves any more.
+4. A camera that shares fewer than ``min_people`` person-instants with the others cannot be determined: it is
+   reported and left as it was (and its blobs are left out, so a wrong pose does not pull the others).
+
+Ground truth is never read here: the rays and the starting guesses are all there is.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from panostereo.calib.adjust import Tolerance, adjust, ray_distances
+from panostereo.calib.associate import Association, HeightPrior, associate, triangulate, world_rays
+from panostereo.calib.observe import CameraRays
+from panostereo.calib.poses import CameraPose, pose_change
+from panostereo.calib.search import anchor_people, find_pose
+
+__all__ = ["CameraReport", "RefineSettings", "Refined", "refine"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class RefineSettings:
+    """The refinement's knobs; every one physical."""
+
+    tolerance: Tolerance = field(default_factory=Tolerance)
+    """How far a starting guess may be off (m, rad): the search looks within twice that."""
+    height: HeightPrior = field(default_factory=HeightPrior)
+    max_range_m: float = 100.0
+    """People further than this from a camera are not used (too few pixels to place them)."""
+    search_gate_m: float = 0.5
+    """The search counts a blob as explained when its rays pass this close to an anchor's person."""
+    start_gate_m: float = 0.6
+    """The first association's gate (m at the person): what the search leaves of a camera's error."""
+    final_gate_m: float = 0.3
+    """The last association's gate: a few sigmas of where a box's rays put a person."""
+    min_people: int = 30
+    """A camera sharing fewer person-instants with the others is left as it was (undetermined)."""
+    max_people: int = 5000
+    """The adjustment uses at most this many person-instants, spread over the data: more cost time and move a
+    camera by less than the people's own noise."""
+    max_rounds: int = 6
+    settled_m: float = 0.005
+    settled_rad: float = math.radians(0.02)
+    """Rounds stop once no camera moves more than this between two."""
+
+
+@dataclass(frozen=True, slots=True)
+class CameraReport:
+    """What happened to one camera."""
+
+    sensor_id: str
+    status: str
+    """``fixed``, ``refined`` or ``undetermined``."""
+    moved_m: float
+    turned_deg: float
+    residual_before_m: float
+    """Median distance of its rays from the people they were put with, with the starting poses (m at the
+    person; NaN: none)."""
+    residual_after_m: float
+    residual_before_px: float
+    """The same as pixels (pinhole cameras: angle x focal length; NaN otherwise)."""
+    residual_after_px: float
+    people: int
+    """Person-instants it saw together with other cameras."""
+    blobs: int
+    note: str = ""
+
+    def to_dict(self) -> dict[str, object]:
+        def num(x: float, digits: int) -> float | None:
+            return None if not math.isfinite(x) else round(x, digits)
+
+        return {
+            "sensor_id": self.sensor_id,
+            "status": self.status,
+            "moved_m": num(self.moved_m, 3),
+            "turned_deg": num(self.turned_deg, 3),
+            "residual_before_m": num(self.residual_before_m, 3),
+            "residual_after_m": num(self.residual_after_m, 3),
+            "residual_before_px": num(self.residual_before_px, 1),
+            "residual_after_px": num(self.residual_after_px, 1),
+            "people": self.people,
+            "blobs": self.blobs,
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Refined:
+    poses: list[CameraPose]
+    cameras: list[CameraReport]
+    rounds: int
+
+
+def _search(
+    cams: list[CameraRays], poses: list[CameraPose], anchors: list[int], todo: list[int], s: RefineSettings
+) -> dict[int, int]:
+    """Search each camera of ``todo`` against ``anchors``; updates ``poses``; returns each one's support."""
+    people = anchor_people(cams, poses, anchors, s.height, s.max_range_m)
+    out = {}
+    for ci in todo:
+        found = find_pose(cams[ci], poses[ci], people, s.tolerance, s.search_gate_m)
+        logger.info(
+            "%s: search from %d to %d blobs explained (%d hypotheses)",
+            cams[ci].sensor_id,
+            found.start_score,
+            found.score,
+            found.hypotheses,
+        )
+        poses[ci] = found.pose
+        out[ci] = found.score
+    return out
+
+
+def _medians(
+    cams: list[CameraRays], poses: list[CameraPose], assoc: Association, person: np.ndarray
+) -> list[tuple[float, float]]:
+    """Per camera, the median ray distance (m) and the median ray angle (rad) of its memberships."""
+    foot, head = ray_distances(cams, poses, assoc, person)
+    dist = np.concatenate([foot, head])
+    cam = np.concatenate([assoc.member_camera, assoc.member_camera])
+    pts = np.concatenate([person[assoc.member_person] * [1, 1, 0], person[assoc.member_person]])
+    cen = np.stack([p.centre_m for p in poses])[cam] if cam.size else np.zeros((0, 3))
+    rng = np.linalg.norm(pts - cen, axis=1) if cam.size else np.zeros(0)
+    out = []
+    for ci in range(len(cams)):
+        sel = (cam == ci) & np.isfinite(dist)
+        if not np.any(sel):
+            out.append((math.nan, math.nan))
+            continue
+        out.append((float(np.median(dist[sel])), float(np.median(dist[sel] / np.maximum(rng[sel], 1e-6)))))
+    return out
+
+
+def _focal_px(cam: CameraRays) -> float:
+    from common.schema import PinholeModel
+
+    if cam.pose.level or not isinstance(cam.info.model, PinholeModel):
+        return math.nan
+    return float(cam.info.model.k[0])
+
+
+def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSettings | None = None) -> Refined:
+    """Refine every camera not in ``fixed`` (see the module docstring)."""
+    s = settings or RefineSettings()
+    start = [c.pose for c in cams]
+    poses = list(start)
+    fixed_idx = [i for i, c in enumerate(cams) if c.sensor_id in set(fixed)]
+    n = len(cams)
+    if n == 0:
+        return Refined([], [], 0)
+    anchors = fixed_idx or [int(np.argmax([c.n for c in cams]))]
+    others = [i for i in range(n) if i not in anchors]
+    support = _search(cams, poses, anchors, others, s)
+    weak = [i for i in others if support[i] < s.min_people]
+    placed = anchors + [i for i in others if i not in weak]
+    if weak and len(placed) > len(anchors):
+        support.update(_search(cams, poses, placed, weak, s))
+    free = [i for i in range(n) if i not in fixed_idx]
+    use = [True] * n
+    rounds = 0
+    assoc = None
+    counts = np.zeros(n, dtype=np.int64)
+    height = s.height
+    for rounds in range(1, s.max_rounds + 1):
+        frac = min(1.0, (rounds - 1) / 3.0)
+        gate = s.start_gate_m * (s.final_gate_m / s.start_gate_m) ** frac
+        assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
+        counts = _person_counts(assoc, n)
+        dropped = [i for i in free if use[i] and counts[i] < s.min_people]
+        for i in dropped:
+            use[i] = False
+            poses[i] = start[i]
+        if dropped:
+            logger.info("undetermined: %s", ", ".join(cams[i].sensor_id for i in dropped))
+            assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
+        moving = [i for i in free if use[i]]
+        if not moving or assoc.member_camera.size == 0:
+            break
+        sub = _spread_people(assoc, s.max_people)
+        res = adjust(cams, poses, moving, sub, prior=height, tolerance=s.tolerance, scale_m=gate / 2.0)
+        change = [pose_change(poses[i], res.poses[i]) for i in moving]
+        poses = res.poses
+        height = replace(height, mean_m=res.mean_height_m)
+        logger.info(
+            "round %d: gate %.2f m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg",
+            rounds,
+            gate,
+            assoc.person.shape[0],
+            height.mean_m,
+            assoc.member_camera.size,
+            max(c[0] for c in change),
+            math.degrees(max(c[1] for c in change)),
+        )
+        if frac >= 1.0 and all(d <= s.settled_m and a <= s.settled_rad for d, a in change):
+            break
+    reports = _report(cams, start, poses, fixed_idx, use, assoc, counts, s)
+    return Refined(poses, reports, rounds)
+
+
+def _spread_people(assoc: Association, most: int) -> Association:
+    """At most ``most`` of the people of ``assoc``, evenly spread over them (they are in instant order)."""
+    n = assoc.person.shape[0]
+    if n <= most:
+        return assoc
+    keep = np.unique(np.linspace(0, n - 1, most).round().astype(np.int64))
+    new_id = np.full(n, -1, dtype=np.int64)
+    new_id[keep] = np.arange(keep.size)
+    sel = new_id[assoc.member_person] >= 0
+    return Association(
+        person=assoc.person[keep],
+        member_person=new_id[assoc.member_person[sel]],
+        member_camera=assoc.member_camera[sel],
+        member_index=assoc.member_index[sel],
+    )
+
+
+def _person_counts(assoc: Association, n: int) -> np.ndarray:
+    """Person-instants each camera saw with another camera."""
+    return assoc.per_camera(n)
+
+
+def _report(  # noqa: PLR0917 - one private call site, every value it reports
+    cams: list[CameraRays],
+    start: list[CameraPose],
+    poses: list[CameraPose],
+    fixed_idx: list[int],
+    use: list[bool],
+    assoc: Association | None,
+    counts: np.ndarray,
+    s: RefineSettings,
+) -> list[CameraReport]:
+    n = len(cams)
+    if assoc is not None and assoc.member_camera.size:
+        before_people = _triangulate_with(cams, start, assoc, s.height)
+        before = _medians(cams, start, assoc, before_people)
+        after = _medians(cams, poses, assoc, _triangulate_with(cams, poses, assoc, s.height))
+    else:
+        before = after = [(math.nan, math.nan)] * n
+    out = []
+    for i, c in enumerate(cams):
+        moved, turned = pose_change(start[i], poses[i])
+        f = _focal_px(c)
+        if i in fixed_idx:
+            status, note = "fixed", "held as surveyed (--fix)"
+        elif not use[i]:
+            status = "undetermined"
+            note = (
+                f"too few people seen with other cameras ({int(counts[i])} person-instants, need "
+                f"{s.min_people}): left as it was"
+            )
+        else:
+            status, note = "refined", ""
+        out.append(
+            CameraReport(
+                sensor_id=c.sensor_id,
+                status=status,
+                moved_m=moved,
+                turned_deg=math.degrees(turned),
+                residual_before_m=before[i][0],
+                residual_after_m=after[i][0],
+                residual_before_px=before[i][1] * f,
+                residual_after_px=after[i][1] * f,
+                people=int(counts[i]),
+                blobs=c.n,
+                note=note,
+            )
+        )
+    return out
+
+
+def _triangulate_with(
+    cams: list[CameraRays], poses: list[CameraPose], assoc: Association, height: HeightPrior
+) -> np.ndarray:
+    """The people of ``assoc`` triangulated from their rays with ``poses``."""
+    r = world_rays(cams, poses)
+    starts = np.cumsum([0] + [c.n for c in cams])
+    rows = starts[assoc.member_camera] + assoc.member_index
+    order = np.argsort(assoc.member_person, kind="stable")
+    bounds = np.flatnonzero(np.diff(assoc.member_person[order])) + 1
+    members = [rows[g] for g in np.split(order, bounds)]
+    return triangulate(r, members, height)

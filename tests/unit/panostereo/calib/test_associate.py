@@ -1,0 +1,67 @@
+"""Rays of one instant grouped into people with the cameras' poses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from panostereo.calib.associate import HeightPrior, associate, triangulate, world_rays
+from panostereo.calib.observe import CameraRays
+from panostereo.calib.poses import CameraPose
+from tests.unit.panostereo.calib.synth import true_cameras
+
+PEOPLE = np.array([[3.0, 4.0, 1.7], [6.0, 7.0, 1.8], [8.0, 3.0, 1.65]])
+
+
+def _rays(cid: str, people: np.ndarray, extra: np.ndarray | None = None) -> tuple[CameraRays, CameraPose]:
+    cam = true_cameras()[cid]
+    pose = CameraPose(np.array(cam.r), cam.center_world, level=False)
+    feet = people.copy()
+    feet[:, 2] = 0.0
+    foot = (feet - pose.centre_m) @ pose.rotation.T
+    head = (people - pose.centre_m) @ pose.rotation.T
+    if extra is not None:  # a clutter box: rays towards nobody
+        foot = np.vstack([foot, extra[0]])
+        head = np.vstack([head, extra[1]])
+    n = foot.shape[0]
+    rays = CameraRays(
+        sensor_id=cid,
+        info=None,  # type: ignore[arg-type]
+        pose=pose,
+        point_sigma_m=0.1,
+        instant=np.zeros(n, dtype=np.int64),
+        track=np.arange(n, dtype=np.int64),
+        foot=foot / np.linalg.norm(foot, axis=1, keepdims=True),
+        head=head / np.linalg.norm(head, axis=1, keepdims=True),
+        feet_ok=np.ones(n, dtype=bool),
+        head_ok=np.ones(n, dtype=bool),
+    )
+    return rays, pose
+
+
+def test_each_person_is_one_group_of_one_blob_per_camera() -> None:
+    clutter = (np.array([0.3, 0.2, 1.0]), np.array([0.3, 0.0, 1.0]))
+    parts = [_rays("cam-a", PEOPLE), _rays("cam-b", PEOPLE[::-1], clutter), _rays("cam-c", PEOPLE)]
+    cams, poses = [p[0] for p in parts], [p[1] for p in parts]
+    a = associate(world_rays(cams, poses), 0.3, HeightPrior(), 100.0)
+    assert a.person.shape[0] == 3
+    for pid in range(3):
+        cams_of = a.member_camera[a.member_person == pid]
+        assert sorted(cams_of.tolist()) == [0, 1, 2]
+    assert 3 not in a.member_index[a.member_camera == 1].tolist()  # the clutter blob joined nobody
+    found = a.person[np.argsort(a.person[:, 0])]
+    assert np.allclose(found, PEOPLE[np.argsort(PEOPLE[:, 0])], atol=0.05)
+
+
+def test_triangulate_recovers_the_person_and_its_height() -> None:
+    parts = [_rays("cam-a", PEOPLE[:1]), _rays("cam-c", PEOPLE[:1])]
+    r = world_rays([p[0] for p in parts], [p[1] for p in parts])
+    ((x, y, h),) = triangulate(r, [np.array([0, 1])], HeightPrior())
+    assert (x, y, h) == pytest.approx(tuple(PEOPLE[0]), abs=0.02)
+
+
+def test_a_gate_too_narrow_for_the_poses_groups_nobody() -> None:
+    a_rays, a_pose = _rays("cam-a", PEOPLE)
+    c_rays, c_pose = _rays("cam-c", PEOPLE)
+    off = c_pose.moved([0.0, 0.05, 0.0, 0.0, 0.0, 0.0])  # cam-c turned by 3 deg: its rays miss by ~0.5 m
+    assert associate(world_rays([a_rays, c_rays], [a_pose, off]), 0.1, HeightPrior(), 100.0).person.shape[0] == 0
