@@ -350,6 +350,10 @@ class Fusion:
             misses=min(tr.misses, 2**31 - 1),
         )
 
+    def live_tracks(self) -> list[Track]:
+        """This instant's published tracks as messages (what goes out with no ``publish_lag_s``)."""
+        return [self.track_message(tr) for tr in self.published_tracks()][:MAX_TRACKS]
+
     def lagged_set(self, instant: LaggedInstant) -> TrackSet:
         """The TrackSet of an instant held back by ``publish_lag_s``."""
         tracks = [self.track_message(tr, tid, instant.seq) for tr, tid in instant.tracks][:MAX_TRACKS]
@@ -449,9 +453,12 @@ class Fusion:
         used = sorted(in_use or [])
         trackset: TrackSet | None = None
         if self.lagged is None:
-            tracks = [self.track_message(tr) for tr in self.published_tracks()][:MAX_TRACKS]
             trackset = TrackSet(
-                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, tracks=tracks, sensors_used=used[:64]
+                manager_id=self.manager_id,
+                seq=self.seq,
+                stamp_ns=self.last_t_ns,
+                tracks=self.live_tracks(),
+                sensors_used=used[:64],
             )
         elif not skipped:
             self.lagged.push(self.seq, self.last_t_ns, used, self.tracker.snapshots())

@@ -369,7 +369,9 @@ class ManagerNode:
                 self.live_ids = {tr.track_id for tr in published_set.tracks}
             self.store.prune(t_ns)
             if not result.skipped:
-                self.agreement.update(t_ns, self.fusion.last_views, result.trackset.tracks)
+                # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
+                live = published_set.tracks if published_set is not None and self.fusion.lagged is None else None
+                self.agreement.update(t_ns, self.fusion.last_views, live or self.fusion.live_tracks())
         self.ticks += 1
         if result.skipped or published_set is None:
             return result
