@@ -255,7 +255,8 @@ class SensorInfo(_Msg, frozen=True, tag="pano.SensorInfo"):
     mobile: bool = False
     """True for a camera on a robot: its pose comes from mutual calibration."""
     body_radius_m: PosMetres = 0.0
-    """Radius of the cylinder body others see (0: none)."""
+    """Radius of the cylinder body others see (0: none): from the floor up to the camera, it hides what stands
+    behind it from the other cameras."""
     fps: Rate = 0.0
     clock_offset_ns: DurationNs = 0
     clock_uncertainty_ns: Count = 0

@@ -98,7 +98,8 @@ class NodeSection(ConfigStruct, frozen=True):
     mobile: bool = False
     """True for a camera on a robot: its pose comes from mutual calibration, not ``[pose]``."""
     body_radius_m: NonNeg = 0.0
-    """Radius of this platform's cylindrical body that other robots see (0: no body)."""
+    """Radius of this platform's cylindrical body, from the floor up to the camera, that other robots see and
+    that hides people behind it from the other cameras (0: no body)."""
     bearing_sigma_rad: Annotated[float, msgspec.Meta(ge=0.0, le=1.0)] = 0.0035
     """1-sigma head-bearing error this sensor expects; the manager's error model uses it."""
 

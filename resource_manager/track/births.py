@@ -32,7 +32,7 @@ import numpy.typing as npt
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
-from resource_manager.track.observe import Spread, TrackTable, ViewStack, score_views, visibility_many
+from resource_manager.track.observe import Spread, TrackTable, ViewStack, Visibility, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import subset_view
@@ -188,7 +188,8 @@ def find_births(
     cand_table, cands = _provisional(found, views, model)
     # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
     every = stack if stack is not None else ViewStack.of([views[sid] for sid in sids], [spread(sid) for sid in sids])
-    pd = visibility_many(every, cand_table, model, scene.max_range_m, blockers=blockers)
+    vis = visibility_many(every, cand_table, model, scene.max_range_m, blockers=blockers)
+    pd = vis.p_detect
     misses = np.zeros(len(cands))
     for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
         misses += row
@@ -197,7 +198,7 @@ def find_births(
         unexplained,
         cands,
         cand_table,
-        pd[with_free],
+        Visibility(pd[with_free], vis.feet_hidden[with_free]),
         model=model,
         max_range_m=scene.max_range_m,
     )

@@ -132,9 +132,11 @@ class TrackFilter:
         outlier: tuple[float, float],
         width_rel_sigma: float,
         line_views: int,
+        feet_cut: FloatArray | None = None,
     ) -> list[FloatArray]:
-        """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob) (:func:`.fuse.fuse`); returns
-        each one's weight of each of its blobs (low: an outlier)."""
+        """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob) (:func:`.fuse.fuse`; ``feet_cut``
+        (s, len(rows)): the chance that a view's box of each is cut above the feet); returns each one's weight of
+        each of its blobs (low: an outlier)."""
         if not len(rows):
             return []
         rows = np.asarray(rows, dtype=np.int64)
@@ -147,6 +149,7 @@ class TrackFilter:
             outlier=outlier,
             width_rel_sigma=width_rel_sigma,
             line_views=line_views,
+            feet_cut=feet_cut,
         )
         self.x[rows], self.p[rows] = x, p
         return [resp[k, : len(got)] for k, got in enumerate(assigned)]

@@ -23,7 +23,8 @@ import numpy as np
 import numpy.typing as npt
 
 from resource_manager.track.lines import size_ratio_lines
-from resource_manager.track.motion import ObservationBatch, update_many
+from resource_manager.track.motion import MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
+from resource_manager.track.observe import feet_ln
 from resource_manager.track.stack import ViewStack
 
 __all__ = ["Slots", "fuse", "fuse_heights"]
@@ -31,6 +32,8 @@ __all__ = ["Slots", "fuse", "fuse_heights"]
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 _Scalar = TypeVar("_Scalar", bound=np.generic)
+HALF = 0.5
+"""A floor distance less likely than this to show the feet is left out (its bearing stays)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,6 +81,7 @@ def fuse(
     outlier: tuple[float, float],
     width_rel_sigma: float,
     line_views: int,
+    feet_cut: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``.
 
@@ -87,6 +91,8 @@ def fuse(
         outlier: (probability, scale) of the observations' outlier component.
         width_rel_sigma: the relative width error of the size-ratio method.
         line_views: the size-ratio pairs are taken among each track's first this many views (0: none).
+        feet_cut: (s, k) probability that view ``s``'s box of track ``k`` ends above the feet (someone nearer or a
+            camera's body hides them: :func:`.observe.feet_cut_prob`); None: ``outlier``'s alone.
 
     Returns:
         (x, P, the weight (k, w) of each slot's blob: low for an outlier).
@@ -104,6 +110,18 @@ def fuse(
     obs[has, 4] = stack.mono_range_m[blob[has]]
     feet_var = stack.mono_sigma_m[blob[has]] ** 2 + stack.sigma_xy_m[view[has]] ** 2 + stack.range_var[view[has]]
     obs[has, 5] = feet_var / weight[has]
+    if feet_cut is not None and has.any():
+        # A box cut above the feet puts the person farther than they are. Judged against the prediction, a
+        # distance more likely cut than not is left out, the others weigh by the chance that they show the feet
+        # (the bearings cannot contradict a cut box where two cameras look along one line, and a precise
+        # distance, however down-weighted, would still drag the track).
+        track = slots.track[has]
+        unit = (xs[track, :2] - origin[has]) / np.maximum(dist[has], MIN_RANGE_M)[:, None]
+        var = quadratic_form(unit, ps[track, :2, :2], unit) + obs[has, 5]
+        ln_feet, ln_cut = feet_ln(obs[has, 4] - dist[has], var, dist[has], feet_cut[view[has], track], outlier)
+        p_feet = np.exp(ln_feet - np.logaddexp(ln_feet, ln_cut))
+        obs[has, 5] /= np.maximum(p_feet, HALF)
+        obs[np.flatnonzero(has)[p_feet < HALF], 4] = math.nan
     k = slots.shape[0]
     line_rows, line_valid = np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
     if line_views > 0:

@@ -60,8 +60,9 @@ class TrackModel(ConfigStruct, frozen=True):
     discounted, not trusted. (A box whose top then puts the head at no person's height gives no distance at all:
     :mod:`resource_manager.views.mono`.)"""
     feet_cut_prob_covered: Annotated[float, msgspec.Meta(ge=0.0, lt=1.0)] = 0.5
-    """...and that it is not, for a person others wholly cover in the picture (in between: by the share covered):
-    a detector that boxes what it sees cuts them there; an annotator's box reaches the feet behind anyone."""
+    """...and that it is not, for a person whose feet someone nearer or another camera's body hides in the picture
+    (in between: by the share of the feet hidden): a detector that boxes what it sees cuts them there; an
+    annotator's box reaches the feet behind anyone."""
     height_prior_m: Pos = 1.7
     """Head-top height of a person before any view measured it."""
     height_sigma_m: Pos = 0.15

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -44,9 +45,11 @@ __all__ = [
     "TrackTable",
     "ViewScores",
     "ViewStack",
+    "Visibility",
+    "feet_cut_prob",
+    "feet_ln",
     "fov_width",
     "in_any_view",
-    "score_view",
     "score_views",
     "visibility",
     "visibility_many",
@@ -58,7 +61,7 @@ BoolArray = npt.NDArray[np.bool_]
 TWO_PI = 2.0 * math.pi
 LN_2PI = math.log(TWO_PI)
 HALF = 0.5
-"""A distance farther than the gate is weighed only for a person more than half covered."""
+"""A distance farther than the gate is weighed only for a person whose feet are more than half hidden."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,6 +98,27 @@ class ViewScores:
         return self.ln_lr - self.ln_miss[:, None]
 
 
+class _Cover(NamedTuple):
+    """Silhouettes that may hide people: (s, 1 or n, k) azimuth, half width, bottom and top elevations in each
+    view, and (s, n, k) whether each stands in front of each person."""
+
+    az: FloatArray
+    half: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    front: BoolArray
+
+
+class Visibility(NamedTuple):
+    """What each camera should see of each track (:func:`visibility_many`)."""
+
+    p_detect: FloatArray
+    """(s, n) probability that each view detects each track (0: out of its picture or range)."""
+    feet_hidden: FloatArray
+    """(s, n) share of each track's feet that someone nearer or a camera's body hides in each view: a box there
+    ends above the feet."""
+
+
 def _wrap(a: FloatArray) -> FloatArray:
     return np.asarray(np.remainder(a + math.pi, TWO_PI) - math.pi, dtype=np.float64)
 
@@ -103,28 +127,27 @@ def visibility(
     v: ViewBlobs, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
 ) -> FloatArray:
     """(n,) detection probability of each track in this view (:func:`visibility_many` of one view)."""
-    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, max_range_m, blockers)[0]
+    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, max_range_m, blockers).p_detect[0]
 
 
 def visibility_many(
     stack: ViewStack, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
-) -> FloatArray:
-    """(s, n) detection probability of each track in each view: 0 out of its picture or ``max_range_m``, lower when
-    someone nearer stands on the same bearing: one of the tracks of ``blockers`` (default: of ``table`` itself;
-    new people's hypotheses are hidden by the tracks, not by each other)."""
+) -> Visibility:
+    """Each track in each view: its detection probability, 0 out of the picture or ``max_range_m``, lower when
+    someone nearer stands on the same bearing (one of the tracks of ``blockers``; default: of ``table`` itself,
+    new people's hypotheses are hidden by the tracks, not by each other) or another camera's body does; and the
+    share of its feet those hide."""
     n = table.n
     p = np.zeros((stack.n_views, n))
     if n == 0 or stack.n_views == 0:
-        return p
+        return Visibility(p, p.copy())
     dist, seen = _in_view(stack, table, max_range_m)
-    p[seen] = model.p_detect
+    hiders = None
     if n + (blockers.n if blockers is not None else 0) > 1:
-        hiders, hdist, hseen = (
-            (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, max_range_m))
-        )
-        covered = _covered(stack, table, dist, hiders=hiders, hdist=hdist, hseen=hseen)
-        p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
-    return p
+        hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, max_range_m))
+    covered, feet = _covered(stack, table, dist, hiders)
+    p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
+    return Visibility(p, np.where(seen, feet, 0.0))
 
 
 def in_any_view(stack: ViewStack, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
@@ -169,31 +192,60 @@ def _covered(
     stack: ViewStack,
     table: TrackTable,
     dist: FloatArray,
-    *,
-    hiders: TrackTable,
-    hdist: FloatArray,
-    hseen: BoolArray,
-) -> FloatArray:
-    """(s, n) share of each person's silhouette (feet to head, one person wide) that nearer people (of
-    ``hiders``, at ``hdist``, in the picture where ``hseen``) cover in each picture, treating the covers as
-    independent: 1 - Π(1 - overlap_k / area).
+    hiders: tuple[TrackTable, FloatArray, BoolArray] | None,
+) -> tuple[FloatArray, FloatArray]:
+    """(s, n) share of each person's silhouette (feet to head, one person wide) that nearer people (``hiders``: a
+    table, its (s, k) distances and whether each is in each picture) and the other cameras' bodies cover in each
+    picture, treating the covers as independent: 1 - Π(1 - overlap_k / area); and (s, n) the share of the feet
+    they cover (of the person's width, where a cover reaches above the feet).
 
-    Angular rectangles: azimuth ± person radius / distance, elevation from the feet to the head top. A camera
-    above the crowd sees the head of someone behind a nearer person; one at head height does not.
+    Angular rectangles: azimuth ± radius / distance, elevation from the floor to the head top (a body: to its
+    camera). A camera above the crowd sees the head of someone behind a nearer person; one at head height does
+    not; a high camera sees over a short robot, but not the feet just behind it.
     """
     az, half, lo, hi = (a[:, :, None] for a in _silhouettes(stack, table, dist))
-    if hiders is table:
-        az_k, half_k, lo_k, hi_k = (np.swapaxes(a, 1, 2) for a in (az, half, lo, hi))
-    else:
-        az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(stack, hiders, hdist))
-    width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
-    over_az = np.clip(half + half_k - np.abs(_wrap(az - az_k)), 0.0, width)
-    over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
     area = np.maximum(2.0 * half * (hi - lo), 1e-12)
-    # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
-    front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
-    share = np.where(front, np.minimum(over_az * over_el / area, 1.0), 0.0)
-    return np.asarray(1.0 - np.prod(1.0 - share, axis=2), dtype=np.float64)
+    clear = np.ones(dist.shape)
+    clear_feet = np.ones(dist.shape)
+    covers: list[_Cover] = []
+    if hiders is not None:
+        others, hdist, hseen = hiders
+        if others is table:
+            az_k, half_k, lo_k, hi_k = (np.swapaxes(a, 1, 2) for a in (az, half, lo, hi))
+        else:
+            az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(stack, others, hdist))
+        # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
+        front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
+        covers.append(_Cover(az_k, half_k, lo_k, hi_k, front))
+    bodies = np.flatnonzero(stack.body_radius_m > 0.0)
+    if bodies.size:
+        covers.append(_bodies(stack, bodies, dist))
+    for az_k, half_k, lo_k, hi_k, front in covers:
+        width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
+        over_az = np.clip(half + half_k - np.abs(_wrap(az - az_k)), 0.0, width)
+        over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
+        clear *= np.prod(1.0 - np.where(front, np.minimum(over_az * over_el / area, 1.0), 0.0), axis=2)
+        feet = front & (hi_k >= lo)
+        clear_feet *= np.prod(1.0 - np.where(feet, np.minimum(over_az / (2.0 * half), 1.0), 0.0), axis=2)
+    return np.asarray(1.0 - clear, dtype=np.float64), np.asarray(1.0 - clear_feet, dtype=np.float64)
+
+
+def _bodies(stack: ViewStack, bodies: IntArray, dist: FloatArray) -> _Cover:
+    """The silhouettes of the cameras' bodies ``bodies`` (view rows) in every view, as (s, 1, b) azimuth, half
+    width, floor and top elevations, and (s, n, b) whether each stands in front of each track (a camera's own body
+    hides nothing from it)."""
+    d = stack.origin[bodies][None, :, :] - stack.origin[:, None, :]
+    r = np.hypot(d[:, :, 0], d[:, :, 1])
+    radius = stack.body_radius_m[bodies][None, :]
+    r_safe = np.maximum(r, MIN_RANGE_M)
+    z = stack.z_m[:, None]
+    az = np.arctan2(d[:, :, 1], d[:, :, 0])
+    half = np.arcsin(np.minimum(radius / r_safe, 1.0))
+    lo = np.arctan2(-z, np.maximum(r - radius, MIN_RANGE_M))
+    hi = np.arctan2(stack.z_m[bodies][None, :] - z, r_safe)
+    own = r <= radius + PERSON_RADIUS_M  # its own body, or one it stands against
+    front = ((r + radius)[:, None, :] < dist[:, :, None]) & ~own[:, None, :]
+    return _Cover(az[:, None, :], half[:, None, :], lo[:, None, :], hi[:, None, :], front)
 
 
 def _mixture_ln(d2: FloatArray, ln_det: FloatArray, dim: FloatArray, model: TrackModel) -> FloatArray:
@@ -204,35 +256,19 @@ def _mixture_ln(d2: FloatArray, ln_det: FloatArray, dim: FloatArray, model: Trac
     return np.asarray(np.logaddexp(math.log(1.0 - eps) + core, math.log(eps) + wide), dtype=np.float64)
 
 
-def score_view(
-    v: ViewBlobs,
-    tracks: Sequence[TrackRecord],
-    table: TrackTable,
-    p_detect: FloatArray,
-    *,
-    model: TrackModel,
-    max_range_m: float,
-    spread: Spread,
-) -> ViewScores:
-    """Every blob of ``v`` against every track (:func:`score_views` of one view); ``spread``: the camera's own
-    spread of points around a person."""
-    return score_views(
-        ViewStack.of([v], [spread]), tracks, table, p_detect[None, :], model=model, max_range_m=max_range_m
-    )[0]
-
-
 def score_views(
     stack: ViewStack,
     tracks: Sequence[TrackRecord],
     table: TrackTable,
-    p_detect: FloatArray,
+    vis: Visibility,
     *,
     model: TrackModel,
     max_range_m: float,
 ) -> list[ViewScores]:
-    """Every blob of every view of ``stack`` against every track (see the module docstring); ``p_detect`` (s, n):
-    each track's detection probability in each view; ``tracks``: their looks and links (row for row with
-    ``table``); nobody is seen farther than ``max_range_m``."""
+    """Every blob of every view of ``stack`` against every track (see the module docstring); ``vis``: what each
+    view should see of each track; ``tracks``: their looks and links (row for row with ``table``); nobody is seen
+    farther than ``max_range_m``."""
+    p_detect = vis.p_detect
     n, m = table.n, stack.view_of.shape[0]
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
@@ -264,8 +300,8 @@ def score_views(
         nu_d = range_innovation - s_td / blob_s_tt * nu_t
         s_cond = np.maximum(s_dd - s_td**2 / blob_s_tt, 1e-18)
         near = np.abs(range_innovation) <= model.gate_sigmas * np.sqrt(s_dd)
-        # Farther than the gate only where someone nearer may cut the box above the feet.
-        cut_ok = (covered_share(p_detect, model) > HALF)[col].T
+        # Farther than the gate only where someone nearer or a camera's body may cut the box above the feet.
+        cut_ok = (vis.feet_hidden > HALF)[col].T
         far = (nu_d > 0) & cut_ok
         density_gate = gate & np.where(has[None, :], near, True)
         gate &= np.where(has[None, :], near | far, True)
@@ -284,8 +320,9 @@ def score_views(
     ln_g = _mixture_ln(d2[track, blob], np.log(s_tt[view, track]), np.ones(len(track)), model)
     if feet is not None:
         nu_d, s_cond, dist_pred = (a[track, blob] for a in feet)
-        cut = feet_cut_prob(p_detect[view, track], model)
-        ln_g = ln_g + np.where(has[blob], np.logaddexp(*_feet_ln(nu_d, s_cond, dist_pred, cut, model)), 0.0)
+        cut = feet_cut_prob(vis.feet_hidden[view, track], model)
+        outlier = (model.outlier_prob, model.outlier_scale)
+        ln_g = ln_g + np.where(has[blob], np.logaddexp(*feet_ln(nu_d, s_cond, dist_pred, cut, outlier)), 0.0)
     ln_alt = np.maximum(ln_clutter[blob], local[track, view])
     entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
     entry = entry + _height_term(
@@ -298,30 +335,23 @@ def score_views(
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
 
 
-def covered_share(p_detect: FloatArray, model: TrackModel) -> FloatArray:
-    """The share of a person's silhouette that nearer people cover in a view, read back from their detection
-    probability there (:func:`visibility_many`)."""
-    span = max(model.p_detect - model.p_detect_hidden, 1e-9)
-    return np.asarray(np.clip((model.p_detect - p_detect) / span, 0.0, 1.0), dtype=np.float64)
-
-
-def feet_cut_prob(p_detect: FloatArray, model: TrackModel) -> FloatArray:
-    """Probability that a box's bottom is not the person's feet: ``feet_hidden_prob`` where nobody stands in front,
-    rising to ``feet_cut_prob_covered`` with the share others cover."""
-    covered = covered_share(p_detect, model)
+def feet_cut_prob(feet_hidden: FloatArray, model: TrackModel) -> FloatArray:
+    """Probability that a box's bottom is not the person's feet: ``feet_hidden_prob`` where nothing stands in
+    front, rising to ``feet_cut_prob_covered`` with the share of the feet hidden (:attr:`Visibility.feet_hidden`)."""
     return np.asarray(
-        model.feet_hidden_prob + (model.feet_cut_prob_covered - model.feet_hidden_prob) * covered, dtype=np.float64
+        model.feet_hidden_prob + (model.feet_cut_prob_covered - model.feet_hidden_prob) * feet_hidden,
+        dtype=np.float64,
     )
 
 
-def _feet_ln(
-    nu: FloatArray, var: FloatArray, dist: FloatArray, cut: FloatArray, model: TrackModel
+def feet_ln(
+    nu: FloatArray, var: FloatArray, dist: FloatArray, cut: FloatArray, outlier: tuple[float, float]
 ) -> tuple[FloatArray, FloatArray]:
     """ln of the density of a floor distance's innovation ``nu`` (variance ``var``, given the bearing's) for a
     person predicted ``dist`` away, as its two parts: the box shows the feet (Gaussian with the wide outlier
     part), or, with probability ``cut``, a box cut above the feet, which puts them farther by an exponentially
-    distributed distance of mean ``dist``."""
-    eps, k2 = model.outlier_prob, model.outlier_scale**2
+    distributed distance of mean ``dist``. ``outlier``: (probability, scale) of the wide part."""
+    eps, k2 = outlier[0], outlier[1] ** 2
     core = -0.5 * (nu * nu / var + np.log(var) + LN_2PI)
     wide = -0.5 * (nu * nu / (k2 * var) + np.log(k2 * var) + LN_2PI)
     normal = np.logaddexp(math.log(1.0 - eps) + core, math.log(eps) + wide)

@@ -58,6 +58,8 @@ class ViewStack:
     """(s,) :attr:`Spread.range_var` of each view."""
     fov_width_rad: FloatArray
     """(s,) horizontal extent of each view's bearings."""
+    body_radius_m: FloatArray
+    """(s,) each camera's body radius (0: none): the bodies hide people from the other cameras."""
     bearing_rad: FloatArray
     """(m,) the blobs' world azimuths."""
     width_rad: FloatArray
@@ -118,6 +120,7 @@ class ViewStack:
             cross_var=np.array([s.cross_var for s in spreads], dtype=np.float64),
             range_var=np.array([s.range_var for s in spreads], dtype=np.float64),
             fov_width_rad=np.array([fov_width(v) for v in views], dtype=np.float64),
+            body_radius_m=np.array([v.body_radius_m for v in views], dtype=np.float64),
             bearing_rad=cat("bearing_rad", 0.0),
             width_rad=cat("width_rad", 0.0),
             top_elev_rad=cat("top_elev_rad", 0.0),
@@ -147,6 +150,7 @@ class ViewStack:
             cross_var=self.cross_var[row],
             range_var=self.range_var[row],
             fov_width_rad=self.fov_width_rad[row],
+            body_radius_m=self.body_radius_m[row],
             bearing_rad=self.bearing_rad[pick],
             width_rad=self.width_rad[pick],
             top_elev_rad=self.top_elev_rad[pick],

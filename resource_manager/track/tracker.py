@@ -226,12 +226,14 @@ class Tracker:
         evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
         sids = sorted(views)
         stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
-        tick = Tick(views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]))
         table = self.filter.table()
-        pd = visibility_many(stack, table, self.model, self.scene.max_range_m)
-        pd[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
+        vis = visibility_many(stack, table, self.model, self.scene.max_range_m)
+        vis.p_detect[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
+        tick = Tick(
+            views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]), vis.feet_hidden
+        )
         # 3. Assign, per view.
-        scores = score_views(stack, self.tracks, table, pd, model=self.model, max_range_m=self.scene.max_range_m)
+        scores = score_views(stack, self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m)
         scored = dict(zip(sids, scores, strict=True))
         assigned: list[list[Assigned]] = [[] for _ in self.tracks]
         for sid, sc in scored.items():

@@ -23,6 +23,7 @@ from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.filter import TrackFilter
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import TrackModel
+from resource_manager.track.observe import feet_cut_prob
 from resource_manager.track.stack import ViewStack
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -54,6 +55,9 @@ class Tick:
     """The views stacked into arrays, in order of sensor ids."""
     position_weight: FloatArray
     """(s,) the position weight of each view of ``stack``."""
+    feet_hidden: FloatArray | None = None
+    """(s, n) the share of each track's feet hidden in each view (:attr:`.observe.Visibility.feet_hidden`, row for
+    row with the filter); None: none hidden."""
 
 
 class Ranking(NamedTuple):
@@ -136,10 +140,16 @@ class Updater:
         size-ratio lines among each one's first ``2 * MAX_PAIR_CAMERAS`` views; returns each one's weight of each
         of its blobs (low: an outlier)."""
         m = self.model
+        # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
+        hidden = np.zeros((tick.stack.n_views, len(rows)))
+        if tick.feet_hidden is not None:
+            known = rows < tick.feet_hidden.shape[1]
+            hidden[:, known] = tick.feet_hidden[:, rows[known]]
         return filt.fuse(
             rows,
             [[(a.sensor_id, a.blob) for a in got] for got in gots],
             tick.stack,
+            feet_cut=feet_cut_prob(hidden, m),
             position_weight=tick.position_weight,
             outlier=(m.outlier_prob, m.outlier_scale),
             width_rel_sigma=self.width_rel_sigma,

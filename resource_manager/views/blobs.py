@@ -86,6 +86,9 @@ class ViewBlobs:
     """Frame period of the sensor (0: unknown): successive ticks between two frames see the same evidence."""
     image: ImageBounds | None = None
     """A perspective camera's projection, to tell whether a floor position is in its picture (None: panoramic)."""
+    body_radius_m: float = 0.0
+    """Radius of the camera's body (a robot, a post): a cylinder from the floor up to the camera, which hides what
+    stands behind it from the other cameras (0: none)."""
     confidence: FloatArray | None = None
     """(n,) the node's confidence in each blob (a detector's score; None: all sure): a low one may update a track
     but never starts one."""

@@ -174,6 +174,7 @@ def build_views(
             point_sigma_m=info.point_sigma_m if info is not None else 0.0,
             period_s=1.0 / info.fps if info is not None and info.fps > 0 else 0.0,
             image=image_bounds(model) if model is not None else None,
+            body_radius_m=info.body_radius_m if info is not None else 0.0,
             confidence=confidence[sl],
         )
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -83,3 +84,24 @@ def test_heights_move_to_what_the_views_imply_and_cut_heads_are_left_out() -> No
     cut.top_cut[:] = True
     height, var = fuse_heights(xy, np.array([1.5, 1.9]), np.array([0.04, 0.04]), slots, cut)
     assert height.tolist() == [1.5, 1.9] and var.tolist() == [0.04, 0.04]
+
+
+@pytest.mark.parametrize(("cut", "pulled"), [(0.02, True), (0.5, False)])
+def test_a_distance_from_a_box_likely_cut_above_the_feet_does_not_drag_the_track(cut: float, pulled: bool) -> None:
+    """Two cameras on one line with the person (their bearings say nothing along it), the nearer one's box 0.5 m
+    too far: where something may hide the feet from it, the track stays near its prediction; where nothing does,
+    the distance is believed."""
+    person = (4.0, 0.0, 1.7, 0)
+    near = dataclasses.replace(
+        view("ptz", (0.0, 0.0), [person], z=2.5), mono_range_m=np.array([4.5]), mono_sigma_m=np.array([0.05])
+    )
+    far = view("pano", (-2.0, 0.0), [person])
+    stack = ViewStack.of([near, far], [Spread(0.0, 0.0)] * 2)
+    slots = Slots.of([[("pano", 0), ("ptz", 0)]], stack)
+    xs, ps = np.array([[4.0, 0.0, 0.0, 0.0]]), np.diag([0.04, 0.01, 0.25, 0.25])[None]
+    x, _, weight = fuse(
+        xs, ps, slots, stack, position_weight=np.ones(2), outlier=(0.05, 4.0), width_rel_sigma=0.15, line_views=0,
+        feet_cut=np.full((2, 1), cut),
+    )  # fmt: skip
+    assert bool(x[0, 0] - 4.0 > 0.3) == pulled, x[0, 0]
+    assert weight[0].min() > 0.5  # the bearings stay either way

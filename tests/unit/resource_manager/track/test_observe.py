@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from resource_manager.track.model import TrackModel
-from resource_manager.track.observe import TrackTable, visibility
+from resource_manager.track.observe import Spread, TrackTable, ViewStack, visibility, visibility_many
 from resource_manager.views.blobs import ViewBlobs
 
 
@@ -33,3 +33,37 @@ def test_someone_behind_a_nearer_person_is_hidden_from_a_low_camera_not_from_a_h
     assert high[1] > 0.7  # mostly visible above the nearer one's head
     far = _table((200.0, 0.0))
     assert visibility(_panorama((0.0, 0.0), 1.1), far, model, 100.0)[0] == 0.0  # out of range: no evidence either way
+
+
+def _camera(sid: str, origin: tuple[float, float], z_m: float, body_radius_m: float = 0.0) -> ViewBlobs:
+    empty = np.zeros(0)
+    return ViewBlobs(
+        sid,
+        np.array(origin),
+        z_m,
+        0.0035,
+        empty,
+        empty,
+        empty,
+        None,
+        np.zeros(0, np.int64),
+        body_radius_m=body_radius_m,
+    )
+
+
+def test_a_robot_hides_the_feet_of_someone_behind_it_from_a_high_camera_but_not_the_head() -> None:
+    """A robot (a 0.18 m cylinder up to its camera at 1.1 m) 3 m from a camera 2.5 m up: the feet of a person
+    behind it are hidden from that camera, most of the person is not; someone beside the robot, and the robot's
+    own camera, are not affected."""
+    model = TrackModel()
+    high = _camera("ptz", (0.0, 0.0), 2.5)
+    robot = _camera("robot", (3.0, 0.0), 1.1, body_radius_m=0.18)
+    stack = ViewStack.of([high, robot], [Spread(0.0, 0.0)] * 2)
+    behind, beside = (4.5, 0.0), (4.5, 1.5)
+    vis = visibility_many(stack, _table(behind, beside), model, 100.0)
+    assert vis.feet_hidden[0, 0] > 0.5  # the box from the high camera ends at the robot's top
+    assert model.p_detect_hidden < vis.p_detect[0, 0] < model.p_detect  # partly covered: still likely seen
+    assert vis.feet_hidden[0, 1] == 0.0 and vis.p_detect[0, 1] == pytest.approx(model.p_detect)
+    assert vis.feet_hidden[1].max() == 0.0  # a camera's own body hides nothing from it
+    alone = visibility_many(ViewStack.of([high], [Spread(0.0, 0.0)]), _table(behind), model, 100.0)
+    assert alone.feet_hidden[0, 0] == 0.0  # without the robot in the stack, nothing hides them
