@@ -292,6 +292,13 @@ class PtzSection(ConfigStruct, frozen=True):
     """A PTZ hold ends this long after the agent's last request for it unless renewed (an agent that keeps a
     view asks again every third of it), and at once when the agent's liveliness token goes. A request may ask
     for a shorter lease, never a longer one."""
+    default_max_priority: Annotated[int, msgspec.Meta(ge=0, le=1000)] = 0
+    """The highest PTZ priority an agent's requests get unless ``max_priority`` names it; a request asking more
+    is clipped. Equal for all by default: nobody takes a held camera from anybody."""
+    max_priority: dict[str, Annotated[int, msgspec.Meta(ge=0, le=1000)]] = {}
+    """Agent id -> its cap (``[ptz.max_priority]`` table, e.g. ``security = 10``): priority comes from the agent's
+    identity (the key it asks on, which its certificate alone may use), never from what a request says.
+    ``deploy/security/make_configs.py --agents "a1 ops:10"`` writes this table for the manager's config."""
 
 
 class ManagerConfig(ConfigStruct, frozen=True):
@@ -326,6 +333,8 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
                 validate_id(sid, f"manager.sensors[{i}]")
         for i, p in enumerate(cfg.pose):
             validate_id(p.id, f"pose[{i}].id")
+        for aid in cfg.ptz.max_priority:
+            validate_id(aid, f"ptz.max_priority.{aid}")
     except ConfigError as err:
         raise ConfigError(f"{source}: {err}") from err
     room = cfg.planner.room

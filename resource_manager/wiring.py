@@ -177,5 +177,7 @@ def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
             math.radians(pz.min_tilt_deg),
             math.radians(pz.max_tilt_deg),
             pz.lease_s,
+            dict(pz.max_priority),
+            pz.default_max_priority,
         )
     )
