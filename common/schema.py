@@ -432,6 +432,9 @@ class Refusal(_Msg, frozen=True, tag="pano.Refusal"):
     """The payload named another sender than its key."""
     skewed: Count = 0
     """Features stamped further from the manager's clock than its ``max_skew_s``: never buffered."""
+    sighting: Count = 0
+    """Instants at which its sightings of another camera disagreed with the other witnesses or with that camera's
+    settled pose: refused (no single witness moves a camera)."""
 
 
 class SensorTiming(_Msg, frozen=True, tag="pano.SensorTiming"):

@@ -100,6 +100,9 @@ class ManagerSection(ConfigStruct, frozen=True):
     """How much track history is kept in memory, reloaded at start and served by ``?history=``."""
     history_hz: Pos = 5.0
     """States per track kept in the history (and its log) per second; the live stream is every tick."""
+    history_max_mb: Pos = 64.0
+    """Most memory the in-memory history takes (MiB, all tracks; ~575 bytes a state): beyond it the oldest states
+    go first, so a crowded site keeps less than ``history_s`` rather than growing (the log on disk keeps all)."""
     segment_s: Pos = 60.0
     """Length of one track-log segment file."""
     retain_s: Pos = 3600.0
@@ -236,6 +239,14 @@ class MutualSection(ConfigStruct, frozen=True):
     """Error of one occluding-boundary bearing; 0 = the observer's bearing sigma."""
     default_height_m: Pos = 1.1
     """Camera height of a mobile sensor whose SensorInfo carries no pose with z_m."""
+    settle_s: Pos = 3.0
+    """A camera whose own node reports no motion for this long (a static camera: once placed) has its pose fixed
+    at the mean over that time; from then on sightings only check it (one that disagrees is refused and counted
+    against its sender) and only its node reporting motion releases it. Raising it averages longer before fixing;
+    lowering it fixes sooner."""
+    max_speed_mps: Pos = 1.0
+    """While its node reports motion, a camera's pose moves at most this fast beyond its noise (a robot's top
+    speed): sightings that would carry it further are refused."""
 
 
 class PlannerSection(ConfigStruct, frozen=True):

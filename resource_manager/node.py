@@ -84,7 +84,7 @@ class ManagerNode:
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)
-        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz)
+        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz, cfg.manager.history_max_mb)
         now = clock.now_ns()
         reloaded = read_segments(state / "tracks", now - int(cfg.manager.history_s * 1e9))
         for tr in reloaded:
@@ -364,6 +364,8 @@ class ManagerNode:
             kept = [tr for tr in result.trackset.tracks if self.store.add(tr)]
             self.live_ids = {tr.track_id for tr in result.trackset.tracks}
             self.store.prune(t_ns)
+        for sid, n in self.fusion.poses.take_refused().items():
+            self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1
         if result.skipped:
             return result

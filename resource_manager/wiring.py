@@ -64,6 +64,8 @@ def pose_solver(config: ManagerConfig) -> PoseSolver:
             boundary_sigma_rad=math.radians(mu.boundary_sigma_deg),
             default_bearing_sigma_rad=config.default_bearing_sigma_rad,
             default_height_m=mu.default_height_m,
+            settle_s=mu.settle_s,
+            max_speed_mps=mu.max_speed_mps,
         )
     )
     for p in config.pose:

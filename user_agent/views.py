@@ -223,12 +223,12 @@ def _poses_table(managers: Sequence[ManagerView]) -> str:
 
 def _refused_table(managers: Sequence[ManagerView], most: int = 10) -> str:
     rows = [
-        (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed)
+        (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed, r.sighting)
         for m in managers
         if m.status is not None
         for r in m.status.refused[:most]
     ]
-    return format_table(("manager", "sender", "not fused", "wrong id", "clock skew"), rows)
+    return format_table(("manager", "sender", "not fused", "wrong id", "clock skew", "sightings"), rows)
 
 
 def refused_lines(managers: Sequence[ManagerView]) -> list[str]:

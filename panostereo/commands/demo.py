@@ -359,6 +359,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
             started={i for c, i in ids.values() if c == "node"},
             recorder=recorder.status() if recorder is not None else None,
             refused=_refusals(last_status),
+            sightings_refused=_sightings_refused(last_status),
             seen_sensors=seen_sensors,
         )
     finally:
@@ -403,6 +404,7 @@ def _finish(
     started: set[str],
     recorder: Any,
     refused: dict[str, int],
+    sightings_refused: dict[str, int],
     seen_sensors: set[str],
 ) -> int:
     from user_agent.groundtruth import read_gt_csv
@@ -465,6 +467,7 @@ def _finish(
         "recording_lost": lost,
         "sensors_not_started": strays,
         "refused_by_manager": refused,
+        "sightings_refused": sightings_refused,
         "restarts": restarts,
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -473,6 +476,17 @@ def _finish(
         print(f"WARNING: {line}")
     print(f"summary: {out / 'summary.json'}")
     return 0
+
+
+def _sightings_refused(statuses: dict[str, Any]) -> dict[str, int]:
+    """Sender id -> instants at which the managers refused its sightings of another camera (their last status):
+    a person hiding part of a robot's band makes a few; a camera lying about another, many."""
+    out: dict[str, int] = {}
+    for st in statuses.values():
+        for r in st.refused:
+            if r.sighting:
+                out[r.sender_id] = out.get(r.sender_id, 0) + r.sighting
+    return out
 
 
 def _refusals(statuses: dict[str, Any]) -> dict[str, int]:

@@ -15,7 +15,8 @@ Three checks, in the order a message meets them:
    from 1970 cannot restart its buffer, and forged frames stamped just ahead
    cannot stand in for the real ones after a flood.
 
-Every refusal is counted per sender id for ManagerStatus. The counts are kept
+Every refusal is counted per sender id for ManagerStatus, with the sightings the
+pose solver refused (reason ``sighting``: :mod:`resource_manager.poses.solver`). The counts are kept
 for at most ``max_senders`` ids (a flood of fresh ids cannot grow memory), the
 listed sensors' always; the rest are summed under :attr:`RefusalCounter.others`.
 """
@@ -34,7 +35,8 @@ __all__ = ["ANY_SENSOR", "RefusalCounter", "RefusalReason", "SenderGate", "sende
 ANY_SENSOR: Final = "*"
 """The sensor list entry that accepts any sensor (``[manager] sensors = ["*"]``)."""
 
-RefusalReason = Literal["unlisted", "wrong_id", "skewed"]
+RefusalReason = Literal["unlisted", "wrong_id", "skewed", "sighting"]
+REASONS: Final = ("unlisted", "wrong_id", "skewed", "sighting")
 
 _ID_RE: Final = re.compile(r"^[a-z0-9][a-z0-9-]{0,47}$")
 
@@ -59,7 +61,7 @@ class RefusalCounter:
     reserved: frozenset[str] = frozenset()
     """Ids always counted by name (the listed sensors): a flood of fresh ids cannot crowd them out."""
     counts: dict[str, list[int]] = field(default_factory=dict)
-    """Sender id -> [unlisted, wrong_id, skewed]."""
+    """Sender id -> [unlisted, wrong_id, skewed, sighting]."""
     others: int = 0
     """Refusals of senders beyond ``max_senders``, or whose key chunk is not a valid id."""
     total: int = 0
@@ -71,13 +73,13 @@ class RefusalCounter:
             if sender_id not in self.reserved and (len(self.counts) >= self.max_senders or not _ID_RE.match(sender_id)):
                 self.others += n
                 return
-            row = self.counts[sender_id] = [0, 0, 0]
-        row[("unlisted", "wrong_id", "skewed").index(reason)] += n
+            row = self.counts[sender_id] = [0, 0, 0, 0]
+        row[REASONS.index(reason)] += n
 
     def top(self, n: int) -> list[Refusal]:
         """The ``n`` senders with the most refusals, most first."""
         rows = sorted(self.counts.items(), key=lambda kv: (-sum(kv[1]), kv[0]))[:n]
-        return [Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s) for sid, (u, w, s) in rows]
+        return [Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s, sighting=g) for sid, (u, w, s, g) in rows]
 
     def senders(self) -> set[str]:
         return set(self.counts)
