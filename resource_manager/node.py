@@ -40,6 +40,8 @@ from common.clock import NtpClock
 from common.codec import decode, encode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
+from common.memory import Trimmer, pin_mmap_threshold
+from common.ratelog import SenderLog
 from common.schema import MAX_SENSORS, Features, Latency, PtzReply, PtzRequest, PtzState, SensorInfo, Track
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
@@ -104,6 +106,8 @@ class ManagerNode:
         self.ptz_queries: dict[int, Any] = {}
         self.ptz_tokens = itertools.count(1)
         self.query_errors = 0
+        self.ptz_log = SenderLog(logger)
+        """PTZ requests are logged one line per agent per second (a flood of requests writes no flood of lines)."""
         k = self.keys
         self.sensor_head = f"{k.root}/sensor/"
         listed = self.gate.expected
@@ -266,7 +270,15 @@ class ManagerNode:
             with self.lock:
                 query = self.ptz_queries.pop(ans.token, None)
             req = ans.request
-            logger.info("PTZ %s by %s for %s: %s", req.action, req.agent_id, req.track_id, ans.sensor_id or ans.reason)
+            self.ptz_log.log(
+                logging.INFO,
+                req.agent_id,
+                "PTZ %s by %s for %s: %s",
+                req.action,
+                req.agent_id,
+                req.track_id,
+                ans.sensor_id or ans.reason,
+            )
             if query is None:
                 continue
             reply = PtzReply(
@@ -426,10 +438,13 @@ class ManagerNode:
             latencies=self.latencies,
         )
         self.pub_status.put(msg)
+        self.ptz_log.flush()
         self.tick_ms.clear()
         self.latencies.clear()
 
     def loop(self) -> None:
+        # A flood's buffers, once freed, go back to the system (common/memory.py): no residue.
+        trimmer = Trimmer()
         status_every = self.cfg.manager.status_period_s
         next_status = time.monotonic() + status_every
         last: TickResult | None = None
@@ -444,6 +459,7 @@ class ManagerNode:
             if now >= next_status:
                 self.status(last, status_every)
                 next_status = now + status_every
+            trimmer.tick()
             # Sleep until a frame arrives or a sensor's deadline passes: a fusion waits for the watermark, not a
             # timer.
             with self.lock:
@@ -489,6 +505,7 @@ def run(cfg: ManagerConfig) -> int:
             '[manager] sensors, or set sensors = ["*"] to accept any sensor'
         )
     shutdown = install_signal_handlers()
+    pin_mmap_threshold()  # before zenoh allocates: large buffers are mapped alone and unmapped when freed
     clock = NtpClock.from_settings(cfg.clock)
     clock.start()
     try:

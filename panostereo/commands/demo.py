@@ -494,7 +494,9 @@ def _refusals(statuses: dict[str, Any]) -> dict[str, int]:
     out: dict[str, int] = {}
     for st in statuses.values():
         for r in st.refused:
-            out[r.sender_id] = out.get(r.sender_id, 0) + r.unlisted + r.wrong_id + r.skewed
+            n = r.unlisted + r.wrong_id + r.skewed
+            if n:
+                out[r.sender_id] = out.get(r.sender_id, 0) + n
     return out
 
 
