@@ -126,6 +126,12 @@ class ManagerSection(ConfigStruct, frozen=True):
     """...and those stamped more than this *ahead* of it: nothing is captured in the future, so this is only the
     hosts' NTP error (ms on a LAN). Forged frames stamped just ahead would stand in for the real ones in
     alignment for that long after a flood stops."""
+    sensor_bytes_per_s: Annotated[float, msgspec.Meta(ge=1e4, le=1e9)] = 2e6
+    """Features bytes one sensor may send per second (a budget holding one second of it): beyond it its frames
+    are dropped on arrival, before they are copied or decoded (counted in ``dropped_msgs``), and for a second
+    after, so are all its frames larger than 1/30 of it (large for a camera at 30 frames/s); its buffer never
+    holds more than one second of it. A camera seeing 30 people at 30 frames/s sends ~0.8 MB/s (the
+    demo's ~40 KB/s); a flood of 256-blob frames (~200 KB each, hundreds a second) is cut to this."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes

@@ -37,7 +37,7 @@ from typing import Any
 import msgspec
 
 from common.clock import NtpClock
-from common.codec import decode, encode
+from common.codec import MAX_PAYLOAD_BYTES, decode, encode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
 from common.memory import Trimmer, pin_mmap_threshold
@@ -64,6 +64,8 @@ logger = logging.getLogger(__name__)
 FRAMES_PER_SENSOR = 16
 """Features waiting per sensor between ticks (1.6 ticks' worth at 100 Hz frames); a flood on one sensor's key
 pushes out (and counts) only that sensor's frames."""
+BUDGET_FPS = 30.0
+"""The frame rate ``[manager] sensor_bytes_per_s`` is sized for: a frame larger than the budget's 1/30 is large."""
 MAX_PENDING_PTZ = 256
 """PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
 
@@ -116,6 +118,16 @@ class ManagerNode:
         """Set by each arriving Features message (and PTZ request): the tick thread looks at once."""
         self.latencies: deque[Latency] = deque(maxlen=4096)
         """Capture -> publish split of each TrackSet published since the last status."""
+        # Each sensor's Features: a byte budget (its largest frames dropped before copy and decode when over it), and
+        # never more than one second of it waiting.
+        rate = cfg.manager.sensor_bytes_per_s
+        budget: dict[str, Any] = {
+            "rate_bytes_per_s": rate,
+            "max_key_bytes": max(int(rate), MAX_PAYLOAD_BYTES),
+            # While over its rate, a sensor's frames larger than its budget spread over 30 frames a second are
+            # dropped (the frame rate the budget is sized for: [manager] sensor_bytes_per_s).
+            "large_bytes": int(rate / BUDGET_FPS),
+        }
         if self.gate.any_sensor:
             logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
             self.features = KeyedInbox(
@@ -125,6 +137,7 @@ class ManagerNode:
                 capacity=FRAMES_PER_SENSOR,
                 max_keys=4 * MAX_SENSORS,
                 notify=self.wake.set,
+                **budget,
             )
             self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
@@ -136,6 +149,7 @@ class ManagerNode:
                 Features,
                 capacity=FRAMES_PER_SENSOR,
                 notify=self.wake.set,
+                **budget,
             )
             self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
