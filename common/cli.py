@@ -8,19 +8,38 @@ configure logging, call ``run``, and map exceptions to exit codes with
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import os
 import sys
 from collections.abc import Callable
+from typing import NoReturn
 
 from common.errors import ConfigError, PanoError
 
-__all__ = ["EXIT_BUG", "EXIT_ERROR", "EXIT_USAGE", "add_logging_args", "run_main", "setup_logging"]
+__all__ = ["EXIT_BUG", "EXIT_ERROR", "EXIT_USAGE", "add_logging_args", "exit_process", "run_main", "setup_logging"]
 
 EXIT_ERROR = 1
 """A clear, expected failure (bad config, unreachable router, corrupt file)."""
 EXIT_USAGE = 2
 EXIT_BUG = 70
 """An unexpected exception: a bug; the supervisor restarts the process."""
+
+
+def exit_process(code: int) -> NoReturn:
+    """End a finished command-line process without finalizing the interpreter.
+
+    Its zenoh sessions are closed by now, but zenoh's own threads may still be on their way into Python (a
+    callback, a query returning) while the interpreter finalizes; Python then ends such a thread with
+    ``pthread_exit``, whose unwinding through Rust frames aborts the process with ``FATAL: exception not
+    rethrown`` (issue 24: ``agent watch`` stopped by SIGTERM). Logs and stdio are flushed first; only a process
+    entry point may call this (never a library, never a test).
+    """
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to say
+            stream.flush()
+    os._exit(code)
 
 
 def add_logging_args(parser: argparse.ArgumentParser) -> None:
