@@ -247,17 +247,24 @@ def test_an_agents_ptz_priority_is_clipped_to_its_cap_and_a_refusal_names_no_hol
 
 
 def test_a_ptz_request_flood_writes_a_bounded_log(site: TrustSite) -> None:
-    before = site.manager.log().count("by a2")
+    def a2_lines() -> list[str]:
+        return [ln for ln in site.manager.log().splitlines() if "by a2" in ln or "from a2" in ln]
+
+    before = len(a2_lines())
     out = _run([sys.executable, "-m", "benchmarks.hostile", "flood", "--connect", site.fsite.endpoint, "--prefix",
                 site.fsite.prefix, "--zenoh-config", str(site.cfg / "agent-a2.json5"), "--manager", MANAGER_ID,
                 "--ptz-agent", "a2", "--duration", "4"])  # fmt: skip
     sent = json.loads(out.splitlines()[-1])
-    assert sent["ptz_requests"] >= 200, sent  # a flood: more than the manager's one line a second could say
+    assert sent["ptz_requests"] >= 200, sent  # a flood: far more than one line a second could say
     t0 = time.monotonic()
     wait_for(lambda: len(site.obs.status_since(t0)) >= 2, 10.0, "the manager's next statuses (its log flushed)")
-    log = site.manager.log()
-    lines = log.count("by a2") + log.count("from a2") - before
-    assert 1 <= lines <= 4 + 3, f"{lines} log lines for {sent['ptz_requests']} PTZ requests in 4 s"
+    lines = a2_lines()[before:]
+    per_second: dict[str, int] = {}
+    for ln in lines:
+        per_second[ln[:8]] = per_second.get(ln[:8], 0) + 1  # HH:MM:SS
+    # One line per second for the sender, and at most one more saying how many were not logged.
+    assert lines and max(per_second.values()) <= 2, f"{len(lines)} lines for {sent['ptz_requests']} requests: {lines}"
+    assert len(lines) <= 0.05 * sent["ptz_requests"], lines
 
 
 def test_a_max_size_features_flood_leaves_no_residue_and_tracking_is_back_within_2_s(site: TrustSite) -> None:
