@@ -108,8 +108,9 @@ class ManagerNode:
         self.ptz_queries: dict[int, Any] = {}
         self.ptz_tokens = itertools.count(1)
         self.query_errors = 0
-        self.ptz_log = SenderLog(logger)
-        """PTZ requests are logged one line per agent per second (a flood of requests writes no flood of lines)."""
+        self.sender_log = SenderLog(logger)
+        """Lines a sender can provoke (PTZ requests and holds ended, per agent; track-log errors) are written once a
+        second per sender, with a count: a flood of requests writes no flood of lines."""
         k = self.keys
         self.sensor_head = f"{k.root}/sensor/"
         listed = self.gate.expected
@@ -284,7 +285,7 @@ class ManagerNode:
             with self.lock:
                 query = self.ptz_queries.pop(ans.token, None)
             req = ans.request
-            self.ptz_log.log(
+            self.sender_log.log(
                 logging.INFO,
                 req.agent_id,
                 "PTZ %s by %s for %s: %s",
@@ -399,7 +400,7 @@ class ManagerNode:
             try:
                 self.log.append(kept, t_ns)
             except OSError as err:
-                logger.error("cannot write the track log: %s", err.strerror)
+                self.sender_log.log(logging.ERROR, "track-log", "cannot write the track log: %s", err.strerror)
         t1 = time.perf_counter()
         published = self.clock.now_ns()
         self.pub_tracks.put(msgspec.structs.replace(result.trackset, published_ns=published))
@@ -422,7 +423,15 @@ class ManagerNode:
         for cmd in result.ptz_commands:
             self.session.put(self.keys.sensor_ptz(cmd.sensor_id), encode(cmd), encoding=MSGPACK)
         for a, why in self.fusion.ptz.ended:
-            logger.info("PTZ %s no longer follows %s for %s: %s", a.sensor_id, a.track_id, a.agent_id, why)
+            self.sender_log.log(
+                logging.INFO,
+                a.agent_id,
+                "PTZ %s no longer follows %s for %s: %s",
+                a.sensor_id,
+                a.track_id,
+                a.agent_id,
+                why,
+            )
         self.fusion.ptz.ended.clear()
         for tid in result.ended:
             logger.info("track %s ended", tid)
@@ -452,7 +461,7 @@ class ManagerNode:
             latencies=self.latencies,
         )
         self.pub_status.put(msg)
-        self.ptz_log.flush()
+        self.sender_log.flush()
         self.tick_ms.clear()
         self.latencies.clear()
 
