@@ -166,6 +166,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     ]
     log = (out / "demo.log").open("w")
     demo = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+
+    def _stop(_signum: int, _frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _stop)  # stopped early: the demo stops too, and scores what it ran
     samples: dict[str, list[tuple[float, float]]] = {}
     t0 = time.monotonic()
     try:
@@ -181,7 +186,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 time.sleep(0.5)
     except KeyboardInterrupt:
         os.killpg(demo.pid, signal.SIGINT)
-        demo.wait(60)
+        demo.wait(120)
     finally:
         log.close()
     elapsed = time.monotonic() - t0
