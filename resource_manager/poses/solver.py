@@ -380,6 +380,11 @@ class PoseSolver:
         raw = self.solve_raw(sightings, known)
         out = dict(known)
         timeout_ns = int(self.params.timeout_s * 1e9)
+        for sid in moving:
+            f0, info = self.filters.get(sid), self.infos.get(sid)
+            if f0 is not None and info is not None and info.mobile and sid not in raw:
+                # Its node reports motion and nothing places it now: released, it times out like any moving pose.
+                f0.fixed, f0.still_ns, f0.moved_ns, f0.settle = False, 0, t_ns, []
         for sid, rp in raw.items():
             info = self.infos.get(sid)
             self._smooth(sid, rp, t_ns, moving=sid in moving and info is not None and info.mobile)
@@ -387,7 +392,10 @@ class PoseSolver:
             if sid in known:
                 del self.filters[sid]
                 continue
-            if t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
+            # A fixed pose is kept while the camera's node reports no motion, sightings or not (a person in front
+            # of the bands, a loaded host's late frames): the camera has not moved. It goes when its node reports
+            # motion, or leaves (liveliness: forget()).
+            if not f.fixed and t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
                 logger.info("pose of %s lost: no sighting for %.1f s", sid, (t_ns - f.t_ns) / 1e9)
                 del self.filters[sid]
                 continue
@@ -401,7 +409,7 @@ class PoseSolver:
                 # forward, until the timeout. Dropping the camera for those ticks loses every person it supports.
                 dt = (t_ns - f.t_ns) / 1e9
                 x, y, yaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
-                grow = 1.0 + dt / self.params.smoothing_s
+                grow = 1.0 if f.fixed else 1.0 + dt / self.params.smoothing_s
                 out[sid] = PoseEstimate(
                     sid, x, y, z, float(wrap_angle(yaw)), "mutual", f.sigma_xy * grow, f.sigma_yaw * grow
                 )

@@ -235,3 +235,14 @@ def test_a_static_camera_placed_by_sightings_never_moves_even_if_its_node_says_i
         p = s.solve(sightings(away, rng, PX), t, moving=("s1",))["s1"]
         t += 100 * MS
     assert math.hypot(p.x_m - 3.0, p.y_m) < 0.05, p
+
+
+def test_a_settled_pose_outlives_a_pause_in_its_sightings_until_its_node_reports_motion() -> None:
+    """Still robots whose sightings pause (people in front of the bands, a loaded host) keep their fixed pose;
+    once the robot's node reports motion and nothing places it, the pose times out as a moving one does."""
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s, t = _settled(cams, np.random.default_rng(5), timeout_s=2.0)
+    held = s.solve({}, t + 5_000 * MS)["r1"]  # 5 s without a sighting
+    assert math.hypot(held.x_m - 3, held.y_m) < 0.05
+    s.solve({}, t + 5_100 * MS, moving=("r1",))
+    assert "r1" not in s.solve({}, t + 7_200 * MS, moving=("r1",))
