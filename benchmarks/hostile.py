@@ -18,7 +18,11 @@ Usage (the flood client; one JSON line on stdout when it stops)::
 
 ``--real-share`` is the fraction of messages under the site's own ids (0: fresh ids only). It sends as
 fast as one Python client can (a pool of pre-encoded payloads, keys formed per message) until
-``--duration`` seconds have passed or SIGTERM.
+``--duration`` seconds have passed or SIGTERM. ``--max-size`` sends only the largest Features (256
+blobs, ~200 KB, stamped now, the detector "ok") on the ``--real`` ids' keys: a valid camera flooding
+its own key (``--zenoh-config`` gives the client that camera's certificate). ``--ptz-agent ID`` sends
+only PTZ requests, as agent ID on its own key (``--zenoh-config``: its certificate), as fast as the
+manager answers (``--ptz-window`` outstanding at once).
 """
 
 from __future__ import annotations
@@ -221,6 +225,32 @@ def hostile_pool(real: Sequence[str], size: int, seed: int, now_ns: int | None =
     return out
 
 
+def max_size_features(sid: str, now_ns: int, seed: int = 0) -> bytes:
+    """The largest Features a camera may send that still looks like a frame: 256 blobs with 64-bin colours."""
+    rng = random.Random(seed)
+    blobs = [
+        Blob(
+            local_id=i,
+            bearing_rad=rng.uniform(-math.pi, math.pi),
+            width_rad=rng.uniform(0.02, 0.3),
+            top_elev_rad=rng.uniform(0.0, 0.5),
+            bottom_elev_rad=rng.uniform(-0.8, -0.1),
+            bbox_u_px=rng.uniform(0, 1000),
+            bbox_v_px=rng.uniform(0, 100),
+            bbox_w_px=rng.uniform(5, 100),
+            bbox_h_px=rng.uniform(10, 100),
+            hist=[rng.random() / 64 for _ in range(64)],
+            changed_frac=rng.random(),
+            confidence=rng.random(),
+        )
+        for i in range(MAX_BLOBS)
+    ]
+    msg = Features(sensor_id=sid, seq=rng.randrange(2**62), stamp_ns=now_ns, frame_index=0, blobs=blobs)
+    data = encode(msg)
+    decode(data, Features)
+    return data
+
+
 def _key(keys: Keys, kind: str, sid: str) -> str:
     if kind == "features":
         return keys.sensor_features(sid)
@@ -247,10 +277,15 @@ def flood(args: argparse.Namespace) -> dict[str, Any]:
     signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__(0, True))
     sent = {"fresh": 0, "real": 0, "ptz_requests": 0}
     cc = zenoh.CongestionControl.BLOCK if args.block else zenoh.CongestionControl.DROP
-    with open_session(SessionSettings(mode="client", connect=[args.connect])) as s:
+    settings = SessionSettings(mode="client", connect=[args.connect], config_file=args.zenoh_config or "")
+    with open_session(settings) as s:
         print(json.dumps({"flooding": True}), flush=True)
         t0 = time.monotonic()
         i = 0
+        if args.max_size:
+            return _flood_max_size(s, keys, real, cc, t0, stop, args)
+        if args.ptz_agent:
+            return _flood_ptz(s, keys, args, t0, stop)
         while not stop[0] and time.monotonic() - t0 < args.duration:
             for p in pool:
                 if args.rate > 0 and i >= args.rate * (time.monotonic() - t0):
@@ -275,6 +310,58 @@ def flood(args: argparse.Namespace) -> dict[str, Any]:
     return {"sent": total, **sent, "seconds": round(elapsed, 2), "rate_hz": round(total / max(elapsed, 1e-9))}
 
 
+def _flood_max_size(
+    s: Any, keys: Keys, real: list[str], cc: Any, t0: float, stop: list[bool], args: argparse.Namespace
+) -> dict[str, Any]:
+    """Only the largest Features, on the ``real`` ids' keys, restamped every 0.1 s so they stay plausible."""
+    sent, i = 0, 0
+    frames: list[tuple[str, bytes]] = []
+    made = -1.0
+    while not stop[0] and time.monotonic() - t0 < args.duration:
+        if time.monotonic() - made > 0.1:
+            now = time.time_ns()
+            frames = [
+                (keys.sensor_features(sid), max_size_features(sid, now, args.seed + k)) for k, sid in enumerate(real)
+            ]
+            made = time.monotonic()
+        key, data = frames[i % len(frames)]
+        if args.rate > 0 and sent >= args.rate * (time.monotonic() - t0):
+            time.sleep(0.001)
+            continue
+        s.put(key, data, congestion_control=cc)
+        sent += 1
+        i += 1
+    elapsed = time.monotonic() - t0
+    return {"sent": sent, "real": sent, "bytes": len(frames[0][1]) if frames else 0, "seconds": round(elapsed, 2),
+            "rate_hz": round(sent / max(elapsed, 1e-9))}  # fmt: skip
+
+
+def _flood_ptz(s: Any, keys: Keys, args: argparse.Namespace, t0: float, stop: list[bool]) -> dict[str, Any]:
+    """PTZ requests as agent ``args.ptz_agent`` on its own key, ``args.ptz_window`` outstanding at once."""
+    import threading
+
+    import zenoh
+
+    window = threading.Semaphore(args.ptz_window)
+    sent = 0
+    key = keys.ptz_request(args.manager, args.ptz_agent)
+    while not stop[0] and time.monotonic() - t0 < args.duration:
+        if not window.acquire(timeout=1.0):
+            continue
+        req = PtzRequest(agent_id=args.ptz_agent, seq=sent, stamp_ns=time.time_ns(), action="acquire",
+                         track_id=f"{args.manager}-{sent % 1000 + 1}", priority=1000)  # fmt: skip
+        # The slot is freed when the query completes (its reply came, or it timed out).
+        s.get(key, zenoh.handlers.Callback(lambda _r: None, window.release), payload=encode(req), timeout=2.0)
+        sent += 1
+    elapsed = time.monotonic() - t0
+    return {
+        "sent": sent,
+        "ptz_requests": sent,
+        "seconds": round(elapsed, 2),
+        "rate_hz": round(sent / max(elapsed, 1e-9)),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="benchmarks.hostile", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -289,6 +376,10 @@ def main(argv: list[str] | None = None) -> int:
     f.add_argument("--pool", type=int, default=600, help="distinct hostile messages cycled through")
     f.add_argument("--block", action="store_true", help="BLOCK congestion control (default DROP)")
     f.add_argument("--rate", type=float, default=0.0, help="messages per second at most (0: as fast as it can)")
+    f.add_argument("--zenoh-config", default="", help="zenoh config of the client (a certificate of the site)")
+    f.add_argument("--max-size", action="store_true", help="only the largest Features, on the --real ids' keys")
+    f.add_argument("--ptz-agent", default="", help="only PTZ requests, as this agent (needs --manager)")
+    f.add_argument("--ptz-window", type=int, default=64, help="PTZ requests outstanding at once")
     args = p.parse_args(argv)
     print(json.dumps(flood(args)), flush=True)
     return 0

@@ -25,11 +25,17 @@ REPO = HERE.parent
 
 LONGER_S = {"bench_calib": 3600.0}
 """Benchmarks that need longer than ``--timeout-s`` by design (bench_calib: 16 refinements and 32 site replays)."""
+ONLY_BY_NAME = ("bench_soak",)
+"""Benchmarks that run for an hour: only when ``--only`` names them."""
 
 
 def discover(pattern: str = "*") -> list[str]:
-    """Module names of the benchmarks, sorted."""
-    return sorted(p.stem for p in HERE.glob("bench_*.py") if fnmatch.fnmatch(p.stem, pattern))
+    """Module names of the benchmarks, sorted (those of ``ONLY_BY_NAME`` only when the pattern is their name)."""
+    return sorted(
+        p.stem
+        for p in HERE.glob("bench_*.py")
+        if fnmatch.fnmatch(p.stem, pattern) and (p.stem not in ONLY_BY_NAME or pattern == p.stem)
+    )
 
 
 def parse_json_object(text: str) -> dict[str, Any] | None:

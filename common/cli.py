@@ -8,10 +8,13 @@ configure logging, call ``run``, and map exceptions to exit codes with
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
+import os
 import sys
 from collections.abc import Callable
+from typing import NoReturn
 
 from common.errors import ConfigError, PanoError
 
@@ -20,6 +23,7 @@ __all__ = [
     "EXIT_ERROR",
     "EXIT_USAGE",
     "add_logging_args",
+    "exit_process",
     "non_negative",
     "positive",
     "probability",
@@ -69,6 +73,22 @@ def probability(text: str) -> float:
     if not 0 <= value <= 1:
         raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
     return value
+
+
+def exit_process(code: int) -> NoReturn:
+    """End a finished command-line process without finalizing the interpreter.
+
+    Its zenoh sessions are closed by now, but zenoh's own threads may still be on their way into Python (a
+    callback, a query returning) while the interpreter finalizes; Python then ends such a thread with
+    ``pthread_exit``, whose unwinding through Rust frames aborts the process with ``FATAL: exception not
+    rethrown`` (issue 24: ``agent watch`` stopped by SIGTERM). Logs and stdio are flushed first; only a process
+    entry point may call this (never a library, never a test).
+    """
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to say
+            stream.flush()
+    os._exit(code)
 
 
 def add_logging_args(parser: argparse.ArgumentParser) -> None:

@@ -437,6 +437,9 @@ class Refusal(_Msg, frozen=True, tag="pano.Refusal"):
     ahead: Count = 0
     """Features stamped more than the manager's ``max_lead_s`` ahead of its clock (a sender's clock is off; never
     buffered)."""
+    sighting: Count = 0
+    """Instants at which its sightings of another camera disagreed with the other witnesses or with that camera's
+    settled pose: refused (no single witness moves a camera)."""
 
 
 class SensorTiming(_Msg, frozen=True, tag="pano.SensorTiming"):

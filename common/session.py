@@ -199,6 +199,11 @@ def zenoh_config(settings: SessionSettings, extra: dict[str, Any] | None = None)
         # Oversize messages are dropped by the receiving session (router included), so a
         # flood of them never reaches, or fills, a process's buffers.
         conf.insert_json5("transport/link/rx/max_message_size", json.dumps(2 * MAX_PAYLOAD_BYTES))
+        # No shared-memory transport: on one host zenoh would pass messages over 3 KB through each sender's 16 MB
+        # pool, mapped into every receiver (the router, the manager) and counted in its memory for as long as it
+        # runs, a flooding client's pool too (issue 24: +50 MB after a flood, never given back). Our messages are a
+        # few KB at tens a second: the copy costs nothing worth that.
+        conf.insert_json5("transport/shared_memory/enabled", "false")
         if settings.user:
             conf.insert_json5(
                 "transport/auth/usrpwd", json.dumps({"user": settings.user, "password": settings.password})

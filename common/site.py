@@ -235,6 +235,28 @@ class SiteConfig(ConfigStruct, frozen=True):
         return resolve_path(self.path or ".", relative)
 
 
+BUNDLED_SITES = Path(__file__).resolve().parents[1] / "deploy" / "sites"
+"""The sites shipped with this installation (``demo``, ``paper1``, ...): a config names one by its bare name."""
+
+
+def site_file(value: str, config_file: str | Path) -> Path:
+    """Where a config's ``site`` value points: a bare name (``"demo"``: no folder, no ``.toml``) is the bundled
+    site of that name, so a config copied anywhere (``/etc/panostereo/nodes``) still finds it; anything else is a
+    path, relative to the config file's folder.
+
+    Raises:
+        ConfigError: a bare name that no bundled site has, naming those that exist.
+    """
+    if "/" in value or value.endswith(".toml") or value in (".", ".."):
+        v = Path(value).expanduser()
+        return v if v.is_absolute() else Path(config_file).resolve().parent / v
+    bundled = BUNDLED_SITES / f"{value}.toml"
+    if not bundled.is_file():
+        names = sorted(p.stem for p in BUNDLED_SITES.glob("*.toml"))
+        raise ConfigError(f"{config_file}: site {value!r} is no bundled site ({', '.join(names)}) nor a .toml path")
+    return bundled
+
+
 def load_site(path: str | Path) -> SiteConfig:
     """Read and validate a site file.
 

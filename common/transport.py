@@ -35,6 +35,9 @@ logger = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
+OVER_RATE_S = 1.0
+"""A key that lost a sample to its byte budget counts as over its rate for this long (KeyedInbox)."""
+
 
 @dataclass(slots=True)
 class Counters:
@@ -44,7 +47,9 @@ class Counters:
     decoded: int = 0
     decode_errors: int = 0
     dropped: int = 0
-    """Samples lost to a full buffer."""
+    """Samples lost to a full buffer (by count or bytes), or over their key's byte rate."""
+    over_rate: int = 0
+    """Of those, samples dropped on arrival because their key was over its byte rate: never copied nor decoded."""
     deletes: int = 0
     """DELETE samples (no payload) seen and ignored."""
 
@@ -178,8 +183,16 @@ class KeyedInbox(Generic[T]):
     As :class:`Inbox`, the zenoh callback only copies bytes, and decoding is the
     consumer's (:meth:`drain_raw` then :meth:`decode`), so a consumer can refuse
     a sample by its key before paying for its decoding. Each concrete key has its
-    own ``capacity`` (oldest dropped, counted): a sender flooding one key pushes
-    out only that key's samples. At most ``max_keys`` concrete keys are held
+    own ``capacity`` and ``max_key_bytes`` (oldest dropped, counted): a sender
+    flooding one key pushes out only that key's samples, and never holds more
+    than that many bytes. With ``rate_bytes_per_s``, each key also has a byte
+    budget (a token bucket holding at most one second of it, and always room for
+    one largest payload): a sample that does not fit is dropped on arrival, before
+    it is copied or decoded (``Counters.over_rate``), and for a second after such a
+    drop the key is *over its rate*: every sample larger than ``large_bytes`` is
+    dropped the same way. A sender over its rate loses its large messages, not its
+    ordinary ones, and a flood of 200 KB frames costs a callback each, not a copy
+    and a decode. At most ``max_keys`` concrete keys are held
     (a wildcard flooded with fresh keys cannot grow memory); samples of further
     keys are dropped and counted. ``advanced`` makes each subscriber a zenoh.ext
     AdvancedSubscriber that also fetches the publishers' cached samples
@@ -199,13 +212,24 @@ class KeyedInbox(Generic[T]):
         advanced: bool = False,
         log_every_s: float = 5.0,
         notify: Callable[[], None] | None = None,
+        max_key_bytes: int = 16 * MAX_PAYLOAD_BYTES,
+        rate_bytes_per_s: float = 0.0,
+        large_bytes: int = MAX_PAYLOAD_BYTES,
     ) -> None:
         self.msg_type = msg_type
         self.counters = Counters()
         self._notify = notify
         self._capacity = capacity
         self._max_keys = max_keys
+        self._max_key_bytes = max_key_bytes
+        self._rate = rate_bytes_per_s
+        self._burst = max(rate_bytes_per_s, MAX_PAYLOAD_BYTES)
+        self._large = large_bytes
         self._bufs: dict[str, deque[bytes]] = {}
+        self._bytes: dict[str, int] = {}
+        self._buckets: dict[str, list[float]] = {}
+        """Key -> [tokens, when last filled, until when it is over its rate (monotonic s)]: kept across drains, at
+        most ``max_keys``."""
         self._lock = threading.Lock()
         self._log_every_s = log_every_s
         self._last_log = -math.inf
@@ -229,31 +253,60 @@ class KeyedInbox(Generic[T]):
             with self._lock:
                 self.counters.deletes += 1
             return
-        big = len(sample.payload) > MAX_PAYLOAD_BYTES
+        size = len(sample.payload)
         key = str(sample.key_expr)
-        data = b"" if big else sample.payload.to_bytes()
         with self._lock:
             self.counters.received += 1
-            if big:  # refused before copying: oversize payloads must not grow memory
+            if size > MAX_PAYLOAD_BYTES:  # refused before copying: oversize payloads must not grow memory
                 self.counters.decode_errors += 1
                 return
+            if self._rate > 0 and not self._spend(key, size):
+                self.counters.dropped += 1
+                self.counters.over_rate += 1
+                return
+        data = sample.payload.to_bytes()  # outside the lock: the consumer drains meanwhile
+        with self._lock:
             buf = self._bufs.get(key)
             if buf is None:
                 if len(self._bufs) >= self._max_keys:
                     self.counters.dropped += 1
                     return
                 buf = self._bufs[key] = deque()
-            if len(buf) >= self._capacity:
-                buf.popleft()
+                self._bytes[key] = 0
+            held = self._bytes[key] + len(data)
+            while buf and (len(buf) >= self._capacity or held > self._max_key_bytes):
+                held -= len(buf.popleft())
                 self.counters.dropped += 1
             buf.append(data)
+            self._bytes[key] = held
         if self._notify is not None:
             self._notify()
+
+    def _spend(self, key: str, size: int) -> bool:
+        """Take ``size`` bytes from ``key``'s budget if it has them (lock held)."""
+        now = time.monotonic()
+        bucket = self._buckets.get(key)
+        if bucket is None:
+            if len(self._buckets) >= self._max_keys:  # forget the keys whose budget has refilled: idle for a while
+                refill_s = self._burst / self._rate
+                for k in [k for k, (_, t, _) in self._buckets.items() if now - t > refill_s]:
+                    del self._buckets[k]
+            if len(self._buckets) >= self._max_keys:
+                return False
+            bucket = self._buckets[key] = [self._burst, now, 0.0]
+        bucket[0] = min(self._burst, bucket[0] + (now - bucket[1]) * self._rate)
+        bucket[1] = now
+        if bucket[0] < size or (size > self._large and now < bucket[2]):
+            bucket[2] = now + OVER_RATE_S
+            return False
+        bucket[0] -= size
+        return True
 
     def drain_raw(self) -> list[tuple[str, bytes]]:
         """(key, payload) of everything buffered, each key's in arrival order (never blocks)."""
         with self._lock:
             bufs, self._bufs = self._bufs, {}
+            self._bytes = {}
         return [(key, data) for key, buf in bufs.items() for data in buf]
 
     def decode(self, key: str, data: bytes) -> T | None:

@@ -12,7 +12,7 @@ import importlib
 import sys
 from typing import Final
 
-from common.cli import add_logging_args, run_main, setup_logging
+from common.cli import add_logging_args, exit_process, run_main, setup_logging
 
 COMMANDS: Final[dict[str, tuple[str, str]]] = {
     "demo": ("panostereo.commands.demo", "run the whole network of a site on this machine and score it"),
@@ -65,7 +65,10 @@ def main(argv: list[str] | None = None) -> int:
     module.configure(parser)
     args = parser.parse_args(rest)
     setup_logging(args.log_level)
-    return run_main(lambda: int(module.run(args)), f"panostereo {name}")
+    code = run_main(lambda: int(module.run(args)), f"panostereo {name}")
+    if argv is None and name == "agent":
+        exit_process(code)  # a process, not a call: no interpreter finalization under zenoh's threads
+    return code
 
 
 if __name__ == "__main__":

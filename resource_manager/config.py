@@ -110,6 +110,9 @@ class ManagerSection(ConfigStruct, frozen=True):
     """How much track history is kept in memory, reloaded at start and served by ``?history=``."""
     history_hz: Pos = 5.0
     """States per track kept in the history (and its log) per second; the live stream is every tick."""
+    history_max_mb: Pos = 64.0
+    """Most memory the in-memory history takes (MiB, all tracks; ~575 bytes a state): beyond it the oldest states
+    go first, so a crowded site keeps less than ``history_s`` rather than growing (the log on disk keeps all)."""
     segment_s: Pos = 60.0
     """Length of one track-log segment file."""
     retain_s: Pos = 3600.0
@@ -133,6 +136,12 @@ class ManagerSection(ConfigStruct, frozen=True):
     """...and those stamped more than this *ahead* of it: nothing is captured in the future, so this is only the
     hosts' NTP error (ms on a LAN). Forged frames stamped just ahead would stand in for the real ones in
     alignment for that long after a flood stops."""
+    sensor_bytes_per_s: Annotated[float, msgspec.Meta(ge=1e4, le=1e9)] = 2e6
+    """Features bytes one sensor may send per second (a budget holding one second of it): beyond it its frames
+    are dropped on arrival, before they are copied or decoded (counted in ``dropped_msgs``), and for a second
+    after, so are all its frames larger than 1/30 of it (large for a camera at 30 frames/s); its buffer never
+    holds more than one second of it. A camera seeing 30 people at 30 frames/s sends ~0.8 MB/s (the
+    demo's ~40 KB/s); a flood of 256-blob frames (~200 KB each, hundreds a second) is cut to this."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes
@@ -196,6 +205,14 @@ class MutualSection(ConfigStruct, frozen=True):
     """Error of one occluding-boundary bearing; 0 = the observer's bearing sigma."""
     default_height_m: Pos = 1.1
     """Camera height of a mobile sensor whose SensorInfo carries no pose with z_m."""
+    settle_s: Pos = 3.0
+    """A camera whose own node reports no motion for this long (a static camera: once placed) has its pose fixed
+    at the mean over that time; from then on sightings only check it (one that disagrees is refused and counted
+    against its sender) and only its node reporting motion releases it. Raising it averages longer before fixing;
+    lowering it fixes sooner."""
+    max_speed_mps: Pos = 1.0
+    """While its node reports motion, a camera's pose moves at most this fast beyond its noise (a robot's top
+    speed): sightings that would carry it further are refused."""
 
 
 class PlannerSection(ConfigStruct, frozen=True):
@@ -253,6 +270,13 @@ class PtzSection(ConfigStruct, frozen=True):
     """A PTZ hold ends this long after the agent's last request for it unless renewed (an agent that keeps a
     view asks again every third of it), and at once when the agent's liveliness token goes. A request may ask
     for a shorter lease, never a longer one."""
+    default_max_priority: Annotated[int, msgspec.Meta(ge=0, le=1000)] = 0
+    """The highest PTZ priority an agent's requests get unless ``max_priority`` names it; a request asking more
+    is clipped. Equal for all by default: nobody takes a held camera from anybody."""
+    max_priority: dict[str, Annotated[int, msgspec.Meta(ge=0, le=1000)]] = {}
+    """Agent id -> its cap (``[ptz.max_priority]`` table, e.g. ``security = 10``): priority comes from the agent's
+    identity (the key it asks on, which its certificate alone may use), never from what a request says.
+    ``deploy/security/make_configs.py --agents "a1 ops:10"`` writes this table for the manager's config."""
 
 
 class ManagerConfig(ConfigStruct, frozen=True):
@@ -292,6 +316,8 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
                 validate_id(sid, f"manager.sensors[{i}]")
         for i, p in enumerate(cfg.pose):
             validate_id(p.id, f"pose[{i}].id")
+        for aid in cfg.ptz.max_priority:
+            validate_id(aid, f"ptz.max_priority.{aid}")
     except ConfigError as err:
         raise ConfigError(f"{source}: {err}") from err
     room = cfg.planner.room

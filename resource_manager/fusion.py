@@ -228,7 +228,10 @@ class Fusion:
             view = align_sensor(buf, sid, t_ns, self._align_params(sid), sightings=need_sightings)
             if view is not None:
                 aligned[sid] = view
-        poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns)
+        states = self._detector_states(t_ns)
+        # Only a camera whose own node reports motion may move (resource_manager/poses/solver.py).
+        moving = [sid for sid, state in states.items() if state == "moving"]
+        poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns, moving)
         self.last_poses = poses
         # A robot that moves, or has stopped but not settled (node relearning its background, pose converging),
         # gives no views: the tracks carry on with the other cameras (views/settling.py).
@@ -242,7 +245,7 @@ class Fusion:
                 mobile=[sid for sid, info in self.poses.infos.items() if info.mobile],
                 en_route=self.planner.en_route(positions) if self.planner.held else (),
                 with_blobs=[sid for sid, v in aligned.items() if v.blobs],
-                states=self._detector_states(t_ns),
+                states=states,
             )
             if self.trust.params.enabled
             else frozenset()

@@ -37,9 +37,11 @@ from typing import Any
 import msgspec
 
 from common.clock import NtpClock
-from common.codec import decode, encode
+from common.codec import MAX_PAYLOAD_BYTES, decode, encode
 from common.errors import ConfigError, SchemaError
 from common.keys import Keys
+from common.memory import Trimmer, pin_mmap_threshold
+from common.ratelog import SenderLog
 from common.schema import MAX_SENSORS, Features, Latency, PtzReply, PtzRequest, PtzState, SensorInfo, Track
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
@@ -63,6 +65,8 @@ logger = logging.getLogger(__name__)
 FRAMES_PER_SENSOR = 16
 """Features waiting per sensor between ticks (1.6 ticks' worth at 100 Hz frames); a flood on one sensor's key
 pushes out (and counts) only that sensor's frames."""
+BUDGET_FPS = 30.0
+"""The frame rate ``[manager] sensor_bytes_per_s`` is sized for: a frame larger than the budget's 1/30 is large."""
 MAX_PENDING_PTZ = 256
 """PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
 
@@ -85,7 +89,7 @@ class ManagerNode:
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)
-        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz)
+        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz, cfg.manager.history_max_mb)
         now = clock.now_ns()
         reloaded = read_segments(state / "tracks", now - int(cfg.manager.history_s * 1e9))
         for tr in reloaded:
@@ -105,6 +109,9 @@ class ManagerNode:
         self.ptz_queries: dict[int, Any] = {}
         self.ptz_tokens = itertools.count(1)
         self.query_errors = 0
+        self.sender_log = SenderLog(logger)
+        """Lines a sender can provoke (PTZ requests and holds ended, per agent; track-log errors) are written once a
+        second per sender, with a count: a flood of requests writes no flood of lines."""
         k = self.keys
         self.sensor_head = f"{k.root}/sensor/"
         listed = self.gate.expected
@@ -113,6 +120,16 @@ class ManagerNode:
         """Set by each arriving Features message (and PTZ request): the tick thread looks at once."""
         self.latencies: deque[Latency] = deque(maxlen=4096)
         """Capture -> publish split of each TrackSet published since the last status."""
+        # Each sensor's Features: a byte budget (its largest frames dropped before copy and decode when over it), and
+        # never more than one second of it waiting.
+        rate = cfg.manager.sensor_bytes_per_s
+        budget: dict[str, Any] = {
+            "rate_bytes_per_s": rate,
+            "max_key_bytes": max(int(rate), MAX_PAYLOAD_BYTES),
+            # While over its rate, a sensor's frames larger than its budget spread over 30 frames a second are
+            # dropped (the frame rate the budget is sized for: [manager] sensor_bytes_per_s).
+            "large_bytes": int(rate / BUDGET_FPS),
+        }
         if self.gate.any_sensor:
             logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
             self.features = KeyedInbox(
@@ -122,6 +139,7 @@ class ManagerNode:
                 capacity=FRAMES_PER_SENSOR,
                 max_keys=4 * MAX_SENSORS,
                 notify=self.wake.set,
+                **budget,
             )
             self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
@@ -133,6 +151,7 @@ class ManagerNode:
                 Features,
                 capacity=FRAMES_PER_SENSOR,
                 notify=self.wake.set,
+                **budget,
             )
             self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
             self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
@@ -268,7 +287,15 @@ class ManagerNode:
             with self.lock:
                 query = self.ptz_queries.pop(ans.token, None)
             req = ans.request
-            logger.info("PTZ %s by %s for %s: %s", req.action, req.agent_id, req.track_id, ans.sensor_id or ans.reason)
+            self.sender_log.log(
+                logging.INFO,
+                req.agent_id,
+                "PTZ %s by %s for %s: %s",
+                req.action,
+                req.agent_id,
+                req.track_id,
+                ans.sensor_id or ans.reason,
+            )
             if query is None:
                 continue
             reply = PtzReply(
@@ -372,6 +399,8 @@ class ManagerNode:
                 # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
                 live = published_set.tracks if published_set is not None and self.fusion.lagged is None else None
                 self.agreement.update(t_ns, self.fusion.last_views, live or self.fusion.live_tracks())
+        for sid, n in self.fusion.poses.take_refused().items():
+            self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1
         if result.skipped or published_set is None:
             return result
@@ -379,7 +408,7 @@ class ManagerNode:
             try:
                 self.log.append(kept, t_ns)
             except OSError as err:
-                logger.error("cannot write the track log: %s", err.strerror)
+                self.sender_log.log(logging.ERROR, "track-log", "cannot write the track log: %s", err.strerror)
         t1 = time.perf_counter()
         published = self.clock.now_ns()
         self.pub_tracks.put(msgspec.structs.replace(published_set, published_ns=published))
@@ -402,7 +431,15 @@ class ManagerNode:
         for cmd in result.ptz_commands:
             self.session.put(self.keys.sensor_ptz(cmd.sensor_id), encode(cmd), encoding=MSGPACK)
         for a, why in self.fusion.ptz.ended:
-            logger.info("PTZ %s no longer follows %s for %s: %s", a.sensor_id, a.track_id, a.agent_id, why)
+            self.sender_log.log(
+                logging.INFO,
+                a.agent_id,
+                "PTZ %s no longer follows %s for %s: %s",
+                a.sensor_id,
+                a.track_id,
+                a.agent_id,
+                why,
+            )
         self.fusion.ptz.ended.clear()
         for tid in result.ended:
             logger.info("track %s ended", tid)
@@ -434,10 +471,13 @@ class ManagerNode:
         with self.lock:
             msg = msgspec.structs.replace(msg, agreement=self.agreement.report()[:MAX_SENSORS])
         self.pub_status.put(msg)
+        self.sender_log.flush()
         self.tick_ms.clear()
         self.latencies.clear()
 
     def loop(self) -> None:
+        # A flood's buffers, once freed, go back to the system (common/memory.py): no residue.
+        trimmer = Trimmer()
         status_every = self.cfg.manager.status_period_s
         next_status = time.monotonic() + status_every
         last: TickResult | None = None
@@ -452,6 +492,7 @@ class ManagerNode:
             if now >= next_status:
                 self.status(last, status_every)
                 next_status = now + status_every
+            trimmer.tick()
             # Sleep until a frame arrives or a sensor's deadline passes: a fusion waits for the watermark, not a
             # timer.
             with self.lock:
@@ -497,6 +538,7 @@ def run(cfg: ManagerConfig) -> int:
             '[manager] sensors, or set sensors = ["*"] to accept any sensor'
         )
     shutdown = install_signal_handlers()
+    pin_mmap_threshold()  # before zenoh allocates: large buffers are mapped alone and unmapped when freed
     clock = NtpClock.from_settings(cfg.clock)
     clock.start()
     try:

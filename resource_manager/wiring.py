@@ -67,6 +67,8 @@ def pose_solver(config: ManagerConfig) -> PoseSolver:
             boundary_sigma_rad=math.radians(mu.boundary_sigma_deg),
             default_bearing_sigma_rad=config.default_bearing_sigma_rad,
             default_height_m=mu.default_height_m,
+            settle_s=mu.settle_s,
+            max_speed_mps=mu.max_speed_mps,
         )
     )
     for p in config.pose:
@@ -165,5 +167,7 @@ def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
             math.radians(pz.min_tilt_deg),
             math.radians(pz.max_tilt_deg),
             pz.lease_s,
+            dict(pz.max_priority),
+            pz.default_max_priority,
         )
     )

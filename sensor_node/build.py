@@ -38,7 +38,7 @@ from common.schema import (
     SensorKind,
     ViewPlan,
 )
-from common.site import load_site
+from common.site import load_site, site_file
 from sensor_node.config import (
     DetectionsSource,
     FolderSource,
@@ -219,7 +219,7 @@ def _simulated(cfg: NodeConfig, src: SimSource, pose: Pose | None, clock: Clock)
 
     where = cfg.path or "node config"
     # PANOSTEREO_SEED (``panostereo demo --seed N``) picks the world the ground truth is written for.
-    site = site_with_seed_from_env(load_site(cfg.resolve(src.site)))
+    site = site_with_seed_from_env(load_site(site_file(src.site, cfg.path or "node.toml")))
     cam_id = src.camera or cfg.node.id
     spec = site.camera_by_id(cam_id)
     epoch = epoch_from(src.epoch_ns, clock())

@@ -108,7 +108,8 @@ class SimSource(ConfigStruct, frozen=True, tag_field="kind", tag="sim"):
     """``kind = "sim"``: render a camera of a simulated site (its pixels are all the pipeline sees)."""
 
     site: str
-    """Site file (relative to this config) with the world and the camera's true placement."""
+    """The site with the world and the camera's true placement: a bundled site by name (``"demo"``), or a site
+    file (a path relative to this config)."""
     camera: str = ""
     """Camera id in the site file (default: ``node.id``)."""
     epoch_ns: Annotated[int, msgspec.Meta(ge=0)] = 0

@@ -31,6 +31,7 @@ import msgspec
 from common.clock import NtpClock
 from common.codec import encode
 from common.frames import Frame
+from common.memory import Trimmer
 from common.schema import NodeStatus, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import Inbox, TypedPublisher
@@ -268,8 +269,10 @@ class SensorNode:
         self._capture.start()
         last_status = time.monotonic()
         self._publish_status(0.0)
+        trimmer = Trimmer()  # frames freed after a busy spell go back to the system (common/memory.py)
         try:
             while not self.shutdown.is_set():
+                trimmer.tick()
                 self._handle_inputs()
                 self._publish_ptz()
                 frame = self.slot.get(timeout_s=0.1)

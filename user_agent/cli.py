@@ -18,7 +18,7 @@ from typing import Any
 
 import msgspec
 
-from common.cli import add_logging_args, non_negative, positive, run_main, setup_logging
+from common.cli import add_logging_args, exit_process, non_negative, positive, run_main, setup_logging
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
@@ -494,4 +494,7 @@ def main(argv: list[str] | None = None) -> int:
     configure(parser)
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     setup_logging(args.log_level)
-    return run_main(lambda: run(args), "user-agent")
+    code = run_main(lambda: run(args), "user-agent")
+    if argv is None:
+        exit_process(code)  # a process, not a call: no interpreter finalization under zenoh's threads
+    return code

@@ -29,6 +29,7 @@ def replay(
     speed: float = 1.0,
     should_stop: Callable[[], bool] = lambda: False,
     sleep: Callable[[float], Any] = time.sleep,
+    monotonic: Callable[[], float] = time.monotonic,
 ) -> int:
     """Republish every raw sample of ``path``; returns how many were sent.
 
@@ -37,6 +38,8 @@ def replay(
         speed: playback rate (2.0 = twice as fast); must be > 0.
         should_stop: polled between samples; True ends the replay early.
         sleep: how to wait (tests may pass a fake).
+        monotonic: the clock the schedule is kept on, in seconds (tests pass a fake that ``sleep`` advances, so the
+            schedule does not depend on how busy the machine is).
 
     Raises:
         ConfigError: bad speed, or the file is not a recording.
@@ -53,9 +56,9 @@ def replay(
         if should_stop():
             break
         if log0 is None:
-            log0, wall0 = s.log_time_ns, time.monotonic()
+            log0, wall0 = s.log_time_ns, monotonic()
         due = wall0 + (s.log_time_ns - log0) / 1e9 / speed
-        delay = due - time.monotonic()
+        delay = due - monotonic()
         if delay > 0:
             sleep(delay)
         else:

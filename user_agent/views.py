@@ -252,12 +252,12 @@ def agreement_lines(managers: Sequence[ManagerView]) -> list[str]:
 
 def _refused_table(managers: Sequence[ManagerView], most: int = 10) -> str:
     rows = [
-        (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed, r.ahead)
+        (m.manager_id, r.sender_id, r.unlisted, r.wrong_id, r.skewed, r.ahead, r.sighting)
         for m in managers
         if m.status is not None
         for r in m.status.refused[:most]
     ]
-    return format_table(("manager", "sender", "not fused", "wrong id", "late", "ahead"), rows)
+    return format_table(("manager", "sender", "not fused", "wrong id", "late", "ahead", "sightings"), rows)
 
 
 def refused_lines(managers: Sequence[ManagerView]) -> list[str]:

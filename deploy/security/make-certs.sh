@@ -6,6 +6,8 @@
 #       [--managers "m1"] [--agents "a1"] [--days N] [--ca-days N] [--ca-name NAME] \
 #       [--renew "NAME..."] [--force]
 #
+# Issues the CA, the router's certificate and exactly the identities named (none by default).
+#
 # Writes, under DIR (default deploy/security/generated, which git ignores):
 #   ca.pem, ca.key                      the site CA (ECDSA P-256, CA:TRUE, keyCertSign)
 #   router.pem, router.key              the zenoh router's certificate (CN=router)
@@ -33,12 +35,12 @@ ca_days=3650
 ca_name="panostereo-ca"
 renew=""
 sensors=""
-managers="m1"
-agents="a1"
+managers=""
+agents=""
 hosts=()
 force=0
 
-usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; }
 die() { echo "make-certs.sh: error: $*" >&2; exit 1; }
 
 while [[ $# -gt 0 ]]; do
@@ -62,6 +64,7 @@ command -v openssl >/dev/null || die "openssl is not installed (apt-get install 
 [[ "$days" =~ ^[0-9]+$ && "$days" -gt 0 ]] || die "--days must be a positive integer, got '$days'"
 [[ "$ca_days" =~ ^[0-9]+$ && "$ca_days" -gt 0 ]] || die "--ca-days must be a positive integer, got '$ca_days'"
 id_re='^[a-z0-9][a-z0-9-]*$'
+agents="$(for a in $agents; do printf '%s ' "${a%%:*}"; done)"  # make_configs.py's "ops:10" (a PTZ cap) is agent ops
 for id in $sensors $managers $agents; do
   [[ "$id" =~ $id_re && ${#id} -le 48 ]] || die "ids must match [a-z0-9][a-z0-9-]* (at most 48 characters), got '$id'"
 done

@@ -4,7 +4,7 @@
 Usage::
 
     python3 deploy/security/make_configs.py --certs DIR --out DIR [--prefix pano] \
-        [--sensors "c1 c2"] [--managers m1] [--agents a1] [--listen tls/0.0.0.0:7447] \
+        [--sensors "c1 c2"] [--managers m1] [--agents "a1 ops:10"] [--listen tls/0.0.0.0:7447] \
         [--router-host localhost] [--users-only]
 
 Reads nothing but the command line (the certificates come from ``make-certs.sh``; only
@@ -22,6 +22,14 @@ their paths are written) and writes, under ``--out``:
   the router's config under ``--certs`` (where the router's files are deployed); it listens
   on ``--listen-tcp`` (default: ``--listen``'s host, the next port). Every file holding a
   password is created mode 600.
+* ``ptz-priorities.toml``: the ``[ptz.max_priority]`` table for every manager's config: an
+  agent written ``ops:10`` in ``--agents`` gets PTZ priority at most 10, the others the
+  manager's ``[ptz] default_max_priority`` (0: all equal). Priority comes from identity: the
+  manager answers an agent only on ``R/manager/<mid>/ptz/<id>``, which the rules below let
+  that agent's certificate alone query, and clips every request to its cap.
+
+Only the ids named are written: nothing is assumed (adding a camera is this same command with
+the camera added to ``--sensors``).
 
 The rules (one rule + subject + policy per identity, so an identity can only speak for
 itself; key expressions from ``common/keys.py``, ``R = {prefix}/@v1``):
@@ -60,6 +68,8 @@ from typing import Any
 ID_RE = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 MAX_ID_LEN = 48
 """Longest id, as common.schema.MAX_ID_LEN (this script runs without the package installed)."""
+MAX_PRIORITY = 1000
+"""Highest PTZ priority, as common.schema.Priority."""
 PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
 
 Rule = dict[str, Any]
@@ -255,6 +265,34 @@ def client_usrpwd(name: str, password: str, connect: str) -> dict[str, Any]:
     return c
 
 
+def _agent_caps(text: str) -> tuple[list[str], dict[str, int]]:
+    """``"a1 ops:10"`` -> (["a1", "ops"], {"ops": 10}): agent ids, each with an optional PTZ priority cap."""
+    ids: list[str] = []
+    caps: dict[str, int] = {}
+    for item in text.split():
+        aid, sep, cap = item.partition(":")
+        ids.append(aid)
+        if sep:
+            if not cap.isdigit() or int(cap) > MAX_PRIORITY:
+                raise SystemExit(
+                    f"make_configs.py: error: an agent's PTZ priority cap (id:cap) must be 0..{MAX_PRIORITY},"
+                    f" got {item!r}"
+                )
+            caps[aid] = int(cap)
+    return _ids(" ".join(ids), "agent"), caps
+
+
+def ptz_priorities(caps: dict[str, int]) -> str:
+    """The manager config's ``[ptz.max_priority]`` table."""
+    lines = [
+        "# [ptz.max_priority] for every manager's config: PTZ priority by identity (deploy/security/make_configs.py).",
+        "# Requests above an agent's cap are clipped to it; agents not listed get [ptz] default_max_priority.",
+        "[ptz.max_priority]",
+        *(f"{aid} = {cap}" for aid, cap in sorted(caps.items())),
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def _ids(text: str, what: str) -> list[str]:
     ids = text.split()
     for i in ids:
@@ -298,8 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, help="directory to write the configs to")
     p.add_argument("--prefix", default="pano", help="site key prefix (default pano)")
     p.add_argument("--sensors", default="", help='sensor ids, space separated ("c1 c2")')
-    p.add_argument("--managers", default="m1", help="manager ids")
-    p.add_argument("--agents", default="a1", help="agent ids")
+    p.add_argument("--managers", default="", help="manager ids")
+    p.add_argument("--agents", default="", help='agent ids, each with an optional PTZ priority cap ("a1 ops:10")')
     p.add_argument("--listen", default="tls/127.0.0.1:7447", help="router TLS endpoint")
     p.add_argument(
         "--listen-tcp",
@@ -314,7 +352,7 @@ def main(argv: list[str] | None = None) -> int:
     root = f"{args.prefix}/@v1"
     sensors = _ids(args.sensors, "sensor")
     managers = _ids(args.managers, "manager")
-    agents = _ids(args.agents, "agent")
+    agents, caps = _agent_caps(args.agents)
     certs = args.certs.rstrip("/") or "/"
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -322,6 +360,7 @@ def main(argv: list[str] | None = None) -> int:
     listen_tcp = args.listen_tcp or _tcp_listen(args.listen)
     tcp_port = listen_tcp.rsplit(":", 1)[-1]
     who = identities(root, sensors, managers, agents)
+    (out / "ptz-priorities.toml").write_text(ptz_priorities(caps))
 
     _write(
         out / "router-tls.json5",
@@ -336,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
         )
 
     if args.tls_only:
-        print(f"make_configs.py: wrote router-tls.json5 and {len(who)} client configs in {out}")
+        print(f"make_configs.py: wrote router-tls.json5, ptz-priorities.toml and {len(who)} client configs in {out}")
         return 0
     passwords = {name: secrets.token_urlsafe(18) for name, _ in who}
     router_pw = secrets.token_urlsafe(18)
@@ -358,7 +397,8 @@ def main(argv: list[str] | None = None) -> int:
             secret=True,
         )
     print(
-        f"make_configs.py: wrote router-tls.json5, router-usrpwd.json5, users.txt and {len(who)} client configs"
+        f"make_configs.py: wrote router-tls.json5, router-usrpwd.json5, users.txt, ptz-priorities.toml and"
+        f" {len(who)} client configs"
         f" in {out}"
     )
     return 0

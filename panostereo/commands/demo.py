@@ -438,6 +438,7 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
             cameras=Cameras(site=sensors, started=seen_alive),
             recorder=recorder.status() if recorder is not None else None,
             refused=_refusals(last_status),
+            sightings_refused=_sightings_refused(last_status),
             seen_sensors=seen_sensors,
             interrupted=shutdown.is_set(),
         )
@@ -511,6 +512,7 @@ def _finish(
     cameras: Cameras,
     recorder: Any,
     refused: dict[str, Refused],
+    sightings_refused: dict[str, int],
     seen_sensors: set[str],
     interrupted: bool,
 ) -> int:
@@ -586,6 +588,7 @@ def _finish(
         "sensors_not_started": strays,
         "refused_by_manager": _split_refusals(refused)[0],
         "refused_by_clock": _split_refusals(refused)[1],
+        "sightings_refused": sightings_refused,
         "restarts": restarts,
         "interrupted": interrupted,
     }
@@ -617,6 +620,17 @@ def _refusals(statuses: dict[str, Any]) -> dict[str, Refused]:
                 if n:
                     row[reason] = row.get(reason, 0) + n
     return {sid: row for sid, row in out.items() if row}
+
+
+def _sightings_refused(statuses: dict[str, Any]) -> dict[str, int]:
+    """Sender id -> instants at which the managers refused its sightings of another camera (their last status):
+    a person hiding part of a robot's band makes a few; a camera lying about another, many."""
+    out: dict[str, int] = {}
+    for st in statuses.values():
+        for r in st.refused:
+            if r.sighting:
+                out[r.sender_id] = out.get(r.sender_id, 0) + r.sighting
+    return out
 
 
 def _split_refusals(refused: dict[str, Refused]) -> tuple[dict[str, Refused], dict[str, Refused]]:

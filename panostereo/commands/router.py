@@ -29,6 +29,7 @@ import re
 from typing import Any
 
 from common.errors import SessionError
+from common.memory import Trimmer, pin_mmap_threshold
 from common.session import SessionSettings, install_signal_handlers, open_session, zenoh_config
 
 __all__ = ["DEFAULT_LISTEN", "configure", "run"]
@@ -137,14 +138,17 @@ def run(args: argparse.Namespace) -> int:
     settings = _settings(args)
     init_zenoh_log(args.zenoh_log)
     shutdown = install_signal_handlers()
+    pin_mmap_threshold()  # before zenoh allocates: large buffers are mapped alone and unmapped when freed
     configured = _listen_endpoints(settings)
     wants_port0 = any(ep.rsplit(":", 1)[-1] == "0" for ep in configured)
     try:
         with open_session(settings, extra={"adminspace/enabled": True} if wants_port0 else None) as session:
             locators = _locators(session, configured)
             logger.info("zenoh router %s listening on %s", session.zid(), ", ".join(locators) or "(no endpoint)")
+            # What a flood made the router buffer goes back to the system once sent (common/memory.py).
+            trimmer = Trimmer()
             while not shutdown.wait(0.5):
-                pass
+                trimmer.tick()
             logger.info("router stopping")
     except SessionError as err:
         if _IN_USE_RE.search(str(err)):

@@ -26,6 +26,7 @@ import bisect
 import logging
 from dataclasses import dataclass, field
 
+from common.ratelog import SenderLog
 from common.schema import Features
 
 __all__ = ["Ingest", "IngestCounters", "SensorBuffer"]
@@ -100,6 +101,8 @@ class Ingest:
         self.buffers: dict[str, SensorBuffer] = {}
         self.counters = IngestCounters()
         self.last_fusion_ns = 0
+        self._log = SenderLog(logger)
+        """Clock steps are said once a second per sensor (a sender alternating stamps cannot flood the log)."""
 
     def add(self, msg: Features) -> str:
         """File one Features message; return what it was: accepted|duplicate|out_of_order|late|clock_step."""
@@ -110,7 +113,9 @@ class Ingest:
         kind = "accepted"
         stepped = newest is not None and msg.stamp_ns < newest and msg.seq > buf.max_seq
         if newest is not None and stepped and newest - msg.stamp_ns >= self.clock_step_ns:
-            logger.warning(
+            self._log.log(
+                logging.WARNING,
+                msg.sensor_id,
                 "sensor %s: clock stepped back by %.3f s (seq %d after %d); restarting its buffer",
                 msg.sensor_id,
                 (newest - msg.stamp_ns) / 1e9,

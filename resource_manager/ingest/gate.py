@@ -15,7 +15,8 @@ Three checks, in the order a message meets them:
    from 1970 cannot restart its buffer, and forged frames stamped just ahead
    cannot stand in for the real ones after a flood.
 
-Every refusal is counted per sender id for ManagerStatus. The counts are kept
+Every refusal is counted per sender id for ManagerStatus, with the sightings the
+pose solver refused (reason ``sighting``: :mod:`resource_manager.poses.solver`). The counts are kept
 for at most ``max_senders`` ids (a flood of fresh ids cannot grow memory), the
 listed sensors' always; the rest are summed under :attr:`RefusalCounter.others`.
 """
@@ -34,11 +35,12 @@ __all__ = ["ANY_SENSOR", "REASONS", "RefusalCounter", "RefusalReason", "SenderGa
 ANY_SENSOR: Final = "*"
 """The sensor list entry that accepts any sensor (``[manager] sensors = ["*"]``)."""
 
-RefusalReason = Literal["unlisted", "wrong_id", "skewed", "ahead"]
-REASONS: Final[tuple[RefusalReason, ...]] = ("unlisted", "wrong_id", "skewed", "ahead")
+RefusalReason = Literal["unlisted", "wrong_id", "skewed", "ahead", "sighting"]
+REASONS: Final[tuple[RefusalReason, ...]] = ("unlisted", "wrong_id", "skewed", "ahead", "sighting")
 """In the order of a counter's row. ``unlisted`` and ``wrong_id`` are what an impostor does; ``skewed`` (stamped
 too far behind: a late frame, or a frame from 1970) and ``ahead`` (stamped in the future) are what a loaded host
-or a clock off its NTP server does, as well as a forger."""
+or a clock off its NTP server does, as well as a forger; ``sighting``: sightings of another camera that the other
+witnesses or that camera's settled pose contradict (a person hiding part of a band makes a few, a liar many)."""
 
 _ID_RE: Final = re.compile(r"^[a-z0-9][a-z0-9-]{0,47}$")
 
@@ -81,7 +83,10 @@ class RefusalCounter:
     def top(self, n: int) -> list[Refusal]:
         """The ``n`` senders with the most refusals, most first."""
         rows = sorted(self.counts.items(), key=lambda kv: (-sum(kv[1]), kv[0]))[:n]
-        return [Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s, ahead=a) for sid, (u, w, s, a) in rows]
+        return [
+            Refusal(sender_id=sid, unlisted=u, wrong_id=w, skewed=s, ahead=a, sighting=g)
+            for sid, (u, w, s, a, g) in rows
+        ]
 
     def senders(self) -> set[str]:
         return set(self.counts)

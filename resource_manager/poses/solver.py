@@ -32,12 +32,32 @@ tick after tick, sightings forged under its id (or a band half hidden) give
 poses that agree with nothing. While such poses keep coming the pose is held,
 not lost (``timeout_s`` counts from the last raw pose of any kind), so when they
 stop the real sightings carry on where they left off.
+
+No single witness moves a camera. Every sighting comes under its sender's own
+key, so a stolen camera can lie only in its own sightings; what it says must
+agree with the rest:
+
+* the witnesses of a robot's position (each camera that sights it) are checked
+  against each other, and one that disagrees is refused
+  (:mod:`resource_manager.poses.witness`);
+* a camera whose node reports no motion (``Features.state`` is not ``moving``;
+  a static camera always) for ``settle_s`` has its pose *fixed* at the mean of
+  its poses over that time. From then on sightings only check it: a raw pose off
+  it is refused, and nothing restarts the filter elsewhere, however many
+  sightings agree on the new place (a stolen camera sends as many as it likes).
+  Only the camera's own node reporting motion releases it: then it follows its
+  raw poses, at most ``max_speed_mps`` beyond its noise, and settles again when
+  the robot stops;
+* every refused sighting is counted per sender (:meth:`PoseSolver.take_refused`:
+  ``ManagerStatus.refused``, reason ``sighting``). A surveyed pose never moves
+  from sightings: it is never solved for.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -48,6 +68,7 @@ from common.angles import wrap_angle
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
 from resource_manager.ingest.align import AlignedSighting
+from resource_manager.poses.witness import Estimate, Reference, blame, combine, consistent
 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
 
@@ -75,6 +96,11 @@ class MutualParams:
     default_bearing_sigma_rad: float = math.radians(0.2)
     default_height_m: float = 1.1
     """Camera height of a mobile sensor whose SensorInfo carries no pose (z is a constant of the robot)."""
+    settle_s: float = 3.0
+    """A camera whose node reports no motion for this long has its pose fixed (the mean over that time); only
+    its own node reporting motion releases it."""
+    max_speed_mps: float = 1.0
+    """A released camera's pose moves at most this fast beyond its noise (a robot's top speed)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,6 +150,14 @@ class _Filter:
     """The latest of them (at most ``outlier_run``): a restart needs them to agree."""
     contested_ns: int = 0
     """When the last refused raw pose came: the pose is held, not timed out, while they keep coming."""
+    still_ns: int = 0
+    """Since when the camera's node reports no motion (0: it moves now)."""
+    moved_ns: int = 0
+    """When its node last reported motion (0: never since the filter started)."""
+    fixed: bool = False
+    """Settled: the pose is fixed; sightings only check it."""
+    settle: list[RawPose] = field(default_factory=list)
+    """The raw poses taken since the camera stopped: their mean is the fixed pose."""
 
 
 @dataclass(slots=True)
@@ -141,6 +175,20 @@ class PoseSolver:
     overrides: dict[str, PoseEstimate] = field(default_factory=dict)
     infos: dict[str, SensorInfo] = field(default_factory=dict)
     filters: dict[str, _Filter] = field(default_factory=dict)
+    refused: dict[str, int] = field(default_factory=dict)
+    """Sender id -> its sightings refused since :meth:`take_refused` (one count per sender, target and instant)."""
+    _estimates: dict[str, list[Estimate]] = field(default_factory=dict)
+    """This instant's witnesses of each target's position (those kept)."""
+
+    def take_refused(self) -> dict[str, int]:
+        """Refused sightings per sender since the last call."""
+        out, self.refused = self.refused, {}
+        return out
+
+    def _refuse_senders(self, senders: Collection[str]) -> None:
+        for sid in senders:
+            if sid in self.refused or len(self.refused) < 4 * max(16, len(self.infos)):
+                self.refused[sid] = self.refused.get(sid, 0) + 1
 
     def update_info(self, info: SensorInfo) -> bool:
         """Take a SensorInfo; return True if it changed anything.
@@ -242,7 +290,7 @@ class PoseSolver:
     def _position_from_observers(
         self, t: str, obs: dict[tuple[str, str], _Obs], full: dict[str, tuple[float, float, float, float, float]]
     ) -> tuple[float, float, float] | None:
-        xs, ys, ws, sig = [], [], [], []
+        found: list[Estimate] = []
         for (o, tt), ob in obs.items():
             if tt != t or o not in full:
                 continue
@@ -255,17 +303,22 @@ class PoseSolver:
             ang = oyaw + ob.bearing_rad
             s_perp = b * math.hypot(self.bearing_sigma(o), osyaw)
             s = math.sqrt(sb * sb + s_perp * s_perp + osxy * osxy)
-            w = 1.0 / max(s * s, 1e-9)
-            xs.append(ox + b * math.cos(ang))
-            ys.append(oy + b * math.sin(ang))
-            ws.append(w)
-            sig.append(s)
-        if not ws:
+            found.append(Estimate(o, ox + b * math.cos(ang), oy + b * math.sin(ang), s))
+        if not found:
             return None
-        wsum = sum(ws)
-        x = sum(w * v for w, v in zip(ws, xs, strict=True)) / wsum
-        y = sum(w * v for w, v in zip(ws, ys, strict=True)) / wsum
-        return x, y, 1.0 / math.sqrt(wsum)
+        # Witnesses that disagree with the rest are refused (and counted), worst first.
+        kept, refused = consistent(found, self._k(), self._reference(t))
+        self._refuse_senders(refused)
+        self._estimates[t] = kept
+        return combine(kept)
+
+    def _k(self) -> float:
+        return max(self.params.outlier_sigmas, 3.0)
+
+    def _reference(self, t: str) -> Reference | None:
+        """Where ``t`` was held before this instant (its filter), if anywhere."""
+        f = self.filters.get(t)
+        return None if f is None or f.n < 3 else Reference(f.x, f.y, f.sigma_xy)
 
     def _yaw_from_own(
         self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
@@ -310,21 +363,39 @@ class PoseSolver:
         syaw = math.hypot(o1.sigma_b_m, o2.sigma_b_m) / max(math.hypot(p2[0] - p1[0], p2[1] - p1[1]), 1e-6)
         return RawPose(sum(xs) / 2.0, sum(ys) / 2.0, yaw, sxy, math.hypot(syaw, self.bearing_sigma(t)))
 
-    def solve(self, sightings: dict[str, list[AlignedSighting]], t_ns: int) -> dict[str, PoseEstimate]:
-        """Every pose known at ``t_ns``: surveyed ones plus smoothed mutual-calibration ones."""
+    def solve(
+        self, sightings: dict[str, list[AlignedSighting]], t_ns: int, moving: Collection[str] = ()
+    ) -> dict[str, PoseEstimate]:
+        """Every pose known at ``t_ns``: surveyed ones plus smoothed mutual-calibration ones.
+
+        Args:
+            sightings: each sender's sightings aligned to ``t_ns``.
+            moving: the cameras whose own node reports motion at ``t_ns`` (``Features.state == "moving"``): only
+                these may move (a static camera never does).
+        """
         known = self.surveyed()
         if not self.params.enabled:
             return known
+        self._estimates = {}
         raw = self.solve_raw(sightings, known)
         out = dict(known)
         timeout_ns = int(self.params.timeout_s * 1e9)
+        for sid in moving:
+            f0, info = self.filters.get(sid), self.infos.get(sid)
+            if f0 is not None and info is not None and info.mobile and sid not in raw:
+                # Its node reports motion and nothing places it now: released, it times out like any moving pose.
+                f0.fixed, f0.still_ns, f0.moved_ns, f0.settle = False, 0, t_ns, []
         for sid, rp in raw.items():
-            self._smooth(sid, rp, t_ns)
+            info = self.infos.get(sid)
+            self._smooth(sid, rp, t_ns, moving=sid in moving and info is not None and info.mobile)
         for sid, f in list(self.filters.items()):
             if sid in known:
                 del self.filters[sid]
                 continue
-            if t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
+            # A fixed pose is kept while the camera's node reports no motion, sightings or not (a person in front
+            # of the bands, a loaded host's late frames): the camera has not moved. It goes when its node reports
+            # motion, or leaves (liveliness: forget()).
+            if not f.fixed and t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
                 logger.info("pose of %s lost: no sighting for %.1f s", sid, (t_ns - f.t_ns) / 1e9)
                 del self.filters[sid]
                 continue
@@ -338,7 +409,7 @@ class PoseSolver:
                 # forward, until the timeout. Dropping the camera for those ticks loses every person it supports.
                 dt = (t_ns - f.t_ns) / 1e9
                 x, y, yaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
-                grow = 1.0 + dt / self.params.smoothing_s
+                grow = 1.0 if f.fixed else 1.0 + dt / self.params.smoothing_s
                 out[sid] = PoseEstimate(
                     sid, x, y, z, float(wrap_angle(yaw)), "mutual", f.sigma_xy * grow, f.sigma_yaw * grow
                 )
@@ -363,26 +434,80 @@ class PoseSolver:
         return True
 
     def _refuse(self, sid: str, f: _Filter, rp: RawPose, t_ns: int) -> None:
-        """A raw pose off the smoothed one: held back; ``outlier_run`` of them that agree restart the filter."""
+        """A raw pose off the smoothed one: held back, its witnesses counted; ``outlier_run`` of them that agree
+        restart the filter, but only while the camera's own node reports motion (it may have been driven there)."""
         f.outliers += 1
         f.contested_ns = t_ns
+        self._refuse_senders(blame(self._estimates.get(sid, []), sid, Reference(f.x, f.y, f.sigma_xy), self._k()))
         f.refused = [*f.refused[-(self.params.outlier_run - 1) :], rp] if self.params.outlier_run > 1 else [rp]
-        if len(f.refused) >= self.params.outlier_run and self._agree(f.refused):
+        if not f.fixed and len(f.refused) >= self.params.outlier_run and self._agree(f.refused):
+            # A camera that moved can be no further than its top speed took it since its last taken pose.
+            reach_m = self.params.jump_m + self.params.max_speed_mps * (t_ns - f.t_ns) / 1e9
+            if f.moved_ns and math.hypot(rp.x_m - f.x, rp.y_m - f.y) > reach_m:
+                return
             self._restart(sid, rp, t_ns)
+            g = self.filters[sid]
+            g.still_ns, g.moved_ns, g.settle = f.still_ns and t_ns, f.moved_ns, [rp]
 
-    def _smooth(self, sid: str, rp: RawPose, t_ns: int) -> None:
+    def _check_fixed(self, sid: str, f: _Filter, rp: RawPose, t_ns: int) -> None:
+        """A settled camera: a raw pose that agrees with its fixed pose keeps it alive; any other is refused."""
+        k = self._k()
+        tol_xy = k * math.hypot(rp.sigma_xy_m, f.sigma_xy) + 0.05
+        tol_yaw = k * math.hypot(rp.sigma_yaw_rad, f.sigma_yaw) + math.radians(0.5)
+        if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > tol_xy or abs(float(wrap_angle(rp.yaw_rad - f.yaw))) > tol_yaw:
+            self._refuse(sid, f, rp, t_ns)
+            return
+        f.outliers = 0
+        f.refused = []
+        f.t_ns = t_ns
+
+    def _settle(self, f: _Filter, t_ns: int) -> None:
+        """Fix the pose of a camera still for ``settle_s``: the mean of its raw poses since it stopped."""
+        if f.fixed or f.still_ns == 0 or t_ns - f.still_ns < int(self.params.settle_s * 1e9) or len(f.settle) < 3:
+            return
+        f.x = sum(p.x_m for p in f.settle) / len(f.settle)
+        f.y = sum(p.y_m for p in f.settle) / len(f.settle)
+        f.yaw = math.atan2(sum(math.sin(p.yaw_rad) for p in f.settle), sum(math.cos(p.yaw_rad) for p in f.settle))
+        f.vx = f.vy = f.vyaw = 0.0
+        f.fixed = True
+        f.settle = []
+
+    def _smooth(self, sid: str, rp: RawPose, t_ns: int, *, moving: bool = False) -> None:
         f = self.filters.get(sid)
         timeout_ns = int(self.params.timeout_s * 1e9)
-        if f is None or t_ns - max(f.t_ns, f.contested_ns) > timeout_ns or t_ns <= f.t_ns:
+        if f is None or t_ns - max(f.t_ns, f.contested_ns) > timeout_ns:
             self._restart(sid, rp, t_ns)
+            f = self.filters[sid]
+            f.settle = [rp]
+            f.still_ns, f.moved_ns = (0, t_ns) if moving else (t_ns, 0)
             return
-        if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m:
+        if t_ns <= f.t_ns:
+            return
+        if moving:
+            f.fixed, f.still_ns, f.moved_ns, f.settle = False, 0, t_ns, []
+        elif f.still_ns == 0:
+            f.still_ns = t_ns
+        if f.fixed:
+            self._check_fixed(sid, f, rp, t_ns)
+            return
+        if self._follow(sid, f, rp, t_ns) and f.still_ns:
+            f.settle.append(rp)
+            self._settle(f, t_ns)
+
+    def _follow(self, sid: str, f: _Filter, rp: RawPose, t_ns: int) -> bool:
+        """Alpha-beta smoothing of a released (or not yet settled) pose; False when ``rp`` was refused."""
+        dt = (t_ns - f.t_ns) / 1e9
+        # How far the camera may have gone since its last taken pose: only while its node reported motion.
+        reach = self.params.max_speed_mps * dt if f.moved_ns else 0.0
+        if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m + reach:
             if f.n >= 3:
                 self._refuse(sid, f, rp, t_ns)
-            else:  # a young filter follows: it may have started from a bad pose
-                self._restart(sid, rp, t_ns)
-            return
-        dt = (t_ns - f.t_ns) / 1e9
+                return False
+            # A young filter follows: it may have started from a bad pose.
+            self._restart(sid, rp, t_ns)
+            g = self.filters[sid]
+            g.still_ns, g.moved_ns, g.settle = f.still_ns, f.moved_ns, [rp]
+            return False
         a = 1.0 - math.exp(-dt / self.params.smoothing_s)
         bgain = a * a / (2.0 - a)
         px, py, pyaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
@@ -395,7 +520,7 @@ class PoseSolver:
             tol_yaw = k * math.hypot(rp.sigma_yaw_rad, f.sigma_yaw) + math.radians(0.5)
             if math.hypot(rx, ry) > tol_xy or abs(ryaw) > tol_yaw:
                 self._refuse(sid, f, rp, t_ns)
-                return
+                return False
         f.outliers = 0
         f.refused = []
         f.x, f.y, f.yaw = px + a * rx, py + a * ry, float(wrap_angle(pyaw + a * ryaw))
@@ -407,3 +532,4 @@ class PoseSolver:
         shrink = max(math.sqrt(a / (2.0 - a)), 1.0 / math.sqrt(f.n))
         f.sigma_xy = rp.sigma_xy_m * shrink
         f.sigma_yaw = rp.sigma_yaw_rad * shrink
+        return True

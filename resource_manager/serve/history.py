@@ -87,13 +87,24 @@ class IdAllocator:
         return f"{self.manager_id}-{self.n}"
 
 
-class TrackStore:
-    """Per-track paths in memory, at most ``rate_hz`` states per track, ``history_s`` long."""
+STATE_BYTES = 575
+"""Memory one Track state takes in the store (tracemalloc of 10,000 states as the manager makes them)."""
 
-    def __init__(self, history_s: float = 600.0, rate_hz: float = 5.0) -> None:
+
+class TrackStore:
+    """Per-track paths in memory, at most ``rate_hz`` states per track, ``history_s`` long, ``max_mb`` in all.
+
+    States are kept in the order they came (the fusion instants': time order), so the oldest of all goes first
+    when either bound is reached: memory is bounded by the configuration, not by how many people came by.
+    """
+
+    def __init__(self, history_s: float = 600.0, rate_hz: float = 5.0, max_mb: float = 64.0) -> None:
         self.history_ns = int(history_s * 1e9)
         self.min_step_ns = int(0.8e9 / rate_hz) if rate_hz > 0 else 0  # 0.8: tolerate tick jitter
+        self.max_states = max(1, int(max_mb * 2**20 / STATE_BYTES))
         self.paths: dict[str, deque[Track]] = {}
+        self._order: deque[str] = deque()
+        """The track id of every state kept, oldest first."""
 
     def add(self, track: Track) -> bool:
         """Keep a state (False if too soon after the previous kept one)."""
@@ -105,16 +116,30 @@ class TrackStore:
         ):
             return False
         path.append(track)
+        self._order.append(track.track_id)
+        if len(self._order) > self.max_states:
+            self._drop_oldest()
         return True
 
+    def _drop_oldest(self) -> None:
+        tid = self._order.popleft()
+        path = self.paths.get(tid)
+        if path:
+            path.popleft()
+        if not path:
+            self.paths.pop(tid, None)
+
     def prune(self, now_ns: int) -> None:
+        """Forget the states older than ``history_s`` before ``now_ns``."""
         cutoff = now_ns - self.history_ns
-        for tid in list(self.paths):
-            path = self.paths[tid]
-            while path and path[0].stamp_ns < cutoff:
-                path.popleft()
-            if not path:
-                del self.paths[tid]
+        while self._order:
+            path = self.paths.get(self._order[0])
+            if path and path[0].stamp_ns >= cutoff:
+                break
+            self._drop_oldest()
+
+    def __len__(self) -> int:
+        return len(self._order)
 
     def latest(self, track_id: str) -> Track | None:
         path = self.paths.get(track_id)

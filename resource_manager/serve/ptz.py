@@ -1,10 +1,15 @@
 """PTZ allocation: many user agents share the PTZ cameras through the manager (paper, Conclusion; [8]).
 
-An agent asks (query on ``manager/{id}/ptz``) for a view of a track with a
-priority. The manager assigns a free PTZ camera of known pose that can see the
+An agent asks (query on ``manager/{id}/ptz/{agent}``) for a view of a track with a
+priority. The priority is the agent's identity's, not its word: a request asking
+more than the agent's cap (``[ptz] max_priority``, by agent id; ``default_max_priority``
+for the rest, equal for all unless configured) is clipped to it, so an agent can
+take a camera from another only if the site gave it a higher cap. The manager
+assigns a free PTZ camera of known pose that can see the
 person (within range, tilt within limits), nearest first; when every such camera
-is taken, a request of strictly higher priority preempts the lowest-priority
-holder. While assigned, each tick the camera gets a PtzCommand pointing it at
+is taken, a request of strictly higher (clipped) priority preempts the
+lowest-priority holder. A refusal says only what the asker may know: never who
+holds a camera nor at what priority. While assigned, each tick the camera gets a PtzCommand pointing it at
 the person: pan = azimuth from the camera to the track, tilt = elevation of
 ``aim_height_frac`` of the person's height, zoom so that ``target_width_m``
 fills the field of view. The reply always says which camera or why none.
@@ -21,6 +26,7 @@ thread that changes the allocation.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from common.schema import PtzRequest, SensorInfo
@@ -39,6 +45,14 @@ class PtzParams:
     max_tilt_rad: float = math.radians(60.0)
     lease_s: float = 30.0
     """A hold ends this long after the agent's last request for it (a request may ask for less)."""
+    max_priority: Mapping[str, int] = field(default_factory=dict)
+    """Agent id -> the highest priority its requests get (higher asks are clipped to it)."""
+    default_max_priority: int = 0
+    """The cap of every agent not in ``max_priority`` (equal for all: nobody preempts anybody)."""
+
+    def cap(self, agent_id: str) -> int:
+        """The highest priority ``agent_id``'s requests get."""
+        return self.max_priority.get(agent_id, self.default_max_priority)
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,7 +168,13 @@ class PtzAllocator:
         req = ask.request
         if req.action == "acquire":
             lease = self.lease_ns(req.lease_s)
-            sid, reason = self.acquire(ask.agent_id, target, req.track_id, req.priority, ask.arrival_ns, lease_ns=lease)
+            cap = self.params.cap(ask.agent_id)
+            priority = min(req.priority, cap)
+            sid, reason = self.acquire(ask.agent_id, target, req.track_id, priority, ask.arrival_ns, lease_ns=lease)
+            if priority < req.priority:
+                # The asker may know its own cap: it explains a refusal, or a hold weaker than asked.
+                reason = f"{reason}; " if reason else ""
+                reason += f"priority {req.priority} clipped to {cap}, this agent's cap"
             return PtzAnswer(ask.token, req, sid, reason, lease / 1e9 if sid else 0.0)
         sid, reason = self.release(ask.agent_id, req.track_id)
         return PtzAnswer(ask.token, req, sid, reason, 0.0)
@@ -204,10 +224,8 @@ class PtzAllocator:
             self.ended.append((held, f"preempted by {agent_id} (priority {priority} > {held.priority})"))
             self.assignments[weakest] = Assignment(weakest, agent_id, track_id, priority, t_ns, expires)
             return weakest, ""
-        return "", (
-            f"all {len(able)} PTZ camera(s) that can see track {track_id!r} are held at priority >= {priority}"
-            f" (lowest: {held.agent_id} at {held.priority})"
-        )
+        # Who holds the cameras, and at what priority, is not the asker's business.
+        return "", f"every PTZ camera that can see track {track_id!r} is held at priority {priority} or above"
 
     def release(self, agent_id: str, track_id: str) -> tuple[str, str]:
         """Release the agent's camera for the track; return (sensor_id, "") or ("", reason)."""

@@ -83,11 +83,12 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureSite]:
     root = tmp_path_factory.mktemp("secure-site")
     certs, foreign, cfg = root / "certs", root / "foreign", root / "cfg"
     ids = " ".join(SENSORS)
-    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), "--sensors", ids])
+    who = ("--sensors", ids, "--managers", "m1", "--agents", "a1")
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), *who])
     # Another CA issuing certificates with the very same names: must not be trusted.
-    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(foreign), "--sensors", ids, "--ca-name", "evil-ca"])
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(foreign), *who, "--ca-name", "evil-ca"])
     tls_port, tcp_port = free_port(), free_port()
-    _make_configs(certs, cfg, "--prefix", KEYS.prefix, "--sensors", ids, "--listen", f"tls/127.0.0.1:{tls_port}",
+    _make_configs(certs, cfg, "--prefix", KEYS.prefix, *who, "--listen", f"tls/127.0.0.1:{tls_port}",
                   "--listen-tcp", f"tcp/127.0.0.1:{tcp_port}")  # fmt: skip
     # As deployed: the router's dictionary goes where its other files are (the folder --certs names).
     shutil.copy(cfg / "users.txt", certs / "users.txt")
@@ -220,7 +221,8 @@ def _openssl(*args: str) -> str:
 
 def test_make_certs_roles_names_and_modes(tmp_path: Path) -> None:
     out = tmp_path / "certs"
-    make = ["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c1", "--agents", "a1 a2"]
+    make = ["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c1", "--managers", "m1"]
+    make += ["--agents", "a1 a2:5"]  # make_configs.py's PTZ cap suffix is taken too
     _run([*make, "--host", "router.example", "--host", "10.1.2.3"])
     names = ["router", "sensor-c1", "manager-m1", "agent-a1", "agent-a2"]
     for name in names:
@@ -236,10 +238,11 @@ def test_make_certs_roles_names_and_modes(tmp_path: Path) -> None:
     assert "CA:TRUE" in _openssl("x509", "-in", str(out / "ca.pem"), "-noout", "-ext", "basicConstraints")
     assert (out / "ca.key").stat().st_mode & 0o077 == 0
     # Re-running adds identities under the same CA (an existing site grows) and re-keys nobody else: adding a
-    # camera as documented leaves the router's and the agents' certificates (default --managers/--agents) alone.
+    # camera as documented issues that camera's certificate and nothing else (no default manager or agent).
     ca_before = (out / "ca.pem").read_text()
     kept = {n: (out / f"{n}.pem").read_bytes() + (out / f"{n}.key").read_bytes() for n in names}
-    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c9"])
+    said = _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(out), "--sensors", "c9"])
+    assert "new: sensor-c9 (" in said, said
     assert (out / "ca.pem").read_text() == ca_before
     assert _openssl("verify", "-CAfile", str(out / "ca.pem"), str(out / "sensor-c9.pem")).strip().endswith("OK")
     assert {n: (out / f"{n}.pem").read_bytes() + (out / f"{n}.key").read_bytes() for n in names} == kept
@@ -260,8 +263,8 @@ def test_configs_for_two_hosts_listen_where_told_and_keep_secrets_private(tmp_pa
     """As in the README's two-host walk-through: both routers listen on the given host, the dictionary is named
     where the router's files are deployed (--certs), and no file holding a password is readable by others."""
     out = tmp_path / "site-certs"
-    _make_configs("/etc/panostereo/certs", out, "--sensors", "cam1 cam2", "--managers", "mgr1", "--agents", "a1",
-                  "--listen", "tls/0.0.0.0:7447", "--router-host", "192.168.1.10")  # fmt: skip
+    _make_configs("/etc/panostereo/certs", out, "--sensors", "cam1 cam2", "--managers", "mgr1", "--agents",
+                  "a1 ops:10", "--listen", "tls/0.0.0.0:7447", "--router-host", "192.168.1.10")  # fmt: skip
     usr = _json5(out / "router-usrpwd.json5")
     assert usr["listen"]["endpoints"] == ["tcp/0.0.0.0:7448"]
     assert usr["transport"]["auth"]["usrpwd"]["dictionary_file"] == "/etc/panostereo/certs/users.txt"
@@ -273,6 +276,13 @@ def test_configs_for_two_hosts_listen_where_told_and_keep_secrets_private(tmp_pa
     rules = {r["id"]: r for r in _json5(out / "router-tls.json5")["access_control"]["rules"]}
     assert "pano/@v1/manager/*/ptz/a1" in rules["agent-a1-query"]["key_exprs"]
     assert not [k for r in rules.values() if r["id"].startswith("agent-") for k in r["key_exprs"] if k.endswith("/ptz")]
+    # ...and its PTZ priority cap goes into the managers' configs as written.
+    from resource_manager.config import load_manager_config
+
+    mgr = tmp_path / "manager.toml"
+    mgr.write_text('[manager]\nid = "mgr1"\n\n' + (out / "ptz-priorities.toml").read_text())
+    assert load_manager_config(mgr).ptz.max_priority == {"ops": 10}
+    assert "agent-ops-query" in rules and "agent-ops" not in str(rules["agent-a1-query"])
 
 
 # ---------------------------------------------------------------------------
@@ -611,9 +621,9 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
     fsite = make_fault_site(tmp_path, prefix="secure")
     certs, cfg = tmp_path / "certs", tmp_path / "cfg"
     ids = " ".join(fsite.ids)
-    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), "--sensors", ids, "--managers", MANAGER_ID])
-    _make_configs(certs, cfg, "--prefix", fsite.prefix, "--sensors", ids, "--managers", MANAGER_ID, "--listen",
-                  f"tls/127.0.0.1:{fsite.port}")  # fmt: skip
+    who = ("--sensors", ids, "--managers", MANAGER_ID, "--agents", "a1")
+    _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), *who])
+    _make_configs(certs, cfg, "--prefix", fsite.prefix, *who, "--listen", f"tls/127.0.0.1:{fsite.port}")
     fsite.connect_to = f"tls/localhost:{fsite.port}"
     with running(fsite, request):
         router = fsite._spawn(
@@ -734,7 +744,8 @@ def test_revocation_an_identity_out_of_the_rules_can_do_nothing(site: SecureSite
     """Revocation: regenerate the router's config without the identity (its certificate still verifies):
     it connects, and every message of it is denied while the others flow."""
     cfg = tmp_path / "revoked"
-    _make_configs(site.certs, cfg, "--prefix", KEYS.prefix, "--sensors", "c1", "--tls-only")  # c2 left out
+    _make_configs(site.certs, cfg, "--prefix", KEYS.prefix, "--sensors", "c1", "--managers", "m1", "--agents", "a1",
+                  "--tls-only")  # fmt: skip  # c2 left out
     router, endpoint = _router_with(tmp_path, "router-revoked", _json5(cfg / "router-tls.json5"))
     try:
         with (

@@ -133,8 +133,11 @@ def test_sim_node_publishes_features_info_status(tmp_path: Path, router: RouterP
         assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
         now = time.time_ns()
         assert all(abs(now - f.stamp_ns) < 30e9 and f.sensor_id == "pano1" for f in got)
-        sighting = next(x for f in got for x in f.sightings)
-        assert sighting.target_id == "pano2" and abs(sighting.distance_m - 3.0) < 0.15
+        sightings = [x for f in got for x in f.sightings]
+        assert {x.target_id for x in sightings} == {"pano2"}
+        # Most sightings range pano2 right; a person walking in front of its band shifts some (which frames those
+        # are depends on when the node started: the machine's load), so the median is what is held.
+        assert abs(float(np.median([x.distance_m for x in sightings])) - 3.0) < 0.15, sightings
         assert any(f.blobs for f in got[-10:]), "two people walking in the room: someone is seen"
         statuses: list[NodeStatus] = []
 

@@ -37,3 +37,13 @@ def test_bug_exits_with_exit_bug_and_logs_the_traceback(caplog: pytest.LogCaptur
     rec = caplog.records[-1]
     assert rec.exc_info is not None and rec.exc_info[0] is ZeroDivisionError
     assert "a bug" in rec.getMessage()
+
+
+def test_exit_process_flushes_what_was_said_and_exits_with_the_code() -> None:
+    import subprocess
+    import sys
+
+    code = "import logging, sys; from common.cli import exit_process, setup_logging; setup_logging(); "
+    code += "print('out', end=''); logging.getLogger('x').warning('said'); exit_process(3)"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=30, check=False)
+    assert res.returncode == 3 and res.stdout == "out" and "said" in res.stderr

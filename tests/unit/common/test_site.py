@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from common.errors import ConfigError
-from common.site import load_site, process_ids, site_sensor_ids
+from common.site import BUNDLED_SITES, load_site, process_ids, site_file, site_sensor_ids
 
 HEAD = '[site]\nname = "lab"\nseed = 3\n'
 CAM = '[[camera]]\nid = "{id}"\nkind = "{kind}"\nmobile = {mobile}\n'
@@ -80,3 +80,14 @@ def test_processes_name_the_ids_their_configs_declare_and_nodes_are_the_sites_se
     broken = load_site(_write(tmp_path, HEAD + procs.replace("nodes/u.toml", "nodes/gone.toml"), "broken.toml"))
     with pytest.raises(ConfigError, match=r"gone\.toml"):
         process_ids(broken)
+
+
+def test_a_bundled_site_is_found_by_name_from_a_config_copied_anywhere(tmp_path: Path) -> None:
+    """A demo camera config copied to /etc/panostereo/nodes still finds its site; a path stays a path."""
+    copied = tmp_path / "etc" / "cam.toml"
+    assert site_file("demo", copied) == BUNDLED_SITES / "demo.toml"
+    assert load_site(site_file("demo", copied)).site.name == "demo"
+    assert site_file("sites/x.toml", copied) == tmp_path / "etc" / "sites" / "x.toml"
+    assert site_file("/abs/y.toml", copied) == Path("/abs/y.toml")
+    with pytest.raises(ConfigError, match=r"'nowhere' is no bundled site \(.*demo.*\)"):
+        site_file("nowhere", copied)

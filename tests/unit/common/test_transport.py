@@ -14,7 +14,7 @@ import pytest
 import zenoh
 
 from common.codec import MAX_PAYLOAD_BYTES, encode
-from common.schema import Features, PtzCommand
+from common.schema import Blob, Features, PtzCommand
 from common.session import SessionSettings, open_session, wait_until
 from common.transport import Inbox, KeyCensus, KeyedInbox, TypedPublisher
 
@@ -274,6 +274,11 @@ class Session:
         return True
 
 
+def _blob() -> Blob:
+    return Blob(local_id=1, bearing_rad=0.5, width_rad=0.1, top_elev_rad=0.1, bottom_elev_rad=-0.3, bbox_u_px=1.0,
+                bbox_v_px=1.0, bbox_w_px=10.0, bbox_h_px=30.0, hist=[0.015625] * 64)  # fmt: skip
+
+
 def keyed_feat(sid: str, seq: int) -> bytes:
     return encode(Features(sensor_id=sid, seq=seq, stamp_ns=1_000 + seq, frame_index=seq))
 
@@ -292,6 +297,27 @@ def test_a_flooded_key_pushes_out_only_its_own_samples_and_counts_them() -> None
     assert [m.seq for sid, m in got if m is not None and sid == "a"] == [996, 997, 998, 999]
     assert inbox.counters.dropped == 996 and inbox.counters.received == 1002
     assert inbox.drain_raw() == []
+
+
+def test_a_key_over_its_byte_rate_loses_its_largest_samples_before_copy_and_holds_few_bytes() -> None:
+    """A sender flooding 200 KB frames at hundreds a second beside its own small frames: the large ones beyond its
+    budget are dropped on arrival (never copied), the small ones still get through, and what waits is bounded in
+    bytes as well as in count."""
+    s = Session()
+    key = f"{HEAD}a/features"
+    inbox = KeyedInbox(s, [key], Features, capacity=16, rate_bytes_per_s=2e6, max_key_bytes=2_000_000)
+    big = encode(Features(sensor_id="a", seq=0, stamp_ns=1, frame_index=0, blobs=[_blob()] * 256))
+    assert len(big) > 100_000
+    small = keyed_feat("a", 1)
+    for i in range(600):  # one second of flood, with the camera's own 15 frames among it
+        s.deliver(key, key, big)
+        if i % 40 == 0:
+            s.deliver(key, key, small)
+    c = inbox.counters
+    assert c.over_rate >= 580  # ~2 MB of budget: some 10 large frames at most got in
+    raw = inbox.drain_raw()
+    assert sum(len(d) for _, d in raw) <= 2_000_000
+    assert sum(1 for _, d in raw if d == small) >= 10  # the camera's small frames pass the budget
 
 
 def test_keys_beyond_max_keys_are_dropped_and_counted_and_bad_payloads_counted_on_decode() -> None:

@@ -25,10 +25,12 @@ def test_every_source_kind_has_an_example() -> None:
     assert kinds == {"sim", "opencv", "folder", "detections"}
 
 
-def test_sim_example_resolves_site_relative_to_file() -> None:
+def test_sim_example_names_a_bundled_site_found_wherever_the_config_is() -> None:
+    from common.site import site_file
+
     cfg = load_node_config(REPO / "deploy/nodes/examples/sim.toml")
     assert isinstance(cfg.source, SimSource)
-    assert cfg.resolve(cfg.source.site).resolve() == (REPO / "deploy/sites/demo.toml").resolve()
+    assert site_file(cfg.source.site, cfg.path).resolve() == (REPO / "deploy/sites/demo.toml").resolve()
     assert cfg.node.mobile and cfg.body[0].id == "pano2"
 
 

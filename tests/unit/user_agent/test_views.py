@@ -64,7 +64,7 @@ def test_watch_screen_lists_the_camera_poses_the_manager_knows() -> None:
 def test_watch_screen_names_refused_senders_and_sensors_no_manager_fuses() -> None:
     from common.schema import Refusal
 
-    refused = [Refusal(sender_id="evil", unlisted=1200), Refusal(sender_id="pano1", wrong_id=3)]
+    refused = [Refusal(sender_id="evil", unlisted=1200), Refusal(sender_id="pano3", sighting=3)]
     ms = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0,
                        sensors_expected=["pano1"], refused_msgs=1203, refused_partial=True,
                        refused=refused)  # fmt: skip
@@ -74,7 +74,8 @@ def test_watch_screen_names_refused_senders_and_sensors_no_manager_fuses() -> No
     assert next(ln for ln in lines if ln.startswith("stray")).split()[1:4] == ["up", "(not", "fused)"]
     assert "(not fused)" not in next(ln for ln in lines if ln.startswith("pano1"))
     assert "REFUSED (1203 messages; a flood paused counting: at least)" in lines
-    assert ["mgr1", "evil", "1200", "0", "0", "0"] in [ln.split() for ln in lines]
+    assert ["mgr1", "evil", "1200", "0", "0", "0", "0"] in [ln.split() for ln in lines]
+    assert ["mgr1", "pano3", "0", "0", "0", "0", "3"] in [ln.split() for ln in lines]  # refused sightings
     assert lines[-1] == "recording: nothing lost"
     quiet = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0)
     assert "REFUSED" not in watch_screen([], sensors, [ManagerView("mgr1", True, quiet)])

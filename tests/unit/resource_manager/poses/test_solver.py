@@ -175,3 +175,74 @@ def test_forged_sightings_that_agree_with_nothing_neither_move_nor_drop_a_pose()
         t += 100_000_000
     assert s.filters["r1"] is kept and kept.outliers == 0  # the same filter, carried on by the real sightings
     assert math.hypot(p.x_m - 3, p.y_m) < 0.05
+
+
+def _settled(cams: list[Cam], rng: np.random.Generator, **params: object) -> tuple[PoseSolver, int]:
+    """A solver that has watched ``cams`` for 4 s at 10 Hz (past ``settle_s``): their poses are fixed."""
+    s = solver(cams, **params)
+    t = 1
+    for _ in range(40):
+        s.solve(sightings(cams, rng, PX), t)
+        t += 100 * MS
+    s.take_refused()
+    return s, t
+
+
+@pytest.mark.parametrize(("moving", "moves"), [((), False), (("r1",), True)])
+def test_one_witness_cannot_move_a_still_camera_however_long_it_insists(moving: tuple[str, ...], moves: bool) -> None:
+    """p1 is r1's only witness. Its certificate stolen, it says for 10 s, consistently, that r1 stands 0.6 m away
+    (the real p1 stopped): r1's node reports no motion, so its fixed pose holds and p1's sightings are refused and
+    counted. Had r1's own node reported motion (it drove), the same sightings would move it there."""
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, yaw=1.0, mobile=True, surveyed=False)]
+    rng = np.random.default_rng(2)
+    s, t = _settled(cams, rng)
+    forged_world = [Cam("p1", 0, 0), Cam("r1", 3.0, 0.6, yaw=1.0, mobile=True, surveyed=False)]
+    for _ in range(100):
+        seen = sightings(forged_world, rng, PX)
+        forged = {"p1": seen["p1"], "r1": sightings(cams, rng, PX)["r1"]}  # r1's own node is honest
+        p = s.solve(forged, t, moving=moving)["r1"]
+        t += 100 * MS
+    if moves:
+        assert math.hypot(p.x_m - 3.0, p.y_m - 0.6) < 0.3, p
+    else:
+        assert math.hypot(p.x_m - 3.0, p.y_m) < 0.05, p
+        assert abs(math.remainder(p.yaw_rad - 1.0, 2 * math.pi)) < 0.01, p
+        assert s.take_refused().get("p1", 0) >= 90  # every forged instant counted against its sender
+    assert "r1" in s.solve(sightings(cams, rng, PX), t)  # held throughout, never lost
+
+
+def test_a_witness_that_disagrees_with_the_others_is_refused_and_counted_at_once() -> None:
+    """Three cameras of known pose sight r1; one lies from the first instant: its sighting is refused (counted
+    against it) and r1 is placed by the other two."""
+    cams = [Cam("p1", 0, 0), Cam("p2", 6, 0), Cam("p3", 3, 5), Cam("r1", 3, 1, mobile=True, surveyed=False)]
+    liar_world = [Cam("p2", 6, 0), Cam("r1", 3.5, 1.8, mobile=True, surveyed=False)]
+    s = solver(cams)
+    rng = np.random.default_rng(3)
+    for k in range(5):
+        sg = sightings(cams, rng, PX)
+        sg["p2"] = sightings(liar_world, rng, PX)["p2"]
+        p = s.solve(sg, 1 + k * 100 * MS)["r1"]
+        assert math.hypot(p.x_m - 3, p.y_m - 1) < 0.1, p
+    assert s.take_refused() == {"p2": 5}
+
+
+def test_a_static_camera_placed_by_sightings_never_moves_even_if_its_node_says_it_moves() -> None:
+    cams = [Cam("p1", 0, 0), Cam("s1", 3, 0, mobile=False, surveyed=False)]
+    rng = np.random.default_rng(4)
+    s, t = _settled(cams, rng)
+    away = [Cam("p1", 0, 0), Cam("s1", 3.0, 0.8, mobile=False, surveyed=False)]
+    for _ in range(30):
+        p = s.solve(sightings(away, rng, PX), t, moving=("s1",))["s1"]
+        t += 100 * MS
+    assert math.hypot(p.x_m - 3.0, p.y_m) < 0.05, p
+
+
+def test_a_settled_pose_outlives_a_pause_in_its_sightings_until_its_node_reports_motion() -> None:
+    """Still robots whose sightings pause (people in front of the bands, a loaded host) keep their fixed pose;
+    once the robot's node reports motion and nothing places it, the pose times out as a moving one does."""
+    cams = [Cam("p1", 0, 0), Cam("r1", 3, 0, mobile=True, surveyed=False)]
+    s, t = _settled(cams, np.random.default_rng(5), timeout_s=2.0)
+    held = s.solve({}, t + 5_000 * MS)["r1"]  # 5 s without a sighting
+    assert math.hypot(held.x_m - 3, held.y_m) < 0.05
+    s.solve({}, t + 5_100 * MS, moving=("r1",))
+    assert "r1" not in s.solve({}, t + 7_200 * MS, moving=("r1",))

@@ -61,3 +61,18 @@ def test_track_log_roundtrip_torn_tail_and_store(tmp_path: Path) -> None:
     assert [t.x_m for t in store.path("m-1", 2_500_000_000)] == [26.0, 28.0]
     store.prune(3_000_000_000)
     assert all(t.stamp_ns >= 2_000_000_000 for t in store.path("m-1", 0))
+
+
+def test_the_store_is_bounded_in_memory_whatever_the_number_of_tracks() -> None:
+    """Many people passing by (one short track each) fill the store up to its memory bound, never past it; the
+    oldest states go first, each track's newest stays the latest."""
+    store = TrackStore(history_s=3600.0, rate_hz=5.0, max_mb=0.1)
+    cap = store.max_states
+    for i in range(3 * cap):
+        assert store.add(_track(f"m-{i // 10}", 1_000_000_000 + i * 300_000_000, x=float(i)))
+    assert len(store) == cap == sum(len(store.path(t, 0)) for t in store.ids())
+    newest = store.latest(f"m-{(3 * cap - 1) // 10}")
+    assert newest is not None and newest.x_m == 3 * cap - 1
+    assert "m-0" not in store.ids()
+    store.prune(10**13)  # and by time: everything older than history_s
+    assert len(store) == 0 and not store.ids()

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from common.schema import PinholeModel, Pose, SensorInfo
-from resource_manager.serve.ptz import PtzAllocator, PtzTarget
+from common.schema import PinholeModel, Pose, PtzRequest, SensorInfo
+from resource_manager.serve.ptz import PtzAllocator, PtzAsk, PtzParams, PtzTarget
 
 
 def _ptz(sid: str, x: float, y: float) -> SensorInfo:
@@ -48,3 +48,25 @@ def test_ptz_none_can_see() -> None:
     alloc.update_info(_ptz("z2", 50.0, 0.0))
     sid, why = alloc.acquire("a1", PtzTarget("m-1", 3.0, 4.0, 1.8), "m-1", 0, 1)
     assert sid == "" and "can see" in why
+
+
+def _ask(agent: str, priority: int, token: int) -> PtzAsk:
+    req = PtzRequest(agent_id=agent, seq=token, stamp_ns=1, action="acquire", track_id="m-1", priority=priority)
+    return PtzAsk(req, agent, 10 + token, token)
+
+
+def test_a_request_above_its_agents_cap_is_clipped_and_the_refusal_names_no_holder() -> None:
+    alloc = PtzAllocator(PtzParams(max_priority={"ops": 10}, default_max_priority=1))
+    alloc.update_info(_ptz("z1", 0.0, 0.0))
+    person = PtzTarget("m-1", 3.0, 4.0, 1.8)
+    first = alloc.answer(_ask("a1", 1, 1), person)
+    assert first.sensor_id == "z1" and first.reason == ""
+    # a2 asks 999 but its identity is capped at 1: equal to a1's hold, so no preemption, and it is told why.
+    second = alloc.answer(_ask("a2", 999, 2), person)
+    assert second.sensor_id == ""
+    assert "clipped to 1" in second.reason and "a1" not in second.reason and "999" in second.reason
+    # ops is capped at 10: it asks 50, gets 10, and that beats a1's 1.
+    third = alloc.answer(_ask("ops", 50, 3), person)
+    assert third.sensor_id == "z1" and "clipped to 10" in third.reason
+    assert alloc.assignments["z1"].priority == 10
+    assert alloc.ended[-1][0].agent_id == "a1"
