@@ -265,7 +265,7 @@ def update(
     blob assigned in a crowd). Each Gauss-Newton step then weighs each observation by the posterior probability
     that it is not an outlier, given its residual and its variance at the current estimate (first the prediction):
     an iteratively reweighted update, so one wrong view does not drag a person seen well by the others.
-    ``lines``: measurements along one direction each (taken as they are, not reweighed).
+    ``lines``: measurements along one direction each (reweighed the same way).
 
     One track's case of :func:`update_many`.
 
@@ -300,25 +300,26 @@ def update_many(
     rows = _Rows.of(batch)
     h, jac = rows.predicted(x[:, :2])
     resp = batch.valid.astype(np.float64)
+    # The lines are linear in the position: their innovations against the prediction do not change.
+    info_line = np.where(batch.lines_valid, 1.0 / batch.lines_var, 0.0)
+    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, x[:, :2])
+    resp_line = batch.lines_valid.astype(np.float64)
     if outlier is not None:  # first judged against the prediction, with its uncertainty
         resp = _responsibilities(h, jac, p, rows, outlier)
-    # The lines are linear in the position: their information and their pull on the step do not change.
-    w_line = np.where(batch.lines_valid, 1.0 / batch.lines_var, 0.0)
-    info_prior[:, :2, :2] += _outer_sum(w_line, batch.lines_dir)
-    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, x[:, :2])
-    grad_line = np.einsum("kl,kli->ki", w_line * nu_line, batch.lines_dir)
+        resp_line = _line_responsibilities(batch, x[:, :2], p, outlier)
     xi = x.copy()
     p_new = p
     active = np.ones(k, dtype=bool)
     for _ in range(IEKF_ITERATIONS):
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
         w = np.concatenate([resp, resp], axis=1) * rows.info
+        w_line = resp_line * info_line
         info = info_prior.copy()
-        info[:, :2, :2] += _outer_sum(w, jac)
+        info[:, :2, :2] += _outer_sum(w, jac) + _outer_sum(w_line, batch.lines_dir)
         p_step = np.linalg.inv(info)
         nu = rows.z - h - (jac @ (x - xi)[:, :2, None])[:, :, 0]
         nu[:, :nv] = _wrap(nu[:, :nv])
-        grad = grad_line + _weighted_sum(w * nu, jac)
+        grad = _weighted_sum(w_line * nu_line, batch.lines_dir) + _weighted_sum(w * nu, jac)
         step = x + (p_step[:, :, :2] @ grad[:, :, None])[:, :, 0]
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
@@ -328,6 +329,7 @@ def update_many(
             h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
             resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
+            resp_line = np.where(active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line)
         active &= moved >= 1e-4
         if last:
             break
@@ -337,6 +339,22 @@ def update_many(
 def _weighted_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
     """(k, 2) Σ_rows w J of each track's rows."""
     return np.einsum("kr,kri->ki", w, jac)
+
+
+def _line_responsibilities(
+    batch: ObservationBatch, xy: FloatArray, p: FloatArray, outlier: tuple[float, float]
+) -> FloatArray:
+    """(k, l) posterior probability of each line's core (not outlier) component at the estimate ``xy`` with its
+    covariance ``p``: a width ratio is as fallible as a bearing (a blob cut by someone in front, two people
+    merged into one), so a line the views contradict is weighed down like a view."""
+    eps, scale = outlier
+    d = batch.lines_dir
+    var = batch.lines_var + quadratic_form(d, p[:, None, :2, :2], d)
+    nu = batch.lines_value - np.einsum("kli,ki->kl", d, xy)
+    d2 = nu**2 / var
+    core = (1.0 - eps) * np.exp(-0.5 * d2)
+    wide = eps / scale * np.exp(-0.5 * d2 / scale**2)
+    return np.asarray(np.where(batch.lines_valid, core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
 
 
 def _responsibilities(

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from resource_manager.track.motion import MotionModel, Observation, predict, update
+from resource_manager.track.motion import LineObservation, MotionModel, Observation, predict, update
 
 
 def test_an_unseen_walker_is_predicted_to_stop_and_spread_like_a_random_walk() -> None:
@@ -52,3 +52,19 @@ def test_one_wrong_view_is_down_weighted_by_the_others() -> None:
     assert float(np.hypot(robust[0] - 3.0, robust[1] - 4.0)) < 0.02
     assert float(np.hypot(plain[0] - 3.0, plain[1] - 4.0)) > 0.1
     assert w[3] < 0.1 and np.all(w[:3] > 0.9)
+
+
+def test_a_wrong_size_ratio_line_is_down_weighted_by_the_views() -> None:
+    """Two views agree on the person; a size-ratio fix along their baseline says 1 m further (one blob's width
+    cut by someone in front): with the outlier component the views keep the estimate; without, the line drags it."""
+    person = (3.0, 4.0)
+    good = [_bearing(o, person, 1e-4) for o in ((0.0, 0.0), (8.0, 0.0))]  # about 0.6°
+    wrong = LineObservation(direction=(0.0, 1.0), value=5.0, var=0.01)
+    x, p = np.array([3.1, 4.1, 0.0, 0.0]), np.diag([0.25, 0.25, 0.5, 0.5])
+    robust, _, _ = update(x, p, good, (0.05, 4.0), lines=[wrong])
+    plain, _, _ = update(x, p, good, lines=[wrong])
+    assert float(np.hypot(robust[0] - 3.0, robust[1] - 4.0)) < 0.05
+    assert float(np.hypot(plain[0] - 3.0, plain[1] - 4.0)) > 0.1
+    agree = LineObservation(direction=(0.0, 1.0), value=4.0, var=0.01)
+    kept, pk, _ = update(x, p, good[:1], (0.05, 4.0), lines=[agree])
+    assert float(np.hypot(kept[0] - 3.0, kept[1] - 4.0)) < 0.05 and pk[1, 1] < 0.02  # a line that agrees counts
