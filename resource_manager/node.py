@@ -51,7 +51,7 @@ from resource_manager.ingest.gate import SenderGate, sender_in_key
 from resource_manager.ingest.infos import InfoGate
 from resource_manager.poses.agreement import Agreement
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
-from resource_manager.serve.ptz import PtzAnswer, PtzAsk
+from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk
 from resource_manager.serve.status import InboxCounts, manager_status
 
 __all__ = ["ManagerNode", "run"]
@@ -102,7 +102,6 @@ class ManagerNode:
         self.live_ids: set[str] = set()
         self.presence: deque[tuple[str, bool]] = deque()
         self.agent_presence: deque[tuple[str, bool]] = deque()
-        self.alive_sensors: set[str] = set()
         self.fetched_infos: deque[tuple[str, SensorInfo]] = deque()
         self.fetch_queue: queue.Queue[str | None] = queue.Queue()
         self.ptz_asks: deque[PtzAsk] = deque()
@@ -323,10 +322,7 @@ class ManagerNode:
             sid, alive = self.presence.popleft()
             presence[sid] = alive
             if alive:
-                self.alive_sensors.add(sid)
                 self.info_gate.came_back(sid)
-            else:
-                self.alive_sensors.discard(sid)
         agents: dict[str, bool] = {}
         while self.agent_presence:
             aid, alive = self.agent_presence.popleft()
@@ -354,8 +350,6 @@ class ManagerNode:
                 read = self.info_gate.offer_read(info, now)
                 if read is not None:
                     infos.append(read)
-        for sid in self.info_gate.due(now, self.alive_sensors):
-            self.fetch_queue.put(sid)
         states = []
         for key, data in self.ptz_states.drain_raw():
             st = self.ptz_states.decode(key, data)
@@ -378,16 +372,19 @@ class ManagerNode:
         """File what arrived; fuse the instant the sensors' watermark allows, if any (None: nothing new yet)."""
         batch = self._batch()
         with self.lock:
-            self.fusion.absorb(batch)
+            absorbed = self.fusion.absorb(batch)
+            alive = self.fusion.sensors.alive()
             t_ns = self.fusion.next_instant(self.clock.now_ns())
-            answers, self.fusion.ptz_answers = self.fusion.ptz_answers, []
-        self._answer_ptz(answers)  # PTZ requests are answered as they come, fused instant or not
+        for sid in self.info_gate.due(batch.received_ns, alive):
+            self.fetch_queue.put(sid)
+        self._answer_ptz(absorbed.ptz_answers)  # PTZ requests are answered as they come, fused instant or not
+        self._log_ended(absorbed.ptz_ended)
         if t_ns is None:
             return None
         waited = self.fusion.schedule.last
         t0 = time.perf_counter()
         with self.lock:
-            result = self.fusion.step(Batch(), t_ns)
+            result = self.fusion.step(t_ns)
             fused_s = time.perf_counter() - t0
             self.tick_ms.append(fused_s * 1e3)
             published_set = result.trackset
@@ -397,8 +394,7 @@ class ManagerNode:
             self.store.prune(t_ns)
             if not result.skipped:
                 # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
-                live = published_set.tracks if published_set is not None and self.fusion.lagged is None else None
-                self.agreement.update(t_ns, self.fusion.last_views, live or self.fusion.live_tracks())
+                self.agreement.update(t_ns, result.views, result.live_tracks)
         for sid, n in self.fusion.poses.take_refused().items():
             self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1
@@ -430,7 +426,13 @@ class ManagerNode:
             self.session.put(self.keys.plan(plan.sensor_id), encode(plan), encoding=MSGPACK)
         for cmd in result.ptz_commands:
             self.session.put(self.keys.sensor_ptz(cmd.sensor_id), encode(cmd), encoding=MSGPACK)
-        for a, why in self.fusion.ptz.ended:
+        self._log_ended(result.ptz_ended)
+        for tid in result.ended:
+            logger.info("track %s ended", tid)
+        return result
+
+    def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:
+        for a, why in ended:
             self.sender_log.log(
                 logging.INFO,
                 a.agent_id,
@@ -440,10 +442,6 @@ class ManagerNode:
                 a.agent_id,
                 why,
             )
-        self.fusion.ptz.ended.clear()
-        for tid in result.ended:
-            logger.info("track %s ended", tid)
-        return result
 
     def status(self, result: TickResult | None, period_s: float) -> None:
         inboxes = (self.features, self.infos, self.ptz_states)
@@ -466,6 +464,7 @@ class ManagerNode:
             gate=self.gate,
             refused_partial=self.census is not None and self.census.partial,
             schedule=self.fusion.schedule,
+            frames_received=self.fusion.sensors.received,
             latencies=self.latencies,
         )
         with self.lock:

@@ -57,7 +57,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -173,7 +173,8 @@ class PoseSolver:
 
     params: MutualParams = field(default_factory=MutualParams)
     overrides: dict[str, PoseEstimate] = field(default_factory=dict)
-    infos: dict[str, SensorInfo] = field(default_factory=dict)
+    infos: Mapping[str, SensorInfo] = field(default_factory=dict)
+    """Every sensor's SensorInfo, read from the manager's sensor registry (:mod:`resource_manager.sensors`)."""
     filters: dict[str, _Filter] = field(default_factory=dict)
     refused: dict[str, int] = field(default_factory=dict)
     """Sender id -> its sightings refused since :meth:`take_refused` (one count per sender, target and instant)."""
@@ -190,18 +191,8 @@ class PoseSolver:
             if sid in self.refused or len(self.refused) < 4 * max(16, len(self.infos)):
                 self.refused[sid] = self.refused.get(sid, 0) + 1
 
-    def update_info(self, info: SensorInfo) -> bool:
-        """Take a SensorInfo; return True if it changed anything.
-
-        Whichever arrives last wins: the manager's shell passes only what the sensor's own queryable
-        confirmed (resource_manager/ingest/infos.py). Its stamp is not compared: a forged one from 2262
-        would otherwise shadow every real SensorInfo after it.
-        """
-        old = self.infos.get(info.sensor_id)
-        self.infos[info.sensor_id] = info
-        return old != info
-
     def forget(self, sensor_id: str) -> None:
+        """The sensor left: its calibrated pose goes."""
         self.filters.pop(sensor_id, None)
 
     def bearing_sigma(self, sensor_id: str) -> float:

@@ -120,30 +120,41 @@ class _Cam:
 @dataclass(slots=True)
 class PtzAllocator:
     params: PtzParams = field(default_factory=PtzParams)
-    cameras: dict[str, _Cam] = field(default_factory=dict)
+    infos: Mapping[str, SensorInfo] = field(default_factory=dict)
+    """Every sensor's SensorInfo, read from the manager's sensor registry (:mod:`resource_manager.sensors`)."""
+    present: Mapping[str, bool] = field(default_factory=dict)
+    """...and its liveliness (sensor id -> alive; a sensor never mentioned counts as present)."""
     assignments: dict[str, Assignment] = field(default_factory=dict)
     """PTZ sensor id -> who holds it."""
     ended: list[tuple[Assignment, str]] = field(default_factory=list)
-    """Assignments ended since the last tick, with the reason (for logs)."""
+    """Assignments ended since :meth:`take_ended`, with the reason (for logs)."""
 
-    def update_info(self, info: SensorInfo) -> None:
-        if info.kind != "ptz":
-            return
-        if info.pose is None:
-            self.cameras.pop(info.sensor_id, None)
-            return
-        p = info.pose
-        self.cameras[info.sensor_id] = _Cam(info.sensor_id, p.x_m, p.y_m, p.z_m)
+    def _camera(self, sensor_id: str) -> _Cam | None:
+        """The PTZ camera ``sensor_id`` if it is present and its pose known."""
+        info = self.infos.get(sensor_id)
+        if info is None or info.kind != "ptz" or info.pose is None or not self.present.get(sensor_id, True):
+            return None
+        return _Cam(sensor_id, info.pose.x_m, info.pose.y_m, info.pose.z_m)
+
+    @property
+    def cameras(self) -> dict[str, _Cam]:
+        """The PTZ cameras present with a known pose."""
+        return {sid: cam for sid in self.infos if (cam := self._camera(sid)) is not None}
+
+    def take_ended(self) -> list[tuple[Assignment, str]]:
+        """The holds ended since the last call, with the reason."""
+        out, self.ended = self.ended, []
+        return out
 
     def forget(self, sensor_id: str) -> None:
-        self.cameras.pop(sensor_id, None)
+        """The camera left: its hold ends."""
         a = self.assignments.pop(sensor_id, None)
         if a is not None:
             self.ended.append((a, "camera left"))
 
     def aim(self, sensor_id: str, target: PtzTarget) -> PtzAim | None:
         """Pan/tilt/zoom that centre the person, or None if out of reach."""
-        cam = self.cameras.get(sensor_id)
+        cam = self._camera(sensor_id)
         if cam is None:
             return None
         dx, dy = target.x_m - cam.x_m, target.y_m - cam.y_m
@@ -204,14 +215,15 @@ class PtzAllocator:
             if a.agent_id == agent_id and a.track_id == track_id:
                 self.assignments[sid] = Assignment(sid, agent_id, track_id, priority, a.since_ns, expires)
                 return sid, ""
-        if not self.cameras:
+        cameras = self.cameras
+        if not cameras:
             return "", "no PTZ camera with a known pose is online"
-        able = [sid for sid in self.cameras if self.aim(sid, target) is not None]
+        able = [sid for sid in cameras if self.aim(sid, target) is not None]
         if not able:
             return "", f"no PTZ camera can see track {track_id!r} (out of range or tilt limits)"
 
         def dist(sid: str) -> float:
-            c = self.cameras[sid]
+            c = cameras[sid]
             return math.hypot(c.x_m - target.x_m, c.y_m - target.y_m)
 
         free = sorted((s for s in able if s not in self.assignments), key=dist)
