@@ -40,7 +40,7 @@ from common.schema import (
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
-from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
+from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve import messages
 from resource_manager.serve.lag import LaggedTracks
@@ -306,9 +306,13 @@ class Fusion:
             return []
         return [messages.lagged_set(self.manager_id, i) for i in self.lagged.flush()]
 
+    def _head_height(self, tr: TrackSnapshot) -> float:
+        """A track's head-top height, or the prior's while none is known."""
+        return tr.height_m if tr.height_m > 0 else self.config.tracker.height_prior_m
+
     def ptz_targets(self) -> dict[str, PtzTarget]:
         return {
-            tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), tr.height_m)
+            tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), self._head_height(tr))
             for tr in self.tracker.snapshots()
             if tr.track_id
         }
@@ -330,7 +334,7 @@ class Fusion:
                 tr.xy.copy(),
                 tr.predicted_error_m,
                 tr.sensors,
-                tr.height_m if tr.height_m > 0 else HEAD_HEIGHT_M,
+                self._head_height(tr),
             )
             for tr in self.tracker.snapshots()
             if tr.track_id and tr.state == "confirmed"

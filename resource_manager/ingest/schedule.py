@@ -43,7 +43,7 @@ WARMUP_FRAMES = 8
 """Until this many frames have measured it, a sensor is waited for the longest (``max_wait``)."""
 SMOOTHING = 0.05
 """Weight of each new frame in a sensor's running period, delay and jitter figures (a memory of ~20 frames)."""
-GAP_PERIODS = 1.5
+DROP_PERIODS = 1.5
 """Stamps further apart than this many periods are dropped frames between, not the period."""
 
 
@@ -125,7 +125,7 @@ class FrameTiming:
             elif p <= 0:
                 self.period_ns = step
                 self.lateness.append(delay)
-            elif step <= GAP_PERIODS * p:  # the next frame, not one after a drop
+            elif step <= DROP_PERIODS * p:  # the next frame, not one after a drop
                 if self.period_ns <= 0:
                     self.period_ns = p
                 self.lateness.append(float(min(arrival_ns - (self.newest_ns + p), bound)))

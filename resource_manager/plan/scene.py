@@ -14,7 +14,6 @@ import numpy.typing as npt
 from common.schema import PanoramicModel, SensorInfo
 
 __all__ = [
-    "HEAD_HEIGHT_M",
     "PAL_ELEV_MAX_RAD",
     "PAL_ELEV_MIN_RAD",
     "PlanCamera",
@@ -94,10 +93,6 @@ class PlanGoal:
     current_error_m: float
 
 
-HEAD_HEIGHT_M = 1.8
-"""Head top assumed for a track whose height is not measured yet."""
-
-
 @dataclass(frozen=True, slots=True)
 class PlanTarget:
     """What the planner needs of a track."""
@@ -106,7 +101,7 @@ class PlanTarget:
     xy: FloatArray
     predicted_error_m: float
     sensors: tuple[str, ...]
-    height_m: float = HEAD_HEIGHT_M
+    height_m: float
     """Top of the head above the floor."""
 
 

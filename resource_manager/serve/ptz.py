@@ -161,7 +161,7 @@ class PtzAllocator:
         dist = math.hypot(dx, dy)
         if dist > self.params.max_range_m or dist < 1e-3:
             return None
-        aim_z = (target.height_m if target.height_m > 0 else 1.7) * self.params.aim_height_frac
+        aim_z = target.height_m * self.params.aim_height_frac
         tilt = math.atan2(aim_z - cam.z_m, dist)
         if not self.params.min_tilt_rad <= tilt <= self.params.max_tilt_rad:
             return None

@@ -21,6 +21,7 @@ import numpy.typing as npt
 from common.schema import PinholeModel, SensorInfo
 from resource_manager.ingest.align import AlignedBlob, AlignedView
 from resource_manager.poses.solver import PoseEstimate
+from resource_manager.track.model import HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M
 from resource_manager.views.blobs import ImageBounds, ViewBlobs
 from resource_manager.views.mono import mono_ranges
 
@@ -55,7 +56,7 @@ class FeetModel:
     """Added to every floor-distance sigma: the feet are not exactly below the point tracked."""
     max_range_m: float
     """Farther than this a floor distance is not used."""
-    height_m: tuple[float, float] = (1.7, 0.15)
+    height_m: tuple[float, float] = (HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M)
     """People's head-top heights (mean, spread): a box whose distance from its bottom and whose top put the head
     at no person's height does not show the feet (someone nearer, or the picture's edge, cut it above them)."""
 
