@@ -58,6 +58,9 @@ __all__ = [
 MAX_PUBLISH_LAG_S = 60.0
 """The longest ``[manager] publish_lag_s``: tracks held longer are no longer a live system's."""
 
+ROOM_FIELDS = ("x_min", "y_min", "x_max", "y_max")
+"""What ``[planner] room`` lists, in order."""
+
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
 Frac = Annotated[float, msgspec.Meta(ge=0.0, le=1.0)]
@@ -321,7 +324,7 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     except ConfigError as err:
         raise ConfigError(f"{source}: {err}") from err
     room = cfg.planner.room
-    if room and (len(room) != 4 or room[0] >= room[2] or room[1] >= room[3]):
+    if room and (len(room) != len(ROOM_FIELDS) or room[0] >= room[2] or room[1] >= room[3]):
         raise ConfigError(f"{source}: planner.room must be [x_min, y_min, x_max, y_max], got {cfg.planner.room!r}")
     if "*" in cfg.manager.sensors and len(cfg.manager.sensors) > 1:
         raise ConfigError(

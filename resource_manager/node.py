@@ -70,6 +70,9 @@ BUDGET_FPS = 30.0
 MAX_PENDING_PTZ = 256
 """PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
 
+MAX_HISTORY_QUERY_S = 1e7
+"""The longest ``?history=SECONDS`` a track query may ask for (~116 days: anything longer is a typo)."""
+
 
 class ManagerNode:
     """Everything one manager process holds; ``loop()`` runs until ``shutdown``."""
@@ -221,7 +224,7 @@ class ManagerNode:
             if hist is not None:
                 try:
                     seconds = float(hist)
-                    if not 0 <= seconds <= 1e7:
+                    if not 0 <= seconds <= MAX_HISTORY_QUERY_S:
                         raise ValueError(hist)
                 except ValueError:
                     self.query_errors += 1

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 from common.angles import wrap_angle
 from common.area import Area
-from resource_manager.config import ManagerConfig
+from resource_manager.config import ROOM_FIELDS, ManagerConfig
 from resource_manager.ingest.align import AlignParams
 from resource_manager.ingest.schedule import ScheduleParams, Scheduler
 from resource_manager.plan.planner import PlannerParams, ViewPlanner
@@ -138,7 +138,7 @@ def area(config: ManagerConfig) -> Area | None:
 def view_planner(config: ManagerConfig) -> ViewPlanner:
     pl = config.planner
     site_area = area(config)
-    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == 4 else None
+    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == len(ROOM_FIELDS) else None
     if room is None and site_area is not None:
         room = site_area.bounds
     return ViewPlanner(

@@ -46,6 +46,9 @@ SMOOTHING = 0.05
 DROP_PERIODS = 1.5
 """Stamps further apart than this many periods are dropped frames between, not the period."""
 
+PERIOD_FRAMES = 2
+"""A measured period needs two frames; until then the declared one (SensorInfo fps) stands."""
+
 
 @dataclass(frozen=True, slots=True)
 class ScheduleParams:
@@ -91,7 +94,7 @@ class FrameTiming:
     """Before its first frame: when it first held an instant back (0: not yet)."""
 
     def period(self) -> float:
-        return self.period_ns if self.frames >= 2 and self.period_ns > 0 else float(self.declared_period_ns)
+        return self.period_ns if self.frames >= PERIOD_FRAMES and self.period_ns > 0 else float(self.declared_period_ns)
 
     def allowance_ns(self, max_wait_ns: int) -> int:
         """How long past its expected next frame (newest + period) it is waited for: a margin over the latest its

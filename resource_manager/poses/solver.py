@@ -72,6 +72,14 @@ from resource_manager.poses.witness import Estimate, Reference, blame, combine, 
 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
 
+TRUSTED_POSES = 3
+"""A calibrated pose is trusted (a reference for the witnesses, refusing raw poses far off it, fixable as the mean
+of those taken since the camera stopped) once this many raw poses made it: fewer, and one bad start would stick."""
+SAME_POINT_M = 1e-6
+"""Two positions closer than this (m) are one point: no direction between them."""
+RESECTION_TARGETS = 2
+"""A camera placed from its own sightings alone needs two sighted cameras of known pose (a resection)."""
+
 logger = logging.getLogger(__name__)
 
 FloatArray = npt.NDArray[np.float64]
@@ -309,7 +317,7 @@ class PoseSolver:
     def _reference(self, t: str) -> Reference | None:
         """Where ``t`` was held before this instant (its filter), if anywhere."""
         f = self.filters.get(t)
-        return None if f is None or f.n < 3 else Reference(f.x, f.y, f.sigma_xy)
+        return None if f is None or f.n < TRUSTED_POSES else Reference(f.x, f.y, f.sigma_xy)
 
     def _yaw_from_own(
         self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
@@ -321,7 +329,7 @@ class PoseSolver:
                 continue
             kx, ky, ksxy = positions[k]
             dist = math.hypot(kx - tx, ky - ty)
-            if dist < 1e-6:
+            if dist < SAME_POINT_M:
                 continue
             yaw = math.atan2(ky - ty, kx - tx) - ob.bearing_rad
             s = math.hypot(self.bearing_sigma(t), math.hypot(tsxy, ksxy) / dist)
@@ -337,7 +345,7 @@ class PoseSolver:
         self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
     ) -> RawPose | None:
         seen = [(k, ob) for (o, k), ob in obs.items() if o == t and k in positions and k != t]
-        if len(seen) < 2:
+        if len(seen) < RESECTION_TARGETS:
             return None
         (k1, o1), (k2, o2) = sorted(seen, key=lambda kv: kv[1].sigma_b_m)[:2]
         p1, p2 = positions[k1], positions[k2]
@@ -345,7 +353,7 @@ class PoseSolver:
             o2.baseline_m * math.cos(o2.bearing_rad) - o1.baseline_m * math.cos(o1.bearing_rad),
             o2.baseline_m * math.sin(o2.bearing_rad) - o1.baseline_m * math.sin(o1.bearing_rad),
         )
-        if math.hypot(*v_sensor) < 1e-6:
+        if math.hypot(*v_sensor) < SAME_POINT_M:
             return None
         yaw = float(wrap_angle(math.atan2(p2[1] - p1[1], p2[0] - p1[0]) - math.atan2(v_sensor[1], v_sensor[0])))
         xs = [p[0] - ob.baseline_m * math.cos(yaw + ob.bearing_rad) for p, ob in ((p1, o1), (p2, o2))]
@@ -454,7 +462,12 @@ class PoseSolver:
 
     def _settle(self, f: _Filter, t_ns: int) -> None:
         """Fix the pose of a camera still for ``settle_s``: the mean of its raw poses since it stopped."""
-        if f.fixed or f.still_ns == 0 or t_ns - f.still_ns < int(self.params.settle_s * 1e9) or len(f.settle) < 3:
+        if (
+            f.fixed
+            or f.still_ns == 0
+            or t_ns - f.still_ns < int(self.params.settle_s * 1e9)
+            or len(f.settle) < TRUSTED_POSES
+        ):
             return
         f.x = sum(p.x_m for p in f.settle) / len(f.settle)
         f.y = sum(p.y_m for p in f.settle) / len(f.settle)
@@ -491,7 +504,7 @@ class PoseSolver:
         # How far the camera may have gone since its last taken pose: only while its node reported motion.
         reach = self.params.max_speed_mps * dt if f.moved_ns else 0.0
         if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m + reach:
-            if f.n >= 3:
+            if f.n >= TRUSTED_POSES:
                 self._refuse(sid, f, rp, t_ns)
                 return False
             # A young filter follows: it may have started from a bad pose.
@@ -504,7 +517,7 @@ class PoseSolver:
         px, py, pyaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
         rx, ry, ryaw = rp.x_m - px, rp.y_m - py, float(wrap_angle(rp.yaw_rad - pyaw))
         k = self.params.outlier_sigmas
-        if k > 0 and f.n >= 3:
+        if k > 0 and f.n >= TRUSTED_POSES:
             # A raw pose far off the smoothed one (a person in front of the other robot's body shifts its
             # boundaries) is refused; when such poses persist, the robot really moved: start again there.
             tol_xy = k * math.hypot(rp.sigma_xy_m, f.sigma_xy) + 0.05

@@ -33,6 +33,9 @@ from common.schema import PtzRequest, SensorInfo
 
 __all__ = ["Assignment", "PtzAim", "PtzAllocator", "PtzAnswer", "PtzAsk", "PtzParams", "PtzTarget"]
 
+MIN_AIM_DISTANCE_M = 1e-3
+"""A person this close to a PTZ camera's axis foot (m) gives it no pan to aim at."""
+
 
 @dataclass(frozen=True, slots=True)
 class PtzParams:
@@ -159,7 +162,7 @@ class PtzAllocator:
             return None
         dx, dy = target.x_m - cam.x_m, target.y_m - cam.y_m
         dist = math.hypot(dx, dy)
-        if dist > self.params.max_range_m or dist < 1e-3:
+        if dist > self.params.max_range_m or dist < MIN_AIM_DISTANCE_M:
             return None
         aim_z = target.height_m * self.params.aim_height_frac
         tilt = math.atan2(aim_z - cam.z_m, dist)

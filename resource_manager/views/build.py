@@ -45,6 +45,10 @@ BODY_TOP_MARGIN_M = 0.2
 FEET_CUT_PX = 2.0
 """A box whose bottom is this close to the image's lower border does not show the feet."""
 
+DOWNWARD_AXIS_Z = 0.9
+"""A perspective camera whose optical axis has a vertical component above this (cos 26 deg) looks nearly
+straight down: it sees every azimuth around its foot."""
+
 
 @dataclass(frozen=True, slots=True)
 class FeetModel:
@@ -244,7 +248,7 @@ def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, f
     """
     r, k = model.r, model.k
     axis_x, axis_y, axis_z = r[6], r[7], r[8]  # the camera z axis in the world: third row of R
-    if abs(axis_z) > 0.9 or k[0] <= 0:
+    if abs(axis_z) > DOWNWARD_AXIS_Z or k[0] <= 0:
         return None
     half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
     return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
