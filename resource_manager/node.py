@@ -67,6 +67,10 @@ FRAMES_PER_SENSOR = 16
 pushes out (and counts) only that sensor's frames."""
 BUDGET_FPS = 30.0
 """The frame rate ``[manager] sensor_bytes_per_s`` is sized for: a frame larger than the budget's 1/30 is large."""
+INFOS_PER_SENSOR = 4
+"""SensorInfo messages waiting per sensor between ticks (each only a reason to read it again)."""
+PTZ_STATES_PER_SENSOR = 8
+"""PTZ states waiting per sensor between ticks."""
 MAX_PENDING_PTZ = 256
 """PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
 
@@ -92,13 +96,7 @@ class ManagerNode:
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)
-        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz, cfg.manager.history_max_mb)
-        now = clock.now_ns()
-        reloaded = read_segments(state / "tracks", now - int(cfg.manager.history_s * 1e9))
-        for tr in reloaded:
-            self.store.add(tr)
-        if reloaded:
-            logger.info("reloaded %d track states of %d tracks from %s", len(reloaded), len(self.store.ids()), state)
+        self.store = self._reload(state)
         self.log = TrackLog(state / "tracks", cfg.manager.segment_s, cfg.manager.retain_s)
         self.fusion = Fusion(cfg, new_id=self.ids)
         self.lock = threading.Lock()
@@ -122,9 +120,51 @@ class ManagerNode:
         """Set by each arriving Features message (and PTZ request): the tick thread looks at once."""
         self.latencies: deque[Latency] = deque(maxlen=4096)
         """Capture -> publish split of each TrackSet published since the last status."""
+        self.features, self.infos, self.ptz_states = self._inboxes(session, listed)
+        if not self.gate.any_sensor:
+            self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
+        self._declare(session)
+        self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
+        self.fetcher.start()
+        self.tick_ms: list[float] = []
+        self.status_seq = 0
+        self.agreement = Agreement()
+        self.ticks = 0
+        # Last: the token says the manager is ready (its queryables answer).
+        self.token = session.liveliness().declare_token(k.manager(self.mid))
+
+    def _declare(self, session: Any) -> None:
+        """The manager's publishers, liveliness subscribers and queryables."""
+        k = self.keys
+        self.pub_tracks = TypedPublisher(session, k.tracks(), reliable_block=True)
+        self.pub_pairs = TypedPublisher(session, k.manager_pairs(self.mid))
+        self.pub_status = TypedPublisher(session, k.manager_status(self.mid), reliable_block=True)
+        self.live_sub = session.liveliness().declare_subscriber(k.all_sensors, self._on_liveliness, history=True)
+        self.agent_sub = session.liveliness().declare_subscriber(k.all_agents, self._on_agent_liveliness)
+        self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
+        self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
+        self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
+
+    def _reload(self, state: Path) -> TrackStore:
+        """The in-memory track history, reloaded from the log on disk."""
+        m = self.cfg.manager
+        store = TrackStore(m.history_s, m.history_hz, m.history_max_mb)
+        reloaded = read_segments(state / "tracks", self.clock.now_ns() - int(m.history_s * 1e9))
+        for tr in reloaded:
+            store.add(tr)
+        if reloaded:
+            logger.info("reloaded %d track states of %d tracks from %s", len(reloaded), len(store.ids()), state)
+        return store
+
+    def _inboxes(
+        self, session: Any, listed: list[str]
+    ) -> tuple[KeyedInbox[Features], KeyedInbox[SensorInfo], KeyedInbox[PtzState]]:
+        """The bounded inboxes of the sensors' Features, SensorInfo and PTZ state: per listed sensor, or (any
+        sensor) on their wildcards."""
+        k = self.keys
         # Each sensor's Features: a byte budget (its largest frames dropped before copy and decode when over it), and
         # never more than one second of it waiting.
-        rate = cfg.manager.sensor_bytes_per_s
+        rate = self.cfg.manager.sensor_bytes_per_s
         budget: dict[str, Any] = {
             "rate_bytes_per_s": rate,
             "max_key_bytes": max(int(rate), MAX_PAYLOAD_BYTES),
@@ -134,46 +174,34 @@ class ManagerNode:
         }
         if self.gate.any_sensor:
             logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
-            self.features = KeyedInbox(
-                session,
-                [k.all_features],
-                Features,
-                capacity=FRAMES_PER_SENSOR,
-                max_keys=4 * MAX_SENSORS,
-                notify=self.wake.set,
-                **budget,
+            return (
+                KeyedInbox(
+                    session,
+                    [k.all_features],
+                    Features,
+                    capacity=FRAMES_PER_SENSOR,
+                    max_keys=4 * MAX_SENSORS,
+                    notify=self.wake.set,
+                    **budget,
+                ),
+                KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=INFOS_PER_SENSOR, advanced=True),
+                KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=PTZ_STATES_PER_SENSOR),
             )
-            self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
-            self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
-        else:
-            logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
-            self.features = KeyedInbox(
+        logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
+        return (
+            KeyedInbox(
                 session,
                 [k.sensor_features(s) for s in listed],
                 Features,
                 capacity=FRAMES_PER_SENSOR,
                 notify=self.wake.set,
                 **budget,
-            )
-            self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
-            self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
-            self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
-        self.pub_tracks = TypedPublisher(session, k.tracks(), reliable_block=True)
-        self.pub_pairs = TypedPublisher(session, k.manager_pairs(self.mid))
-        self.pub_status = TypedPublisher(session, k.manager_status(self.mid), reliable_block=True)
-        self.live_sub = session.liveliness().declare_subscriber(k.all_sensors, self._on_liveliness, history=True)
-        self.agent_sub = session.liveliness().declare_subscriber(k.all_agents, self._on_agent_liveliness)
-        self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
-        self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
-        self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
-        self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
-        self.fetcher.start()
-        self.tick_ms: list[float] = []
-        self.status_seq = 0
-        self.agreement = Agreement()
-        self.ticks = 0
-        # Last: the token says the manager is ready (its queryables answer).
-        self.token = session.liveliness().declare_token(k.manager(self.mid))
+            ),
+            KeyedInbox(
+                session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=INFOS_PER_SENSOR, advanced=True
+            ),
+            KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=PTZ_STATES_PER_SENSOR),
+        )
 
     # -- zenoh callbacks (enqueue only, or answer from locked state) -----------
     def _on_liveliness(self, sample: Any) -> None:
@@ -340,19 +368,6 @@ class ManagerNode:
             f = self.features.decode(key, data)
             if f is not None and self.gate.features(sid, f, now):
                 features.append(f)
-        infos = []
-        for key, data in self.infos.drain_raw():
-            info = self.infos.decode(key, data)
-            if info is not None and self.gate.same_sender(sender_in_key(key, head), info):
-                taken = self.info_gate.offer_put(info)
-                if taken is not None:
-                    infos.append(taken)
-        while self.fetched_infos:
-            sid, info = self.fetched_infos.popleft()
-            if self.gate.same_sender(sid, info):
-                read = self.info_gate.offer_read(info, now)
-                if read is not None:
-                    infos.append(read)
         states = []
         for key, data in self.ptz_states.drain_raw():
             st = self.ptz_states.decode(key, data)
@@ -363,13 +378,31 @@ class ManagerNode:
             self.ptz_asks.clear()
         return Batch(
             features=features,
-            infos=infos,
+            infos=self._infos(now),
             ptz_states=states,
             presence=presence,
             ptz_requests=asks,
             agents=agents,
             received_ns=now,
         )
+
+    def _infos(self, now: int) -> list[SensorInfo]:
+        """The SensorInfo to take: those put that the gate lets through, and those read from the sensors' own
+        queryables (resource_manager/ingest/infos.py)."""
+        infos = []
+        for key, data in self.infos.drain_raw():
+            info = self.infos.decode(key, data)
+            if info is not None and self.gate.same_sender(sender_in_key(key, self.sensor_head), info):
+                taken = self.info_gate.offer_put(info)
+                if taken is not None:
+                    infos.append(taken)
+        while self.fetched_infos:
+            sid, info = self.fetched_infos.popleft()
+            if self.gate.same_sender(sid, info):
+                read = self.info_gate.offer_read(info, now)
+                if read is not None:
+                    infos.append(read)
+        return infos
 
     def tick(self) -> TickResult | None:
         """File what arrived; fuse the instant the sensors' watermark allows, if any (None: nothing new yet)."""

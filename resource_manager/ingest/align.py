@@ -171,6 +171,27 @@ def align_sensor(
     return _align(buf, sensor_id, t_ns, params, sightings)
 
 
+def _past(
+    buf: SensorBuffer, before: Features, sensor_id: str, t_ns: int, params: AlignParams, *, want_s: bool
+) -> AlignedView | None:
+    """The blobs at ``t_ns`` from the frames up to ``before``, the nearest frame (none after it is nearer)."""
+    half = params.max_extrapolation_ns
+    if t_ns - before.stamp_ns > half:
+        return None
+    prev = buf.previous(before)
+    if prev is not None and before.stamp_ns - prev.stamp_ns <= params.max_gap_ns:
+        # Short constant-rate extrapolation past the newest frame, blob by blob.
+        blobs, sightings = _pair(prev, before, t_ns, half, want_s)
+        return AlignedView(sensor_id, t_ns, blobs, sightings, "extrapolated")
+    return AlignedView(
+        sensor_id,
+        t_ns,
+        [_blob_at(b, before.stamp_ns, None, 0, t_ns) for b in before.blobs],
+        [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id and want_s],
+        "held",
+    )
+
+
 def _align(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, want_s: bool) -> AlignedView | None:
     newest = buf.newest_stamp()
     if newest is None or t_ns - newest > params.stale_ns:
@@ -181,20 +202,7 @@ def _align(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, wa
         blobs, sightings = _pair(before, after, t_ns, max(half, (after.stamp_ns - before.stamp_ns)), want_s)
         return AlignedView(sensor_id, t_ns, blobs, sightings, "interpolated")
     if before is not None and (after is None or t_ns - before.stamp_ns <= after.stamp_ns - t_ns):
-        if t_ns - before.stamp_ns > half:
-            return None
-        prev = buf.previous(before)
-        if prev is not None and before.stamp_ns - prev.stamp_ns <= params.max_gap_ns:
-            # Short constant-rate extrapolation past the newest frame, blob by blob.
-            blobs, sightings = _pair(prev, before, t_ns, half, want_s)
-            return AlignedView(sensor_id, t_ns, blobs, sightings, "extrapolated")
-        return AlignedView(
-            sensor_id,
-            t_ns,
-            [_blob_at(b, before.stamp_ns, None, 0, t_ns) for b in before.blobs],
-            [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id and want_s],
-            "held",
-        )
+        return _past(buf, before, sensor_id, t_ns, params, want_s=want_s)
     if after is not None and after.stamp_ns - t_ns <= half:
         return AlignedView(
             sensor_id,

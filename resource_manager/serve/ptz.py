@@ -218,6 +218,14 @@ class PtzAllocator:
             if a.agent_id == agent_id and a.track_id == track_id:
                 self.assignments[sid] = Assignment(sid, agent_id, track_id, priority, a.since_ns, expires)
                 return sid, ""
+        return self._assign(agent_id, target, track_id, priority, (t_ns, expires))
+
+    def _assign(
+        self, agent_id: str, target: PtzTarget, track_id: str, priority: int, span_ns: tuple[int, int]
+    ) -> tuple[str, str]:
+        """A camera for an agent that holds none for the track: the nearest free one that can see the person, or
+        the weakest held one if the agent's priority is higher."""
+        t_ns, expires = span_ns
         cameras = self.cameras
         if not cameras:
             return "", "no PTZ camera with a known pose is online"
