@@ -228,8 +228,7 @@ class _Gains:
         misses = np.zeros(len(cands))
         for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
             misses += row
-        sub = [subset_view(views[sids[i]], free[sids[i]]) for i in with_free]
-        unexplained = every.subset(sub, with_free, [free[sids[i]] for i in with_free])
+        unexplained = every.subset(with_free, [free[sids[i]] for i in with_free])
         scores = score_views(
             unexplained,
             cands,

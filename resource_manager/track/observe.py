@@ -272,7 +272,9 @@ def score_views(
     n, m = table.n, stack.view_of.shape[0]
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
-        return [ViewScores(np.full((n, v.n), -np.inf), ln_miss[i], p_detect[i]) for i, v in enumerate(stack.views)]
+        return [
+            ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(stack.counts.tolist())
+        ]
     col = stack.view_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
     d = table.xy[None, :, :] - stack.origin[:, None, :]
     r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
