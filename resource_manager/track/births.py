@@ -233,7 +233,7 @@ class _Gains:
             unexplained,
             cands,
             cand_table,
-            Visibility(pd[with_free], vis.feet_hidden[with_free]),
+            Visibility(pd[with_free], vis.feet_hidden[with_free], vis.cut_reach_m[with_free]),
             model=model,
             max_range_m=max_range_m,
         )

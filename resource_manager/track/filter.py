@@ -133,9 +133,11 @@ class TrackFilter:
         width_rel_sigma: float,
         line_views: int,
         feet_cut: FloatArray | None = None,
+        cut_reach_m: FloatArray | None = None,
     ) -> list[FloatArray]:
         """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob) (:func:`.fuse.fuse`; ``feet_cut``
-        (s, len(rows)): the chance that a view's box of each is cut above the feet); returns each one's weight of
+        (s, len(rows)): the chance that a view's box of each is cut above the feet, ``cut_reach_m`` how far such a box
+        can read); returns each one's weight of
         each of its blobs (low: an outlier)."""
         if not len(rows):
             return []
@@ -150,6 +152,7 @@ class TrackFilter:
             width_rel_sigma=width_rel_sigma,
             line_views=line_views,
             feet_cut=feet_cut,
+            cut_reach_m=cut_reach_m,
         )
         self.x[rows], self.p[rows] = x, p
         return [resp[k, : len(got)] for k, got in enumerate(assigned)]

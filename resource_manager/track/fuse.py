@@ -82,6 +82,7 @@ def fuse(
     width_rel_sigma: float,
     line_views: int,
     feet_cut: FloatArray | None = None,
+    cut_reach_m: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``.
 
@@ -93,6 +94,8 @@ def fuse(
         line_views: the size-ratio pairs are taken among each track's first this many views (0: none).
         feet_cut: (s, k) probability that view ``s``'s box of track ``k`` ends above the feet (someone nearer or a
             camera's body hides them: :func:`.observe.feet_cut_prob`); None: ``outlier``'s alone.
+        cut_reach_m: (s, k) the farthest floor distance such a cut box can read
+            (:attr:`.observe.Visibility.cut_reach_m`); None: unbounded.
 
     Returns:
         (x, P, the weight (k, w) of each slot's blob: low for an outlier).
@@ -118,7 +121,9 @@ def fuse(
         track = slots.track[has]
         unit = (xs[track, :2] - origin[has]) / np.maximum(dist[has], MIN_RANGE_M)[:, None]
         var = quadratic_form(unit, ps[track, :2, :2], unit) + obs[has, 5]
-        ln_feet, ln_cut = feet_ln(obs[has, 4] - dist[has], var, dist[has], feet_cut[view[has], track], outlier)
+        reach = None if cut_reach_m is None else cut_reach_m[view[has], track]
+        nu = obs[has, 4] - dist[has]
+        ln_feet, ln_cut = feet_ln(nu, var, dist[has], feet_cut[view[has], track], outlier, reach=reach)
         p_feet = np.exp(ln_feet - np.logaddexp(ln_feet, ln_cut))
         obs[has, 5] /= np.maximum(p_feet, HALF)
         obs[np.flatnonzero(has)[p_feet < HALF], 4] = math.nan

@@ -117,6 +117,10 @@ class Visibility(NamedTuple):
     feet_hidden: FloatArray
     """(s, n) share of each track's feet that someone nearer or a camera's body hides in each view: a box there
     ends above the feet."""
+    cut_reach_m: FloatArray
+    """(s, n) the farthest floor distance a box cut by those covers can read: the box's bottom is at most the
+    highest cover's top, whose line of sight meets the floor there (inf: a cover that reaches above the camera,
+    or none)."""
 
 
 def _wrap(a: FloatArray) -> FloatArray:
@@ -140,14 +144,14 @@ def visibility_many(
     n = table.n
     p = np.zeros((stack.n_views, n))
     if n == 0 or stack.n_views == 0:
-        return Visibility(p, p.copy())
+        return Visibility(p, p.copy(), np.full(p.shape, math.inf))
     dist, seen = _in_view(stack, table, max_range_m)
     hiders = None
     if n + (blockers.n if blockers is not None else 0) > 1:
         hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, max_range_m))
-    covered, feet = _covered(stack, table, dist, hiders)
+    covered, feet, reach = _covered(stack, table, dist, hiders)
     p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
-    return Visibility(p, np.where(seen, feet, 0.0))
+    return Visibility(p, np.where(seen, feet, 0.0), reach)
 
 
 def in_any_view(stack: ViewStack, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
@@ -193,11 +197,12 @@ def _covered(
     table: TrackTable,
     dist: FloatArray,
     hiders: tuple[TrackTable, FloatArray, BoolArray] | None,
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(s, n) share of each person's silhouette (feet to head, one person wide) that nearer people (``hiders``: a
     table, its (s, k) distances and whether each is in each picture) and the other cameras' bodies cover in each
-    picture, treating the covers as independent: 1 - Π(1 - overlap_k / area); and (s, n) the share of the feet
-    they cover (of the person's width, where a cover reaches above the feet).
+    picture, treating the covers as independent: 1 - Π(1 - overlap_k / area); (s, n) the share of the feet they
+    cover (of the person's width, where a cover reaches above the feet); and (s, n) the farthest floor distance a
+    box cut by them can read (:attr:`Visibility.cut_reach_m`; 0 where nothing covers the feet).
 
     Angular rectangles: azimuth ± radius / distance, elevation from the floor to the head top (a body: to its
     camera). A camera above the crowd sees the head of someone behind a nearer person; one at head height does
@@ -207,6 +212,8 @@ def _covered(
     area = np.maximum(2.0 * half * (hi - lo), 1e-12)
     clear = np.ones(dist.shape)
     clear_feet = np.ones(dist.shape)
+    reach = np.zeros(dist.shape)
+    z = stack.z_m[:, None, None]
     covers: list[_Cover] = []
     if hiders is not None:
         others, hdist, hseen = hiders
@@ -227,7 +234,15 @@ def _covered(
         clear *= np.prod(1.0 - np.where(front, np.minimum(over_az * over_el / area, 1.0), 0.0), axis=2)
         feet = front & (hi_k >= lo)
         clear_feet *= np.prod(1.0 - np.where(feet, np.minimum(over_az / (2.0 * half), 1.0), 0.0), axis=2)
-    return np.asarray(1.0 - clear, dtype=np.float64), np.asarray(1.0 - clear_feet, dtype=np.float64)
+        # A box cut by this cover ends at its top at most: that line of sight meets the floor this far away (a
+        # cover whose top is level with the camera or above can cut a box anywhere).
+        top_floor = np.where(hi_k < 0.0, z / np.tan(-np.minimum(hi_k, -1e-9)), math.inf)
+        reach = np.maximum(reach, np.max(np.where(feet & (over_az > 0.0), top_floor, 0.0), axis=2, initial=0.0))
+    return (
+        np.asarray(1.0 - clear, dtype=np.float64),
+        np.asarray(1.0 - clear_feet, dtype=np.float64),
+        np.asarray(reach, dtype=np.float64),
+    )
 
 
 def _bodies(stack: ViewStack, bodies: IntArray, dist: FloatArray) -> _Cover:
@@ -311,7 +326,9 @@ def score_views(
         nu_d, s_cond, dist_pred = (a[track, blob] for a in feet)
         cut = feet_cut_prob(vis.feet_hidden[view, track], model)
         outlier = (model.outlier_prob, model.outlier_scale)
-        ln_g = ln_g + np.where(has[blob], np.logaddexp(*feet_ln(nu_d, s_cond, dist_pred, cut, outlier)), 0.0)
+        reach = vis.cut_reach_m[view, track]
+        ln_feet = np.logaddexp(*feet_ln(nu_d, s_cond, dist_pred, cut, outlier, reach=reach))
+        ln_g = ln_g + np.where(has[blob], ln_feet, 0.0)
     ln_alt = np.maximum(ln_clutter[blob], local[track, view])
     entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
     entry = entry + _height_term(
@@ -369,18 +386,31 @@ def feet_cut_prob(feet_hidden: FloatArray, model: TrackModel) -> FloatArray:
 
 
 def feet_ln(
-    nu: FloatArray, var: FloatArray, dist: FloatArray, cut: FloatArray, outlier: tuple[float, float]
+    nu: FloatArray,
+    var: FloatArray,
+    dist: FloatArray,
+    cut: FloatArray,
+    outlier: tuple[float, float],
+    *,
+    reach: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """ln of the density of a floor distance's innovation ``nu`` (variance ``var``, given the bearing's) for a
     person predicted ``dist`` away, as its two parts: the box shows the feet (Gaussian with the wide outlier
-    part), or, with probability ``cut``, a box cut above the feet, which puts them farther by an exponentially
-    distributed distance of mean ``dist``. ``outlier``: (probability, scale) of the wide part."""
+    part), or, with probability ``cut``, a box cut above the feet, which puts them farther: by up to ``reach -
+    dist`` (uniformly, widened by two σ) where the covers' tops bound how far (``reach``:
+    :attr:`Visibility.cut_reach_m`), else by an exponentially distributed distance of mean ``dist``.
+    ``outlier``: (probability, scale) of the wide part."""
     eps, k2 = outlier[0], outlier[1] ** 2
     core = -0.5 * (nu * nu / var + np.log(var) + LN_2PI)
     wide = -0.5 * (nu * nu / (k2 * var) + np.log(k2 * var) + LN_2PI)
     normal = np.logaddexp(math.log(1.0 - eps) + core, math.log(eps) + wide)
     scale = np.maximum(dist, MIN_RANGE_M)
     farther = np.where(nu > 0, -nu / scale - np.log(scale), -np.inf)
+    if reach is not None:
+        span = np.maximum(reach - dist, 0.0) + 2.0 * np.sqrt(var)
+        bounded = np.isfinite(span) & (reach > 0.0)
+        span = np.where(bounded, span, 1.0)
+        farther = np.where(bounded, np.where((nu > 0) & (nu <= span), -np.log(span), -np.inf), farther)
     cut = np.clip(cut, 1e-300, 1.0 - 1e-9)
     return np.log1p(-cut) + normal, np.log(cut) + farther
 

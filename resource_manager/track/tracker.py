@@ -231,7 +231,13 @@ class Tracker:
         vis = visibility_many(stack, table, self.model, self.scene.max_range_m)
         vis.p_detect[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
         tick = Tick(
-            views, evidence, pose_sigma or {}, stack, np.array([evidence[sid][0] for sid in sids]), vis.feet_hidden
+            views,
+            evidence,
+            pose_sigma or {},
+            stack,
+            np.array([evidence[sid][0] for sid in sids]),
+            vis.feet_hidden,
+            vis.cut_reach_m,
         )
         # 3. Assign, per view.
         scores = score_views(stack, self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m)

@@ -58,6 +58,9 @@ class Tick:
     feet_hidden: FloatArray | None = None
     """(s, n) the share of each track's feet hidden in each view (:attr:`.observe.Visibility.feet_hidden`, row for
     row with the filter); None: none hidden."""
+    cut_reach_m: FloatArray | None = None
+    """(s, n) the farthest floor distance a cut box of each track can read in each view
+    (:attr:`.observe.Visibility.cut_reach_m`, row for row with ``feet_hidden``)."""
 
 
 class Ranking(NamedTuple):
@@ -142,14 +145,18 @@ class Updater:
         m = self.model
         # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
         hidden = np.zeros((tick.stack.n_views, len(rows)))
+        reach = np.zeros_like(hidden)
         if tick.feet_hidden is not None:
             known = rows < tick.feet_hidden.shape[1]
             hidden[:, known] = tick.feet_hidden[:, rows[known]]
+            if tick.cut_reach_m is not None:
+                reach[:, known] = tick.cut_reach_m[:, rows[known]]
         return filt.fuse(
             rows,
             [[(a.sensor_id, a.blob) for a in got] for got in gots],
             tick.stack,
             feet_cut=feet_cut_prob(hidden, m),
+            cut_reach_m=reach,
             position_weight=tick.position_weight,
             outlier=(m.outlier_prob, m.outlier_scale),
             width_rel_sigma=self.width_rel_sigma,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from resource_manager.track.model import TrackModel
-from resource_manager.track.observe import Spread, TrackTable, ViewStack, visibility, visibility_many
+from resource_manager.track.observe import Spread, TrackTable, ViewStack, feet_ln, visibility, visibility_many
 from resource_manager.views.blobs import ViewBlobs
 
 
@@ -67,3 +67,29 @@ def test_a_robot_hides_the_feet_of_someone_behind_it_from_a_high_camera_but_not_
     assert vis.feet_hidden[1].max() == 0.0  # a camera's own body hides nothing from it
     alone = visibility_many(ViewStack.of([high], [Spread(0.0, 0.0)]), _table(behind), model, 100.0)
     assert alone.feet_hidden[0, 0] == 0.0  # without the robot in the stack, nothing hides them
+
+
+def test_a_box_cut_by_a_robot_reads_no_farther_than_where_its_top_meets_the_floor() -> None:
+    """The robot's top (1.1 m) 3 m from a camera 2.5 m up: its line of sight meets the floor 2.5·3/1.4 m away, so
+    a box of the person behind it cut there reads at most that far; someone nobody covers has no bound."""
+    model = TrackModel()
+    high = _camera("ptz", (0.0, 0.0), 2.5)
+    robot = _camera("robot", (3.0, 0.0), 1.1, body_radius_m=0.18)
+    stack = ViewStack.of([high, robot], [Spread(0.0, 0.0)] * 2)
+    vis = visibility_many(stack, _table((4.5, 0.0), (4.5, 1.5)), model, 100.0)
+    assert vis.cut_reach_m[0, 0] == pytest.approx(2.5 * 3.0 / 1.4, rel=1e-6)
+    assert vis.cut_reach_m[0, 1] == 0.0  # nothing covers the feet of the one beside
+
+
+def test_a_distance_beyond_what_the_cover_allows_is_not_explained_by_a_cut() -> None:
+    """A reading 0.4 m farther than predicted, 0.1 m σ: with the cover's top bounding the cut to 0.5 m farther, a
+    cut box explains it better than the diffuse model does, and a reading 2 m farther is no cut at all."""
+    var = np.array([0.01, 0.01])
+    dist, cut = np.array([6.0, 6.0]), np.array([0.5, 0.5])
+    nu = np.array([0.4, 2.0])
+    _, diffuse = feet_ln(nu, var, dist, cut, (0.05, 4.0))
+    _, bounded = feet_ln(nu, var, dist, cut, (0.05, 4.0), reach=np.array([6.5, 6.5]))
+    assert bounded[0] > diffuse[0] + 1.0
+    assert bounded[1] == -np.inf and np.isfinite(diffuse[1])
+    _, none = feet_ln(nu, var, dist, cut, (0.05, 4.0), reach=np.array([0.0, np.inf]))
+    np.testing.assert_allclose(none, diffuse)  # no cover bound: the diffuse model
