@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 from common.angles import interp_angle
 from common.schema import Blob, Features, Sighting
+from resource_manager.config import ManagerSection, default_of
 from resource_manager.ingest.buffers import SensorBuffer
 
 _TWO_PI = 2.0 * math.pi
@@ -30,9 +31,12 @@ __all__ = ["AlignParams", "AlignedBlob", "AlignedSighting", "AlignedView", "alig
 
 @dataclass(frozen=True, slots=True)
 class AlignParams:
-    max_extrapolation_ns: int = 100_000_000
-    stale_ns: int = 1_000_000_000
-    max_gap_ns: int = 500_000_000
+    """``[manager]``'s alignment limits in ns (defaulted and documented in
+    :class:`resource_manager.config.ManagerSection`)."""
+
+    max_extrapolation_ns: int = int(default_of(ManagerSection, "max_extrapolation_ms") * 1e6)
+    stale_ns: int = int(default_of(ManagerSection, "stale_ms") * 1e6)
+    max_gap_ns: int = int(default_of(ManagerSection, "max_gap_ms") * 1e6)
 
 
 class AlignedBlob(NamedTuple):

@@ -67,6 +67,7 @@ import numpy.typing as npt
 from common.angles import wrap_angle
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
+from resource_manager.config import ManagerSection, MutualSection, default_of
 from resource_manager.ingest.align import AlignedSighting
 from resource_manager.poses.witness import Estimate, Reference, blame, combine, consistent
 
@@ -87,28 +88,24 @@ FloatArray = npt.NDArray[np.float64]
 
 @dataclass(frozen=True, slots=True)
 class MutualParams:
-    enabled: bool = True
-    smoothing_s: float = 1.0
-    timeout_s: float = 2.0
-    jump_m: float = 1.0
-    """A raw pose this far from the smoothed one is refused like an outlier; ``outlier_run`` of them that agree
-    restart the filter there (the robot was moved)."""
+    """``[mutual]`` in the solver's units (rad), with the solver's own knobs; the config's are documented, and
+    defaulted, in :class:`resource_manager.config.MutualSection`."""
+
+    enabled: bool = default_of(MutualSection, "enabled")
+    smoothing_s: float = default_of(MutualSection, "smoothing_s")
+    timeout_s: float = default_of(MutualSection, "timeout_s")
+    jump_m: float = default_of(MutualSection, "jump_m")
     hold: bool = True
     """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     outlier_sigmas: float = 3.0
     """A raw pose further than this many sigmas (plus 5 cm, 0.5 deg) from the smoothed one is refused; 0: off."""
     outlier_run: int = 5
     """...unless this many in a row were, and agree with each other (then it is followed: the robot moved)."""
-    boundary_sigma_rad: float = 0.0
-    """0: use the observer's bearing sigma."""
-    default_bearing_sigma_rad: float = math.radians(0.2)
-    default_height_m: float = 1.1
-    """Camera height of a mobile sensor whose SensorInfo carries no pose (z is a constant of the robot)."""
-    settle_s: float = 3.0
-    """A camera whose node reports no motion for this long has its pose fixed (the mean over that time); only
-    its own node reporting motion releases it."""
-    max_speed_mps: float = 1.0
-    """A released camera's pose moves at most this fast beyond its noise (a robot's top speed)."""
+    boundary_sigma_rad: float = math.radians(default_of(MutualSection, "boundary_sigma_deg"))
+    default_bearing_sigma_rad: float = math.radians(default_of(ManagerSection, "default_bearing_sigma_deg"))
+    default_height_m: float = default_of(MutualSection, "default_height_m")
+    settle_s: float = default_of(MutualSection, "settle_s")
+    max_speed_mps: float = default_of(MutualSection, "max_speed_mps")
 
 
 @dataclass(frozen=True, slots=True)

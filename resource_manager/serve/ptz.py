@@ -30,6 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from common.schema import PtzRequest, SensorInfo
+from resource_manager.config import PtzSection, default_of
 
 __all__ = ["Assignment", "PtzAim", "PtzAllocator", "PtzAnswer", "PtzAsk", "PtzParams", "PtzTarget"]
 
@@ -39,19 +40,20 @@ MIN_AIM_DISTANCE_M = 1e-3
 
 @dataclass(frozen=True, slots=True)
 class PtzParams:
-    max_range_m: float = 25.0
-    aim_height_frac: float = 0.85
-    target_width_m: float = 1.5
-    hfov_rad: float = math.radians(60.0)
-    max_zoom: float = 10.0
-    min_tilt_rad: float = math.radians(-80.0)
-    max_tilt_rad: float = math.radians(60.0)
-    lease_s: float = 30.0
-    """A hold ends this long after the agent's last request for it (a request may ask for less)."""
+    """``[ptz]`` in the allocator's units (rad); each knob is documented, and defaulted, in
+    :class:`resource_manager.config.PtzSection`."""
+
+    max_range_m: float = default_of(PtzSection, "max_range_m")
+    aim_height_frac: float = default_of(PtzSection, "aim_height_frac")
+    target_width_m: float = default_of(PtzSection, "target_width_m")
+    hfov_rad: float = math.radians(default_of(PtzSection, "hfov_deg"))
+    max_zoom: float = default_of(PtzSection, "max_zoom")
+    min_tilt_rad: float = math.radians(default_of(PtzSection, "min_tilt_deg"))
+    max_tilt_rad: float = math.radians(default_of(PtzSection, "max_tilt_deg"))
+    lease_s: float = default_of(PtzSection, "lease_s")
     max_priority: Mapping[str, int] = field(default_factory=dict)
     """Agent id -> the highest priority its requests get (higher asks are clipped to it)."""
-    default_max_priority: int = 0
-    """The cap of every agent not in ``max_priority`` (equal for all: nobody preempts anybody)."""
+    default_max_priority: int = default_of(PtzSection, "default_max_priority")
 
     def cap(self, agent_id: str) -> int:
         """The highest priority ``agent_id``'s requests get."""

@@ -37,6 +37,7 @@ from scipy.special import ndtr
 
 from common.errors import GeometryError
 from common.geometry import MIN_SIN, size_ratio
+from resource_manager.config import MatchSection, default_of
 from resource_manager.stereo.match_tables import Tables, colour_table
 from resource_manager.stereo.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
 from resource_manager.views.blobs import ViewBlobs
@@ -63,17 +64,16 @@ head bearing)."""
 
 @dataclass(frozen=True, slots=True)
 class MatchParams:
-    """The knobs of Eq. 7 (see ``[match]`` in the config)."""
+    """The knobs of Eq. 7: ``[match]``'s are defaulted and documented in
+    :class:`resource_manager.config.MatchSection`."""
 
-    max_range_m: float = 30.0
-    width_sigma: float = 0.35
-    height_sigma: float = 0.12
-    use_colour: bool = True
+    max_range_m: float = default_of(MatchSection, "max_range_m")
+    width_sigma: float = default_of(MatchSection, "width_sigma")
+    height_sigma: float = default_of(MatchSection, "height_sigma")
+    use_colour: bool = default_of(MatchSection, "use_colour")
     temporal_weight: float = 1.0
-    floor_sigma_m: float = 0.0
-    """Spread of the feet height z_cam + D tan(bottom) around the floor (0: not used)."""
-    width_floor: float = 0.0
-    """Smallest r_wc (merged blobs of occluding people are wide; 0: strict)."""
+    floor_sigma_m: float = default_of(MatchSection, "floor_sigma_m")
+    width_floor: float = default_of(MatchSection, "width_floor")
     temporal_gate_m: float = 0.6
     """Distance of a hypothesis from a track's prediction at which the positional temporal term is exp(-1/2)."""
     colinear_sigmas: float = 2.0
