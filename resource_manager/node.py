@@ -42,7 +42,17 @@ from common.errors import ConfigError, SchemaError
 from common.keys import Keys
 from common.memory import Trimmer, pin_mmap_threshold
 from common.ratelog import SenderLog
-from common.schema import MAX_SENSORS, Features, Latency, PtzReply, PtzRequest, PtzState, SensorInfo, Track
+from common.schema import (
+    MAX_SENSORS,
+    MAX_TEXT_LEN,
+    Features,
+    Latency,
+    PtzReply,
+    PtzRequest,
+    PtzState,
+    SensorInfo,
+    Track,
+)
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
@@ -302,7 +312,7 @@ class ManagerNode:
     def _reject(self, query: Any, why: str) -> None:
         self.query_errors += 1
         with query:
-            query.reply_err(why[:256].encode())
+            query.reply_err(why[:MAX_TEXT_LEN].encode())
 
     def _on_old_ptz_query(self, query: Any) -> None:
         self._reject(
@@ -335,7 +345,7 @@ class ManagerNode:
                 ok=bool(ans.sensor_id),
                 track_id=req.track_id,
                 sensor_id=ans.sensor_id,
-                reason=ans.reason[:256],
+                reason=ans.reason[:MAX_TEXT_LEN],
                 lease_s=ans.lease_s,
             )
             try:
