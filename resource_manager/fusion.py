@@ -126,6 +126,8 @@ class TickResult:
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
     """PTZ holds ended at this instant (a lease run out, a track ended), with the reason."""
+    sightings_refused: dict[str, int] = field(default_factory=dict)
+    """Sender id -> its sightings of other cameras the pose solver refused at this instant (ManagerStatus)."""
 
 
 def _counter_ids(prefix: str) -> Callable[[], str]:
@@ -400,4 +402,5 @@ class Fusion:
             live_tracks=live,
             views=views or {},
             ptz_ended=self.ptz.take_ended(),
+            sightings_refused=self.poses.take_refused(),
         )

@@ -441,7 +441,7 @@ class ManagerNode:
             if not result.skipped:
                 # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
                 self.agreement.update(t_ns, result.views, result.live_tracks)
-        for sid, n in self.fusion.poses.take_refused().items():
+        for sid, n in result.sightings_refused.items():
             self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1
         if result.skipped or published_set is None:
