@@ -307,8 +307,7 @@ def _draw_timeline(
     ax.grid(True, axis="x", color="#eeeeee", linewidth=0.6)
     ax.set_axisbelow(True)
     if tl.with_truth:
-        n = len(tl.switches)
-        head = f"who was followed by which track: one row per person, {n} id switch{'' if n == 1 else 'es'}"
+        head = timeline_head(tl, inp.scored_from_s)
         legend = [
             Patch(facecolor=PALETTE[0], label="their own track"),
             Patch(facecolor=PALETTE[0], hatch="////", edgecolor="white", label="another id (its colour: whose track)"),
@@ -324,6 +323,16 @@ def _draw_timeline(
     ax.set_title(head, fontsize=10, loc="left", pad=22)
     ax.legend(handles=legend, loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False,
               ncol=len(legend), borderaxespad=0.2)  # fmt: skip
+
+
+def timeline_head(tl: Timeline, scored_from_s: float) -> str:
+    """The timeline's title: its id switches counted as the run's score counts them, from the end of the warm-up
+    (``scored_from_s``), those before said apart."""
+    n = sum(1 for sw in tl.switches if sw.t_s >= scored_from_s)
+    head = f"who was followed by which track: one row per person, {n} id switch{'' if n == 1 else 'es'}"
+    if len(tl.switches) > n:
+        head += f" ({len(tl.switches) - n} more in the warm-up)"
+    return head
 
 
 def _figure(inp: PlotInput) -> Figure:

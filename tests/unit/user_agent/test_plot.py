@@ -14,7 +14,7 @@ from common.errors import ConfigError
 from common.schema import TrackSet
 from tests.unit.user_agent.recorded_run import EPOCH, sensor_info, track
 from user_agent.groundtruth import GroundTruth, GtPoint
-from user_agent.plot import PALETTE, PlotInput, _extent, colours_of, render_top_view, save_top_view
+from user_agent.plot import PALETTE, PlotInput, _extent, colours_of, render_top_view, save_top_view, timeline_head
 from user_agent.timeline import timeline_with_truth
 
 FPS = 10.0
@@ -70,6 +70,16 @@ def test_an_id_switch_is_a_black_bar_in_the_person_s_row_of_the_timeline() -> No
     # Both people's rows are there, each in its person's colour.
     for colour in PALETTE[:2]:
         assert _pixels(clean, colour, lower) > 2000
+
+
+def test_the_timeline_counts_switches_as_the_score_does_from_the_end_of_the_warm_up() -> None:
+    """Person 1's track changes id at 1.5 s: scored from 1.0 s it is one switch; scored from 2.0 s none, and the
+    title says one more in the warm-up (the run's title counts from there too)."""
+    inp = _input(switch=True)
+    assert inp.ground_truth is not None
+    tl = timeline_with_truth(inp.tracksets, inp.ground_truth, epoch_ns=EPOCH, fps=FPS)
+    assert timeline_head(tl, 1.0).endswith("one row per person, 1 id switch")
+    assert timeline_head(tl, 2.0).endswith("0 id switches (1 more in the warm-up)")
 
 
 def test_tracks_and_ground_truth_panels_draw_each_person_in_one_colour() -> None:
