@@ -40,6 +40,7 @@ from common.schema import (
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
+from resource_manager.ingest.schedule import TickLatency
 from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve import messages
@@ -126,6 +127,8 @@ class TickResult:
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
     """PTZ holds ended at this instant (a lease run out, a track ended), with the reason."""
+    latency: TickLatency | None = None
+    """Where the capture -> fusion time of this instant went (None: not an instant the scheduler chose)."""
     sightings_refused: dict[str, int] = field(default_factory=dict)
     """Sender id -> its sightings of other cameras the pose solver refused at this instant (ManagerStatus)."""
 
@@ -402,5 +405,6 @@ class Fusion:
             live_tracks=live,
             views=views or {},
             ptz_ended=self.ptz.take_ended(),
+            latency=last if (last := self.schedule.last) is not None and last.t_ns == self.last_t_ns else None,
             sightings_refused=self.poses.take_refused(),
         )

@@ -427,7 +427,6 @@ class ManagerNode:
         self._log_ended(absorbed.ptz_ended)
         if t_ns is None:
             return None
-        waited = self.fusion.schedule.last
         t0 = time.perf_counter()
         with self.lock:
             result = self.fusion.step(t_ns)
@@ -454,7 +453,8 @@ class ManagerNode:
         t1 = time.perf_counter()
         published = self.clock.now_ns()
         self.pub_tracks.put(msgspec.structs.replace(published_set, published_ns=published))
-        if waited is not None and waited.t_ns == t_ns:
+        waited = result.latency
+        if waited is not None:
             self.latencies.append(
                 Latency(
                     age_ms=max(0.0, (published - t_ns) / 1e6),
