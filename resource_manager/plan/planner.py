@@ -44,8 +44,8 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from resource_manager.plan.checks import feasible, found, move_payoff, others_error, predicted_error
 from resource_manager.plan.scene import (
     PlanCamera,
@@ -59,9 +59,6 @@ from resource_manager.plan.scene import (
 __all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
 
 logger = logging.getLogger(__name__)
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 @dataclass(slots=True)

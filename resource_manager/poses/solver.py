@@ -62,9 +62,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
 from resource_manager.ingest.align import AlignedSighting
@@ -73,8 +73,6 @@ from resource_manager.poses.witness import Estimate, Reference, blame, combine, 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
 
 logger = logging.getLogger(__name__)
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)

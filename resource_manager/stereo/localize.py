@@ -24,8 +24,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.error_model import pair_error_f
 from common.geometry import intersect_rays, localize_pair
 from common.schema import Method
@@ -40,7 +40,6 @@ __all__ = [
     "wide_blob",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 MAX_PERSON_WIDTH_M = 0.75
 """A blob wider than this (metric width at its distance) holds several people (simulated bodies: 0.40-0.52 m)."""
 

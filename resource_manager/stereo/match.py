@@ -29,12 +29,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.errors import GeometryError
 from common.geometry import size_ratio
 from resource_manager.stereo.match_tables import Tables, colour_table
@@ -53,9 +54,6 @@ __all__ = [
     "match_matrices",
     "match_matrix",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-TWO_PI: Final = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,10 +90,6 @@ class MatchMatrix:
     parts: dict[str, FloatArray]
     """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
     is evaluated only where Eq. 7 alone exceeds the threshold, the only place it counts."""
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
@@ -182,8 +176,8 @@ def match_matrices(
     th1 = bearing[ia, :na][:, :, None]  # (p, na, 1)
     th2 = bearing[ib, :nb][:, None, :]  # (p, 1, nb)
     # -- ray geometry on every blob pair: signed inner angles at O1 and O2 (notes/geometry.md §4) ----------
-    a1 = _wrap(th1 - psi12)
-    a2 = _wrap(psi12 + math.pi - th2)
+    a1 = wrap_angle(th1 - psi12)
+    a2 = wrap_angle(psi12 + math.pi - th2)
     abs1, abs2 = np.abs(a1), np.abs(a2)
     same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)

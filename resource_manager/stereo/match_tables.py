@@ -9,11 +9,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
 from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["Tables", "colour_table"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class Tables:

@@ -10,12 +10,11 @@ from __future__ import annotations
 from typing import Final, Protocol
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["MATCHERS", "GlobalMatcher", "GreedyMatcher", "Matcher", "get_matcher"]
+from common.arrays import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["MATCHERS", "GlobalMatcher", "GreedyMatcher", "Matcher", "get_matcher"]
 
 
 class Matcher(Protocol):

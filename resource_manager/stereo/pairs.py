@@ -21,12 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray, IntArray
 from common.error_model import pair_error_f, pair_position_errors
 
 __all__ = ["CameraGeom", "PairCandidate", "rank_pairs", "rank_pairs_many"]
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,13 +19,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import BoolArray, FloatArray
 from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
 from resource_manager.stereo.localize import MAX_PERSON_WIDTH_M
 
 __all__ = ["size_ratio_lines"]
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 def size_ratio_lines(

@@ -15,15 +15,14 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
+
+from common.arrays import FloatArray
 
 if TYPE_CHECKING:
     from resource_manager.track.stack import ViewStack
     from resource_manager.track.state import TrackRecord
 
 __all__ = ["bhattacharyya", "colour_ln_lr", "learn_looks", "looks_ln_odds"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> FloatArray:

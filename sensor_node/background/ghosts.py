@@ -17,20 +17,18 @@ while the model was learnt). The helpers:
 from __future__ import annotations
 
 import logging
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Float32Array, Mask
 from sensor_node.components import components
 
 __all__ = ["UnderGhosts", "hole_columns", "start_up_hole", "surround_deviation"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
-FloatImage = npt.NDArray[np.float32]
 
 SIDE_PX = 8
 """Columns either side of a still region whose unchanged model pixels stand for the surface around it."""
@@ -57,7 +55,7 @@ _K5 = np.ones((5, 5), np.uint8)
 
 def _beside(
     grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
-) -> tuple[FloatImage, FloatImage, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+) -> tuple[Float32Array, Float32Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """A still region's box widened by ``SIDE_PX`` on both sides (wrapping round the panorama): the frame and
     the model there as floats, the region's pixels, and the unchanged pixels beside it (clear of its edge)."""
     x, y = origin

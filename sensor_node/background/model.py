@@ -37,12 +37,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Mask
 from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, remove_shadows
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
@@ -51,7 +52,6 @@ __all__ = ["BackgroundModel", "FrameDifference", "Motion", "MotionState"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
 """An 8-bit single-channel image (cv2 results are typed loosely)."""
 MotionState = Literal["warmup", "ok", "relit", "reinit", "moving"]
 

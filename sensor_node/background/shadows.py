@@ -21,12 +21,13 @@ view every camera type has), on the changed pixels only.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, cast
+from typing import Protocol, cast
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Mask
 from sensor_node.config import PipelineSettings
 
 __all__ = [
@@ -42,7 +43,6 @@ __all__ = [
     "spread_at",
 ]
 
-Mask = npt.NDArray[Any]
 
 SHADOW_MIN_RATIO = 0.6
 """Darkest shadow, as a fraction of the lit surface's brightness: the soft cast shadows of diffuse light

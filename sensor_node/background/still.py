@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Float32Array, Mask
 from sensor_node.background.ghosts import UnderGhosts, hole_columns, start_up_hole, surround_deviation
 from sensor_node.components import ColumnRuns, components
 from sensor_node.config import PipelineSettings
@@ -45,8 +45,6 @@ __all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
-FloatImage = npt.NDArray[np.float32]
 
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
@@ -142,7 +140,7 @@ class StillRegions:
         self._under = None
 
     def update(
-        self, grey: Mask, fg: Mask, moving: Callable[[], Mask], *, bg: FloatImage, bg_u8: Mask, frame: int
+        self, grey: Mask, fg: Mask, moving: Callable[[], Mask], *, bg: Float32Array, bg_u8: Mask, frame: int
     ) -> bool:
         """Follow one normal frame; absorb ghosts into ``bg`` (in place). True if ``bg`` changed.
 
@@ -324,7 +322,7 @@ class StillRegions:
         mask: npt.NDArray[np.bool_],
         origin: tuple[int, int],
         *,
-        bg: FloatImage,
+        bg: Float32Array,
         frame: int,
         keep: bool,
         fringe: bool = True,

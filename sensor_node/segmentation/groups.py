@@ -44,7 +44,6 @@ prediction.
 from __future__ import annotations
 
 import itertools
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -55,7 +54,6 @@ from sensor_node.segmentation.head_splits import blob_part, has_head, ok_part, t
 
 __all__ = ["split_by_tracks"]
 
-Mask = npt.NDArray[Any]
 
 MIN_SEPARATION_PX = 3.0
 """Least distance (columns) between two tracks' predicted head columns for a cut between them."""

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from typing import Any, cast
+from typing import cast
 
 import cv2
 import numpy as np
@@ -36,7 +36,6 @@ from sensor_node.segmentation.blobs import RawBlob
 
 __all__ = ["blob_part", "has_head", "ok_part", "split_at_heads", "top_profile"]
 
-Mask = npt.NDArray[Any]
 
 HEAD_MIN_COLS = 3
 """Least width of a head (columns at ``split_dip_px`` below its top): narrower is a spike of noise."""
