@@ -1,6 +1,6 @@
 """Helpers every entry point shares: logging set-up and error-to-exit-code mapping.
 
-Entry points stay thin (STYLE.md habit 1): parse arguments, load config,
+Entry points stay thin (docs/STYLE.md habit 1): parse arguments, load config,
 configure logging, call ``run``, and map exceptions to exit codes with
 :func:`run_main`.
 """

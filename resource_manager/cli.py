@@ -1,6 +1,6 @@
 """``resource-manager --config FILE`` (also ``python -m resource_manager`` and ``panostereo manager``).
 
-Thin entry point (STYLE.md habit 1): parse arguments, load the config, overlay
+Thin entry point (docs/STYLE.md habit 1): parse arguments, load the config, overlay
 the session flags, hand over to :func:`resource_manager.node.run`.
 """
 

@@ -1,6 +1,6 @@
 """``sensor-node --config FILE`` (also ``python -m sensor_node`` and ``panostereo node``).
 
-Thin entry point (STYLE.md habit 1): parse arguments, load the config, overlay
+Thin entry point (docs/STYLE.md habit 1): parse arguments, load the config, overlay
 the session flags, hand over to :func:`sensor_node.node.run`.
 """
 

@@ -23,7 +23,7 @@ bearings. Chaining rules, repeated until nothing changes:
 
 Raw poses are smoothed over time with an alpha-beta filter (time constant
 ``smoothing_s``), and carry the error model's uncertainty: σ_B ≈ B²σ_α/(2R)
-(notes/geometry.md §2.1), divided by √2 when both views are averaged.
+(docs/geometry.md §2.1), divided by √2 when both views are averaged.
 
 A raw pose far from the smoothed one (beyond ``jump_m``, or ``outlier_sigmas``)
 is refused; the filter restarts there only when ``outlier_run`` refused poses in

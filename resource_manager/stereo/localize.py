@@ -3,13 +3,13 @@
 With the best pair (the paper's method) the position comes from
 :func:`common.geometry.localize_pair`: triangulation (Eq. 1) or, near
 colinearity, size-ratio (Eq. 2), chosen by the crossover of
-notes/geometry.md §3. With ``fuse_all`` every view of the person is combined
+docs/geometry.md §3. With ``fuse_all`` every view of the person is combined
 by least squares (:func:`common.geometry.intersect_rays`).
 
 The head-top height comes from the top elevation: z = z_cam + D·tan(top_elev),
 averaged over the views with weights 1/D².
 
-Covariance (first order, notes/geometry.md §2.1): an error δθ1 in camera 1's
+Covariance (first order, docs/geometry.md §2.1): an error δθ1 in camera 1's
 bearing moves the intersection along ray 2 by D1·δθ1/sin φ0, and δθ2 moves it
 along ray 1 by D2·δθ2/sin φ0; a baseline error δB scales the triangle about O1.
 Hence Σ = σ²/sin²φ0 (D1² e2e2ᵀ + D2² e1e1ᵀ) + (σ_B/B)² (p−O1)(p−O1)ᵀ, whose

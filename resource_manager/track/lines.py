@@ -3,7 +3,7 @@
 Where two of a person's views and the person are nearly colinear, bearings say little about where along the
 baseline the person is; the size-ratio method (Eq. 2) says it from the two blob widths: each such pair gives a
 measurement along its baseline, fused with the bearings (its error, 2 eps D1 D2 / B with eps the relative width
-error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is then the point where each counts as
+error, against theirs, D / sin phi0: the crossover of docs/geometry.md §3 is then the point where each counts as
 much as the other, not a switch).
 
 Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's line

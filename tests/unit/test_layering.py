@@ -1,6 +1,6 @@
 """Layering: who may import whom, checked by parsing every module's imports with ``ast``.
 
-Rules (contract.md, STYLE.md habit 2):
+Rules (docs/STYLE.md habit 2):
 
 * ``common`` imports no tier, not ``sim`` and not ``panostereo``;
 * ``sim`` (the simulator) imports only ``common``, of the project's packages;
