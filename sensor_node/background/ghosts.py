@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from common.arrays import Float32Array, Mask
+from common.arrays import BoolArray, Float32Array, FloatArray, Mask
 from sensor_node.components import components
 
 __all__ = ["UnderGhosts", "hole_columns", "start_up_hole", "surround_deviation"]
@@ -41,6 +41,9 @@ SURROUND_MIN_DEV = 15.0
 """Mean grey-level deviation from the surface beside a still region that is a clear departure (the model
 holds someone there, or the frame does); below it, the surface continues."""
 
+SIDE_MIN_PX = 3
+"""Fewest unchanged pixels beside a still region on one row for their mean to stand for the surface there."""
+
 MIN_COLUMN_PX = 5
 """Fewest pixels of a region in one column (on rows with side pixels) for :func:`hole_columns` to judge it."""
 
@@ -55,9 +58,10 @@ _K5 = np.ones((5, 5), np.uint8)
 
 def _beside(
     grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
-) -> tuple[Float32Array, Float32Array, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+) -> tuple[Float32Array, Float32Array, BoolArray, BoolArray, FloatArray]:
     """A still region's box widened by ``SIDE_PX`` on both sides (wrapping round the panorama): the frame and
-    the model there as floats, the region's pixels, and the unchanged pixels beside it (clear of its edge)."""
+    the model there as floats, the region's pixels, the rows with ``SIDE_MIN_PX`` unchanged pixels beside it
+    (clear of its edge), and the model's mean over those pixels on each of those rows (the surface there)."""
     x, y = origin
     h, w = mask.shape
     cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
@@ -67,7 +71,10 @@ def _beside(
     inside = np.zeros(g.shape, bool)
     inside[:, SIDE_PX : SIDE_PX + w] = mask
     side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
-    return g, b, inside, side
+    n_side = side.sum(axis=1)
+    ok = n_side >= SIDE_MIN_PX
+    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    return g, b, inside, ok, side_mean
 
 
 def surround_deviation(
@@ -94,13 +101,12 @@ def surround_deviation(
         (frame deviation, model deviation): pixel-weighted mean absolute grey-level
         differences over the rows that have both region and side pixels (0, 0 if none).
     """
-    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
+    g, b, inside, sided, side_mean = _beside(grey, bg, fg, mask, origin)
     n_in = inside.sum(axis=1)
-    n_side = side.sum(axis=1)
-    ok = (n_in > 0) & (n_side >= 3)
+    ok = (n_in > 0) & sided
     if not ok.any():
         return 0.0, 0.0
-    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    side_mean = side_mean[ok[sided]]
     weight = n_in[ok].astype(np.float32)
     cur_mean = (g * inside).sum(axis=1)[ok] / weight
     bg_mean = (b * inside).sum(axis=1)[ok] / weight
@@ -135,14 +141,11 @@ def hole_columns(
     Returns:
         One flag per column of the box: a hole there (False where no row has side pixels to compare).
     """
-    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
+    g, b, inside, ok, side_mean = _beside(grey, bg, fg, mask, origin)
     w = mask.shape[1]
-    n_side = side.sum(axis=1)
-    ok = n_side >= 3
     out = np.zeros(w, bool)
     if not ok.any():
         return out
-    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
     ins = inside[ok][:, SIDE_PX : SIDE_PX + w]
     n_col = ins.sum(axis=0)
     have = n_col >= MIN_COLUMN_PX
