@@ -299,19 +299,10 @@ class StillRegions:
         h, w = mask.shape
         age = int(self._static[y : y + h, x : x + w][mask].max())
         if area < self.settings.min_blob_px or area < SOLID_FRAC * w * h:
-            # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
-            # left by an absorption (the model there still holds the person's outline, a few grey
-            # levels over the threshold). Changed pixels are never learnt, so it would stay for
-            # ever and join the blob of whoever passes it: it becomes background after
-            # still_absorb_frames too, unless changed pixels surround it (part of someone). What it
-            # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
-            # wall's grey in front of a poster) comes back when they walk on.
-            absorbed = age >= waits.long_still and self._absorb(
-                grey, fg, moved, mask, origin, bg=bg, frame=frame, keep=True, fringe=False
+            # Too small or too ragged for an outline test: becomes background after still_absorb_frames.
+            return age >= waits.long_still and self._absorb_fragment(
+                grey, fg, moved, mask, origin, area=area, bg=bg, frame=frame
             )
-            if absorbed:
-                logger.debug("still fragment of %d px at column %d absorbed", area, x)
-            return absorbed
         was_sum, cur_sum, n_out = _outline_edges(grey, bg_u8, mask, origin)
         score = was_sum / (cur_sum + 1.0)
         # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
@@ -365,6 +356,32 @@ class StillRegions:
         absorbed = self._absorb(grey, fg, moved, mask, origin, bg=bg, frame=frame, keep=not first)
         if absorbed:
             logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
+        return absorbed
+
+    def _absorb_fragment(
+        self,
+        grey: Mask,
+        fg: Mask,
+        moved: Mask,
+        mask: npt.NDArray[np.bool_],
+        origin: tuple[int, int],
+        *,
+        area: int,
+        bg: Float32Array,
+        frame: int,
+    ) -> bool:
+        """Absorb a still region too small or too ragged for an outline test. True if ``bg`` changed.
+
+        A speck, or a sliver of a ghost's edge left by an absorption (the model there still holds the
+        person's outline, a few grey levels over the threshold). Changed pixels are never learnt, so it would
+        stay for ever and join the blob of whoever passes it: it becomes background after
+        ``still_absorb_frames`` too, unless changed pixels surround it (part of someone). What it overwrote is
+        kept: the part of someone that alone differs from the wall (a shirt of the wall's grey in front of a
+        poster) comes back when they walk on.
+        """
+        absorbed = self._absorb(grey, fg, moved, mask, origin, bg=bg, frame=frame, keep=True, fringe=False)
+        if absorbed:
+            logger.debug("still fragment of %d px at column %d absorbed", area, origin[0])
         return absorbed
 
     def _absorb_hole(
