@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from common.arrays import FloatArray
+from common.histograms import bhattacharyya_coefficients
 
 if TYPE_CHECKING:
     from resource_manager.track.stack import ViewStack
@@ -37,7 +38,7 @@ def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> 
     cols = [c for c, look in enumerate(looks) if look is not None and look.shape == (h.shape[1],)]
     if cols and h.shape[0]:
         stacked = np.array([looks[c] for c in cols])
-        out[:, cols] = np.minimum(np.maximum(h @ stacked.T, 0.0), 1.0)
+        out[:, cols] = bhattacharyya_coefficients(h, stacked)
     return out
 
 
