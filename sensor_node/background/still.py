@@ -104,6 +104,24 @@ class _Waits:
         return cls(samples, long_still, keep_still)
 
 
+@dataclass(frozen=True, slots=True)
+class _Sample:
+    """One sampling frame as the still-region tests read it."""
+
+    grey: Mask
+    """The frame."""
+    fg: Mask
+    """Its changed pixels (255) against the model."""
+    moved: Mask
+    """Its moving pixels (frame differencing)."""
+    bg: Float32Array
+    """The float model, absorbed into in place."""
+    bg_u8: Mask
+    """The model as 8-bit grey levels before this frame's absorptions."""
+    frame: int
+    """The model's frame count."""
+
+
 def _mostly(born: Mask, origin: tuple[int, int], sel: npt.NDArray[np.bool_], n: int) -> bool:
     """Whether ``BORN_SHARE`` of the ``n`` pixels ``sel`` (in their box at ``origin``) are set in ``born``."""
     x, y = origin
@@ -246,12 +264,11 @@ class StillRegions:
         # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
         # would measure texture, not the silhouette.
         n, labels, stats, label_x, y0 = _closed_regions(old)
+        at = _Sample(grey, fg, moved, bg, bg_u8, frame)
         for k in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[k])
             mask = labels[y - y0 : y - y0 + h, label_x[k] : label_x[k] + w] == k
-            if self._test_region(
-                grey, fg, moved, mask, (x, y), area=area, waits=waits, bg=bg, bg_u8=bg_u8, frame=frame
-            ):
+            if self._test_region(at, mask, (x, y), area=area, waits=waits):
                 changed = True
         return changed
 
@@ -279,30 +296,18 @@ class StillRegions:
         self._last_fg = fg.copy() if self._born_age < BORN_FRAMES else None
 
     def _test_region(
-        self,
-        grey: Mask,
-        fg: Mask,
-        moved: Mask,
-        mask: npt.NDArray[np.bool_],
-        origin: tuple[int, int],
-        *,
-        area: int,
-        waits: _Waits,
-        bg: Float32Array,
-        bg_u8: Mask,
-        frame: int,
+        self, at: _Sample, mask: npt.NDArray[np.bool_], origin: tuple[int, int], *, area: int, waits: _Waits
     ) -> bool:
         """Test one still region (``mask``, of ``area`` pixels, in its box at ``origin`` = (column, row)) and
         absorb what of it is a ghost, a start-up hole or has stood too long. True if ``bg`` changed."""
         assert self._static is not None
+        grey, fg, bg_u8 = at.grey, at.fg, at.bg_u8
         x, y = origin
         h, w = mask.shape
         age = int(self._static[y : y + h, x : x + w][mask].max())
         if area < self.settings.min_blob_px or area < SOLID_FRAC * w * h:
             # Too small or too ragged for an outline test: becomes background after still_absorb_frames.
-            return age >= waits.long_still and self._absorb_fragment(
-                grey, fg, moved, mask, origin, area=area, bg=bg, frame=frame
-            )
+            return age >= waits.long_still and self._absorb_fragment(at, mask, origin, area)
         was_sum, cur_sum, n_out = _outline_edges(grey, bg_u8, mask, origin)
         score = was_sum / (cur_sum + 1.0)
         # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
@@ -339,7 +344,7 @@ class StillRegions:
             # columns are absorbed now, the one beside them is tested again later.
             part = mask & hole_columns(grey, bg_u8, fg, mask, origin)[None, :]
             if int(np.count_nonzero(part)) >= self.settings.min_blob_px:
-                return self._absorb_hole(grey, fg, moved, origin, part=part, beside=mask, bg=bg, frame=frame)
+                return self._absorb_hole(at, origin, part=part, beside=mask)
         if age < waits.samples and not hole:
             return False  # still too briefly for any test but the start-up hole's
         if not ghost:
@@ -353,23 +358,12 @@ class StillRegions:
                 return False
         # Anything but a hole since the model was learnt may be a mistake -- a born region too:
         # someone in view since the model was young who stood still -- keep what was there.
-        absorbed = self._absorb(grey, fg, moved, mask, origin, bg=bg, frame=frame, keep=not first)
+        absorbed = self._absorb(at, mask, origin, keep=not first)
         if absorbed:
             logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
         return absorbed
 
-    def _absorb_fragment(
-        self,
-        grey: Mask,
-        fg: Mask,
-        moved: Mask,
-        mask: npt.NDArray[np.bool_],
-        origin: tuple[int, int],
-        *,
-        area: int,
-        bg: Float32Array,
-        frame: int,
-    ) -> bool:
+    def _absorb_fragment(self, at: _Sample, mask: npt.NDArray[np.bool_], origin: tuple[int, int], area: int) -> bool:
         """Absorb a still region too small or too ragged for an outline test. True if ``bg`` changed.
 
         A speck, or a sliver of a ghost's edge left by an absorption (the model there still holds the
@@ -379,44 +373,29 @@ class StillRegions:
         kept: the part of someone that alone differs from the wall (a shirt of the wall's grey in front of a
         poster) comes back when they walk on.
         """
-        absorbed = self._absorb(grey, fg, moved, mask, origin, bg=bg, frame=frame, keep=True, fringe=False)
+        absorbed = self._absorb(at, mask, origin, keep=True, fringe=False)
         if absorbed:
             logger.debug("still fragment of %d px at column %d absorbed", area, origin[0])
         return absorbed
 
     def _absorb_hole(
-        self,
-        grey: Mask,
-        fg: Mask,
-        moved: Mask,
-        origin: tuple[int, int],
-        *,
-        part: npt.NDArray[np.bool_],
-        beside: npt.NDArray[np.bool_],
-        bg: Float32Array,
-        frame: int,
+        self, at: _Sample, origin: tuple[int, int], *, part: npt.NDArray[np.bool_], beside: npt.NDArray[np.bool_]
     ) -> bool:
         """Absorb the hole's columns ``part`` of a born region ``beside`` (the rest of it is whoever walks out of
         the hole, kept out of the absorption's ring). True if ``bg`` changed."""
         n_part = int(np.count_nonzero(part))
         first_part = self._born_first is not None and _mostly(self._born_first, origin, part, n_part)
-        absorbed = self._absorb(
-            grey, fg, moved, part, origin, bg=bg, frame=frame, keep=not first_part, fringe=False, beside=beside
-        )
+        absorbed = self._absorb(at, part, origin, keep=not first_part, fringe=False, beside=beside)
         if absorbed:
             logger.debug("hole of %d px beside someone at column %d absorbed", n_part, origin[0])
         return absorbed
 
     def _absorb(
         self,
-        grey: Mask,
-        fg: Mask,
-        moving: Mask,
+        at: _Sample,
         mask: npt.NDArray[np.bool_],
         origin: tuple[int, int],
         *,
-        bg: Float32Array,
-        frame: int,
         keep: bool,
         fringe: bool = True,
         beside: npt.NDArray[np.bool_] | None = None,
@@ -431,6 +410,7 @@ class StillRegions:
         the region, not counted in that ring. Returns whether it was absorbed into ``bg``.
         """
         assert self._static is not None
+        grey, fg, moving, bg, frame = at.grey, at.fg, at.moved, at.bg, at.frame
         x, y = origin
         h, w = mask.shape
         y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)
