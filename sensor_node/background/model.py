@@ -44,7 +44,7 @@ import numpy as np
 import numpy.typing as npt
 
 from common.arrays import Mask
-from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, remove_shadows
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_cells
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -254,7 +254,7 @@ class BackgroundModel:
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
-        :func:`sensor_node.background.shadows.remove_shadows`.
+        :func:`sensor_node.background.shadows.shadow_cells`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return fg
@@ -270,9 +270,10 @@ class BackgroundModel:
             self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
             if r1 > r0:
                 self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
-        return remove_shadows(
+        cells = shadow_cells(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
+        return fg if cells is None else cells.removed_from(fg)
 
     def apply(self, grey: Mask, stamp_ns: int | None = None, colour: ReducedColour | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
