@@ -131,12 +131,7 @@ def hole_columns(
     frame is ``SURROUND_GHOST`` as close): a column where neither departs is the edge of whoever stands
     there, not a hole (:func:`start_up_hole`'s undecided case is for whole regions).
 
-    Args:
-        grey: the frame (H, W) uint8.
-        bg: the model (H, W) uint8.
-        fg: the changed pixels (255) of the frame.
-        mask: the region inside its bounding box.
-        origin: (column, row) of the box's top-left corner.
+    Args: as :func:`surround_deviation`.
 
     Returns:
         One flag per column of the box: a hole there (False where no row has side pixels to compare).
