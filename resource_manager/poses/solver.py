@@ -23,7 +23,7 @@ bearings. Chaining rules, repeated until nothing changes:
 
 Raw poses are smoothed over time with an alpha-beta filter (time constant
 ``smoothing_s``), and carry the error model's uncertainty: σ_B ≈ B²σ_α/(2R)
-(notes/geometry.md §2.1), divided by √2 when both views are averaged.
+(docs/geometry.md §2.1), divided by √2 when both views are averaged.
 
 A raw pose far from the smoothed one (beyond ``jump_m``, or ``outlier_sigmas``)
 is refused; the filter restarts there only when ``outlier_run`` refused poses in
@@ -62,9 +62,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
 from resource_manager.ingest.align import AlignedSighting
@@ -73,8 +73,6 @@ from resource_manager.poses.witness import Estimate, Reference, blame, combine, 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
 
 logger = logging.getLogger(__name__)
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,14 +8,14 @@ every blob j of camera b::
 * r_is: colour similarity, the Bhattacharyya coefficient of the histograms;
 * r_rc: ray convergence; soft, from the smallest inner angle of the triangle
   O1-O2-T against the bearing error, with a colinear branch where the
-  size-ratio method (Eq. 2) takes over (notes/geometry.md §4);
+  size-ratio method (Eq. 2) takes over (docs/geometry.md §4);
 * r_wc: width consistency of the metric widths W_k = 2 D_k tan(w_k / 2);
 * r_hc: height consistency of the head-top heights H_k = z_k + D_k tan(top_k).
 
 A temporal consistency term from the current tracks is added:
 ``r' = (r + λ c_t) / (1 + λ)`` with c_t = 1 when both blobs already support
 the same track (only where r alone already exceeds the threshold). Two matchers turn the
-matrix into pairs, chosen by name (STYLE.md habit 12): ``greedy`` (the
+matrix into pairs, chosen by name (docs/STYLE.md habit 12): ``greedy`` (the
 paper's: repeatedly take the largest entry; one sort of the entries above the
 threshold gives the same pairs) and ``global`` (Hungarian on the sum of
 confidences, with a private "unmatched" dummy per row and column).
@@ -29,12 +29,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.errors import GeometryError
 from common.geometry import size_ratio
 from resource_manager.stereo.match_tables import Tables, colour_table
@@ -53,9 +54,6 @@ __all__ = [
     "match_matrices",
     "match_matrix",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-TWO_PI: Final = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,10 +90,6 @@ class MatchMatrix:
     parts: dict[str, FloatArray]
     """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
     is evaluated only where Eq. 7 alone exceeds the threshold, the only place it counts."""
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
@@ -181,14 +175,14 @@ def match_matrices(
     ]
     th1 = bearing[ia, :na][:, :, None]  # (p, na, 1)
     th2 = bearing[ib, :nb][:, None, :]  # (p, 1, nb)
-    # -- ray geometry on every blob pair: signed inner angles at O1 and O2 (notes/geometry.md §4) ----------
-    a1 = _wrap(th1 - psi12)
-    a2 = _wrap(psi12 + math.pi - th2)
+    # -- ray geometry on every blob pair: signed inner angles at O1 and O2 (docs/geometry.md §4) ----------
+    a1 = wrap_angle(th1 - psi12)
+    a2 = wrap_angle(psi12 + math.pi - th2)
     abs1, abs2 = np.abs(a1), np.abs(a2)
     same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)
     # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
-    # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
+    # docs/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
     pi1, pi2 = math.pi - abs1, math.pi - abs2
     col_d = np.minimum(np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, pi2), np.maximum(pi1, abs2)))
     w1, w2 = width[ia, :na][:, :, None], width[ib, :nb][:, None, :]

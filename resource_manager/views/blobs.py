@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ImageBounds", "ViewBlobs"]
+from common.angles import angle_diff
+from common.arrays import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["ImageBounds", "ViewBlobs"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,7 +97,7 @@ class ViewBlobs:
         """Whether a world azimuth is inside this camera's horizontal field of view."""
         if self.fov is None:
             return True
-        return abs(math.remainder(azimuth_rad - self.fov[0], 2 * math.pi)) <= self.fov[1]
+        return abs(angle_diff(azimuth_rad, self.fov[0])) <= self.fov[1]
 
     @property
     def n(self) -> int:
