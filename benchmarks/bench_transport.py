@@ -12,7 +12,7 @@ Starts a router subprocess on a free loopback port, opens two client sessions in
 * ``burst``: ``burst`` messages put back to back (DROP congestion control, as features are sent);
   how many arrived and the receive rate.
 
-Prints one JSON object. Numbers vary ±30-50 % on a shared 2-core machine (notes/zenoh.md §4).
+Prints one JSON object. Numbers vary ±30-50 % on a shared 2-core machine (docs/zenoh.md §4).
 """
 
 from __future__ import annotations

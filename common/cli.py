@@ -1,6 +1,6 @@
 """Helpers every entry point shares: logging set-up and error-to-exit-code mapping.
 
-Entry points stay thin (STYLE.md habit 1): parse arguments, load config,
+Entry points stay thin (docs/STYLE.md habit 1): parse arguments, load config,
 configure logging, call ``run``, and map exceptions to exit codes with
 :func:`run_main`.
 """
@@ -27,6 +27,7 @@ __all__ = [
     "non_negative",
     "positive",
     "probability",
+    "run_command",
     "run_main",
     "setup_logging",
 ]
@@ -133,3 +134,24 @@ def run_main(fn: Callable[[], int], prog: str) -> int:
     except Exception:  # a bug: full traceback in the log, a distinct exit code for the supervisor
         logging.getLogger(prog.replace(" ", ".")).exception("unexpected error (a bug): exiting with %d", EXIT_BUG)
         return EXIT_BUG
+
+
+def run_command(
+    prog: str,
+    description: str,
+    configure: Callable[[argparse.ArgumentParser], None],
+    run: Callable[[argparse.Namespace], int],
+    argv: list[str] | None = None,
+) -> int:
+    """A process's ``main``: parse ``argv`` (the process's own arguments if None) with the logging flags and the
+    ones ``configure`` adds, set up logging, and call ``run`` under :func:`run_main`. Returns the exit code.
+
+    Each tier's entry point (``sensor-node``, ``resource-manager``, ``user-agent``) is this with its own
+    ``configure`` and ``run``.
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    add_logging_args(parser)
+    configure(parser)
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    setup_logging(args.log_level)
+    return run_main(lambda: run(args), prog)

@@ -5,7 +5,7 @@ offset ``θ = ((t1 − t0) + (t2 − t3)) / 2`` and the round-trip delay
 ``δ = (t3 − t0) − (t2 − t1)``, with t0/t3 the local send/receive times and
 t1/t2 the server's receive/send times. Of ``samples`` requests the one with
 the smallest delay wins (the NTP clock-filter idea: the shortest round trip
-has the least room for path asymmetry, notes/zenoh.md §8.1). Its offset is
+has the least room for path asymmetry, docs/zenoh.md §8.1). Its offset is
 then added to ``time.time_ns()`` until the next re-sync, which a background
 thread runs every ``resync_s`` seconds.
 
@@ -221,7 +221,7 @@ class NtpClock:
 
 
 # ---------------------------------------------------------------------------
-# Interpolation (notes/zenoh.md §8.4 (b): align observations to a fusion time)
+# Interpolation (docs/zenoh.md §8.3 (b): align observations to a fusion time)
 # ---------------------------------------------------------------------------
 
 

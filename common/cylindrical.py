@@ -15,7 +15,7 @@ counter-clockwise, z up with z = height above the floor. Pixel coordinates are
 continuous, with the centre of pixel (column u, row v) at integer (u, v), the
 same convention as ``cv2.remap``.
 
-Formulas (notes/geometry.md section 5)::
+Formulas (docs/geometry.md section 5)::
 
     u = u0 + s_u f_h atan2(Y, X)   (mod W)      theta = s_u (u - u0) / f_h
     v = v0 - f_v (Z - H_c) / rho                tan(eps) = (v0 - v) / f_v

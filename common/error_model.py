@@ -1,6 +1,6 @@
 """Distance-error model of adaptive panoramic stereo: the paper's Eqs. (4)-(6) and Fig. 4.
 
-Model M1 (notes/geometry.md section 2): every measured angle carries the same
+Model M1 (docs/geometry.md section 2): every measured angle carries the same
 error dphi -- the bearings phi1, phi2 and the angle alpha subtended by the other
 robot's cylinder (Eq. 3) -- and the first-order terms add in the worst case::
 
@@ -186,7 +186,7 @@ def eq6_fixed_baseline(d1: float, radius: float, dphi: float) -> float:
 
     Returns the exact minimum over phi1 under M1 without the calibration term,
     sqrt((4 D1^2 - B^2)(D1^2 - B^2)) / B * dphi, whose leading term is Eq. (6)'s
-    D1^2 / R * dphi (notes/geometry.md section 2.2).
+    D1^2 / R * dphi (docs/geometry.md section 2.2).
     """
     b = 2.0 * radius
     if not d1 > b:

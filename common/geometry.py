@@ -13,7 +13,7 @@ the triangle O1 O2 T at O1, O2 and T (paper, Fig. 2a).
   of the two boundary bearings.
 
 The automatic choice between Eq. (1) and Eq. (2) is the crossover of
-notes/geometry.md section 3: size ratio is the better estimate iff the target's
+docs/geometry.md section 3: size ratio is the better estimate iff the target's
 perpendicular offset h from the baseline line satisfies h < W * sigma_phi / sigma_w,
 with W the target's width.
 """
@@ -243,7 +243,7 @@ def localize_pair(  # noqa: PLR0917 - positional signature fixed by the team con
     sigma_bearing_rad: float,
     sigma_width_rad: float,
 ) -> PairFix:
-    """Localise one target from two cameras with known positions (notes/geometry.md sections 3-4).
+    """Localise one target from two cameras with known positions (docs/geometry.md sections 3-4).
 
     Signed inner angles a1 = wrap(theta1 - psi(O1->O2)), a2 = wrap(psi(O2->O1) - theta2);
     the rays converge iff sign a1 = sign a2 and |a1| + |a2| < pi, then Eq. (1).

@@ -13,7 +13,7 @@ key                                    kind                         payload
 ``{root}/sensor/{id}/ptz/state``       put on change                PtzState
 ``{root}/manager/{id}``                liveliness token             presence
 ``{root}/tracks``                      put per fusion tick          TrackSet
-``{root}/track/{track_id}``            put per update + queryable   Track
+``{root}/track/{track_id}``            queryable (no put)           Track
 ``{root}/plan/{sensor_id}``            put                          ViewPlan
 ``{root}/manager/{id}/pairs``          put per tick                 PairChoice
 ``{root}/manager/{id}/ptz/{agent}``    queryable                    PtzRequest -> PtzReply
@@ -212,7 +212,7 @@ class Keys:
 
     @property
     def all_tracks(self) -> str:
-        """Every single-track key (put per update, and the queryable)."""
+        """Every single-track key (queryable only: the tracks are put on ``tracks``)."""
         return f"{self.root}/track/*"
 
     @property

@@ -5,7 +5,7 @@ forward. The distortion model is OpenCV's (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1 s2 s3
 s4 [tau_x tau_y]]]]); the tilted-sensor terms tau must be zero.
 
 Azimuths are counter-clockwise from world +x; elevations are above the
-horizontal plane through the optical centre (notes/geometry.md section 5).
+horizontal plane through the optical centre (docs/geometry.md section 5).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Opening zenoh sessions from config and the shared command-line flags.
 
-Deployment shape (notes/zenoh.md §2.2): in zenoh 1.10 peers do not relay
+Deployment shape (docs/zenoh.md §2.2): in zenoh 1.10 peers do not relay
 through a router, so a site runs one router (``panostereo router``, a zenoh
 router in Python) and every process is a *client* of it. Clients wait and
 retry while the router is not up yet, and reconnect by themselves after it
@@ -10,7 +10,7 @@ Multicast scouting is off unless asked for: the default config would leak
 onto every interface and cross-talk between concurrent runs.
 
 Shutdown: callback subscribers start non-daemon threads that keep a process
-alive until the session closes (notes/zenoh.md §5.1), so every shell opens
+alive until the session closes (docs/zenoh.md §5.1), so every shell opens
 its session with ``with open_session(...) as session:`` and installs
 :func:`install_signal_handlers` so SIGTERM unwinds like SIGINT.
 """

@@ -1,6 +1,6 @@
 """Typed publish/subscribe on top of a zenoh session.
 
-Zenoh callbacks must never block (notes/zenoh.md §5.2-5.3): a slow callback
+Zenoh callbacks must never block (docs/zenoh.md §5.2-5.3): a slow callback
 stalls the session's receive path for every subscriber. So the callback here
 only copies the payload bytes into a bounded buffer; decoding and validation
 happen on the consumer's thread when it calls :meth:`Inbox.drain` or

@@ -1,19 +1,19 @@
 """``resource-manager --config FILE`` (also ``python -m resource_manager`` and ``panostereo manager``).
 
-Thin entry point (STYLE.md habit 1): parse arguments, load the config, overlay
-the session flags, hand over to :func:`resource_manager.node.run`.
+The manager's own arguments and its run: the config file, narrowed to a site's sensors if one is given, with
+the state directory and the session flags laid over it, handed to :func:`resource_manager.node.run`; the rest of
+the entry point (logging, exit codes) is :func:`common.cli.run_command` (docs/STYLE.md habit 1).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
 import msgspec
 
-from common.cli import add_logging_args, run_main, setup_logging
+from common.cli import run_command
 from common.session import add_session_args, settings_from_args
 
 __all__ = ["configure", "main", "run"]
@@ -60,9 +60,4 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="resource-manager", description="Run the resource manager.")
-    add_logging_args(parser)
-    configure(parser)
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    setup_logging(args.log_level)
-    return run_main(lambda: run(args), "resource-manager")
+    return run_command("resource-manager", "Run the resource manager.", configure, run, argv)

@@ -2,9 +2,11 @@
 sensor's description.
 
 Pure of zenoh: the shell (:mod:`sensor_node.node`) publishes what this builds.
-Each ``[source] kind`` has one builder in :data:`SOURCES`; the simulated camera's
-is the only place a node reaches the simulator (:mod:`sim`, imported when a
-``sim`` source is built). Which pipeline a node runs follows from its source and camera:
+Each ``[source] kind`` has one builder in :data:`SOURCES`. Kinds whose builder lives outside the node
+register themselves: :func:`register_source`, or an entry point in the ``panostereo.sources`` group named
+after the kind, loaded the first time a config asks for it. The simulated camera (``kind = "sim"``) is one:
+its builder is :func:`panostereo.sim_camera.build_simulated`, so the node never imports the simulator.
+Which pipeline a node runs follows from its source and camera:
 
 =========================  ==========================  ==================================
 source                     camera                      processing
@@ -22,6 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any, Literal, Protocol
 
 from common.angles import wrap_angle
@@ -38,13 +41,11 @@ from common.schema import (
     SensorKind,
     ViewPlan,
 )
-from common.site import load_site, site_file
 from sensor_node.config import (
     DetectionsSource,
     FolderSource,
     NodeConfig,
     OpenCvSource,
-    SimSource,
     epoch_from,
     start_file_from_env,
 )
@@ -59,13 +60,20 @@ from sensor_node.unwarp import Unwarper
 __all__ = [
     "BOX_POINT_SIGMA_M",
     "HEAD_POINT_SIGMA_M",
+    "SAME_HEIGHT_M",
     "SOURCES",
+    "SOURCE_ENTRY_POINTS",
     "DetectionProcessor",
+    "ImageProcessor",
     "NodeParts",
     "PlanFollower",
     "Processor",
     "build_node",
+    "panoramic_pipeline",
+    "register_source",
     "sensor_info",
+    "source_builder",
+    "source_kind",
 ]
 
 HEAD_POINT_SIGMA_M = 0.05
@@ -205,43 +213,11 @@ def _surveyed_pose(cfg: NodeConfig) -> Pose | None:
     return Pose(x_m=cfg.pose.x_m, y_m=cfg.pose.y_m, z_m=cfg.pose.z_m, yaw_rad=yaw)
 
 
-def _panoramic(cfg: NodeConfig, annular: AnnularModel, cyl: CylindricalCamera) -> ImagePipeline:
+def panoramic_pipeline(cfg: NodeConfig, annular: AnnularModel, cyl: CylindricalCamera) -> ImagePipeline:
+    """The image pipeline of a panoramic camera: unwarp, the stages, and sightings of the bodies in ``[[body]]``."""
     return ImagePipeline(
         cfg.node.id, PanoramicGeometry(cyl), cfg.pipeline, Unwarper(annular), list(cfg.body), mobile=cfg.node.mobile
     )
-
-
-def _simulated(cfg: NodeConfig, src: SimSource, pose: Pose | None, clock: Clock) -> NodeParts:
-    """A camera of a simulated site: rendered pixels, a simulated PTZ head, robots that follow the plans."""
-    from sim.ptz_head import SimulatedPtz
-    from sim.source import SimFrames
-    from sim.world import site_with_seed_from_env
-
-    where = cfg.path or "node config"
-    # PANOSTEREO_SEED (``panostereo demo --seed N``) picks the world the ground truth is written for.
-    site = site_with_seed_from_env(load_site(site_file(src.site, cfg.path or "node.toml")))
-    cam_id = src.camera or cfg.node.id
-    spec = site.camera_by_id(cam_id)
-    epoch = epoch_from(src.epoch_ns, clock())
-    fps = src.fps or site.site.fps
-    if spec.kind == "panoramic":
-        sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock)
-        annular, cyl = sim.models
-        if pose is not None and abs(pose.z_m - cyl.height_m) > SAME_HEIGHT_M:
-            cyl = CylindricalCamera(cyl.width_px, cyl.height_px, cyl.f_v_px, cyl.v0_px, pose.z_m, cyl.direction)
-        proc = ImageProcessor(_panoramic(cfg, annular, cyl))
-        return NodeParts(
-            sim, proc, "panoramic", cyl.to_model(), pose, fps, plans=sim.plans, camera_height_m=cyl.height_m
-        )
-    if pose is None:
-        raise ConfigError(f"{where}: a simulated PTZ camera needs a [pose] table (the head's surveyed position)")
-    driver = SimulatedPtz(math.radians(spec.pan_deg), math.radians(spec.tilt_deg), spec.zoom, clock)
-    sim = SimFrames(site, cam_id, fps=fps, epoch_ns=epoch, seed=src.seed, clock=clock, ptz=driver)
-    head = PtzHead(driver, sim.ptz_camera(pose.x_m, pose.y_m, pose.z_m))
-    geo = PinholeGeometry(head.camera(driver.pose(clock())))
-    pipe = ImagePipeline(cfg.node.id, geo, cfg.pipeline)
-    ptz_pose = Pose(x_m=pose.x_m, y_m=pose.y_m, z_m=pose.z_m, yaw_rad=0.0)
-    return NodeParts(sim, ImageProcessor(pipe, head), "ptz", geo.camera.to_model(), ptz_pose, fps, head, sim.plans)
 
 
 def _detections(cfg: NodeConfig, src: DetectionsSource, pose: Pose | None, clock: Clock) -> NodeParts:
@@ -293,19 +269,52 @@ def _camera(cfg: NodeConfig, src: OpenCvSource | FolderSource, pose: Pose | None
         iw, ih, cam.center_px[0], cam.center_px[1], a0, a1, a2, pw, ph, math.radians(cam.psi0_deg), cam.direction
     )
     cyl = CylindricalCamera(pw, ph, cam.f_v_px, cam.v0_px, pose.z_m if pose else cam.height_m, cam.direction)
-    proc_p = ImageProcessor(_panoramic(cfg, annular, cyl))
+    proc_p = ImageProcessor(panoramic_pipeline(cfg, annular, cyl))
     return NodeParts(
         source, proc_p, "panoramic", cyl.to_model(), pose, fps, camera_height_m=cyl.height_m, exit_at_end=at_exit
     )
 
 
-SOURCES: dict[type, Callable[[NodeConfig, Any, Pose | None, Clock], NodeParts]] = {
-    SimSource: _simulated,
-    DetectionsSource: _detections,
-    OpenCvSource: _camera,
-    FolderSource: _camera,
+SourceBuilder = Callable[[NodeConfig, Any, Pose | None, Clock], NodeParts]
+"""Builds a node from its config, its ``[source]`` table, the surveyed pose (if any) and the clock."""
+
+SOURCE_ENTRY_POINTS = "panostereo.sources"
+"""The entry-point group where packages name the builders of the source kinds they add (name = kind)."""
+
+SOURCES: dict[str, SourceBuilder] = {
+    "detections": _detections,
+    "opencv": _camera,
+    "folder": _camera,
 }
-"""The source registry: each ``[source]`` table's type -> the builder of its node."""
+"""The source registry: a ``[source] kind`` -> the builder of its node."""
+
+
+def register_source(kind: str, builder: SourceBuilder) -> None:
+    """Add (or replace) the builder of a ``[source] kind``."""
+    SOURCES[kind] = builder
+
+
+def source_kind(src: object) -> str:
+    """The ``kind`` tag of a ``[source]`` table (``"sim"``, ``"opencv"``, ...)."""
+    return str(type(src).__struct_config__.tag)  # type: ignore[attr-defined]
+
+
+def source_builder(kind: str) -> SourceBuilder:
+    """The builder of ``kind``: registered, else loaded from its entry point.
+
+    Raises:
+        ConfigError: no package provides the kind.
+    """
+    if kind not in SOURCES:
+        for ep in entry_points(group=SOURCE_ENTRY_POINTS, name=kind):
+            register_source(kind, ep.load())
+    try:
+        return SOURCES[kind]
+    except KeyError:
+        raise ConfigError(
+            f"[source] kind {kind!r}: no builder registered (known: {sorted(SOURCES)}; "
+            f"a package adds one under the {SOURCE_ENTRY_POINTS!r} entry points)"
+        ) from None
 
 
 def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
@@ -315,4 +324,4 @@ def build_node(cfg: NodeConfig, clock: Clock) -> NodeParts:
         ConfigError: inconsistent config (e.g. a PTZ sim camera without a [pose]).
         SourceError: a source that cannot start (missing folder, unreadable detection file).
     """
-    return SOURCES[type(cfg.source)](cfg, cfg.source, _surveyed_pose(cfg), clock)
+    return source_builder(source_kind(cfg.source))(cfg, cfg.source, _surveyed_pose(cfg), clock)

@@ -1,17 +1,17 @@
 """``sensor-node --config FILE`` (also ``python -m sensor_node`` and ``panostereo node``).
 
-Thin entry point (STYLE.md habit 1): parse arguments, load the config, overlay
-the session flags, hand over to :func:`sensor_node.node.run`.
+The node's own arguments and its run: the config file with the session flags laid over it, handed to
+:func:`sensor_node.node.run_node`; the rest of the entry point (logging, exit codes) is
+:func:`common.cli.run_command` (docs/STYLE.md habit 1).
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 
 import msgspec
 
-from common.cli import add_logging_args, run_main, setup_logging
+from common.cli import run_command
 from common.session import add_session_args, settings_from_args
 
 __all__ = ["configure", "main", "run"]
@@ -37,9 +37,4 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="sensor-node", description="Run one sensor node (one camera).")
-    add_logging_args(parser)
-    configure(parser)
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    setup_logging(args.log_level)
-    return run_main(lambda: run(args), "sensor-node")
+    return run_command("sensor-node", "Run one sensor node (one camera).", configure, run, argv)

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import bisect
-from typing import Any, cast
+from typing import cast
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ColumnRuns", "components", "packed_components"]
+from common.arrays import Mask
 
-Mask = npt.NDArray[Any]
+__all__ = ["ColumnRuns", "components", "packed_components"]
 
 
 def components(mask: Mask) -> tuple[int, Mask, npt.NDArray[np.int32]]:

@@ -33,6 +33,7 @@ from common.angles import wrap_angle
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
 from common.frames import Clock, Frame, Pacer
+from common.numbers import clip
 from common.schema import Blob, Features, Pose, SourceState
 from sensor_node.config import read_start_file
 from sensor_node.tracks2d import Tracker2D
@@ -117,10 +118,6 @@ def camera_pose(camera: PinholeCamera) -> Pose:
     return Pose(x_m=float(c[0]), y_m=float(c[1]), z_m=float(c[2]), yaw_rad=0.0)
 
 
-def _clip(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
-
-
 def features_from_detections(
     dets: list[Detection],
     camera: PinholeCamera,
@@ -167,8 +164,8 @@ def features_from_detections(
                 local_id=max(0, ids[i]),
                 bearing_rad=wrap_angle(float(az[i, 0])),
                 width_rad=width,
-                top_elev_rad=_clip(float(el[i, 3]), -half, half),
-                bottom_elev_rad=_clip(float(el[i, 0]), -half, half),
+                top_elev_rad=clip(float(el[i, 3]), -half, half),
+                bottom_elev_rad=clip(float(el[i, 0]), -half, half),
                 bbox_u_px=float(d.left_px),
                 bbox_v_px=float(d.top_px),
                 bbox_w_px=float(d.width_px),
@@ -176,7 +173,7 @@ def features_from_detections(
                 hist=[],
                 changed_frac=1.0,
                 feet_visible=bool(inside),
-                confidence=_clip(d.conf, 0.0, 1.0),
+                confidence=clip(d.conf, 0.0, 1.0),
             )
         )
     return Features(sensor_id=sensor_id, seq=seq, stamp_ns=stamp_ns, frame_index=frame_index, blobs=blobs[:256])

@@ -26,7 +26,10 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI, wrap_angle
+from common.arrays import Image
 from common.cameras import CylindricalCamera, PinholeCamera
+from common.numbers import clip
 from common.schema import Blob
 from sensor_node.head import DiffRows, extract_head
 from sensor_node.segmentation.blobs import RawBlob, roi
@@ -41,9 +44,6 @@ __all__ = [
     "colour_histogram",
     "to_wire",
 ]
-
-
-Image = npt.NDArray[Any]
 
 
 class ImageGeometry(Protocol):
@@ -88,7 +88,7 @@ class PanoramicGeometry:
 
     def bearing(self, u: float, v: float) -> float:
         b = self._b0 + self._dir * u / self._f_h
-        return (b + math.pi) % (2 * math.pi) - math.pi
+        return wrap_angle(b)
 
     def elevation(self, u: float, v: float) -> float:
         return math.atan((self._v0 - v) / self._f_v)
@@ -120,7 +120,7 @@ class PinholeGeometry:
     def width(self, u_left: float, u_right: float, v: float) -> float:
         az, _ = self.camera.bearing_elevation(np.array([[u_left, v], [u_right, v]], dtype=np.float64))
         d = float(az[0] - az[1])
-        return abs(math.atan2(math.sin(d), math.cos(d)))
+        return abs(wrap_angle(d))
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,30 +255,21 @@ tell the two apart from the mask alone, so it is a warning, not an error estimat
 read it (it matches on colour, width, height and ray convergence, Eq. 7)."""
 
 
-def _wrap_pi(a: float) -> float:
-    w = math.atan2(math.sin(a), math.cos(a))
-    return math.pi if w > math.pi else w
-
-
-def _clip(x: float, lo: float, hi: float) -> float:
-    return lo if x < lo else hi if x > hi else x
-
-
 def to_wire(f: BlobFeature, local_id: int) -> Blob:
     """The wire Blob (numpy values turned into bounded Python floats)."""
     half = math.pi / 2
     return Blob(
         local_id=int(local_id),
-        bearing_rad=_wrap_pi(float(f.bearing_rad)),
-        width_rad=_clip(float(f.width_rad), 0.0, 2 * math.pi),
-        top_elev_rad=_clip(float(f.top_elev_rad), -half, half),
-        bottom_elev_rad=_clip(float(f.bottom_elev_rad), -half, half),
+        bearing_rad=wrap_angle(float(f.bearing_rad)),
+        width_rad=clip(float(f.width_rad), 0.0, TWO_PI),
+        top_elev_rad=clip(float(f.top_elev_rad), -half, half),
+        bottom_elev_rad=clip(float(f.bottom_elev_rad), -half, half),
         bbox_u_px=float(f.u0_px),
         bbox_v_px=float(f.v0_px),
         bbox_w_px=float(f.w_px),
         bbox_h_px=float(f.h_px),
         hist=f.hist,
-        changed_frac=_clip(float(f.changed_frac), 0.0, 1.0),
+        changed_frac=clip(float(f.changed_frac), 0.0, 1.0),
         feet_visible=bool(f.feet_visible),
-        confidence=_clip(float(f.confidence), 0.0, 1.0),
+        confidence=clip(float(f.confidence), 0.0, 1.0),
     )

@@ -19,12 +19,11 @@ frames. ``benchmarks/bench_pipeline.py`` measures it against an OpenCV floor.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import Image, Mask
 from common.errors import SourceError
 from common.schema import DetectorState, Features
 from sensor_node.background.model import BackgroundModel, Motion, MotionState
@@ -46,8 +45,6 @@ from sensor_node.unwarp import PanoFrame, Unwarper
 
 __all__ = ["FrameResult", "ImagePipeline"]
 
-Image = npt.NDArray[Any]
-Mask = npt.NDArray[Any]
 
 DETECTOR_STATE: dict[MotionState, DetectorState] = {
     "ok": "ok",

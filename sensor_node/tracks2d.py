@@ -1,7 +1,7 @@
 """Stage 6: short 2D tracks, so each blob keeps a node-local id across frames.
 
 The manager interpolates one camera's blob bearings between the two frames
-that bracket its fusion instant (DESIGN.md, Time); for that it must know which
+that bracket its fusion instant (docs/zenoh.md §8.3); for that it must know which
 blob of frame k+1 is which blob of frame k. A constant-velocity nearest
 neighbour is plenty at camera rates: people move a few pixels per frame.
 

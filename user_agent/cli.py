@@ -18,7 +18,7 @@ from typing import Any
 
 import msgspec
 
-from common.cli import add_logging_args, exit_process, non_negative, positive, run_main, setup_logging
+from common.cli import exit_process, non_negative, positive, run_command
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings, add_session_args, install_signal_handlers, open_session, settings_from_args
@@ -489,12 +489,7 @@ def _view(args: argparse.Namespace, agent: Any) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="user-agent", description="User-agent tools of a panostereo site.")
-    add_logging_args(parser)
-    configure(parser)
-    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    setup_logging(args.log_level)
-    code = run_main(lambda: run(args), "user-agent")
+    code = run_command("user-agent", "User-agent tools of a panostereo site.", configure, run, argv)
     if argv is None:
         exit_process(code)  # a process, not a call: no interpreter finalization under zenoh's threads
     return code

@@ -1,6 +1,6 @@
 """Record everything under ``{prefix}/@v1/**`` into an MCAP file.
 
-Per zenoh key the file holds (notes/zenoh.md §7.1):
+Per zenoh key the file holds (docs/zenoh.md §7.1):
 
 * a **raw** channel (topic = the key, message encoding ``msgpack``, channel
   metadata ``zenoh_key`` and ``kind=raw``): the exact payload bytes, so

@@ -2,7 +2,7 @@
 
 The schedule is computed against ``time.monotonic()`` from the start (sample
 ``i`` goes out at ``start + (log_i - log_0) / speed``) rather than by sleeping
-between samples, so errors never accumulate (notes/zenoh.md §7.1).
+between samples, so errors never accumulate (docs/zenoh.md §7.1).
 """
 
 from __future__ import annotations

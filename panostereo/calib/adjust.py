@@ -20,17 +20,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import least_squares
 from scipy.sparse import coo_matrix, csr_matrix
 
-from common.arrays import FloatArray
+from common.arrays import FloatArray, IntArray
 from common.pinhole import rotation_from_rvec
 from panostereo.calib.associate import Association, HeightPrior, head_projectors
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose, rotation_z
-
-IntArray = npt.NDArray[np.int64]
 
 __all__ = ["Adjusted", "Tolerance", "adjust", "ray_distances"]
 

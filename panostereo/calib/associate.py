@@ -16,16 +16,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose
 
 __all__ = ["Association", "HeightPrior", "WorldRays", "associate", "head_projectors", "triangulate", "world_rays"]
 
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
 
 MIN_VIEWS = 2
 """A person needs two cameras' blobs (one camera alone places nobody here)."""

@@ -24,9 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.errors import ConfigError
 from common.pinhole import PinholeCamera
 from common.schema import Features, PinholeModel, SensorInfo
@@ -37,8 +36,6 @@ __all__ = ["CameraRays", "from_features", "from_recording", "from_site"]
 
 logger = logging.getLogger(__name__)
 
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
 DEFAULT_POINT_SIGMA_M = 0.1
 """Spread of a ray's point around the person's axis (m) when the sensor does not state it (``point_sigma_m``)."""
 HEAD_TRUSTED_CONFIDENCE = 0.5

@@ -23,9 +23,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import numpy.typing as npt
 
-from common.arrays import FloatArray
+from common.arrays import FloatArray, IntArray
 from panostereo.calib.adjust import Tolerance
 from panostereo.calib.associate import HeightPrior, head_projectors
 from panostereo.calib.observe import CameraRays
@@ -33,7 +32,6 @@ from panostereo.calib.poses import CameraPose, pose_change, rotation_z
 
 __all__ = ["AnchorPeople", "Found", "anchor_people", "find_pose", "support"]
 
-IntArray = npt.NDArray[np.int64]
 
 MIN_COMMON_INSTANTS = 4
 """A track pair must share this many instants to make a hypothesis (fewer: a person standing, or a glimpse)."""

@@ -1,7 +1,7 @@
 """``panostereo plan``: the best stereo configuration for a target and the error map (Eqs. 4-6, Fig. 4).
 
 Camera 1 (the main camera) is at O1, the target T at distance D1; camera 2 can
-move. Under model M1 (notes/geometry.md section 2) the command prints the
+move. Under model M1 (docs/geometry.md section 2) the command prints the
 optimal baseline and angle, camera 2's two symmetric optimal positions (frame:
 O1 = (0, 0), T = (D1, 0)), the normalised error dD1/(D1 dphi), the absolute error
 for the given bearing error, Eq. (5)'s bound and Eq. (6)'s fixed-baseline error.

@@ -1,6 +1,6 @@
 """``panostereo router``: a zenoh router in Python, the hub of a site.
 
-No ``zenohd`` binary is obtainable here (notes/zenoh.md §2.4), and in zenoh
+No ``zenohd`` binary is obtainable here (docs/zenoh.md §2.4), and in zenoh
 1.10 peers do not relay through a router (§2.2), so a site runs this router
 and every process connects to it as a client.
 
@@ -114,7 +114,7 @@ def _locators(session: Any, configured: list[str]) -> list[str]:
 
     With an explicit port the configured endpoints are the answer. With port 0
     the kernel chose the port, so ask the router's own admin space (enabled
-    only in that case, notes/zenoh.md §2.7).
+    only in that case, docs/zenoh.md §2.7).
     """
     if not any(ep.rsplit(":", 1)[-1] == "0" for ep in configured):
         return configured

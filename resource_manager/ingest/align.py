@@ -15,16 +15,13 @@ sighted robot's id.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from common.angles import interp_angle
+from common.angles import angle_diff, interp_angle, wrap_angle
 from common.schema import Blob, Features, Sighting
 from resource_manager.config import ManagerSection, default_of
 from resource_manager.ingest.buffers import SensorBuffer
-
-_TWO_PI = 2.0 * math.pi
 
 __all__ = ["AlignParams", "AlignedBlob", "AlignedSighting", "AlignedView", "align_sensor"]
 
@@ -86,12 +83,12 @@ def _blob_at(b0: Blob | None, t0: int, b1: Blob | None, t1: int, t: int) -> Alig
         # tuple built positionally: this runs for every blob of every sensor on every tick.
         f = (t - t0) / (t1 - t0) if t1 != t0 else 1.0
         bearing0 = b0.bearing_rad
-        step = math.remainder(b1.bearing_rad - bearing0, _TWO_PI)
+        step = angle_diff(b1.bearing_rad, bearing0)
         width0, top0, bottom0 = b0.width_rad, b0.top_elev_rad, b0.bottom_elev_rad
         v0, v1 = b0.bbox_v_px, b1.bbox_v_px
         return AlignedBlob(
             b1.local_id,
-            math.remainder(bearing0 + step * f, _TWO_PI),
+            wrap_angle(bearing0 + step * f),
             max(0.0, width0 + (b1.width_rad - width0) * f),
             top0 + (b1.top_elev_rad - top0) * f,
             bottom0 + (b1.bottom_elev_rad - bottom0) * f,

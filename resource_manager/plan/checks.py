@@ -25,8 +25,8 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import BoolArray, FloatArray
 from common.error_model import normalised_error_xy, pair_position_error
 from resource_manager.stereo.pairs import PAIR_CAMERAS
 
@@ -43,9 +43,6 @@ __all__ = [
     "predicted_error",
     "segment_dist",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 def predicted_error(xy: FloatArray, sc: Scene) -> FloatArray:

@@ -31,7 +31,7 @@ current target -- unconstrained, B ≈ 2√(D1 R) and cos φ1 = 3BD1/(2D1²+B²)
   waits.
 
 The candidates are a grid (``grid_step_m``) over the room (or around the target; the map is smooth and flat
-near its minimum, notes/geometry.md §2.3); among near-equal ones the shorter drive wins (``travel_frac_per_m``).
+near its minimum, docs/geometry.md §2.3); among near-equal ones the shorter drive wins (``travel_frac_per_m``).
 
 Assignment: each mobile camera takes the confirmed track with the largest predicted error among those not yet
 taken, nearest first when equal; two mobile cameras never take the same person.
@@ -44,8 +44,8 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.schema import MAX_METRES
 from resource_manager.plan.checks import feasible, found, move_payoff, others_error, predicted_error
 from resource_manager.plan.scene import (
@@ -60,9 +60,6 @@ from resource_manager.plan.scene import (
 __all__ = ["PlanCamera", "PlanGoal", "PlanTarget", "PlannerParams", "ViewPlanner", "plan_camera"]
 
 logger = logging.getLogger(__name__)
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 @dataclass(slots=True)

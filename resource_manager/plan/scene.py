@@ -8,9 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-import numpy.typing as npt
-
+from common.arrays import FloatArray
 from common.schema import PanoramicModel, SensorInfo
 from resource_manager.config import PlannerSection, default_of
 
@@ -25,7 +23,6 @@ __all__ = [
     "plan_camera",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 PAL_ELEV_MIN_RAD = math.radians(-15.0)
 PAL_ELEV_MAX_RAD = math.radians(20.0)

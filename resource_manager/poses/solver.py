@@ -23,7 +23,7 @@ bearings. Chaining rules, repeated until nothing changes:
 
 Raw poses are smoothed over time with an alpha-beta filter (time constant
 ``smoothing_s``), and carry the error model's uncertainty: σ_B ≈ B²σ_α/(2R)
-(notes/geometry.md §2.1), divided by √2 when both views are averaged.
+(docs/geometry.md §2.1), divided by √2 when both views are averaged.
 
 A raw pose far from the smoothed one (beyond ``jump_m``, or ``outlier_sigmas``)
 is refused; the filter restarts there only when ``outlier_run`` refused poses in
@@ -62,9 +62,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
 from resource_manager.config import ManagerSection, MutualSection, default_of
@@ -82,8 +82,6 @@ RESECTION_TARGETS = 2
 """A camera placed from its own sightings alone needs two sighted cameras of known pose (a resection)."""
 
 logger = logging.getLogger(__name__)
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)

@@ -16,6 +16,7 @@ from functools import cache
 import msgspec
 
 from common.angles import wrap_angle
+from common.numbers import clip
 from common.schema import (
     MAX_SENSORS,
     MAX_TRACKS,
@@ -47,10 +48,8 @@ def _bounds(struct: type[msgspec.Struct], name: str) -> tuple[float, float]:
 
 
 def _fit(struct: type[msgspec.Struct], name: str, v: float) -> float:
-    """``v`` clipped to the schema's range of ``struct.name`` (NaN stays NaN), without numpy's per-call cost."""
-    lo, hi = _bounds(struct, name)
-    v = float(v)
-    return v if math.isnan(v) else min(max(v, lo), hi)
+    """``v`` clipped to the schema's range of ``struct.name`` (NaN stays NaN)."""
+    return clip(v, *_bounds(struct, name))
 
 
 def _fit_int(struct: type[msgspec.Struct], name: str, v: int) -> int:

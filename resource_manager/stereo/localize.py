@@ -3,13 +3,13 @@
 With the best pair (the paper's method) the position comes from
 :func:`common.geometry.localize_pair`: triangulation (Eq. 1) or, near
 colinearity, size-ratio (Eq. 2), chosen by the crossover of
-notes/geometry.md §3. With ``fuse_all`` every view of the person is combined
+docs/geometry.md §3. With ``fuse_all`` every view of the person is combined
 by least squares (:func:`common.geometry.intersect_rays`).
 
 The head-top height comes from the top elevation: z = z_cam + D·tan(top_elev),
 averaged over the views with weights 1/D².
 
-Covariance (first order, notes/geometry.md §2.1): an error δθ1 in camera 1's
+Covariance (first order, docs/geometry.md §2.1): an error δθ1 in camera 1's
 bearing moves the intersection along ray 2 by D1·δθ1/sin φ0, and δθ2 moves it
 along ray 1 by D2·δθ2/sin φ0; a baseline error δB scales the triangle about O1.
 Hence Σ = σ²/sin²φ0 (D1² e2e2ᵀ + D2² e1e1ᵀ) + (σ_B/B)² (p−O1)(p−O1)ᵀ, whose
@@ -24,8 +24,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray
 from common.error_model import pair_error_f
 from common.geometry import MIN_RAYS, intersect_rays, localize_pair
 from common.schema import Method
@@ -40,7 +40,6 @@ __all__ = [
     "wide_blob",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 MAX_PERSON_WIDTH_M = 0.75
 """A blob wider than this (metric width at its distance) holds several people (simulated bodies: 0.40-0.52 m)."""
 

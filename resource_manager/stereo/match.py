@@ -8,14 +8,14 @@ every blob j of camera b::
 * r_is: colour similarity, the Bhattacharyya coefficient of the histograms;
 * r_rc: ray convergence; soft, from the smallest inner angle of the triangle
   O1-O2-T against the bearing error, with a colinear branch where the
-  size-ratio method (Eq. 2) takes over (notes/geometry.md §4);
+  size-ratio method (Eq. 2) takes over (docs/geometry.md §4);
 * r_wc: width consistency of the metric widths W_k = 2 D_k tan(w_k / 2);
 * r_hc: height consistency of the head-top heights H_k = z_k + D_k tan(top_k).
 
 A temporal consistency term from the current tracks is added:
 ``r' = (r + λ c_t) / (1 + λ)`` with c_t = 1 when both blobs already support
 the same track (only where r alone already exceeds the threshold). Two matchers turn the
-matrix into pairs, chosen by name (STYLE.md habit 12): ``greedy`` (the
+matrix into pairs, chosen by name (docs/STYLE.md habit 12): ``greedy`` (the
 paper's: repeatedly take the largest entry; one sort of the entries above the
 threshold gives the same pairs) and ``global`` (Hungarian on the sum of
 confidences, with a private "unmatched" dummy per row and column).
@@ -35,6 +35,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
+from common.angles import wrap_angle
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.errors import GeometryError
 from common.geometry import MIN_SIN, size_ratio
 from resource_manager.config import MatchSection, default_of
@@ -55,8 +57,6 @@ __all__ = [
     "match_matrix",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-TWO_PI: Final = 2.0 * math.pi
 FEET_SIGMAS: Final = 4.0
 """The feet's floor check allows this many bearing errors times the distance (a box bottom is coarser than a
 head bearing)."""
@@ -90,15 +90,11 @@ class MatchMatrix:
     d2_m: FloatArray
     xy: FloatArray
     """(na, nb, 2) hypothesised target positions."""
-    size_ratio: npt.NDArray[np.bool_]
+    size_ratio: BoolArray
     """(na, nb) True where Eq. 2 (size-ratio) was used instead of Eq. 1."""
     parts: dict[str, FloatArray]
     """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
     is evaluated only where Eq. 7 alone exceeds the threshold, the only place it counts."""
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
@@ -137,15 +133,15 @@ class _Batch:
     uniq: list[ViewBlobs]
     """Every view of the batch once."""
     tabs: Tables
-    ia: npt.NDArray[np.int64]
+    ia: IntArray
     """(p,) index in ``uniq`` of each pair's camera 1 (O1)..."""
-    ib: npt.NDArray[np.int64]
+    ib: IntArray
     """...and of its camera 2 (O2)."""
     per_blob: FloatArray
     """(v, n, c) bearing, width, top (and with the floor term bottom) elevations of every view's blobs."""
     tan_w: FloatArray
     tan_top: FloatArray
-    cut: npt.NDArray[np.bool_]
+    cut: BoolArray
     z_view: FloatArray
     o1: FloatArray
     base: FloatArray
@@ -165,16 +161,16 @@ class _Rays:
 
     abs1: FloatArray
     abs2: FloatArray
-    same_side: npt.NDArray[np.bool_]
-    converge: npt.NDArray[np.bool_]
+    same_side: BoolArray
+    converge: BoolArray
     pi1: FloatArray
     col_d: FloatArray
     """How far from colinear with the baseline (rad)."""
-    use_sr: npt.NDArray[np.bool_]
+    use_sr: BoolArray
     """Eq. 2 (size-ratio) rather than Eq. 1."""
     d1: FloatArray
     d2: FloatArray
-    valid: npt.NDArray[np.bool_]
+    valid: BoolArray
     """Both distances positive and within ``max_range_m``."""
 
 
@@ -225,16 +221,16 @@ def _gather(pairs: list[tuple[ViewBlobs, ViewBlobs]], floor: bool) -> _Batch:
 
 
 def _rays(g: _Batch, params: MatchParams) -> _Rays:
-    """Ray geometry on every blob pair: signed inner angles at O1 and O2 (notes/geometry.md §4), then the
+    """Ray geometry on every blob pair: signed inner angles at O1 and O2 (docs/geometry.md §4), then the
     distances by Eq. 2 where target and baseline are (nearly) colinear, by Eq. 1 elsewhere."""
     _, na, nb = g.shape
-    a1 = _wrap(g.th1 - g.psi12)
-    a2 = _wrap(g.psi12 + math.pi - g.th2)
+    a1 = wrap_angle(g.th1 - g.psi12)
+    a2 = wrap_angle(g.psi12 + math.pi - g.th2)
     abs1, abs2 = np.abs(a1), np.abs(a2)
     same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
     converge = same_side & (abs1 + abs2 < math.pi)
     # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
-    # notes/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
+    # docs/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
     pi1, pi2 = math.pi - abs1, math.pi - abs2
     col_d = np.minimum(np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, pi2), np.maximum(pi1, abs2)))
     width = g.per_blob[:, :, 1]
@@ -260,7 +256,7 @@ def _size_ratio_distances(
     *,
     w1: FloatArray,
     w2: FloatArray,
-    use_sr: npt.NDArray[np.bool_],
+    use_sr: BoolArray,
     d1: FloatArray,
     d2: FloatArray,
 ) -> None:
@@ -282,7 +278,7 @@ def _triangulated_distances(
     abs1: FloatArray,
     abs2: FloatArray,
     *,
-    candidates: npt.NDArray[np.bool_],
+    candidates: BoolArray,
     d1: FloatArray,
     d2: FloatArray,
 ) -> None:

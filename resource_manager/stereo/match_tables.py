@@ -9,14 +9,14 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray
+from common.histograms import bhattacharyya_coefficients, histogram_root
 from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["Tables", "colour_table"]
 
 LOOP_MAX_PAIRS = 2
 """Up to this many pairs, r_is is a loop over the pairs (cheaper than building the stacked table)."""
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class Tables:
@@ -69,7 +69,7 @@ def colour_table(
     if not use_colour:
         return np.ones(shape)
     roots = [
-        None if v.hist is None else (v.hist_sqrt if v.hist_sqrt is not None else np.sqrt(np.clip(v.hist, 0.0, None)))
+        None if v.hist is None else (v.hist_sqrt if v.hist_sqrt is not None else histogram_root(v.hist))
         for v in tabs.views
     ]
     bins = {r.shape[1] for r in roots if r is not None}
@@ -86,11 +86,11 @@ def colour_table(
         if tabs.total:
             flat[tabs.flat] = np.concatenate([r for r in roots if r is not None])
         table = flat.reshape(tabs.shape[0], tabs.shape[1], k)
-        return np.minimum(np.maximum(np.matmul(table[ia, :na], table[ib, :nb].transpose(0, 2, 1)), 0.0), 1.0)
+        return bhattacharyya_coefficients(table[ia, :na], table[ib, :nb])
     out = np.ones(shape)
     for k, (a, b) in enumerate(pairs):
         if a.hist is not None and b.hist is not None and a.hist.shape[1] == b.hist.shape[1]:
-            sa = a.hist_sqrt if a.hist_sqrt is not None else np.sqrt(np.clip(a.hist, 0.0, None))
-            sb = b.hist_sqrt if b.hist_sqrt is not None else np.sqrt(np.clip(b.hist, 0.0, None))
-            out[k, : a.n, : b.n] = sa @ sb.T
-    return np.minimum(np.maximum(out, 0.0), 1.0)  # np.clip, without its per-call overhead
+            sa = a.hist_sqrt if a.hist_sqrt is not None else histogram_root(a.hist)
+            sb = b.hist_sqrt if b.hist_sqrt is not None else histogram_root(b.hist)
+            out[k, : a.n, : b.n] = bhattacharyya_coefficients(sa, sb)
+    return out

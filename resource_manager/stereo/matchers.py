@@ -1,7 +1,7 @@
 """The matchers that turn an Eq. 7 confidence matrix into one-to-one blob pairs (chosen by name).
 
 ``greedy`` is the paper's: take the largest entry, delete its row and column, repeat. ``global`` maximises the
-total confidence (Hungarian) with a private "unmatched" dummy per row and column (notes/geometry.md §4).
+total confidence (Hungarian) with a private "unmatched" dummy per row and column (docs/geometry.md §4).
 Both only pair entries above the threshold tau. :mod:`resource_manager.match` re-exports them.
 """
 
@@ -10,12 +10,11 @@ from __future__ import annotations
 from typing import Final, Protocol
 
 import numpy as np
-import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["MATCHERS", "GlobalMatcher", "GreedyMatcher", "Matcher", "get_matcher"]
+from common.arrays import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["MATCHERS", "GlobalMatcher", "GreedyMatcher", "Matcher", "get_matcher"]
 
 
 class Matcher(Protocol):
@@ -63,7 +62,7 @@ class GlobalMatcher:
     """Maximise the total confidence (Hungarian), each blob free to stay unmatched.
 
     The (na+nb) square problem gives every row and column a private dummy worth
-    threshold/2, so a real pair is taken only when r > threshold (notes/geometry.md §4).
+    threshold/2, so a real pair is taken only when r > threshold (docs/geometry.md §4).
     """
 
     name = "global"

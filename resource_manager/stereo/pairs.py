@@ -13,23 +13,19 @@ position error).
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import FloatArray, IntArray, pairs_of
 from common.error_model import pair_error_f, pair_position_errors
 
 __all__ = ["CameraGeom", "PairCandidate", "rank_pairs", "rank_pairs_many"]
 
 PAIR_CAMERAS = 2
 """Cameras in a stereo pair: with fewer seeing a person, no pair localises them."""
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,7 +103,7 @@ def rank_pairs_many(
     )
     nearest = np.argsort(dist, axis=1, kind="stable")[:, :m]
     chosen = np.where((count > max_cameras)[:, None], nearest, np.arange(m))
-    ia, ib = _pairs_of(m)
+    ia, ib = pairs_of(m)
     sa, sb = chosen[:, ia], chosen[:, ib]
     valid = ib[None, :] < np.minimum(count, m)[:, None]
     rows = np.arange(k)[:, None]
@@ -129,11 +125,3 @@ def rank_pairs_many(
         np.take_along_axis(err, order, axis=1),
         valid.sum(axis=1),
     )
-
-
-@functools.cache
-def _pairs_of(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
-    """The (i, j), i < j, of ``n`` items in the order of ``itertools.combinations`` (read-only)."""
-    ia, ib = np.triu_indices(n, 1)
-    ia.flags.writeable = ib.flags.writeable = False
-    return ia, ib

@@ -27,8 +27,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
@@ -38,8 +38,6 @@ from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import subset_view
 
 __all__ = ["BirthParams", "Hypothesis", "find_births"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,7 +194,7 @@ class _Gains:
     """(hypothesis, blob) log likelihood ratio of the blob being that person."""
     misses: FloatArray
     """(hypothesis,) the views' miss terms (hidden by the tracks only)."""
-    offsets: npt.NDArray[np.int64]
+    offsets: IntArray
     """Where each view's blobs start in ``gain``'s columns, and the end."""
     column: dict[tuple[str, int], int]
     """(sensor id, blob index) -> column."""
@@ -204,7 +202,7 @@ class _Gains:
     """Column -> blob index in its view."""
     free_sids: list[str]
     """The views with unexplained blobs, in column order."""
-    alive: npt.NDArray[np.bool_]
+    alive: BoolArray
     """Which hypotheses may be started at all (one view: only where no other camera has a clear view)."""
 
     @classmethod

@@ -22,6 +22,7 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import FloatArray, IntArray
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.motion import MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
 from resource_manager.track.observe import feet_ln
@@ -29,8 +30,6 @@ from resource_manager.track.stack import ViewStack
 
 __all__ = ["Slots", "fuse", "fuse_heights"]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 _Scalar = TypeVar("_Scalar", bound=np.generic)
 HALF = 0.5
 """A floor distance less likely than this to show the feet is left out (its bearing stays)."""

@@ -3,7 +3,7 @@
 Where two of a person's views and the person are nearly colinear, bearings say little about where along the
 baseline the person is; the size-ratio method (Eq. 2) says it from the two blob widths: each such pair gives a
 measurement along its baseline, fused with the bearings (its error, 2 eps D1 D2 / B with eps the relative width
-error, against theirs, D / sin phi0: the crossover of notes/geometry.md §3 is then the point where each counts as
+error, against theirs, D / sin phi0: the crossover of docs/geometry.md §3 is then the point where each counts as
 much as the other, not a switch).
 
 Pairs whose bearings both lie within :data:`~common.geometry.MAX_SIZE_RATIO_OFFSET_RAD` of their baseline's line
@@ -13,19 +13,15 @@ qualify (with many cameras, pairs among the first few of them by sensor id); a b
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
-import numpy.typing as npt
 
+from common.arrays import BoolArray, FloatArray, pairs_of
 from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, MIN_RAYS, MIN_SIZE_RATIO_DEN
 from resource_manager.stereo.localize import MAX_PERSON_WIDTH_M
 
 __all__ = ["size_ratio_lines"]
-
-FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
 
 
 def size_ratio_lines(
@@ -47,7 +43,7 @@ def size_ratio_lines(
     k, width = used.shape
     if width < MIN_RAYS:  # no pair of views
         return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
-    ia, ib = _pairs_of(width)
+    ia, ib = pairs_of(width)
     ray = np.stack([np.cos(blob[:, :, 0]), np.sin(blob[:, :, 0])], axis=2)  # each blob's bearing as a vector
     oa, wa, wb = origin[:, ia], blob[:, ia, 1], blob[:, ib, 1]
     base = origin[:, ib] - oa
@@ -97,11 +93,3 @@ def _wide(distance_m: FloatArray, width_rad: FloatArray) -> BoolArray:
     """Whether blobs of angular widths ``width_rad`` are plainly wider than one person at ``distance_m``
     (:func:`~resource_manager.stereo.localize.wide_blob`)."""
     return np.asarray(2.0 * distance_m * np.tan(0.5 * width_rad) > MAX_PERSON_WIDTH_M, dtype=bool)
-
-
-@functools.cache
-def _pairs_of(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
-    """The (i, j), i < j, of ``n`` items in the order of ``itertools.combinations`` (read-only)."""
-    ia, ib = np.triu_indices(n, 1)
-    ia.flags.writeable = ib.flags.writeable = False
-    return ia, ib

@@ -15,15 +15,15 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
+
+from common.arrays import FloatArray
+from common.histograms import bhattacharyya_coefficients
 
 if TYPE_CHECKING:
     from resource_manager.track.stack import ViewStack
     from resource_manager.track.state import TrackRecord
 
 __all__ = ["bhattacharyya", "colour_ln_lr", "learn_looks", "looks_ln_odds"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> FloatArray:
@@ -38,7 +38,7 @@ def bhattacharyya(hist_sqrt: FloatArray, looks: Sequence[FloatArray | None]) -> 
     cols = [c for c, look in enumerate(looks) if look is not None and look.shape == (h.shape[1],)]
     if cols and h.shape[0]:
         stacked = np.array([looks[c] for c in cols])
-        out[:, cols] = np.minimum(np.maximum(h @ stacked.T, 0.0), 1.0)
+        out[:, cols] = bhattacharyya_coefficients(h, stacked)
     return out
 
 

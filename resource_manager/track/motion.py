@@ -25,6 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import wrap_angle
+from common.arrays import FloatArray
+
 __all__ = [
     "LineObservation",
     "MotionModel",
@@ -36,7 +39,6 @@ __all__ = [
     "update_many",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 IEKF_ITERATIONS = 4
 """Gauss-Newton steps of the update (each re-linearises the bearings at the new estimate)."""
 MIN_RANGE_M = 0.3
@@ -237,10 +239,6 @@ class _Rows:
         return np.concatenate([np.arctan2(dy, dx), r], axis=1), jac
 
 
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray(np.remainder(a + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
-
-
 def _outer_sum(w: FloatArray, jac: FloatArray) -> FloatArray:
     """(k, 2, 2) Σ_rows w Jᵀ J of each track's rows (``w`` (k, r), ``jac`` (k, r, 2))."""
     return np.asarray(np.swapaxes(jac * w[:, :, None], 1, 2) @ jac, dtype=np.float64)
@@ -321,7 +319,7 @@ def update_many(
         info[:, :2, :2] += _outer_sum(w, jac) + _outer_sum(w_line, batch.lines_dir)
         p_step = np.linalg.inv(info)
         nu = rows.z - h - (jac @ (x - xi)[:, :2, None])[:, :, 0]
-        nu[:, :nv] = _wrap(nu[:, :nv])
+        nu[:, :nv] = wrap_angle(nu[:, :nv])
         grad = _weighted_sum(w_line * nu_line, batch.lines_dir) + _weighted_sum(w * nu, jac)
         step = x + (p_step[:, :, :2] @ grad[:, :, None])[:, :, 0]
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
@@ -370,7 +368,7 @@ def _responsibilities(
     nv = h.shape[1] // 2
     var = rows.var + np.einsum("kri,kri->kr", jac @ p[:, :2, :2], jac)
     nu = rows.z - h
-    nu[:, :nv] = _wrap(nu[:, :nv])
+    nu[:, :nv] = wrap_angle(nu[:, :nv])
     terms = nu**2 / var
     has = rows.has_range
     d2 = terms[:, :nv] + np.where(has, terms[:, nv:], 0.0)

@@ -31,8 +31,9 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 
+from common.angles import TWO_PI, wrap_angle
+from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.looks import colour_ln_lr
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
 from resource_manager.track.motion import MIN_RANGE_M, quadratic_form
@@ -55,10 +56,6 @@ __all__ = [
     "visibility_many",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
-TWO_PI = 2.0 * math.pi
 LN_2PI = math.log(TWO_PI)
 HALF = 0.5
 """A distance farther than the gate is weighed only for a person whose feet are more than half hidden."""
@@ -123,10 +120,6 @@ class Visibility(NamedTuple):
     or none)."""
 
 
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray(np.remainder(a + math.pi, TWO_PI) - math.pi, dtype=np.float64)
-
-
 def visibility(
     v: ViewBlobs, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
 ) -> FloatArray:
@@ -178,7 +171,7 @@ def _in_view(stack: ViewStack, table: TrackTable, max_range_m: float) -> tuple[F
                 head = np.column_stack([table.xy, table.height])
             seen[i] &= v.image.inside(feet) | v.image.inside(head)
         elif v.fov is not None:
-            seen[i] &= np.abs(_wrap(np.arctan2(d[i, :, 1], d[i, :, 0]) - v.fov[0])) <= v.fov[1]
+            seen[i] &= np.abs(wrap_angle(np.arctan2(d[i, :, 1], d[i, :, 0]) - v.fov[0])) <= v.fov[1]
     return dist, seen
 
 
@@ -229,7 +222,7 @@ def _covered(
         covers.append(_bodies(stack, bodies, dist))
     for az_k, half_k, lo_k, hi_k, front in covers:
         width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
-        over_az = np.clip(half + half_k - np.abs(_wrap(az - az_k)), 0.0, width)
+        over_az = np.clip(half + half_k - np.abs(wrap_angle(az - az_k)), 0.0, width)
         over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
         clear *= np.prod(1.0 - np.where(front, np.minimum(over_az * over_el / area, 1.0), 0.0), axis=2)
         feet = front & (hi_k >= lo)
@@ -300,7 +293,7 @@ def score_views(
     s_tt = quadratic_form(jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
     blob_s_tt = s_tt[col].T
-    nu_t = _wrap(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
+    nu_t = wrap_angle(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
     ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]

@@ -15,14 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import TWO_PI
+from common.arrays import FloatArray, IntArray
 from resource_manager.track.motion import MIN_RANGE_M
 from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["Spread", "ViewStack"]
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)

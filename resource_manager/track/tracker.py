@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from common.angles import angle_diff
 from common.arrays import FloatArray
 from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
@@ -602,7 +603,7 @@ class Tracker:
 
 def _arc(a: float, b: float) -> float:
     """The angle between two bearings (rad, in [0, pi])."""
-    return abs(math.remainder(a - b, 2.0 * math.pi))
+    return abs(angle_diff(a, b))
 
 
 def _assign(scores: ViewScores) -> list[tuple[int, int]]:

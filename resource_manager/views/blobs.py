@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import angle_diff
+from common.arrays import FloatArray
+
 __all__ = ["ImageBounds", "ViewBlobs"]
 
 MIN_DEPTH_M = 1e-6
 """A point must be at least this far in front of a perspective camera (m) to project into its picture."""
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,7 +100,7 @@ class ViewBlobs:
         """Whether a world azimuth is inside this camera's horizontal field of view."""
         if self.fov is None:
             return True
-        return abs(math.remainder(azimuth_rad - self.fov[0], 2 * math.pi)) <= self.fov[1]
+        return abs(angle_diff(azimuth_rad, self.fov[0])) <= self.fov[1]
 
     @property
     def n(self) -> int:

@@ -18,6 +18,8 @@ from typing import Any, TypeVar, cast
 import numpy as np
 import numpy.typing as npt
 
+from common.angles import wrap_angle
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import PinholeModel, SensorInfo
 from resource_manager.ingest.align import AlignedBlob, AlignedView
 from resource_manager.poses.solver import PoseEstimate
@@ -32,12 +34,9 @@ __all__ = [
     "image_bounds",
     "pinhole_fov",
     "subset_view",
-    "wrap",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 T = TypeVar("T", bound=npt.NDArray[Any])
-TWO_PI = 2.0 * math.pi
 TOP_CUT_PX = 0.5
 """A blob whose box starts this close to the image's upper border has its head cut off (too close)."""
 BODY_TOP_MARGIN_M = 0.2
@@ -155,7 +154,7 @@ class _BlobTable:
     blobs: list[AlignedBlob]
     tab: FloatArray
     """(n, :data:`TABLE_COLUMNS`) per blob; the bottom elevation NaN where the feet are not visible."""
-    view_of: npt.NDArray[np.int64]
+    view_of: IntArray
     """(n,) the view (entry) of each blob."""
     counts: list[int]
     """Blobs per view."""
@@ -182,7 +181,7 @@ class _BlobTable:
         ).reshape(-1, TABLE_COLUMNS)
         return cls(blobs_all, tab, np.repeat(np.arange(len(entries)), counts), counts)
 
-    def kept(self, keep: npt.NDArray[np.bool_], views: int) -> _BlobTable:
+    def kept(self, keep: BoolArray, views: int) -> _BlobTable:
         """Only the blobs ``keep`` says."""
         blobs = [b for b, k in zip(self.blobs, keep.tolist(), strict=True) if k]
         view_of = self.view_of[keep]
@@ -225,11 +224,11 @@ def _not_bodies(
     entries: list[tuple[str, list[AlignedBlob], PoseEstimate]],
     tab: FloatArray,
     *,
-    view_of: npt.NDArray[np.int64],
+    view_of: IntArray,
     sigmas: list[float],
     bodies: dict[str, float] | None,
     poses: dict[str, PoseEstimate],
-) -> npt.NDArray[np.bool_]:
+) -> BoolArray:
     """(n,) False for the blobs that are a known robot/tripod body seen by another camera.
 
     A blob on a body's bearing, about its angular width, whose top is below the body's camera (plus
@@ -258,7 +257,7 @@ def _not_bodies(
     v, s = view_of, sig[view_of]
     is_body = (
         ok[v]
-        & (np.abs(wrap(tab[:, 0, None] - az[v])) < half[v] + 3 * s)
+        & (np.abs(wrap_angle(tab[:, 0, None] - az[v])) < half[v] + 3 * s)
         & (tab[:, 1, None] < 3.0 * half[v] + 6 * s)
         & (tab[:, 2, None] < body_top[v])
     )
@@ -288,10 +287,6 @@ def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, f
         return None
     half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
     return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
-
-
-def wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + math.pi) % TWO_PI - math.pi, dtype=np.float64)
 
 
 def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:

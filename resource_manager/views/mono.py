@@ -20,11 +20,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import numpy.typing as npt
+
+from common.arrays import FloatArray
 
 __all__ = ["MIN_DEPRESSION_RAD", "mono_ranges"]
 
-FloatArray = npt.NDArray[np.float64]
 MIN_DEPRESSION_RAD = math.radians(1.5)
 """Feet closer to the horizon than this give no usable distance (tan ε → 0)."""
 PLAUSIBLE_SIGMAS = 3.0

@@ -31,6 +31,7 @@ from collections import deque
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 
+from common.angles import angle_diff
 from common.schema import DetectorState
 from resource_manager.poses.solver import PoseEstimate
 
@@ -159,6 +160,6 @@ class ViewTrust:
                 continue
             if math.hypot(x - pose.x_m, y - pose.y_m) > p.still_m:
                 return False
-            if abs(math.remainder(yaw - pose.yaw_rad, 2 * math.pi)) > p.still_yaw_rad:
+            if abs(angle_diff(yaw, pose.yaw_rad)) > p.still_yaw_rad:
                 return False
         return True

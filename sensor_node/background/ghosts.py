@@ -17,20 +17,18 @@ while the model was learnt). The helpers:
 from __future__ import annotations
 
 import logging
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import BoolArray, Float32Array, FloatArray, Mask
 from sensor_node.components import components
 
 __all__ = ["UnderGhosts", "hole_columns", "start_up_hole", "surround_deviation"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
-FloatImage = npt.NDArray[np.float32]
 
 SIDE_PX = 8
 """Columns either side of a still region whose unchanged model pixels stand for the surface around it."""
@@ -42,6 +40,9 @@ the model is, is a ghost: a hole left by someone who walked away."""
 SURROUND_MIN_DEV = 15.0
 """Mean grey-level deviation from the surface beside a still region that is a clear departure (the model
 holds someone there, or the frame does); below it, the surface continues."""
+
+SIDE_MIN_PX = 3
+"""Fewest unchanged pixels beside a still region on one row for their mean to stand for the surface there."""
 
 MIN_COLUMN_PX = 5
 """Fewest pixels of a region in one column (on rows with side pixels) for :func:`hole_columns` to judge it."""
@@ -57,9 +58,10 @@ _K5 = np.ones((5, 5), np.uint8)
 
 def _beside(
     grey: Mask, bg: Mask, fg: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
-) -> tuple[FloatImage, FloatImage, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+) -> tuple[Float32Array, Float32Array, BoolArray, BoolArray, FloatArray]:
     """A still region's box widened by ``SIDE_PX`` on both sides (wrapping round the panorama): the frame and
-    the model there as floats, the region's pixels, and the unchanged pixels beside it (clear of its edge)."""
+    the model there as floats, the region's pixels, the rows with ``SIDE_MIN_PX`` unchanged pixels beside it
+    (clear of its edge), and the model's mean over those pixels on each of those rows (the surface there)."""
     x, y = origin
     h, w = mask.shape
     cols = np.arange(x - SIDE_PX, x + w + SIDE_PX) % grey.shape[1]
@@ -69,7 +71,10 @@ def _beside(
     inside = np.zeros(g.shape, bool)
     inside[:, SIDE_PX : SIDE_PX + w] = mask
     side = (fg[rows][:, cols] == 0) & ~cv2.dilate(inside.astype(np.uint8), _K5).astype(bool)
-    return g, b, inside, side
+    n_side = side.sum(axis=1)
+    ok = n_side >= SIDE_MIN_PX
+    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    return g, b, inside, ok, side_mean
 
 
 def surround_deviation(
@@ -96,13 +101,12 @@ def surround_deviation(
         (frame deviation, model deviation): pixel-weighted mean absolute grey-level
         differences over the rows that have both region and side pixels (0, 0 if none).
     """
-    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
+    g, b, inside, sided, side_mean = _beside(grey, bg, fg, mask, origin)
     n_in = inside.sum(axis=1)
-    n_side = side.sum(axis=1)
-    ok = (n_in > 0) & (n_side >= 3)
+    ok = (n_in > 0) & sided
     if not ok.any():
         return 0.0, 0.0
-    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
+    side_mean = side_mean[ok[sided]]
     weight = n_in[ok].astype(np.float32)
     cur_mean = (g * inside).sum(axis=1)[ok] / weight
     bg_mean = (b * inside).sum(axis=1)[ok] / weight
@@ -127,24 +131,16 @@ def hole_columns(
     frame is ``SURROUND_GHOST`` as close): a column where neither departs is the edge of whoever stands
     there, not a hole (:func:`start_up_hole`'s undecided case is for whole regions).
 
-    Args:
-        grey: the frame (H, W) uint8.
-        bg: the model (H, W) uint8.
-        fg: the changed pixels (255) of the frame.
-        mask: the region inside its bounding box.
-        origin: (column, row) of the box's top-left corner.
+    Args: as :func:`surround_deviation`.
 
     Returns:
         One flag per column of the box: a hole there (False where no row has side pixels to compare).
     """
-    g, b, inside, side = _beside(grey, bg, fg, mask, origin)
+    g, b, inside, ok, side_mean = _beside(grey, bg, fg, mask, origin)
     w = mask.shape[1]
-    n_side = side.sum(axis=1)
-    ok = n_side >= 3
     out = np.zeros(w, bool)
     if not ok.any():
         return out
-    side_mean = (b * side).sum(axis=1)[ok] / n_side[ok]
     ins = inside[ok][:, SIDE_PX : SIDE_PX + w]
     n_col = ins.sum(axis=0)
     have = n_col >= MIN_COLUMN_PX

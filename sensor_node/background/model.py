@@ -37,13 +37,14 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, remove_shadows
+from common.arrays import Mask
+from sensor_node.background.shadows import TEXTURE_WINDOW, ReducedColour, local_spread, shadow_cells
 from sensor_node.background.still import StillRegions
 from sensor_node.config import PipelineSettings
 
@@ -51,7 +52,6 @@ __all__ = ["BackgroundModel", "FrameDifference", "Motion", "MotionState"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
 """An 8-bit single-channel image (cv2 results are typed loosely)."""
 MotionState = Literal["warmup", "ok", "relit", "reinit", "moving"]
 
@@ -254,7 +254,7 @@ class BackgroundModel:
 
         Works on the reduced colour images (the frame's :attr:`PanoFrame.small` given to :meth:`apply`), then
         scaled back to ``fg``'s size; only where ``floor`` (reduced size) is set; see
-        :func:`sensor_node.background.shadows.remove_shadows`.
+        :func:`sensor_node.background.shadows.shadow_cells`.
         """
         if self._colour_bg is None or self._colour_now is None or self._bg is None:
             return fg
@@ -270,9 +270,10 @@ class BackgroundModel:
             self._bg_spread = np.zeros(self._colour_bg.shape[:2], np.float32)
             if r1 > r0:
                 self._bg_spread[r0:r1] = local_spread(self._colour_bg[r0:r1])
-        return remove_shadows(
+        cells = shadow_cells(
             small, self._colour_bg, fg, self.noise_sigma, self.settings, floor=floor, bg_spread=self._bg_spread
         )
+        return fg if cells is None else cells.removed_from(fg)
 
     def apply(self, grey: Mask, stamp_ns: int | None = None, colour: ReducedColour | None = None) -> Motion:
         """Classify the pixels of one grey frame (H, W) uint8 against the model.
@@ -295,19 +296,7 @@ class BackgroundModel:
         if ego:
             self.ego_frames += 1
         if self._bg is None:
-            empty = np.zeros_like(grey)
-            if ego or (prev is not None and cv2.countNonZero(moving()) > 0.5 * s.abnormal_frac * grey.size):
-                # The camera is moving (or the light flickers): learn only from a still view.
-                self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
-                if ego:
-                    return Motion(empty, moving, "moving", 0.0)
-            elif self._take_warm(stamp_ns):
-                self._warm.append(grey.copy())
-                if colour is not None:
-                    self._warm_colour.append(colour.small.copy())
-            if len(self._warm) >= s.warmup_frames:
-                self._learn_warm()
-            return Motion(empty, moving, "warmup", 0.0)
+            return self._warm_up(grey, moving, ego=ego, first=prev is None, stamp_ns=stamp_ns, colour=colour)
         if ego:
             # Known ego-motion is not available: the background no longer fits the view. Forget it
             # now (not after it has soaked up the moving scene) and learn it afresh once stopped.
@@ -327,6 +316,40 @@ class BackgroundModel:
                 self._bg_u8 = cv2.convertScaleAbs(self._bg)
             self._last_fg = fg
             return Motion(fg, moving, "ok", frac)
+        return self._relight(grey, bg_u8, frac)
+
+    def _warm_up(
+        self,
+        grey: Mask,
+        moving: FrameDifference,
+        *,
+        ego: bool,
+        first: bool,
+        stamp_ns: int | None,
+        colour: ReducedColour | None,
+    ) -> Motion:
+        """Take one frame towards learning the model (:meth:`apply` before there is one); ``first``: no frame
+        before it."""
+        s = self.settings
+        empty = np.zeros_like(grey)
+        if ego or (not first and cv2.countNonZero(moving()) > 0.5 * s.abnormal_frac * grey.size):
+            # The camera is moving (or the light flickers): learn only from a still view.
+            self._warm, self._warm_colour, self._warm_seen, self._warm_due_ns = [], [], 0, None
+            if ego:
+                return Motion(empty, moving, "moving", 0.0)
+        elif self._take_warm(stamp_ns):
+            self._warm.append(grey.copy())
+            if colour is not None:
+                self._warm_colour.append(colour.small.copy())
+        if len(self._warm) >= s.warmup_frames:
+            self._learn_warm()
+        return Motion(empty, moving, "warmup", 0.0)
+
+    def _relight(self, grey: Mask, bg_u8: Mask, frac: float) -> Motion:
+        """An abnormal change (a ``frac`` of the pixels changed): rescale the model if a light change explains
+        it, else learn it afresh."""
+        s = self.settings
+        n = grey.size
         # Abnormal change: many pixels changed. A light change scales the scene by a gain -- not
         # quite uniformly (lamps, windows, saturated highlights), so the gain is a smooth map.
         gain = _global_gain(grey, bg_u8)
@@ -337,7 +360,7 @@ class BackgroundModel:
         # Where the scaled background nears saturation, colour channels clip one by one and the grey
         # level is no longer a product: take what the camera sees there -- where the camera sees a
         # bright surface too, not a person standing in front of it (who would become background).
-        near = (new_bg > 230.0) & (grey > 230)
+        near = (new_bg > NEAR_SATURATION) & (grey > NEAR_SATURATION)
         new_bg[near] = grey[near]
         np.minimum(new_bg, 255.0, out=new_bg)
         if self._colour_bg is not None:
@@ -530,6 +553,26 @@ EGO_SECTOR_PX = 10
 MIN_LIGHT_STEP = 0.04
 """A global gain closer to 1 than this is no light change: the abnormal change is the view itself."""
 
+NEAR_SATURATION = 230
+"""Grey level above which a rescaled background nears saturation: its colour channels clip one by one, so the
+grey level is no longer the old one times the gain."""
+
+DARK_GREY = 16
+"""Background grey level at or below which a brightness ratio is mostly noise (dark pixels): no gain is read
+there."""
+
+CLIPPED_GREY = 250
+"""Frame grey level at or above which the camera clips: the pixel's brightness ratio understates the gain."""
+
+BLACK_GREY = 4
+"""Frame grey level at or below which a pixel is black (the sensor's floor): no ratio for the global gain."""
+
+GAIN_MIN_PX = 16
+"""Fewest usable pixels of the sampled grid for a global gain (fewer: the gain is taken as 1)."""
+
+LUT_ENTRIES = 256
+"""Entries of an 8-bit lookup table (``cv2.LUT``): labels below it are mapped through one."""
+
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
 _K9 = np.ones((9, 9), np.uint8)
@@ -575,7 +618,7 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
     # converting them cost less than 32-bit ones.
     fits = ((size[0] + 1) // 2) * ((size[1] + 1) // 2) < np.iinfo(np.uint16).max
     n, labels = cv2.connectedComponents(weak_cells, connectivity=8, ltype=cv2.CV_16U if fits else cv2.CV_32S)
-    seeded = np.zeros(max(n, 256), np.uint8)
+    seeded = np.zeros(max(n, LUT_ENTRIES), np.uint8)
     seeded[labels[strong_cells > 0]] = 255
     seeded[0] = 0
     cell = HYSTERESIS_CELL_PX
@@ -589,7 +632,7 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
         # The labels' cells through an 8-bit lookup table where the labels fit (numpy's gather costs 5x);
         # not looked for when every region is seeded.
         if lone[1:n].any():
-            lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:256]) if n <= 256 else lone[labels]
+            lone_cells = cv2.LUT(cv2.convertScaleAbs(labels), lone[:LUT_ENTRIES]) if n <= LUT_ENTRIES else lone[labels]
             # Their blocks cleared within the lone cells' box (finding a few cells in the whole image, or
             # scaling all of it up, costs several times more).
             x, y, w, h = cv2.boundingRect(lone_cells)
@@ -597,7 +640,7 @@ def _hysteresis(strong: Mask, weak: Mask) -> Mask:
             box = joined[y * cell : (y + h) * cell, x * cell : (x + w) * cell]
             box[...] = cv2.subtract(box, up)
     else:
-        cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:256]) if n <= 256 else seeded[labels]
+        cells = cv2.LUT(cv2.convertScaleAbs(labels), seeded[:LUT_ENTRIES]) if n <= LUT_ENTRIES else seeded[labels]
         joined = cv2.bitwise_and(cv2.resize(cells, (width, height), interpolation=cv2.INTER_NEAREST), weak)
     beyond = cv2.subtract(joined, cv2.dilate(strong, _K3))  # faint parts, not touching the contrasted ones
     # strong | beyond | ring, where the ring is what of ``joined`` touches both ``strong`` and ``beyond``:
@@ -677,7 +720,7 @@ def _gain_map(
     h, w = grey.shape
     g = grey.astype(np.float32)
     b = bg.astype(np.float32)
-    usable = (b > 16) & (g < 250)
+    usable = (b > DARK_GREY) & (g < CLIPPED_GREY)
     if objects is not None and objects.shape == grey.shape:
         usable &= cv2.dilate(objects, _K9) == 0
     ratio = np.where(usable, g / np.maximum(b, 1.0), np.float32(gain)).astype(np.float32)
@@ -691,7 +734,7 @@ def _global_gain(grey: Mask, bg: Mask) -> float:
     """Robust global brightness ratio frame/background: median over a pixel grid, ignoring dark pixels."""
     g = grey[::4, ::4].astype(np.float32)
     b = bg[::4, ::4].astype(np.float32)
-    ok = (b > 16) & (g > 4) & (g < 250)
-    if int(np.count_nonzero(ok)) < 16:
+    ok = (b > DARK_GREY) & (g > BLACK_GREY) & (g < CLIPPED_GREY)
+    if int(np.count_nonzero(ok)) < GAIN_MIN_PX:
         return 1.0
     return float(np.median(g[ok] / b[ok]))

@@ -21,12 +21,14 @@ view every camera type has), on the changed pixels only.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, cast
+from dataclasses import dataclass
+from typing import Protocol, cast
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Mask
 from sensor_node.config import PipelineSettings
 
 __all__ = [
@@ -36,13 +38,12 @@ __all__ = [
     "SHADOW_MIN_RATIO",
     "ColourImage",
     "ReducedColour",
+    "ShadowCells",
     "local_spread",
-    "remove_shadows",
-    "shadow_mask",
+    "shadow_cells",
     "spread_at",
 ]
 
-Mask = npt.NDArray[Any]
 
 SHADOW_MIN_RATIO = 0.6
 """Darkest shadow, as a fraction of the lit surface's brightness: the soft cast shadows of diffuse light
@@ -152,7 +153,35 @@ def spread_at(
     return mean_sq - mean * mean
 
 
-def shadow_mask(
+@dataclass(frozen=True, slots=True)
+class ShadowCells:
+    """The shadow and highlight pixels of a reduced colour image, and the changed pixels they cover."""
+
+    ys: npt.NDArray[np.intc]
+    """Rows of the shadow pixels in the reduced image."""
+    xs: npt.NDArray[np.intc]
+    """Their columns."""
+    small_shape: tuple[int, int]
+    """The reduced image's size (rows, columns)."""
+
+    def mask(self, fg: Mask) -> Mask:
+        """255 on the changed pixels of ``fg`` (full resolution) that are a shadow or highlight."""
+        return _cells_mask(fg, self.ys, self.xs, *self.small_shape)
+
+    def removed_from(self, fg: Mask) -> Mask:
+        """``fg`` (full resolution) without its shadow and highlight pixels."""
+        sh, sw = self.small_shape
+        h, w = fg.shape
+        if h % sh == 0 and w % sw == 0:
+            # Each shadow pixel's block cleared in a copy: what subtracting the shadow mask gives, without
+            # making the mask (two fewer full-size passes).
+            out = fg.copy()
+            out.reshape(sh, h // sh, sw, w // sw)[self.ys, :, self.xs, :] = 0
+            return out
+        return cv2.subtract(fg, self.mask(fg))
+
+
+def shadow_cells(
     small: Mask | ReducedColour,
     colour_bg: npt.NDArray[np.float32],
     fg: Mask,
@@ -161,28 +190,9 @@ def shadow_mask(
     *,
     floor: Mask | None = None,
     bg_spread: npt.NDArray[np.float32] | None = None,
-) -> Mask | None:
-    """255 on the changed pixels of ``fg`` that are a shadow or highlight of the background; None if none.
-
-    Args: as :func:`remove_shadows`.
-    """
-    cells = _shadow_cells(small, colour_bg, fg, noise_sigma, settings, floor=floor, bg_spread=bg_spread)
-    if cells is None:
-        return None
-    return _cells_mask(fg, *cells)
-
-
-def remove_shadows(
-    small: Mask | ReducedColour,
-    colour_bg: npt.NDArray[np.float32],
-    fg: Mask,
-    noise_sigma: float,
-    settings: PipelineSettings,
-    *,
-    floor: Mask | None = None,
-    bg_spread: npt.NDArray[np.float32] | None = None,
-) -> Mask:
-    """``fg`` without its shadow and highlight pixels (:func:`shadow_mask`); ``fg`` itself if it has none.
+) -> ShadowCells | None:
+    """The changed pixels of ``fg`` that are a shadow or highlight of the background, in the reduced image;
+    None if none (then ``fg`` is all objects).
 
     Args:
         small: the frame's reduced BGR image (or a view that reads it in parts: only the candidates'
@@ -196,31 +206,6 @@ def remove_shadows(
             pale wall of the same hue would otherwise pass for a shadow of.
         bg_spread: :func:`local_spread` of ``colour_bg`` (None: computed here, around the candidates).
     """
-    cells = _shadow_cells(small, colour_bg, fg, noise_sigma, settings, floor=floor, bg_spread=bg_spread)
-    if cells is None:
-        return fg
-    ys, xs, sh, sw = cells
-    h, w = fg.shape
-    if h % sh == 0 and w % sw == 0:
-        # Each shadow pixel's block cleared in a copy: what subtracting the shadow mask gives, without
-        # making the mask (two fewer full-size passes).
-        out = fg.copy()
-        out.reshape(sh, h // sh, sw, w // sw)[ys, :, xs, :] = 0
-        return out
-    return cv2.subtract(fg, _cells_mask(fg, ys, xs, sh, sw))
-
-
-def _shadow_cells(
-    small: Mask | ReducedColour,
-    colour_bg: npt.NDArray[np.float32],
-    fg: Mask,
-    noise_sigma: float,
-    settings: PipelineSettings,
-    *,
-    floor: Mask | None,
-    bg_spread: npt.NDArray[np.float32] | None,
-) -> tuple[npt.NDArray[np.intc], npt.NDArray[np.intc], int, int] | None:
-    """The reduced image's shadow pixels (rows, columns) and its size (rows, columns); None if none."""
     if not settings.shadows:
         return None
     colour = ColourImage(small) if isinstance(small, np.ndarray) else small
@@ -275,7 +260,7 @@ def _shadow_cells(
         ys, xs = ys[keep], xs[keep]
     if ys.size == 0:
         return None
-    return ys, xs, sh, sw
+    return ShadowCells(ys, xs, (sh, sw))
 
 
 def _cells_mask(fg: Mask, ys: npt.NDArray[np.intc], xs: npt.NDArray[np.intc], sh: int, sw: int) -> Mask:

@@ -31,12 +31,13 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import Float32Array, Mask
 from sensor_node.background.ghosts import UnderGhosts, hole_columns, start_up_hole, surround_deviation
 from sensor_node.components import ColumnRuns, components
 from sensor_node.config import PipelineSettings
@@ -45,8 +46,6 @@ __all__ = ["BORN_FRAMES", "STATIC_EVERY", "StillRegions"]
 
 logger = logging.getLogger(__name__)
 
-Mask = npt.NDArray[Any]
-FloatImage = npt.NDArray[np.float32]
 
 STATIC_EVERY = 4
 """Frames between samples of the changed-but-still counter (ghost detection)."""
@@ -70,9 +69,79 @@ PERSON_SCORE = 1.5
 CLOSE_REACH_PX = 4
 """Margin around the still pixels within which the 5 x 5 closing can change or consult pixels."""
 
+SOLID_FRAC = 0.3
+"""Least fraction of its box a still region fills for an outline test: below it, a speck or a sliver of an
+absorbed ghost's edge, whose outline would be ragged."""
+
+BORN_SHARE = 0.5
+"""Fraction of a still region's pixels that must be born (changed since the model was young) for the region
+to count as born."""
+
+MAX_SAMPLES = 254
+"""Largest wait in samples of the changed-but-still counter: it is 8-bit and saturates at 255."""
+
 _K3 = np.ones((3, 3), np.uint8)
 _K5 = np.ones((5, 5), np.uint8)
 _K9 = np.ones((9, 9), np.uint8)
+
+
+@dataclass(frozen=True, slots=True)
+class _Waits:
+    """The still-region tests' waits, in samples of the changed-but-still counter."""
+
+    samples: int
+    """``ghost_frames``: still this long, a region is tested (a born one from its first sample)."""
+    long_still: int
+    """``still_absorb_frames``: still this long, what no test recognises becomes background."""
+    keep_still: int
+    """``still_keep_frames``: still this long, a paused person is no longer kept."""
+
+    @classmethod
+    def of(cls, s: PipelineSettings) -> _Waits:
+        samples = max(1, min(MAX_SAMPLES, -(-s.ghost_frames // STATIC_EVERY)))
+        long_still = max(samples, min(MAX_SAMPLES, -(-s.still_absorb_frames // STATIC_EVERY)))
+        keep_still = max(long_still, min(MAX_SAMPLES, -(-s.still_keep_frames // STATIC_EVERY)))
+        return cls(samples, long_still, keep_still)
+
+
+@dataclass(frozen=True, slots=True)
+class _Sample:
+    """One sampling frame as the still-region tests read it."""
+
+    grey: Mask
+    """The frame."""
+    fg: Mask
+    """Its changed pixels (255) against the model."""
+    moved: Mask
+    """Its moving pixels (frame differencing)."""
+    bg: Float32Array
+    """The float model, absorbed into in place."""
+    bg_u8: Mask
+    """The model as 8-bit grey levels before this frame's absorptions."""
+    frame: int
+    """The model's frame count."""
+
+
+def _mostly(born: Mask, origin: tuple[int, int], sel: npt.NDArray[np.bool_], n: int) -> bool:
+    """Whether ``BORN_SHARE`` of the ``n`` pixels ``sel`` (in their box at ``origin``) are set in ``born``."""
+    x, y = origin
+    h, w = sel.shape
+    return bool(np.count_nonzero(born[y : y + h, x : x + w][sel]) >= BORN_SHARE * n)
+
+
+def _outline_edges(
+    grey: Mask, bg_u8: Mask, mask: npt.NDArray[np.bool_], origin: tuple[int, int]
+) -> tuple[float, float, int]:
+    """The edge strength (3 x 3 morphological gradient) summed along a still region's outline in the model and
+    in the frame, and the outline's length in pixels (at least 1)."""
+    x, y = origin
+    h, w = mask.shape
+    outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
+    cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+    was = cv2.morphologyEx(bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
+    was_sum, n_out = float(was[outline].sum()), max(1, int(np.count_nonzero(outline)))
+    cur_sum = float(cur[outline].sum())
+    return was_sum, cur_sum, n_out
 
 
 def _closed_regions(old: Mask) -> tuple[int, Mask, npt.NDArray[np.int32], list[int], int]:
@@ -142,7 +211,7 @@ class StillRegions:
         self._under = None
 
     def update(
-        self, grey: Mask, fg: Mask, moving: Callable[[], Mask], *, bg: FloatImage, bg_u8: Mask, frame: int
+        self, grey: Mask, fg: Mask, moving: Callable[[], Mask], *, bg: Float32Array, bg_u8: Mask, frame: int
     ) -> bool:
         """Follow one normal frame; absorb ghosts into ``bg`` (in place). True if ``bg`` changed.
 
@@ -155,9 +224,61 @@ class StillRegions:
             bg_u8: the model as 8-bit grey levels before this frame's changes.
             frame: the model's frame count (sampling and the age of what absorptions overwrote).
         """
-        # Born: changed ever since the model was learnt. Someone standing in the view while it was
-        # learnt is in the model, and their hole opens only as they walk off: what turns changed during
-        # the model's first BORN_FRAMES and stays so counts too (not what changed meanwhile and left).
+        self._follow_born(fg)
+        # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
+        if frame % STATIC_EVERY:
+            return False
+        # A born mask that emptied stays empty (past the model's youth each frame can only clear more of it):
+        # no more ANDs.
+        assert self._born is not None and self._born_first is not None  # set by _follow_born
+        self._born_first_live = self._born_first_live and cv2.countNonZero(self._born_first) > 0
+        self._born_live = self._born_live and cv2.countNonZero(self._born) > 0
+        moved = moving()
+        still = cv2.bitwise_and(fg, cv2.bitwise_not(moved))
+        if self._static is None:
+            self._static = np.zeros_like(grey)
+        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        changed = False
+        if self._under is not None and self._under.expired(frame):
+            self._under = None  # everything it kept is too old to put back
+        if self._under is not None:
+            s = self.settings
+            back, regions = self._under.restore(
+                grey, still, bg, frame=frame, match_level=s.fg_threshold, least_px=s.min_blob_px
+            )
+            self.restored += regions
+            if back is not None:
+                self._static[back > 0] = 0
+                bg_u8 = cv2.convertScaleAbs(bg)
+                changed = True
+        waits = _Waits.of(self.settings)
+        old = cv2.threshold(self._static, waits.samples - 1, 255, cv2.THRESH_BINARY)[1]
+        if self._born is not None and self._born_live:
+            # A born region is tested from its first still sample: the surface beside it tells a start-up
+            # hole from someone who stands (start_up_hole) without waiting for an outline to settle; a
+            # hole left as a blob meanwhile is reported as someone standing where they stood. (An emptied
+            # born mask, most of a model's life, adds nothing.)
+            cv2.bitwise_or(old, cv2.bitwise_and(self._born, still), dst=old)
+        if cv2.countNonZero(old) == 0:
+            return changed
+        # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
+        # would measure texture, not the silhouette.
+        n, labels, stats, label_x, y0 = _closed_regions(old)
+        at = _Sample(grey, fg, moved, bg, bg_u8, frame)
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k])
+            mask = labels[y - y0 : y - y0 + h, label_x[k] : label_x[k] + w] == k
+            if self._test_region(at, mask, (x, y), area=area, waits=waits):
+                changed = True
+        return changed
+
+    def _follow_born(self, fg: Mask) -> None:
+        """Follow the born masks by one normal frame's changed pixels ``fg``.
+
+        Born: changed ever since the model was learnt. Someone standing in the view while it was learnt is in
+        the model, and their hole opens only as they walk off: what turns changed during the model's first
+        ``BORN_FRAMES`` and stays so counts too (not what changed meanwhile and left).
+        """
         self._born_age += 1
         if self._born is None or self._born_first is None:
             self._born, self._born_first = fg.copy(), fg.copy()
@@ -173,159 +294,108 @@ class StillRegions:
             if self._born_live:
                 cv2.bitwise_and(self._born, fg, dst=self._born)
         self._last_fg = fg.copy() if self._born_age < BORN_FRAMES else None
-        s = self.settings
-        # Sampled every STATIC_EVERY frames (cheap; ghosts are not urgent): the counter counts samples.
-        if frame % STATIC_EVERY:
-            return False
-        # A born mask that emptied stays empty (past the model's youth each frame can only clear more of it):
-        # no more ANDs.
-        self._born_first_live = self._born_first_live and cv2.countNonZero(self._born_first) > 0
-        self._born_live = self._born_live and cv2.countNonZero(self._born) > 0
-        moved = moving()
-        still = cv2.bitwise_and(fg, cv2.bitwise_not(moved))
-        if self._static is None:
-            self._static = np.zeros_like(grey)
-        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
-        changed = False
-        if self._under is not None and self._under.expired(frame):
-            self._under = None  # everything it kept is too old to put back
-        if self._under is not None:
-            back, regions = self._under.restore(
-                grey, still, bg, frame=frame, match_level=s.fg_threshold, least_px=s.min_blob_px
-            )
-            self.restored += regions
-            if back is not None:
-                self._static[back > 0] = 0
-                bg_u8 = cv2.convertScaleAbs(bg)
-                changed = True
-        samples = max(1, min(254, -(-s.ghost_frames // STATIC_EVERY)))
-        old = cv2.threshold(self._static, samples - 1, 255, cv2.THRESH_BINARY)[1]
-        if self._born is not None and self._born_live:
-            # A born region is tested from its first still sample: the surface beside it tells a start-up
-            # hole from someone who stands (start_up_hole) without waiting for an outline to settle; a
-            # hole left as a blob meanwhile is reported as someone standing where they stood. (An emptied
-            # born mask, most of a model's life, adds nothing.)
-            cv2.bitwise_or(old, cv2.bitwise_and(self._born, still), dst=old)
-        if cv2.countNonZero(old) == 0:
-            return changed
-        # Whole regions, not the speckle of their flat insides: a ghost test on a ragged outline
-        # would measure texture, not the silhouette.
-        n, labels, stats, label_x, y0 = _closed_regions(old)
-        long_still = max(samples, min(254, -(-s.still_absorb_frames // STATIC_EVERY)))
-        keep_still = max(long_still, min(254, -(-s.still_keep_frames // STATIC_EVERY)))
-        for k in range(1, n):
-            x, y, w, h, area = (int(v) for v in stats[k])
-            mask = labels[y - y0 : y - y0 + h, label_x[k] : label_x[k] + w] == k
-            if area < s.min_blob_px or area < 0.3 * w * h:
-                # Too small or too ragged for an outline test: a speck, or a sliver of a ghost's edge
-                # left by an absorption (the model there still holds the person's outline, a few grey
-                # levels over the threshold). Changed pixels are never learnt, so it would stay for
-                # ever and join the blob of whoever passes it: it becomes background after
-                # still_absorb_frames too, unless changed pixels surround it (part of someone). What it
-                # overwrote is kept: the part of someone that alone differs from the wall (a shirt of the
-                # wall's grey in front of a poster) comes back when they walk on.
-                if int(self._static[y : y + h, x : x + w][mask].max()) >= long_still and self._absorb(
-                    grey, fg, moved, mask, (x, y), bg=bg, frame=frame, keep=True, fringe=False
-                ):
-                    changed = True
-                    logger.debug("still fragment of %d px at column %d absorbed", area, x)
-                continue
-            outline = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, _K3) > 0
-            cur = cv2.morphologyEx(grey[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
-            was = cv2.morphologyEx(bg_u8[y : y + h, x : x + w], cv2.MORPH_GRADIENT, _K3)
-            was_sum, n_out = float(was[outline].sum()), max(1, int(np.count_nonzero(outline)))
-            cur_sum = float(cur[outline].sum())
-            age = int(self._static[y : y + h, x : x + w][mask].max())
-            score = was_sum / (cur_sum + 1.0)
-            # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
-            # whose ratio is noise: the still inside of a slowly walking person's shirt).
-            ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
-            # The surface beside the region decides too: a hole shows in the frame what continues on
-            # both sides, while the model holds the one who left. It overrules the outline test when
-            # the frame is no closer to the surroundings than the model is (someone standing in front
-            # of a window: its frame is a strong outline of the model, but that is no ghost).
-            born = (
-                self._born is not None
-                and self._born_live
-                and bool(np.count_nonzero(self._born[y : y + h, x : x + w][mask]) >= 0.5 * area)
-            )
-            # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
-            dev_cur, dev_bg = surround_deviation(grey, bg_u8, fg, mask, (x, y)) if ghost or born else (0.0, 0.0)
-            hole = born and dev_cur + dev_bg > 0.0 and start_up_hole(dev_cur, dev_bg)
-            # Changed since the model was learnt, the model holds whoever stood there: nothing to put
-            # back. Changed since the end of its first BORN_FRAMES only, it may be someone who came in
-            # meanwhile and stands (in front of a window, looking like its hole): keep what was there.
-            first = (
-                hole
-                and self._born_first is not None
-                and bool(np.count_nonzero(self._born_first[y : y + h, x : x + w][mask]) >= 0.5 * area)
-            )
-            if dev_cur + dev_bg > 0.0:
-                ghost = hole or (ghost and dev_cur < dev_bg)
-            logger.debug(
-                "still region x=%d w=%d area=%d: bg edge %.1f, frame edge %.1f, age %d, ghost %s, dev cur %.1f bg %.1f",
-                x,
-                w,
-                area,
-                was_sum / n_out,
-                cur_sum / n_out,
-                age,
-                ghost,
-                dev_cur,
-                dev_bg,
-            )
-            if born and not ghost:
-                # Someone who stood while the model was learnt walks out of their hole: the hole's
-                # columns are absorbed now, the one beside them is tested again later.
-                part = mask & hole_columns(grey, bg_u8, fg, mask, (x, y))[None, :]
-                n_part = int(np.count_nonzero(part))
-                if n_part >= s.min_blob_px:
-                    first_part = self._born_first is not None and bool(
-                        np.count_nonzero(self._born_first[y : y + h, x : x + w][part]) >= 0.5 * n_part
-                    )
-                    if self._absorb(
-                        grey,
-                        fg,
-                        moved,
-                        part,
-                        (x, y),
-                        bg=bg,
-                        frame=frame,
-                        keep=not first_part,
-                        fringe=False,
-                        beside=mask,
-                    ):
-                        changed = True
-                        logger.debug("hole of %d px beside someone at column %d absorbed", n_part, x)
-                    continue
-            if age < samples and not hole:
-                continue  # still too briefly for any test but the start-up hole's
-            if not ghost:
-                # A paused person is the reverse: the silhouette is an edge of the current frame, not of
-                # the background. They stay an object region (never learnt) however long they stand;
-                # only what neither test recognises becomes background after still_absorb_frames.
-                if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE and age < keep_still:
-                    self.kept += 1
-                    continue
-                if age < long_still:
-                    continue
-            # Anything but a hole since the model was learnt may be a mistake -- a born region too:
-            # someone in view since the model was young who stood still -- keep what was there.
-            if self._absorb(grey, fg, moved, mask, (x, y), bg=bg, frame=frame, keep=not first):
-                changed = True
-                logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
-        return changed
+
+    def _test_region(
+        self, at: _Sample, mask: npt.NDArray[np.bool_], origin: tuple[int, int], *, area: int, waits: _Waits
+    ) -> bool:
+        """Test one still region (``mask``, of ``area`` pixels, in its box at ``origin`` = (column, row)) and
+        absorb what of it is a ghost, a start-up hole or has stood too long. True if ``bg`` changed."""
+        assert self._static is not None
+        grey, fg, bg_u8 = at.grey, at.fg, at.bg_u8
+        x, y = origin
+        h, w = mask.shape
+        age = int(self._static[y : y + h, x : x + w][mask].max())
+        if area < self.settings.min_blob_px or area < SOLID_FRAC * w * h:
+            # Too small or too ragged for an outline test: becomes background after still_absorb_frames.
+            return age >= waits.long_still and self._absorb_fragment(at, mask, origin, area)
+        was_sum, cur_sum, n_out = _outline_edges(grey, bg_u8, mask, origin)
+        score = was_sum / (cur_sum + 1.0)
+        # A ghost's outline is a real silhouette edge in the background (not two flat surfaces
+        # whose ratio is noise: the still inside of a slowly walking person's shirt).
+        ghost = score >= GHOST_SCORE and was_sum / n_out >= GHOST_EDGE
+        # The surface beside the region decides too: a hole shows in the frame what continues on
+        # both sides, while the model holds the one who left. It overrules the outline test when
+        # the frame is no closer to the surroundings than the model is (someone standing in front
+        # of a window: its frame is a strong outline of the model, but that is no ghost).
+        born = self._born is not None and self._born_live and _mostly(self._born, origin, mask, area)
+        # Neither an outline ghost nor a start-up hole: no surround can make it one (not computed).
+        dev_cur, dev_bg = surround_deviation(grey, bg_u8, fg, mask, origin) if ghost or born else (0.0, 0.0)
+        hole = born and dev_cur + dev_bg > 0.0 and start_up_hole(dev_cur, dev_bg)
+        # Changed since the model was learnt, the model holds whoever stood there: nothing to put
+        # back. Changed since the end of its first BORN_FRAMES only, it may be someone who came in
+        # meanwhile and stands (in front of a window, looking like its hole): keep what was there.
+        first = hole and self._born_first is not None and _mostly(self._born_first, origin, mask, area)
+        if dev_cur + dev_bg > 0.0:
+            ghost = hole or (ghost and dev_cur < dev_bg)
+        logger.debug(
+            "still region x=%d w=%d area=%d: bg edge %.1f, frame edge %.1f, age %d, ghost %s, dev cur %.1f bg %.1f",
+            x,
+            w,
+            area,
+            was_sum / n_out,
+            cur_sum / n_out,
+            age,
+            ghost,
+            dev_cur,
+            dev_bg,
+        )
+        if born and not ghost:
+            # Someone who stood while the model was learnt walks out of their hole: the hole's
+            # columns are absorbed now, the one beside them is tested again later.
+            part = mask & hole_columns(grey, bg_u8, fg, mask, origin)[None, :]
+            if int(np.count_nonzero(part)) >= self.settings.min_blob_px:
+                return self._absorb_hole(at, origin, part=part, beside=mask)
+        if age < waits.samples and not hole:
+            return False  # still too briefly for any test but the start-up hole's
+        if not ghost:
+            # A paused person is the reverse: the silhouette is an edge of the current frame, not of
+            # the background. They stay an object region (never learnt) however long they stand;
+            # only what neither test recognises becomes background after still_absorb_frames.
+            if cur_sum >= PERSON_SCORE * (was_sum + 1.0) and cur_sum / n_out >= GHOST_EDGE and age < waits.keep_still:
+                self.kept += 1
+                return False
+            if age < waits.long_still:
+                return False
+        # Anything but a hole since the model was learnt may be a mistake -- a born region too:
+        # someone in view since the model was young who stood still -- keep what was there.
+        absorbed = self._absorb(at, mask, origin, keep=not first)
+        if absorbed:
+            logger.debug("ghost of %d px at column %d absorbed (edge score %.2f)", area, x, score)
+        return absorbed
+
+    def _absorb_fragment(self, at: _Sample, mask: npt.NDArray[np.bool_], origin: tuple[int, int], area: int) -> bool:
+        """Absorb a still region too small or too ragged for an outline test. True if ``bg`` changed.
+
+        A speck, or a sliver of a ghost's edge left by an absorption (the model there still holds the
+        person's outline, a few grey levels over the threshold). Changed pixels are never learnt, so it would
+        stay for ever and join the blob of whoever passes it: it becomes background after
+        ``still_absorb_frames`` too, unless changed pixels surround it (part of someone). What it overwrote is
+        kept: the part of someone that alone differs from the wall (a shirt of the wall's grey in front of a
+        poster) comes back when they walk on.
+        """
+        absorbed = self._absorb(at, mask, origin, keep=True, fringe=False)
+        if absorbed:
+            logger.debug("still fragment of %d px at column %d absorbed", area, origin[0])
+        return absorbed
+
+    def _absorb_hole(
+        self, at: _Sample, origin: tuple[int, int], *, part: npt.NDArray[np.bool_], beside: npt.NDArray[np.bool_]
+    ) -> bool:
+        """Absorb the hole's columns ``part`` of a born region ``beside`` (the rest of it is whoever walks out of
+        the hole, kept out of the absorption's ring). True if ``bg`` changed."""
+        n_part = int(np.count_nonzero(part))
+        first_part = self._born_first is not None and _mostly(self._born_first, origin, part, n_part)
+        absorbed = self._absorb(at, part, origin, keep=not first_part, fringe=False, beside=beside)
+        if absorbed:
+            logger.debug("hole of %d px beside someone at column %d absorbed", n_part, origin[0])
+        return absorbed
 
     def _absorb(
         self,
-        grey: Mask,
-        fg: Mask,
-        moving: Mask,
+        at: _Sample,
         mask: npt.NDArray[np.bool_],
         origin: tuple[int, int],
         *,
-        bg: FloatImage,
-        frame: int,
         keep: bool,
         fringe: bool = True,
         beside: npt.NDArray[np.bool_] | None = None,
@@ -340,6 +410,7 @@ class StillRegions:
         the region, not counted in that ring. Returns whether it was absorbed into ``bg``.
         """
         assert self._static is not None
+        grey, fg, moving, bg, frame = at.grey, at.fg, at.moved, at.bg, at.frame
         x, y = origin
         h, w = mask.shape
         y0, y1, x0, x1 = max(0, y - 4), min(grey.shape[0], y + h + 4), max(0, x - 4), min(grey.shape[1], x + w + 4)

@@ -28,20 +28,18 @@ W; :func:`roi` cuts any image of the panorama's size the same way.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
+from common.arrays import IntArray, Mask
 from sensor_node.components import packed_components
 from sensor_node.config import PipelineSettings
 
 __all__ = ["RawBlob", "find_blobs", "roi"]
 
-Mask = npt.NDArray[Any]
 """An 8-bit single-channel image (cv2 results are typed loosely)."""
-IntArray = npt.NDArray[np.int64]
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -44,7 +44,6 @@ prediction.
 from __future__ import annotations
 
 import itertools
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -55,7 +54,6 @@ from sensor_node.segmentation.head_splits import blob_part, has_head, ok_part, t
 
 __all__ = ["split_by_tracks"]
 
-Mask = npt.NDArray[Any]
 
 MIN_SEPARATION_PX = 3.0
 """Least distance (columns) between two tracks' predicted head columns for a cut between them."""
@@ -96,12 +94,15 @@ BUMP_SHOULDER_COLS = 3
 """Of the ``BUMP_REACH_PX`` columns, how many must lie that far below the bump (shoulders are wider
 than the head; a ragged arm or the blob's end is not)."""
 
+SPLIT_MIN_HEADS = 2
+"""Heads (predicted, or found as bumps of the top) a blob must hold to be split: one head is one person."""
+
 
 def _cut_between(top: npt.NDArray[np.int64], a: float, b: float) -> int | None:
     """Boundary column c (the right part starts at c) between predicted head columns a < b, or None."""
     ia, ib = max(round(a), 0), min(round(b), top.size - 1)
-    if ib - ia < 2:
-        return None
+    if ib <= ia + 1:
+        return None  # no column between the heads to cut at
     seg = top[ia : ib + 1]
     v = int(np.argmax(seg[1:-1])) + 1
     left_min, right_min = int(seg[:v].min()), int(seg[v + 1 :].min())
@@ -251,14 +252,14 @@ def split_by_tracks(
     if top is None:
         top = top_profile(blob.mask)
     inside = np.sort(np.concatenate([inside, _head_bumps(top, inside, -blob.v0, blob.mask.shape[0])]))
-    if inside.size < 2:
+    if inside.size < SPLIT_MIN_HEADS:
         return [blob]
     # Predictions closer than MIN_SEPARATION_PX: one occludes the other; keep one of them.
     preds = [float(inside[0])]
     for p in inside[1:].tolist():
         if p - preds[-1] >= MIN_SEPARATION_PX:
             preds.append(p)
-    if len(preds) < 2:
+    if len(preds) < SPLIT_MIN_HEADS:
         return [blob]
     edges = [0]
     kept = [preds[0]]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from typing import Any, cast
+from typing import cast
 
 import cv2
 import numpy as np
@@ -36,7 +36,6 @@ from sensor_node.segmentation.blobs import RawBlob
 
 __all__ = ["blob_part", "has_head", "ok_part", "split_at_heads", "top_profile"]
 
-Mask = npt.NDArray[Any]
 
 HEAD_MIN_COLS = 3
 """Least width of a head (columns at ``split_dip_px`` below its top): narrower is a spike of noise."""
@@ -65,6 +64,13 @@ GAP_MIN_WIDTH_FRAC = 0.6
 
 GAP_HEAD_DIP_PX = 8
 """Rows below a part's top at which its head is measured when parting at gaps with ``split_dip_px`` 0."""
+
+BODY_MIN_ROWS = 3
+"""Fewest rows of a part's body (2.5 to 5 head widths below its top) to compare its width with the head's:
+with fewer (a part cut off by the image's edge), the head is not held against it."""
+
+UNCUT_EDGES = 2
+"""Edges of a blob in one part (its first column and its end): no cut left to weigh."""
 
 
 def top_profile(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
@@ -148,7 +154,7 @@ def has_head(top: npt.NDArray[np.int64], dip_px: int, mask: npt.NDArray[np.bool_
     t0 = int(top[p])
     counts = np.count_nonzero(mask[t0 + round(2.5 * cols) : t0 + 5 * cols], axis=1)
     counts = counts[counts > 0]
-    return counts.size < 3 or cols <= HEAD_BODY_FRAC * _median(counts)
+    return counts.size < BODY_MIN_ROWS or cols <= HEAD_BODY_FRAC * _median(counts)
 
 
 def _median(values: npt.NDArray[np.intp]) -> float:
@@ -213,7 +219,7 @@ def ok_part(blob: RawBlob, a: int, b: int, settings: PipelineSettings) -> bool:
 def _merge_weak(edges: list[int], ok: Callable[[int, int], bool]) -> list[int]:
     """Drop cuts until every part [edges[i], edges[i+1]) is ``ok``: a weak part joins its narrower neighbour."""
     edges = list(edges)
-    while len(edges) > 2:
+    while len(edges) > UNCUT_EDGES:
         weak = [i for i in range(len(edges) - 1) if not ok(edges[i], edges[i + 1])]
         if not weak:
             break
@@ -280,36 +286,57 @@ def split_at_heads(
 
     edges = _merge_weak([0, *gaps, blob.w], ok_gap) if gaps else [0, blob.w]
     if dip > 0:
-        radius = max(2, settings.min_blob_width_px // 2)
-        fine: list[int] = [0]
-        for a, b in itertools.pairwise(edges):
-            if b - a < 2 * settings.min_blob_width_px:
-                fine.append(b)
-                continue
-            cuts = [a + c for c in _cuts(top[a:b], dip, radius, 1 - blob.v0)]
-            sub = [a, *cuts, b]
-            widest = max(y - x for x, y in itertools.pairwise(sub))
-
-            def ok(x: int, y: int, widest: int = widest) -> bool:
-                # A side parted at an (almost) empty column, or much narrower than the widest, must
-                # have a head narrower than its body (an arm swung clear of the body is a strip).
-                strip = (
-                    y - x < NARROW_PART_FRAC * widest
-                    or (x > 0 and col_px[x] <= GAP_MAX_PX)
-                    or (y < blob.w and col_px[y] <= GAP_MAX_PX)
-                )
-                return (
-                    y - x >= SPLIT_MIN_WIDTH_FRAC * widest
-                    and has_head(top[x:y], dip, blob.mask[:, x:y] if strip else None)
-                    and ok_part(blob, x, y, settings)
-                )
-
-            fine.extend(_merge_weak(sub, ok)[1:])
-        edges = fine
-    if len(edges) == 2:
+        edges = _split_at_dips(blob, edges, col_px, top, settings)
+    if len(edges) == UNCUT_EDGES:
         return [blob]
     parts = [p for a, b in itertools.pairwise(edges) if (p := blob_part(blob, a, b, width_px)) is not None]
     return parts or [blob]
+
+
+def _split_at_dips(
+    blob: RawBlob,
+    edges: list[int],
+    col_px: npt.NDArray[np.int32],
+    top: npt.NDArray[np.int64],
+    settings: PipelineSettings,
+) -> list[int]:
+    """The ``edges`` of a blob's parts, each part cut further at the valleys between heads (``split_dip_px``)
+    where both sides stand as parts of their own.
+
+    Args:
+        blob: the blob.
+        edges: its parts' edges so far (its first column, the cuts, its end).
+        col_px: its changed pixels per column.
+        top: its :func:`top_profile`.
+        settings: ``split_dip_px`` and the blob checks.
+    """
+    dip = settings.split_dip_px
+    radius = max(2, settings.min_blob_width_px // 2)
+    fine: list[int] = [0]
+    for a, b in itertools.pairwise(edges):
+        if b - a < 2 * settings.min_blob_width_px:
+            fine.append(b)
+            continue
+        cuts = [a + c for c in _cuts(top[a:b], dip, radius, 1 - blob.v0)]
+        sub = [a, *cuts, b]
+        widest = max(y - x for x, y in itertools.pairwise(sub))
+
+        def ok(x: int, y: int, widest: int = widest) -> bool:
+            # A side parted at an (almost) empty column, or much narrower than the widest, must
+            # have a head narrower than its body (an arm swung clear of the body is a strip).
+            strip = (
+                y - x < NARROW_PART_FRAC * widest
+                or (x > 0 and col_px[x] <= GAP_MAX_PX)
+                or (y < blob.w and col_px[y] <= GAP_MAX_PX)
+            )
+            return (
+                y - x >= SPLIT_MIN_WIDTH_FRAC * widest
+                and has_head(top[x:y], dip, blob.mask[:, x:y] if strip else None)
+                and ok_part(blob, x, y, settings)
+            )
+
+        fine.extend(_merge_weak(sub, ok)[1:])
+    return fine
 
 
 def blob_part(blob: RawBlob, a: int, b: int, width_px: int) -> RawBlob | None:

@@ -48,7 +48,7 @@ def run_sensor(session: Any, keys: Keys, ident: str, period_s: float, shutdown: 
     )
 
     def on_query(query: Any) -> None:
-        with query:  # always finalise (notes/zenoh.md §1.4)
+        with query:  # always finalise (docs/zenoh.md §1.4)
             query.reply(keys.sensor_info(ident), encode(info), encoding=MSGPACK)
 
     queryable = session.declare_queryable(keys.sensor_info(ident), on_query, complete=True)

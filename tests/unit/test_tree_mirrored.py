@@ -1,4 +1,4 @@
-"""Tests mirror the tree (STYLE.md habit 15): ``pkg/sub/mod.py`` is tested in ``tests/unit/pkg/sub/test_mod.py``.
+"""Tests mirror the tree (docs/STYLE.md habit 15): ``pkg/sub/mod.py`` is tested in ``tests/unit/pkg/sub/test_mod.py``.
 
 Checked both ways for the packages in :data:`PACKAGES`: every library module has its test file, and every
 ``test_*.py`` under ``tests/unit/<package>/`` names a module that exists (a test file left behind by a move or a

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 import logging
 
 import pytest
 
-from common.cli import EXIT_BUG, EXIT_ERROR, run_main
+from common.cli import EXIT_BUG, EXIT_ERROR, EXIT_USAGE, run_command, run_main
 from common.errors import ConfigError, SessionError
 
 
@@ -47,3 +48,23 @@ def test_exit_process_flushes_what_was_said_and_exits_with_the_code() -> None:
     code += "print('out', end=''); logging.getLogger('x').warning('said'); exit_process(3)"
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=30, check=False)
     assert res.returncode == 3 and res.stdout == "out" and "said" in res.stderr
+
+
+def _configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--frames", type=int, required=True)
+
+
+@pytest.mark.parametrize(("frames", "code"), [("3", 3), ("0", 0)])
+def test_run_command_parses_configures_and_runs(frames: str, code: int) -> None:
+    assert run_command("x", "a test command", _configure, lambda args: int(args.frames), ["--frames", frames]) == code
+
+
+def test_run_command_maps_errors_and_rejects_bad_arguments(capsys: pytest.CaptureFixture[str]) -> None:
+    def fail(args: argparse.Namespace) -> int:
+        raise ConfigError("x.toml: frames must be > 0, got 0")
+
+    assert run_command("x", "a test command", _configure, fail, ["--frames", "0"]) == EXIT_ERROR
+    assert "x: error: x.toml" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        run_command("x", "a test command", _configure, fail, [])
+    assert exc.value.code == EXIT_USAGE

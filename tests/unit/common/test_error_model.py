@@ -1,4 +1,4 @@
-"""Model M1 (notes/geometry.md section 2), Fig. 4, Eqs. (4)-(6) and the pair ranking error."""
+"""Model M1 (docs/geometry.md section 2), Fig. 4, Eqs. (4)-(6) and the pair ranking error."""
 
 from __future__ import annotations
 

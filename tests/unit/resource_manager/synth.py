@@ -14,14 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from common.angles import wrap_angle
 from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo, Sighting
 from resource_manager.stereo.match import ViewBlobs
-
-TWO_PI = 2 * math.pi
-
-
-def wrap(a: float) -> float:
-    return (a + math.pi) % TWO_PI - math.pi
 
 
 @dataclass
@@ -57,7 +52,7 @@ def colour_hist(k: int, bins: int = 16) -> list[float]:
 
 
 def info_for(cam: Cam, seq: int = 0, stamp_ns: int = 1) -> SensorInfo:
-    pose = Pose(x_m=cam.x, y_m=cam.y, z_m=cam.z, yaw_rad=wrap(cam.yaw)) if cam.surveyed else None
+    pose = Pose(x_m=cam.x, y_m=cam.y, z_m=cam.z, yaw_rad=wrap_angle(cam.yaw)) if cam.surveyed else None
     return SensorInfo(
         sensor_id=cam.id,
         seq=seq,
@@ -100,7 +95,7 @@ def features_for(
     blobs: list[Blob] = []
     kept: list[tuple[float, float]] = []
     for d, k, p, az, w in seen:
-        if occlusion and any(abs(wrap(az - a)) < 0.5 * (w + wk) * 0.6 for a, wk in kept):
+        if occlusion and any(abs(wrap_angle(az - a)) < 0.5 * (w + wk) * 0.6 for a, wk in kept):
             continue
         kept.append((az, w))
         h = np.asarray(p.hist or colour_hist(k)) + rng.normal(0.0, hist_noise, len(p.hist or colour_hist(k)))
@@ -109,7 +104,7 @@ def features_for(
         blobs.append(
             Blob(
                 local_id=k + id_offset,
-                bearing_rad=wrap(az - cam.yaw + rng.normal(0.0, sb)),
+                bearing_rad=wrap_angle(az - cam.yaw + rng.normal(0.0, sb)),
                 width_rad=max(1e-3, w * (1 + rng.normal(0.0, 0.03))),
                 top_elev_rad=math.atan2(p.height - cam.z, d) + rng.normal(0.0, sb),
                 bottom_elev_rad=math.atan2(-cam.z, d),
@@ -130,16 +125,16 @@ def features_for(
             continue
         beta = math.atan2(dy, dx) - cam.yaw
         half = math.asin(other.radius / d)
-        left = wrap(beta + half + rng.normal(0.0, bn))
-        right = wrap(beta - half + rng.normal(0.0, bn))
-        alpha = abs(wrap(left - right))
+        left = wrap_angle(beta + half + rng.normal(0.0, bn))
+        right = wrap_angle(beta - half + rng.normal(0.0, bn))
+        alpha = abs(wrap_angle(left - right))
         sightings.append(
             Sighting(
                 target_id=other.id,
                 left_rad=left,
                 right_rad=right,
                 alpha_rad=alpha,
-                bearing_rad=wrap(right + wrap(left - right) / 2),
+                bearing_rad=wrap_angle(right + wrap_angle(left - right) / 2),
                 distance_m=other.radius / math.sin(alpha / 2),
                 body_radius_m=other.radius,
             )

@@ -38,7 +38,7 @@ def test_fig4_optimum_when_nothing_constrains_it() -> None:
     main, robot = _cam("p1", 0.0, 0.0), _cam("r1", 0.4, 2.0, mobile=True)  # near the O1-T line: poor
     (goal,) = planner.plan(1, [main, robot], [_tgt(0.0, 6.0, ("p1", "r1"))])
     assert goal.partner_id == "p1" and goal.track_id == "m-1"
-    assert goal.baseline_m == pytest.approx(2.1655, abs=0.03)  # notes/geometry.md: B* for D1 = 6 m, R = 0.18
+    assert goal.baseline_m == pytest.approx(2.1655, abs=0.03)  # docs/geometry.md: B* for D1 = 6 m, R = 0.18
     assert math.degrees(goal.phi1_rad) == pytest.approx(59.45, abs=1.0)
     assert goal.goal_xy[0] > 0  # the optimum on the robot's side of the O1-T line
     assert goal.predicted_error_m < goal.current_error_m

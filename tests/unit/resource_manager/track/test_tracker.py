@@ -10,12 +10,13 @@ import msgspec
 import numpy as np
 import pytest
 
+from common.angles import wrap_angle
 from common.area import AreaSpec, rectangle
 from common.schema import Blob, Features
 from resource_manager.config import ManagerConfig
 from tests.unit.resource_manager.scenario import T0_NS as T0
 from tests.unit.resource_manager.scenario import make_config, run_scenario
-from tests.unit.resource_manager.synth import Cam, Person, wrap
+from tests.unit.resource_manager.synth import Cam, Person
 
 SQUARE = [Cam("p1", 0.5, 0.5), Cam("p2", 7.5, 0.5), Cam("p3", 7.5, 5.5), Cam("p4", 0.5, 5.5)]
 
@@ -37,7 +38,7 @@ def test_a_false_blob_in_one_view_makes_no_track() -> None:
     nothing there: it never becomes a track."""
 
     def add_clutter(batch: list[Features], rng: np.random.Generator) -> list[Features]:
-        fake = Blob(local_id=99, bearing_rad=wrap(math.atan2(4.5, 1.5)), width_rad=0.1, top_elev_rad=0.12,
+        fake = Blob(local_id=99, bearing_rad=wrap_angle(math.atan2(4.5, 1.5)), width_rad=0.1, top_elev_rad=0.12,
                     bottom_elev_rad=-0.3, bbox_u_px=0, bbox_v_px=10, bbox_w_px=10, bbox_h_px=30)  # fmt: skip
         return [
             Features(

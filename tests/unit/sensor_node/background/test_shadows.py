@@ -3,6 +3,8 @@ differently coloured patch, flat cloth of the floor's colour, or something far d
 
 from __future__ import annotations
 
+from typing import Any
+
 import msgspec
 import numpy as np
 import pytest
@@ -12,8 +14,7 @@ from sensor_node.background.shadows import (
     TEXTURE_WINDOW,
     ColourImage,
     local_spread,
-    remove_shadows,
-    shadow_mask,
+    shadow_cells,
     spread_at,
 )
 from sensor_node.config import PipelineSettings
@@ -22,6 +23,14 @@ SMALL_H, SMALL_W = 60, 80
 """The reduced colour image; the changed-pixel mask is at twice the resolution."""
 NOISE = 2.0
 ON = msgspec.structs.replace(PipelineSettings(), shadows=True)
+
+
+def shadow_mask(
+    frame: np.ndarray, bg: np.ndarray, fg: np.ndarray, noise: float, settings: PipelineSettings, **kw: Any
+) -> np.ndarray | None:
+    """The shadow cells as a mask at ``fg``'s resolution; None if there are none."""
+    cells = shadow_cells(frame, bg, fg, noise, settings, **kw)
+    return None if cells is None else cells.mask(fg)
 
 
 def _background() -> np.ndarray:
@@ -101,17 +110,18 @@ def test_nothing_to_mark_gives_none() -> None:
 @pytest.mark.parametrize("fg_size", [(2 * SMALL_H, 2 * SMALL_W), (2 * SMALL_H + 1, 2 * SMALL_W + 3)])
 def test_removing_shadows_clears_exactly_the_marked_pixels(fg_size: tuple[int, int]) -> None:
     """The changed pixels without the shadows are the changed pixels less the shadow mask, whether the
-    mask is a whole multiple of the reduced image or not; with nothing marked, the mask itself."""
+    mask is a whole multiple of the reduced image or not; with no changed pixels, no shadow cells."""
     frame, bg, fg = _scene()
     big = np.zeros(fg_size, np.uint8)
     big[: fg.shape[0], : fg.shape[1]] = fg
     mask = shadow_mask(frame, bg, big, NOISE, ON)
     assert mask is not None
-    kept = remove_shadows(frame, bg, big, NOISE, ON)
+    cells = shadow_cells(frame, bg, big, NOISE, ON)
+    assert cells is not None
+    kept = cells.removed_from(big)
     assert np.array_equal(kept, np.where(mask > 0, 0, big))
     assert kept.any() and (kept & mask).sum() == 0
-    none = np.zeros_like(big)
-    assert remove_shadows(frame, bg, none, NOISE, ON) is none
+    assert shadow_cells(frame, bg, np.zeros_like(big), NOISE, ON) is None
 
 
 @pytest.mark.parametrize(("ratio", "marked"), [(SHADOW_MIN_RATIO + 0.1, True), (SHADOW_MIN_RATIO - 0.15, False)])
