@@ -101,7 +101,8 @@ def replay(data: ReplayInput, config: ManagerConfig) -> tuple[list[TrackSet], li
             (feats if isinstance(msg, Features) else infos).append(msg)  # type: ignore[arg-type]
             k += 1
         began = time.perf_counter()
-        result = fusion.step(Batch(features=feats, infos=infos), fusion_ns)
+        fusion.absorb(Batch(features=feats, infos=infos))
+        result = fusion.step(fusion_ns)
         tick_ms.append((time.perf_counter() - began) * 1e3)
         if not result.skipped and result.trackset is not None:
             out.append(result.trackset)

@@ -90,9 +90,11 @@ StampNs = Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)]
 DurationNs = Annotated[int, msgspec.Meta(ge=-(2**62), le=2**62)]
 Count = Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)]
 
-Metres = Annotated[float, msgspec.Meta(ge=-1e5, le=1e5)]
+MAX_METRES: Final = 1e5
+"""The largest distance or coordinate a message carries (m): 100 km."""
+Metres = Annotated[float, msgspec.Meta(ge=-MAX_METRES, le=MAX_METRES)]
 """A coordinate in metres (finite, within 100 km)."""
-PosMetres = Annotated[float, msgspec.Meta(ge=0.0, le=1e5)]
+PosMetres = Annotated[float, msgspec.Meta(ge=0.0, le=MAX_METRES)]
 Speed = Annotated[float, msgspec.Meta(ge=-1e3, le=1e3)]
 Bearing = Annotated[float, msgspec.Meta(ge=-math.pi, le=math.pi)]
 """An azimuth in radians, wrapped to [-pi, pi]."""

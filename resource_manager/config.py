@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import msgspec
 
@@ -51,12 +51,16 @@ __all__ = [
     "PlannerSection",
     "PoseOverride",
     "PtzSection",
+    "default_of",
     "for_site",
     "load_manager_config",
 ]
 
 MAX_PUBLISH_LAG_S = 60.0
 """The longest ``[manager] publish_lag_s``: tracks held longer are no longer a live system's."""
+
+ROOM_FIELDS = ("x_min", "y_min", "x_max", "y_max")
+"""What ``[planner] room`` lists, in order."""
 
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
@@ -200,7 +204,8 @@ class MutualSection(ConfigStruct, frozen=True):
     timeout_s: Pos = 2.0
     """A calibrated pose not refreshed for this long becomes unknown again."""
     jump_m: Pos = 1.0
-    """A new pose further than this from the smoothed one restarts the smoothing."""
+    """A raw pose this far from the smoothed one is refused like an outlier; several in a row that agree restart
+    the smoothing there (the robot was moved)."""
     boundary_sigma_deg: NonNeg = 0.0
     """Error of one occluding-boundary bearing; 0 = the observer's bearing sigma."""
     default_height_m: Pos = 1.1
@@ -233,7 +238,9 @@ class PlannerSection(ConfigStruct, frozen=True):
     min_gain_m: NonNeg = 0.05
     """...and the predicted error must fall by at least this much (a move costs the robot's detections)."""
     band_z_m: NonNeg = 0.62
-    """Height of the robots' marking band (upper part; minimum baseline: bands above the lower elevation limit)."""
+    """Height of the robots' marking band that must stay in view (minimum baseline: bands above the lower elevation
+    limit). The band spans 0.50..0.65 m on the paper's 0.9 m robots: its upper part leaves enough rows for the
+    occluding boundaries of Eq. 3."""
     elev_margin_deg: NonNeg = 1.0
     """Margin inside the lens' elevation limits for bands and heads."""
     min_band_px: Pos = 12.0
@@ -241,9 +248,10 @@ class PlannerSection(ConfigStruct, frozen=True):
     keep_m: NonNeg = 0.8
     """Clearance from people on the drive and at the goal."""
     found_m: NonNeg = 0.5
-    """Cost of moving: a person counts as found within this (CLEAR-MOT's match distance); where nobody else can
-    pair the people a robot helps, it moves only when the found person-seconds gained over ``horizon_s`` exceed
-    those lost while it drives and settles (resource_manager/plan/checks.py). 0: moves cost nothing."""
+    """Cost of moving: a person counts as found within this (CLEAR-MOT's match distance; with predicted error e,
+    with probability 1 - exp(-found_m² / e²)); where nobody else can pair the people a robot helps, it moves only
+    when the found person-seconds gained over ``horizon_s`` exceed those lost while it drives and settles
+    (resource_manager/plan/checks.py). 0: moves cost nothing."""
     horizon_s: Pos = 15.0
     """How long a new viewpoint is counted on, from when the robot has settled there."""
     speed_mps: Pos = 0.4
@@ -306,6 +314,19 @@ class ManagerConfig(ConfigStruct, frozen=True):
         return math.radians(self.manager.default_bearing_sigma_deg)
 
 
+def default_of(section: type[msgspec.Struct], name: str) -> Any:
+    """The default of a config key, as declared (and documented) here: the stages' own parameter records take
+    their defaults from it, so each default exists once.
+
+    Raises:
+        KeyError: ``section`` has no key ``name``, or it has no default.
+    """
+    for f in msgspec.structs.fields(section):
+        if f.name == name and f.default is not msgspec.NODEFAULT:
+            return f.default
+    raise KeyError(f"{section.__name__}.{name} has no default")
+
+
 def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     """Checks msgspec cannot express; raises ConfigError naming the key."""
     try:
@@ -321,7 +342,7 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     except ConfigError as err:
         raise ConfigError(f"{source}: {err}") from err
     room = cfg.planner.room
-    if room and (len(room) != 4 or room[0] >= room[2] or room[1] >= room[3]):
+    if room and (len(room) != len(ROOM_FIELDS) or room[0] >= room[2] or room[1] >= room[3]):
         raise ConfigError(f"{source}: planner.room must be [x_min, y_min, x_max, y_max], got {cfg.planner.room!r}")
     if "*" in cfg.manager.sensors and len(cfg.manager.sensors) > 1:
         raise ConfigError(

@@ -1,9 +1,10 @@
 """The manager's whole per-tick computation, pure: received messages in, tracks and commands out.
 
-``Fusion(config).step(batch, t_ns)`` runs, at the fusion instant ``t_ns``, in the paper's order:
+``Fusion(config).absorb(batch)`` files what arrived in the sensor registry (:mod:`~resource_manager.sensors`:
+SensorInfo, presence, bounded frame buffers with late, duplicate and out-of-order frames counted, frame timing) and
+answers PTZ requests; ``step(t_ns)`` then runs, at the fusion instant ``t_ns``, in the paper's order:
 
-1. ingest (bounded buffers; late, duplicate, out-of-order counted) and align every sensor's blobs to ``t_ns``
-   by NTP stamps and interpolation (:mod:`~resource_manager.ingest`);
+1. align every sensor's blobs to ``t_ns`` by NTP stamps and interpolation (:mod:`~resource_manager.ingest`);
 2. poses: surveyed ones plus mutual calibration, Eq. (3) (:mod:`~resource_manager.poses`);
 3. views: every camera's blobs in world terms, and which cameras can see now (:mod:`~resource_manager.views`);
 4. track: per view, blobs assigned to the predicted tracks; each track updated with its views, new people
@@ -12,22 +13,18 @@
 5. view plans for mobile cameras (Eqs. 4-6, :mod:`~resource_manager.plan`) and PTZ pointing
    (:mod:`~resource_manager.serve`).
 
-No zenoh, no disk: tests and benchmarks feed it recorded or synthetic messages;
-:mod:`resource_manager.node` is the thin shell around it.
+Each call returns everything the shell sends (:class:`Absorbed`, :class:`TickResult`), the messages built by
+:mod:`resource_manager.serve.messages`. No zenoh, no disk: tests and benchmarks feed it recorded or synthetic
+messages; :mod:`resource_manager.node` is the thin shell around it.
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
-import numpy as np
-
-from common.angles import wrap_angle
 from common.schema import (
-    MAX_SENSORS,
     MAX_TRACKS,
     DetectorState,
     Features,
@@ -43,20 +40,21 @@ from common.schema import (
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig
 from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
-from resource_manager.ingest.buffers import Ingest
-from resource_manager.plan.scene import HEAD_HEIGHT_M, PlanTarget, plan_camera
+from resource_manager.ingest.schedule import TickLatency
+from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
-from resource_manager.serve.lag import LaggedInstant, LaggedTracks
-from resource_manager.serve.ptz import PtzAnswer, PtzAsk, PtzTarget
+from resource_manager.serve import messages
+from resource_manager.serve.lag import LaggedTracks
+from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
 from resource_manager.views.blobs import ViewBlobs
 from resource_manager.views.build import build_views
 
-__all__ = ["Batch", "Fusion", "TickCounters", "TickResult"]
+__all__ = ["Absorbed", "Batch", "Fusion", "TickCounters", "TickResult"]
 
 HOLD_PERIODS = 0.6
 """A sensor's blobs are held or extrapolated at most this many of its frame periods past its nearest frame."""
-GAP_PERIODS = 2.5
+INTERPOLATE_PERIODS = 2.5
 """Two frames up to this many periods apart are interpolated between (one missing frame between them is fine)."""
 STALE_PERIODS = 3.0
 """A sensor whose newest frame is older than this many periods sits out the tick."""
@@ -72,12 +70,23 @@ class Batch:
     presence: Mapping[str, bool] = field(default_factory=dict)
     """Liveliness changes: sensor id -> alive."""
     ptz_requests: Sequence[PtzAsk] = ()
-    """PTZ requests, answered in the tick (``Fusion.ptz_answers``): the allocation changes on one thread."""
+    """PTZ requests, answered when the batch is absorbed (:attr:`Absorbed.ptz_answers`): the allocation changes on
+    one thread."""
     agents: Mapping[str, bool] = field(default_factory=dict)
     """Liveliness changes of user agents: agent id -> alive (a gone agent's PTZ holds end)."""
     received_ns: int = 0
     """When these features arrived (the manager's clock); 0: each at its own capture stamp plus its node's
     processing (dataset time)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Absorbed:
+    """What filing a batch gives the shell to send: PTZ answers, and the holds that ended."""
+
+    ptz_answers: list[PtzAnswer] = field(default_factory=list)
+    """Answers to the batch's PTZ requests, in order."""
+    ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
+    """PTZ holds ended by the batch (an agent or a camera gone, a release, a preemption), with the reason."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,6 +108,8 @@ class TickCounters:
 
 @dataclass(frozen=True, slots=True)
 class TickResult:
+    """Everything one fused instant gives the shell to publish."""
+
     trackset: TrackSet | None
     """The tracks to publish now: this instant's, or with ``publish_lag_s`` an earlier instant's (None while the
     first ones are held)."""
@@ -110,12 +121,16 @@ class TickResult:
     """Ids of the tracks that ended this tick."""
     skipped: bool = False
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
-
-
-def _clip(v: float, lo: float, hi: float) -> float:
-    """np.clip for one number (NaN stays NaN), without numpy's per-call cost."""
-    v = float(v)
-    return v if math.isnan(v) else min(max(v, lo), hi)
+    live_tracks: list[Track] = field(default_factory=list)
+    """This instant's published tracks (the same as ``trackset``'s without ``publish_lag_s``)."""
+    views: Mapping[str, ViewBlobs] = field(default_factory=dict)
+    """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
+    ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
+    """PTZ holds ended at this instant (a lease run out, a track ended), with the reason."""
+    latency: TickLatency | None = None
+    """Where the capture -> fusion time of this instant went (None: not an instant the scheduler chose)."""
+    sightings_refused: dict[str, int] = field(default_factory=dict)
+    """Sender id -> its sightings of other cameras the pose solver refused at this instant (ManagerStatus)."""
 
 
 def _counter_ids(prefix: str) -> Callable[[], str]:
@@ -124,7 +139,8 @@ def _counter_ids(prefix: str) -> Callable[[], str]:
 
 
 class Fusion:
-    """The resource manager's state and its per-tick pipeline.
+    """The resource manager's state and its per-tick pipeline: :meth:`absorb` what arrived, then :meth:`step` to
+    an instant.
 
     Args:
         config: the manager config.
@@ -136,98 +152,59 @@ class Fusion:
         self.config = config
         m = config.manager
         self.manager_id = m.id
-        self.ingest = Ingest(m.buffer_frames, int(m.clock_step_ms * 1e6))
+        self.sensors = wiring.sensor_registry(config)
         self.align_params = wiring.align_params(config)
-        self.schedule = wiring.schedule(config)
-        self.poses = wiring.pose_solver(config)
+        self.schedule = wiring.schedule(config, self.sensors)
+        self.poses = wiring.pose_solver(config, self.sensors)
         self.tracker = wiring.tracker(config, new_id or _counter_ids(m.id))
         self.feet = wiring.feet_model(config)
         self.planner = wiring.view_planner(config)
         self.trust = wiring.view_trust(config)
-        self.ptz = wiring.ptz_allocator(config)
-        self.present: dict[str, bool] = {}
+        self.ptz = wiring.ptz_allocator(config, self.sensors)
         self.last_t_ns = 0
         self.seq = 0
         self.plan_seq = 0
         self.ptz_seq = 0
         self.skipped_ticks = 0
         self.last_poses: dict[str, PoseEstimate] = {}
-        self.last_views: dict[str, ViewBlobs] = {}
-        """The views of the last fused instant (read by the cameras' agreement check, poses/agreement.py)."""
-        self.last_result: TickResult | None = None
         lag = m.publish_lag_s
         self.lagged = LaggedTracks(int(lag * 1e9)) if lag > 0 else None
         """Instants held back before they are published (``publish_lag_s``)."""
-        self.ptz_answers: list[PtzAnswer] = []
-        """Answers to the batches' PTZ requests, for the shell to reply and clear."""
 
     # -- inputs ---------------------------------------------------------------
-    def absorb(self, batch: Batch) -> None:
-        """File a batch of messages without running a tick."""
+    def absorb(self, batch: Batch) -> Absorbed:
+        """File a batch of messages; answer its PTZ requests."""
         for info in batch.infos:
-            self.schedule.declare(info.sensor_id, info.fps)
-            self.poses.update_info(info)
-            self.ptz.update_info(info)
+            self.sensors.declare(info)
         # Sensors that came first, their frames next, sensors that went last: the frames a batch holds arrived
         # before the liveliness change that ends it (a node stops publishing, then its token goes).
         for sid, alive in batch.presence.items():
             if alive:
-                if sid not in self.present and len(self.present) >= 4 * MAX_SENSORS:
-                    # Bounded memory under liveliness churn: forget sensors already gone first.
-                    for gone in [k for k, v in self.present.items() if not v]:
-                        del self.present[gone]
-                    if len(self.present) >= 4 * MAX_SENSORS:
-                        continue
-                self.present[sid] = True
+                self.sensors.came(sid)
         for f in batch.features:  # in arrival order: the buffers sort, and count what came out of order
-            sid = f.sensor_id
-            if not self.present.get(sid, True) or (
-                sid not in self.ingest.buffers and len(self.ingest.buffers) >= MAX_SENSORS
-            ):
-                # A frame of a sensor gone before this batch; or bounded memory: ids nobody announced cannot grow
-                # the buffers without limit.
-                self.ingest.counters.dropped += 1
-                continue
-            kind = self.ingest.add(f)
-            processing_ns = int(f.processing_ms * 1e6)
-            arrival = batch.received_ns or f.stamp_ns + processing_ns
-            self.schedule.arrived(sid, f.stamp_ns, arrival, processing_ns, kind)
+            self.sensors.file(f, batch.received_ns)
         for sid, alive in batch.presence.items():
-            if not alive and (sid in self.present or sid in self.ingest.buffers or sid in self.poses.infos):
-                self.present[sid] = False
-                self.ingest.forget(sid)
-                self.schedule.forget(sid)
+            if not alive and self.sensors.went(sid):
                 self.poses.forget(sid)
                 self.ptz.forget(sid)
         for aid, alive in batch.agents.items():
             if not alive:
                 self.ptz.agent_gone(aid)
+        answers: list[PtzAnswer] = []
         if batch.ptz_requests:
             targets = self.ptz_targets()
-            for ask in batch.ptz_requests:
-                self.ptz_answers.append(self.ptz.answer(ask, targets.get(ask.request.track_id)))
+            answers = [self.ptz.answer(ask, targets.get(ask.request.track_id)) for ask in batch.ptz_requests]
+        return Absorbed(answers, self.ptz.take_ended())
 
     # -- the tick -------------------------------------------------------------
-    def step(self, batch: Batch, t_ns: int) -> TickResult:
-        """Absorb ``batch`` and fuse at instant ``t_ns``."""
-        self.absorb(batch)
+    def step(self, t_ns: int) -> TickResult:
+        """Fuse at instant ``t_ns`` what :meth:`absorb` has filed."""
         if t_ns <= self.last_t_ns:
             self.skipped_ticks += 1
             return self._result([], [], [], [], skipped=True)
         self.last_t_ns = t_ns
-        self.ingest.last_fusion_ns = t_ns
-        aligned: dict[str, AlignedView] = {}
-        surveyed = self.poses.surveyed()
-        # Mutual calibration matters only while some present sensor has no surveyed pose.
-        need_sightings = self.poses.params.enabled and any(
-            sid not in surveyed for sid in self.ingest.buffers if self.present.get(sid, True)
-        )
-        for sid, buf in self.ingest.buffers.items():
-            if not self.present.get(sid, True):
-                continue
-            view = align_sensor(buf, sid, t_ns, self._align_params(sid), sightings=need_sightings)
-            if view is not None:
-                aligned[sid] = view
+        self.sensors.fused(t_ns)
+        aligned = self._align(t_ns)
         states = self._detector_states(t_ns)
         # Only a camera whose own node reports motion may move (resource_manager/poses/solver.py).
         moving = [sid for sid, state in states.items() if state == "moving"]
@@ -242,7 +219,7 @@ class Fusion:
             self.trust.update(
                 t_ns,
                 poses,
-                mobile=[sid for sid, info in self.poses.infos.items() if info.mobile],
+                mobile=[sid for sid, info in self.sensors.infos.items() if info.mobile],
                 en_route=self.planner.en_route(positions) if self.planner.held else (),
                 with_blobs=[sid for sid, v in aligned.items() if v.blobs],
                 states=states,
@@ -251,30 +228,39 @@ class Fusion:
             else frozenset()
         )
         seeing = {sid: v for sid, v in aligned.items() if sid not in unsettled}
-        views = build_views(seeing, poses, self.poses.infos, self.poses.bearing_sigma, feet=self.feet)
-        self.last_views = views
+        views = build_views(seeing, poses, self.sensors.infos, self.poses.bearing_sigma, feet=self.feet)
         outcome = self.tracker.step(
             views,
             t_ns,
             blind=frozenset() if self.trust.params.enabled else driving,
             pose_sigma={sid: p.sigma_xy_m for sid, p in poses.items()},
         )
-        ended = outcome.ended
-        self.ingest.trim(t_ns - self.align_params.stale_ns)
-        old_ns = t_ns - 2 * self.align_params.stale_ns
-        for sid, buf in list(self.ingest.buffers.items()):
-            newest = buf.newest_stamp()
-            if sid not in self.poses.infos and not self.present.get(sid) and (newest is None or newest < old_ns):
-                self.ingest.forget(sid)  # a stale sensor that never said what it is: free its slot
-                self.schedule.forget(sid)
+        stale_ns = self.align_params.stale_ns
+        self.sensors.trim(t_ns - stale_ns, t_ns - 2 * stale_ns)
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
-        return self._result(outcome.pair_entries, plans, commands, ended, in_use=sorted(views), aligned=aligned)
+        return self._result(
+            outcome.pair_entries, plans, commands, outcome.ended, in_use=sorted(views), aligned=aligned, views=views
+        )
+
+    def _align(self, t_ns: int) -> dict[str, AlignedView]:
+        """Every present sensor's blobs (and, while some camera's pose is still to calibrate, sightings) at
+        ``t_ns``."""
+        surveyed = self.poses.surveyed()
+        present = list(self.sensors.present_buffers())
+        # Mutual calibration matters only while some present sensor has no surveyed pose.
+        need_sightings = self.poses.params.enabled and any(sid not in surveyed for sid, _ in present)
+        aligned: dict[str, AlignedView] = {}
+        for sid, buf in present:
+            view = align_sensor(buf, sid, t_ns, self._align_params(sid), sightings=need_sightings)
+            if view is not None:
+                aligned[sid] = view
+        return aligned
 
     def _align_params(self, sid: str) -> AlignParams:
         """The alignment limits for one sensor: the config's, widened to its frame period (a 2 fps camera's
         frames are 500 ms apart: they are interpolated between, and a frame missing between two is tolerated)."""
-        info = self.poses.infos.get(sid)
+        info = self.sensors.infos.get(sid)
         p = self.align_params
         if info is None or info.fps <= 0:
             return p
@@ -282,33 +268,27 @@ class Fusion:
         return AlignParams(
             max_extrapolation_ns=max(p.max_extrapolation_ns, int(HOLD_PERIODS * period)),
             stale_ns=max(p.stale_ns, int(STALE_PERIODS * period)),
-            max_gap_ns=max(p.max_gap_ns, int(GAP_PERIODS * period)),
+            max_gap_ns=max(p.max_gap_ns, int(INTERPOLATE_PERIODS * period)),
         )
 
     def known_sensors(self) -> list[str]:
         """Every sensor heard of: by its SensorInfo, its frames, or a pose override."""
-        return sorted(set(self.ingest.buffers) | set(self.poses.infos) | set(self.poses.overrides))
-
-    def _in_use(self) -> list[str]:
-        """The sensors the watermark waits for: present ones with frames, and declared ones whose first frame is
-        still to come."""
-        with_frames = {sid for sid, buf in self.ingest.buffers.items() if buf.newest_stamp() is not None}
-        return [sid for sid in sorted(with_frames | self.poses.infos.keys()) if self.present.get(sid, True)]
+        return self.sensors.known(set(self.poses.overrides))
 
     def next_instant(self, now_ns: int) -> int | None:
         """The instant to fuse now by the watermark rule (:mod:`resource_manager.ingest.schedule`), or None while
         nothing new can be fused. Call after :meth:`absorb` has filed what arrived."""
-        return self.schedule.instant(self._in_use(), now_ns, self.last_t_ns)
+        return self.schedule.instant(self.sensors.in_use(), now_ns, self.last_t_ns)
 
     def until_due_ns(self, now_ns: int) -> int | None:
         """How long until an instant may be due with no new frame (a sensor's deadline passing); None: only a
         new frame can make one due."""
-        return self.schedule.until_due_ns(self._in_use(), now_ns, self.last_t_ns)
+        return self.schedule.until_due_ns(self.sensors.in_use(), now_ns, self.last_t_ns)
 
     def _detector_states(self, t_ns: int) -> dict[str, DetectorState]:
         """Sensors whose frames around ``t_ns`` say their detector cannot see ("learning", "moving")."""
         out: dict[str, DetectorState] = {}
-        for sid, buf in self.ingest.buffers.items():
+        for sid, buf in self.sensors.buffers.items():
             for f in buf.bracket(t_ns):
                 if f is not None and f.state != "ok" and out.get(sid) != "moving":
                     out[sid] = f.state
@@ -321,66 +301,29 @@ class Fusion:
         show_tentative = self.config.manager.publish_tentative
         return [tr for tr in self.tracker.snapshots() if tr.reported or (show_tentative and not tr.confirmed)]
 
-    def track_message(self, tr: TrackSnapshot, track_id: str = "", seq: int = -1) -> Track:
-        """The message of one track (``track_id``: the id to publish it under, default its own; ``seq``: of the
-        TrackSet it goes out in, default the current one). A track published under an id it was confirmed with
-        later (``publish_lag_s``) is published as confirmed then."""
-        tid = track_id or tr.track_id or f"{self.manager_id}-t{tr.serial}"
-        state = tr.state
-        if track_id and state == "tentative":
-            state = "confirmed" if tr.detected else "coasting"
-        x, y, vx, vy = tr.x.tolist()[:4]  # plain floats: np.clip on scalars costs ~10x
-        (pxx, pxy), (_, pyy) = tr.p_xy.tolist()
-        return Track(
-            manager_id=self.manager_id,
-            seq=self.seq if seq < 0 else seq,
-            stamp_ns=tr.t_ns,
-            track_id=tid,
-            x_m=_clip(x, -1e5, 1e5),
-            y_m=_clip(y, -1e5, 1e5),
-            height_m=_clip(tr.height_m, 0.0, 1e5),
-            vx_mps=_clip(vx, -1e3, 1e3),
-            vy_mps=_clip(vy, -1e3, 1e3),
-            cov_xx_m2=_clip(pxx, 0.0, 1e10),
-            cov_xy_m2=_clip(pxy, -1e10, 1e10),
-            cov_yy_m2=_clip(pyy, 0.0, 1e10),
-            state=state,
-            method=tr.method,
-            sensors=list(tr.sensors)[:64],
-            predicted_error_m=_clip(tr.predicted_error_m, 0.0, 1e5),
-            age_s=max(0.0, (tr.t_ns - tr.born_ns) / 1e9),
-            hits=min(tr.hits, 2**31 - 1),
-            misses=min(tr.misses, 2**31 - 1),
-        )
-
     def live_tracks(self) -> list[Track]:
         """This instant's published tracks as messages (what goes out with no ``publish_lag_s``)."""
-        return [self.track_message(tr) for tr in self.published_tracks()][:MAX_TRACKS]
-
-    def lagged_set(self, instant: LaggedInstant) -> TrackSet:
-        """The TrackSet of an instant held back by ``publish_lag_s``."""
-        tracks = [self.track_message(tr, tid, instant.seq) for tr, tid in instant.tracks][:MAX_TRACKS]
-        return TrackSet(
-            manager_id=self.manager_id,
-            seq=instant.seq,
-            stamp_ns=instant.t_ns,
-            tracks=tracks,
-            sensors_used=instant.sensors_used[:64],
-        )
+        return [messages.track_message(self.manager_id, tr, self.seq) for tr in self.published_tracks()][:MAX_TRACKS]
 
     def flush(self) -> list[TrackSet]:
         """The TrackSets still held back by ``publish_lag_s`` (the end of a recorded run), oldest first."""
-        return [self.lagged_set(i) for i in self.lagged.flush()] if self.lagged is not None else []
+        if self.lagged is None:
+            return []
+        return [messages.lagged_set(self.manager_id, i) for i in self.lagged.flush()]
+
+    def _head_height(self, tr: TrackSnapshot) -> float:
+        """A track's head-top height, or the prior's while none is known."""
+        return tr.height_m if tr.height_m > 0 else self.config.tracker.height_prior_m
 
     def ptz_targets(self) -> dict[str, PtzTarget]:
         return {
-            tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), tr.height_m)
+            tr.track_id: PtzTarget(tr.track_id, float(tr.x[0]), float(tr.x[1]), self._head_height(tr))
             for tr in self.tracker.snapshots()
             if tr.track_id
         }
 
     def _plans(self, t_ns: int, poses: dict[str, PoseEstimate]) -> list[ViewPlan]:
-        infos = self.poses.infos
+        infos = self.sensors.infos
         if not any(sid in infos and infos[sid].mobile for sid in poses):
             return []  # no mobile camera: nothing to plan (checked before building the cameras)
         cams = [
@@ -396,7 +339,7 @@ class Fusion:
                 tr.xy.copy(),
                 tr.predicted_error_m,
                 tr.sensors,
-                tr.height_m if tr.height_m > 0 else HEAD_HEIGHT_M,
+                self._head_height(tr),
             )
             for tr in self.tracker.snapshots()
             if tr.track_id and tr.state == "confirmed"
@@ -404,40 +347,14 @@ class Fusion:
         out = []
         for g in self.planner.plan(t_ns, cams, targets):
             self.plan_seq += 1
-            out.append(
-                ViewPlan(
-                    manager_id=self.manager_id,
-                    seq=self.plan_seq,
-                    stamp_ns=t_ns,
-                    sensor_id=g.sensor_id,
-                    partner_id=g.partner_id,
-                    track_id=g.track_id,
-                    goal_x_m=g.goal_xy[0],
-                    goal_y_m=g.goal_xy[1],
-                    baseline_m=g.baseline_m,
-                    phi1_rad=min(max(g.phi1_rad, 0.0), 2 * math.pi),
-                    predicted_error_m=g.predicted_error_m,
-                    current_error_m=g.current_error_m,
-                )
-            )
+            out.append(messages.view_plan(self.manager_id, self.plan_seq, t_ns, g))
         return out
 
     def _ptz_commands(self, t_ns: int) -> list[PtzCommand]:
         out = []
         for aim in self.ptz.tick(self.ptz_targets(), t_ns):
             self.ptz_seq += 1
-            out.append(
-                PtzCommand(
-                    manager_id=self.manager_id,
-                    seq=self.ptz_seq,
-                    stamp_ns=t_ns,
-                    sensor_id=aim.sensor_id,
-                    pan_rad=float(wrap_angle(aim.pan_rad)),
-                    tilt_rad=float(np.clip(aim.tilt_rad, -math.pi / 2, math.pi / 2)),
-                    zoom=float(aim.zoom),
-                    track_id=aim.track_id,
-                )
-            )
+            out.append(messages.ptz_command(self.manager_id, self.ptz_seq, t_ns, aim))
         return out
 
     def _result(
@@ -450,49 +367,44 @@ class Fusion:
         skipped: bool = False,
         in_use: list[str] | None = None,
         aligned: Mapping[str, AlignedView] | None = None,
+        views: Mapping[str, ViewBlobs] | None = None,
     ) -> TickResult:
         if not skipped:
             self.seq += 1
         used = sorted(in_use or [])
         trackset: TrackSet | None = None
+        live = self.live_tracks()
         if self.lagged is None:
-            trackset = TrackSet(
-                manager_id=self.manager_id,
-                seq=self.seq,
-                stamp_ns=self.last_t_ns,
-                tracks=self.live_tracks(),
-                sensors_used=used[:64],
-            )
+            trackset = messages.track_set(self.manager_id, self.seq, self.last_t_ns, live, used)
         elif not skipped:
             self.lagged.push(self.seq, self.last_t_ns, used, self.tracker.snapshots())
             due = self.lagged.due(self.last_t_ns)
-            trackset = self.lagged_set(due) if due is not None else None
-        known = self.known_sensors()
-        without = sorted(s for s in (aligned or {}) if s not in self.last_poses)
-        c = self.ingest.counters
+            trackset = messages.lagged_set(self.manager_id, due) if due is not None else None
+        c = self.sensors.counters
         counters = TickCounters(
             sensors_in_use=used,
-            sensors_known=known,
-            sensors_without_pose=without,
+            sensors_known=self.known_sensors(),
+            sensors_without_pose=sorted(s for s in (aligned or {}) if s not in self.last_poses),
             late=c.late,
             duplicate=c.duplicate,
             out_of_order=c.out_of_order,
             dropped=c.dropped,
             clock_steps=c.clock_steps,
             skipped_ticks=self.skipped_ticks,
-            sensors_absent=sorted(sid for sid, alive in self.present.items() if not alive),
+            sensors_absent=self.sensors.absent(),
             poses=tuple(self.last_poses[sid] for sid in sorted(self.last_poses)),
         )
-        result = TickResult(
+        return TickResult(
             trackset=trackset,
-            pair_choice=PairChoice(
-                manager_id=self.manager_id, seq=self.seq, stamp_ns=self.last_t_ns, choices=pair_entries[:MAX_TRACKS]
-            ),
+            pair_choice=messages.pair_choice(self.manager_id, self.seq, self.last_t_ns, pair_entries),
             plans=plans,
             ptz_commands=commands,
             counters=counters,
             ended=ended,
             skipped=skipped,
+            live_tracks=live,
+            views=views or {},
+            ptz_ended=self.ptz.take_ended(),
+            latency=last if (last := self.schedule.last) is not None and last.t_ns == self.last_t_ns else None,
+            sightings_refused=self.poses.take_refused(),
         )
-        self.last_result = result
-        return result

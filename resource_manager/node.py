@@ -42,7 +42,17 @@ from common.errors import ConfigError, SchemaError
 from common.keys import Keys
 from common.memory import Trimmer, pin_mmap_threshold
 from common.ratelog import SenderLog
-from common.schema import MAX_SENSORS, Features, Latency, PtzReply, PtzRequest, PtzState, SensorInfo, Track
+from common.schema import (
+    MAX_SENSORS,
+    MAX_TEXT_LEN,
+    Features,
+    Latency,
+    PtzReply,
+    PtzRequest,
+    PtzState,
+    SensorInfo,
+    Track,
+)
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
 from common.transport import KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
@@ -51,7 +61,7 @@ from resource_manager.ingest.gate import SenderGate, sender_in_key
 from resource_manager.ingest.infos import InfoGate
 from resource_manager.poses.agreement import Agreement
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
-from resource_manager.serve.ptz import PtzAnswer, PtzAsk
+from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk
 from resource_manager.serve.status import InboxCounts, manager_status
 
 __all__ = ["ManagerNode", "run"]
@@ -67,8 +77,15 @@ FRAMES_PER_SENSOR = 16
 pushes out (and counts) only that sensor's frames."""
 BUDGET_FPS = 30.0
 """The frame rate ``[manager] sensor_bytes_per_s`` is sized for: a frame larger than the budget's 1/30 is large."""
+INFOS_PER_SENSOR = 4
+"""SensorInfo messages waiting per sensor between ticks (each only a reason to read it again)."""
+PTZ_STATES_PER_SENSOR = 8
+"""PTZ states waiting per sensor between ticks."""
 MAX_PENDING_PTZ = 256
 """PTZ requests waiting for the next tick; beyond them a request is answered "busy" at once."""
+
+MAX_HISTORY_QUERY_S = 1e7
+"""The longest ``?history=SECONDS`` a track query may ask for (~116 days: anything longer is a typo)."""
 
 
 class ManagerNode:
@@ -89,20 +106,13 @@ class ManagerNode:
         self.info_gate = InfoGate(int(cfg.manager.info_refresh_s * 1e9))
         state = Path(cfg.manager.state_dir)
         self.ids = IdAllocator(state, self.mid)
-        self.store = TrackStore(cfg.manager.history_s, cfg.manager.history_hz, cfg.manager.history_max_mb)
-        now = clock.now_ns()
-        reloaded = read_segments(state / "tracks", now - int(cfg.manager.history_s * 1e9))
-        for tr in reloaded:
-            self.store.add(tr)
-        if reloaded:
-            logger.info("reloaded %d track states of %d tracks from %s", len(reloaded), len(self.store.ids()), state)
+        self.store = self._reload(state)
         self.log = TrackLog(state / "tracks", cfg.manager.segment_s, cfg.manager.retain_s)
         self.fusion = Fusion(cfg, new_id=self.ids)
         self.lock = threading.Lock()
         self.live_ids: set[str] = set()
         self.presence: deque[tuple[str, bool]] = deque()
         self.agent_presence: deque[tuple[str, bool]] = deque()
-        self.alive_sensors: set[str] = set()
         self.fetched_infos: deque[tuple[str, SensorInfo]] = deque()
         self.fetch_queue: queue.Queue[str | None] = queue.Queue()
         self.ptz_asks: deque[PtzAsk] = deque()
@@ -120,9 +130,51 @@ class ManagerNode:
         """Set by each arriving Features message (and PTZ request): the tick thread looks at once."""
         self.latencies: deque[Latency] = deque(maxlen=4096)
         """Capture -> publish split of each TrackSet published since the last status."""
+        self.features, self.infos, self.ptz_states = self._inboxes(session, listed)
+        if not self.gate.any_sensor:
+            self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
+        self._declare(session)
+        self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
+        self.fetcher.start()
+        self.tick_ms: list[float] = []
+        self.status_seq = 0
+        self.agreement = Agreement()
+        self.ticks = 0
+        # Last: the token says the manager is ready (its queryables answer).
+        self.token = session.liveliness().declare_token(k.manager(self.mid))
+
+    def _declare(self, session: Any) -> None:
+        """The manager's publishers, liveliness subscribers and queryables."""
+        k = self.keys
+        self.pub_tracks = TypedPublisher(session, k.tracks(), reliable_block=True)
+        self.pub_pairs = TypedPublisher(session, k.manager_pairs(self.mid))
+        self.pub_status = TypedPublisher(session, k.manager_status(self.mid), reliable_block=True)
+        self.live_sub = session.liveliness().declare_subscriber(k.all_sensors, self._on_liveliness, history=True)
+        self.agent_sub = session.liveliness().declare_subscriber(k.all_agents, self._on_agent_liveliness)
+        self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
+        self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
+        self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
+
+    def _reload(self, state: Path) -> TrackStore:
+        """The in-memory track history, reloaded from the log on disk."""
+        m = self.cfg.manager
+        store = TrackStore(m.history_s, m.history_hz, m.history_max_mb)
+        reloaded = read_segments(state / "tracks", self.clock.now_ns() - int(m.history_s * 1e9))
+        for tr in reloaded:
+            store.add(tr)
+        if reloaded:
+            logger.info("reloaded %d track states of %d tracks from %s", len(reloaded), len(store.ids()), state)
+        return store
+
+    def _inboxes(
+        self, session: Any, listed: list[str]
+    ) -> tuple[KeyedInbox[Features], KeyedInbox[SensorInfo], KeyedInbox[PtzState]]:
+        """The bounded inboxes of the sensors' Features, SensorInfo and PTZ state: per listed sensor, or (any
+        sensor) on their wildcards."""
+        k = self.keys
         # Each sensor's Features: a byte budget (its largest frames dropped before copy and decode when over it), and
         # never more than one second of it waiting.
-        rate = cfg.manager.sensor_bytes_per_s
+        rate = self.cfg.manager.sensor_bytes_per_s
         budget: dict[str, Any] = {
             "rate_bytes_per_s": rate,
             "max_key_bytes": max(int(rate), MAX_PAYLOAD_BYTES),
@@ -132,46 +184,34 @@ class ManagerNode:
         }
         if self.gate.any_sensor:
             logger.warning("manager %s accepts any sensor ([manager] sensors = ['*'])", self.mid)
-            self.features = KeyedInbox(
-                session,
-                [k.all_features],
-                Features,
-                capacity=FRAMES_PER_SENSOR,
-                max_keys=4 * MAX_SENSORS,
-                notify=self.wake.set,
-                **budget,
+            return (
+                KeyedInbox(
+                    session,
+                    [k.all_features],
+                    Features,
+                    capacity=FRAMES_PER_SENSOR,
+                    max_keys=4 * MAX_SENSORS,
+                    notify=self.wake.set,
+                    **budget,
+                ),
+                KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=INFOS_PER_SENSOR, advanced=True),
+                KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=PTZ_STATES_PER_SENSOR),
             )
-            self.infos = KeyedInbox(session, [k.all_sensor_info], SensorInfo, capacity=4, advanced=True)
-            self.ptz_states = KeyedInbox(session, [k.all_ptz_state], PtzState, capacity=8)
-        else:
-            logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
-            self.features = KeyedInbox(
+        logger.info("manager %s fuses sensors %s", self.mid, ", ".join(listed))
+        return (
+            KeyedInbox(
                 session,
                 [k.sensor_features(s) for s in listed],
                 Features,
                 capacity=FRAMES_PER_SENSOR,
                 notify=self.wake.set,
                 **budget,
-            )
-            self.infos = KeyedInbox(session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=4, advanced=True)
-            self.ptz_states = KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=8)
-            self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
-        self.pub_tracks = TypedPublisher(session, k.tracks(), reliable_block=True)
-        self.pub_pairs = TypedPublisher(session, k.manager_pairs(self.mid))
-        self.pub_status = TypedPublisher(session, k.manager_status(self.mid), reliable_block=True)
-        self.live_sub = session.liveliness().declare_subscriber(k.all_sensors, self._on_liveliness, history=True)
-        self.agent_sub = session.liveliness().declare_subscriber(k.all_agents, self._on_agent_liveliness)
-        self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
-        self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
-        self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
-        self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
-        self.fetcher.start()
-        self.tick_ms: list[float] = []
-        self.status_seq = 0
-        self.agreement = Agreement()
-        self.ticks = 0
-        # Last: the token says the manager is ready (its queryables answer).
-        self.token = session.liveliness().declare_token(k.manager(self.mid))
+            ),
+            KeyedInbox(
+                session, [k.sensor_info(s) for s in listed], SensorInfo, capacity=INFOS_PER_SENSOR, advanced=True
+            ),
+            KeyedInbox(session, [k.sensor_ptz_state(s) for s in listed], PtzState, capacity=PTZ_STATES_PER_SENSOR),
+        )
 
     # -- zenoh callbacks (enqueue only, or answer from locked state) -----------
     def _on_liveliness(self, sample: Any) -> None:
@@ -222,7 +262,7 @@ class ManagerNode:
             if hist is not None:
                 try:
                     seconds = float(hist)
-                    if not 0 <= seconds <= 1e7:
+                    if not 0 <= seconds <= MAX_HISTORY_QUERY_S:
                         raise ValueError(hist)
                 except ValueError:
                     self.query_errors += 1
@@ -272,7 +312,7 @@ class ManagerNode:
     def _reject(self, query: Any, why: str) -> None:
         self.query_errors += 1
         with query:
-            query.reply_err(why[:256].encode())
+            query.reply_err(why[:MAX_TEXT_LEN].encode())
 
     def _on_old_ptz_query(self, query: Any) -> None:
         self._reject(
@@ -305,7 +345,7 @@ class ManagerNode:
                 ok=bool(ans.sensor_id),
                 track_id=req.track_id,
                 sensor_id=ans.sensor_id,
-                reason=ans.reason[:256],
+                reason=ans.reason[:MAX_TEXT_LEN],
                 lease_s=ans.lease_s,
             )
             try:
@@ -323,10 +363,7 @@ class ManagerNode:
             sid, alive = self.presence.popleft()
             presence[sid] = alive
             if alive:
-                self.alive_sensors.add(sid)
                 self.info_gate.came_back(sid)
-            else:
-                self.alive_sensors.discard(sid)
         agents: dict[str, bool] = {}
         while self.agent_presence:
             aid, alive = self.agent_presence.popleft()
@@ -341,21 +378,6 @@ class ManagerNode:
             f = self.features.decode(key, data)
             if f is not None and self.gate.features(sid, f, now):
                 features.append(f)
-        infos = []
-        for key, data in self.infos.drain_raw():
-            info = self.infos.decode(key, data)
-            if info is not None and self.gate.same_sender(sender_in_key(key, head), info):
-                taken = self.info_gate.offer_put(info)
-                if taken is not None:
-                    infos.append(taken)
-        while self.fetched_infos:
-            sid, info = self.fetched_infos.popleft()
-            if self.gate.same_sender(sid, info):
-                read = self.info_gate.offer_read(info, now)
-                if read is not None:
-                    infos.append(read)
-        for sid in self.info_gate.due(now, self.alive_sensors):
-            self.fetch_queue.put(sid)
         states = []
         for key, data in self.ptz_states.drain_raw():
             st = self.ptz_states.decode(key, data)
@@ -366,7 +388,7 @@ class ManagerNode:
             self.ptz_asks.clear()
         return Batch(
             features=features,
-            infos=infos,
+            infos=self._infos(now),
             ptz_states=states,
             presence=presence,
             ptz_requests=asks,
@@ -374,20 +396,40 @@ class ManagerNode:
             received_ns=now,
         )
 
+    def _infos(self, now: int) -> list[SensorInfo]:
+        """The SensorInfo to take: those put that the gate lets through, and those read from the sensors' own
+        queryables (resource_manager/ingest/infos.py)."""
+        infos = []
+        for key, data in self.infos.drain_raw():
+            info = self.infos.decode(key, data)
+            if info is not None and self.gate.same_sender(sender_in_key(key, self.sensor_head), info):
+                taken = self.info_gate.offer_put(info)
+                if taken is not None:
+                    infos.append(taken)
+        while self.fetched_infos:
+            sid, info = self.fetched_infos.popleft()
+            if self.gate.same_sender(sid, info):
+                read = self.info_gate.offer_read(info, now)
+                if read is not None:
+                    infos.append(read)
+        return infos
+
     def tick(self) -> TickResult | None:
         """File what arrived; fuse the instant the sensors' watermark allows, if any (None: nothing new yet)."""
         batch = self._batch()
         with self.lock:
-            self.fusion.absorb(batch)
+            absorbed = self.fusion.absorb(batch)
+            alive = self.fusion.sensors.alive()
             t_ns = self.fusion.next_instant(self.clock.now_ns())
-            answers, self.fusion.ptz_answers = self.fusion.ptz_answers, []
-        self._answer_ptz(answers)  # PTZ requests are answered as they come, fused instant or not
+        for sid in self.info_gate.due(batch.received_ns, alive):
+            self.fetch_queue.put(sid)
+        self._answer_ptz(absorbed.ptz_answers)  # PTZ requests are answered as they come, fused instant or not
+        self._log_ended(absorbed.ptz_ended)
         if t_ns is None:
             return None
-        waited = self.fusion.schedule.last
         t0 = time.perf_counter()
         with self.lock:
-            result = self.fusion.step(Batch(), t_ns)
+            result = self.fusion.step(t_ns)
             fused_s = time.perf_counter() - t0
             self.tick_ms.append(fused_s * 1e3)
             published_set = result.trackset
@@ -397,9 +439,8 @@ class ManagerNode:
             self.store.prune(t_ns)
             if not result.skipped:
                 # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
-                live = published_set.tracks if published_set is not None and self.fusion.lagged is None else None
-                self.agreement.update(t_ns, self.fusion.last_views, live or self.fusion.live_tracks())
-        for sid, n in self.fusion.poses.take_refused().items():
+                self.agreement.update(t_ns, result.views, result.live_tracks)
+        for sid, n in result.sightings_refused.items():
             self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1
         if result.skipped or published_set is None:
@@ -412,7 +453,8 @@ class ManagerNode:
         t1 = time.perf_counter()
         published = self.clock.now_ns()
         self.pub_tracks.put(msgspec.structs.replace(published_set, published_ns=published))
-        if waited is not None and waited.t_ns == t_ns:
+        waited = result.latency
+        if waited is not None:
             self.latencies.append(
                 Latency(
                     age_ms=max(0.0, (published - t_ns) / 1e6),
@@ -430,7 +472,13 @@ class ManagerNode:
             self.session.put(self.keys.plan(plan.sensor_id), encode(plan), encoding=MSGPACK)
         for cmd in result.ptz_commands:
             self.session.put(self.keys.sensor_ptz(cmd.sensor_id), encode(cmd), encoding=MSGPACK)
-        for a, why in self.fusion.ptz.ended:
+        self._log_ended(result.ptz_ended)
+        for tid in result.ended:
+            logger.info("track %s ended", tid)
+        return result
+
+    def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:
+        for a, why in ended:
             self.sender_log.log(
                 logging.INFO,
                 a.agent_id,
@@ -440,10 +488,6 @@ class ManagerNode:
                 a.agent_id,
                 why,
             )
-        self.fusion.ptz.ended.clear()
-        for tid in result.ended:
-            logger.info("track %s ended", tid)
-        return result
 
     def status(self, result: TickResult | None, period_s: float) -> None:
         inboxes = (self.features, self.infos, self.ptz_states)
@@ -466,6 +510,7 @@ class ManagerNode:
             gate=self.gate,
             refused_partial=self.census is not None and self.census.partial,
             schedule=self.fusion.schedule,
+            frames_received=self.fusion.sensors.received,
             latencies=self.latencies,
         )
         with self.lock:

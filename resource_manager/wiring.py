@@ -9,11 +9,12 @@ from collections.abc import Callable
 
 from common.angles import wrap_angle
 from common.area import Area
-from resource_manager.config import ManagerConfig
+from resource_manager.config import ROOM_FIELDS, ManagerConfig
 from resource_manager.ingest.align import AlignParams
 from resource_manager.ingest.schedule import ScheduleParams, Scheduler
 from resource_manager.plan.planner import PlannerParams, ViewPlanner
 from resource_manager.poses.solver import MutualParams, PoseEstimate, PoseSolver
+from resource_manager.sensors import SensorRegistry
 from resource_manager.serve.ptz import PtzAllocator, PtzParams
 from resource_manager.stereo.match import MatchParams, get_matcher
 from resource_manager.track.births import BirthParams
@@ -31,6 +32,7 @@ __all__ = [
     "ptz_allocator",
     "scene",
     "schedule",
+    "sensor_registry",
     "tracker",
     "view_planner",
     "view_trust",
@@ -46,20 +48,30 @@ def align_params(config: ManagerConfig) -> AlignParams:
     )
 
 
-def schedule(config: ManagerConfig) -> Scheduler:
+def sensor_registry(config: ManagerConfig) -> SensorRegistry:
+    """What the manager knows of each sensor: ``buffer_frames`` frames each, ``clock_step_ms`` a clock step."""
+    m = config.manager
+    return SensorRegistry(m.buffer_frames, int(m.clock_step_ms * 1e6), _max_wait_ns(config))
+
+
+def _max_wait_ns(config: ManagerConfig) -> int:
+    return int(config.manager.latency_ms * 1e6)
+
+
+def schedule(config: ManagerConfig, sensors: SensorRegistry) -> Scheduler:
     """When to fuse (``schedule``): the sensors' watermark, a late sensor waited for at most ``latency_ms``, at
     most ``rate_hz``; or ``fixed``: ``latency_ms`` behind the clock at ``rate_hz``."""
     m = config.manager
-    return Scheduler(
-        ScheduleParams(mode=m.schedule, max_wait_ns=int(m.latency_ms * 1e6), min_interval_ns=int(1e9 / m.rate_hz))
-    )
+    params = ScheduleParams(mode=m.schedule, max_wait_ns=_max_wait_ns(config), min_interval_ns=int(1e9 / m.rate_hz))
+    return Scheduler(params, sensors.timing)
 
 
-def pose_solver(config: ManagerConfig) -> PoseSolver:
+def pose_solver(config: ManagerConfig, sensors: SensorRegistry) -> PoseSolver:
     """Mutual calibration with the ``[[pose]]`` overrides as surveyed poses."""
     mu = config.mutual
     solver = PoseSolver(
-        MutualParams(
+        infos=sensors.infos,
+        params=MutualParams(
             enabled=mu.enabled,
             smoothing_s=mu.smoothing_s,
             timeout_s=mu.timeout_s,
@@ -69,7 +81,7 @@ def pose_solver(config: ManagerConfig) -> PoseSolver:
             default_height_m=mu.default_height_m,
             settle_s=mu.settle_s,
             max_speed_mps=mu.max_speed_mps,
-        )
+        ),
     )
     for p in config.pose:
         solver.overrides[p.id] = PoseEstimate(
@@ -126,7 +138,7 @@ def area(config: ManagerConfig) -> Area | None:
 def view_planner(config: ManagerConfig) -> ViewPlanner:
     pl = config.planner
     site_area = area(config)
-    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == 4 else None
+    room = (pl.room[0], pl.room[1], pl.room[2], pl.room[3]) if len(pl.room) == len(ROOM_FIELDS) else None
     if room is None and site_area is not None:
         room = site_area.bounds
     return ViewPlanner(
@@ -155,10 +167,12 @@ def view_trust(config: ManagerConfig) -> ViewTrust:
     return ViewTrust(SettleParams(enabled=config.planner.settle_views))
 
 
-def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
+def ptz_allocator(config: ManagerConfig, sensors: SensorRegistry) -> PtzAllocator:
     pz = config.ptz
     return PtzAllocator(
-        PtzParams(
+        infos=sensors.infos,
+        present=sensors.present,
+        params=PtzParams(
             pz.max_range_m,
             pz.aim_height_frac,
             pz.target_width_m,
@@ -169,5 +183,5 @@ def ptz_allocator(config: ManagerConfig) -> PtzAllocator:
             pz.lease_s,
             dict(pz.max_priority),
             pz.default_max_priority,
-        )
+        ),
     )

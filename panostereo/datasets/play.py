@@ -130,7 +130,7 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
         if t_ns is None:
             return
         began = time.process_time()
-        result = fusion.step(Batch(), t_ns)
+        result = fusion.step(t_ns)
         run.tick_ms.append((time.process_time() - began) * 1e3)
         run.ticks += 1
         if not result.skipped and result.trackset is not None:

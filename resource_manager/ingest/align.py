@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 from common.angles import angle_diff, interp_angle, wrap_angle
 from common.schema import Blob, Features, Sighting
+from resource_manager.config import ManagerSection, default_of
 from resource_manager.ingest.buffers import SensorBuffer
 
 __all__ = ["AlignParams", "AlignedBlob", "AlignedSighting", "AlignedView", "align_sensor"]
@@ -27,9 +28,12 @@ __all__ = ["AlignParams", "AlignedBlob", "AlignedSighting", "AlignedView", "alig
 
 @dataclass(frozen=True, slots=True)
 class AlignParams:
-    max_extrapolation_ns: int = 100_000_000
-    stale_ns: int = 1_000_000_000
-    max_gap_ns: int = 500_000_000
+    """``[manager]``'s alignment limits in ns (defaulted and documented in
+    :class:`resource_manager.config.ManagerSection`)."""
+
+    max_extrapolation_ns: int = int(default_of(ManagerSection, "max_extrapolation_ms") * 1e6)
+    stale_ns: int = int(default_of(ManagerSection, "stale_ms") * 1e6)
+    max_gap_ns: int = int(default_of(ManagerSection, "max_gap_ms") * 1e6)
 
 
 class AlignedBlob(NamedTuple):
@@ -168,6 +172,27 @@ def align_sensor(
     return _align(buf, sensor_id, t_ns, params, sightings)
 
 
+def _past(
+    buf: SensorBuffer, before: Features, sensor_id: str, t_ns: int, params: AlignParams, *, want_s: bool
+) -> AlignedView | None:
+    """The blobs at ``t_ns`` from the frames up to ``before``, the nearest frame (none after it is nearer)."""
+    half = params.max_extrapolation_ns
+    if t_ns - before.stamp_ns > half:
+        return None
+    prev = buf.previous(before)
+    if prev is not None and before.stamp_ns - prev.stamp_ns <= params.max_gap_ns:
+        # Short constant-rate extrapolation past the newest frame, blob by blob.
+        blobs, sightings = _pair(prev, before, t_ns, half, want_s)
+        return AlignedView(sensor_id, t_ns, blobs, sightings, "extrapolated")
+    return AlignedView(
+        sensor_id,
+        t_ns,
+        [_blob_at(b, before.stamp_ns, None, 0, t_ns) for b in before.blobs],
+        [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id and want_s],
+        "held",
+    )
+
+
 def _align(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, want_s: bool) -> AlignedView | None:
     newest = buf.newest_stamp()
     if newest is None or t_ns - newest > params.stale_ns:
@@ -178,20 +203,7 @@ def _align(buf: SensorBuffer, sensor_id: str, t_ns: int, params: AlignParams, wa
         blobs, sightings = _pair(before, after, t_ns, max(half, (after.stamp_ns - before.stamp_ns)), want_s)
         return AlignedView(sensor_id, t_ns, blobs, sightings, "interpolated")
     if before is not None and (after is None or t_ns - before.stamp_ns <= after.stamp_ns - t_ns):
-        if t_ns - before.stamp_ns > half:
-            return None
-        prev = buf.previous(before)
-        if prev is not None and before.stamp_ns - prev.stamp_ns <= params.max_gap_ns:
-            # Short constant-rate extrapolation past the newest frame, blob by blob.
-            blobs, sightings = _pair(prev, before, t_ns, half, want_s)
-            return AlignedView(sensor_id, t_ns, blobs, sightings, "extrapolated")
-        return AlignedView(
-            sensor_id,
-            t_ns,
-            [_blob_at(b, before.stamp_ns, None, 0, t_ns) for b in before.blobs],
-            [_sighting_at(s, before.stamp_ns, None, 0, t_ns) for s in before.sightings if s.target_id and want_s],
-            "held",
-        )
+        return _past(buf, before, sensor_id, t_ns, params, want_s=want_s)
     if after is not None and after.stamp_ns - t_ns <= half:
         return AlignedView(
             sensor_id,

@@ -24,7 +24,7 @@ the frame the instant waited for last, its transport, and the wait for the water
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -43,8 +43,11 @@ WARMUP_FRAMES = 8
 """Until this many frames have measured it, a sensor is waited for the longest (``max_wait``)."""
 SMOOTHING = 0.05
 """Weight of each new frame in a sensor's running period, delay and jitter figures (a memory of ~20 frames)."""
-GAP_PERIODS = 1.5
+DROP_PERIODS = 1.5
 """Stamps further apart than this many periods are dropped frames between, not the period."""
+
+PERIOD_FRAMES = 2
+"""A measured period needs two frames; until then the declared one (SensorInfo fps) stands."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +94,7 @@ class FrameTiming:
     """Before its first frame: when it first held an instant back (0: not yet)."""
 
     def period(self) -> float:
-        return self.period_ns if self.frames >= 2 and self.period_ns > 0 else float(self.declared_period_ns)
+        return self.period_ns if self.frames >= PERIOD_FRAMES and self.period_ns > 0 else float(self.declared_period_ns)
 
     def allowance_ns(self, max_wait_ns: int) -> int:
         """How long past its expected next frame (newest + period) it is waited for: a margin over the latest its
@@ -125,7 +128,7 @@ class FrameTiming:
             elif p <= 0:
                 self.period_ns = step
                 self.lateness.append(delay)
-            elif step <= GAP_PERIODS * p:  # the next frame, not one after a drop
+            elif step <= DROP_PERIODS * p:  # the next frame, not one after a drop
                 if self.period_ns <= 0:
                     self.period_ns = p
                 self.lateness.append(float(min(arrival_ns - (self.newest_ns + p), bound)))
@@ -135,6 +138,16 @@ class FrameTiming:
             self.arrival_ns = arrival_ns
             self.processing_ns = processing_ns
         self.frames += 1
+
+    def arrived(self, kind: str, stamp_ns: int, arrival_ns: int, processing_ns: int, max_wait_ns: int) -> None:
+        """One frame was offered to the buffers; ``kind`` is what :meth:`Ingest.add` made of it."""
+        self.received += 1
+        if kind == "clock_step":
+            self.restart()
+        elif kind == "late":
+            self.late += 1
+        if kind != "duplicate":
+            self.note(stamp_ns, arrival_ns, processing_ns, max_wait_ns)
 
     def restart(self) -> None:
         """The sender's clock stepped: its stamps so far say nothing of the next ones."""
@@ -166,40 +179,16 @@ class TickLatency:
 
 
 class Scheduler:
-    """Which instant to fuse next, from each sensor's measured frame timing."""
+    """Which instant to fuse next, from each sensor's measured frame timing (filed by the sensor registry; the
+    scheduler only marks on it the waits and missed deadlines its rule counts)."""
 
-    def __init__(self, params: ScheduleParams) -> None:
+    def __init__(self, params: ScheduleParams, sensors: Mapping[str, FrameTiming] | None = None) -> None:
         self.params = params
-        self.sensors: dict[str, FrameTiming] = {}
-        self.received = 0
-        """Frames offered so far, every sensor's (forgotten sensors' too)."""
+        self.sensors: Mapping[str, FrameTiming] = sensors if sensors is not None else {}
+        """Each sensor's frame timing, read here and written by its owner (the manager's sensor registry,
+        :mod:`resource_manager.sensors`)."""
         self.last: TickLatency | None = None
         """The latency split of the last instant :meth:`instant` returned."""
-
-    def _timing(self, sensor_id: str) -> FrameTiming:
-        s = self.sensors.get(sensor_id)
-        if s is None:
-            s = self.sensors[sensor_id] = FrameTiming()
-        return s
-
-    def declare(self, sensor_id: str, fps: float) -> None:
-        """A sensor's declared frame rate (SensorInfo), the period until its frames measure one."""
-        self._timing(sensor_id).declared_period_ns = int(1e9 / fps) if fps > 0 else 0
-
-    def arrived(self, sensor_id: str, stamp_ns: int, arrival_ns: int, processing_ns: int, kind: str) -> None:
-        """One frame was offered to the buffers; ``kind`` is what :meth:`Ingest.add` made of it."""
-        s = self._timing(sensor_id)
-        s.received += 1
-        self.received += 1
-        if kind == "clock_step":
-            s.restart()
-        elif kind == "late":
-            s.late += 1
-        if kind != "duplicate":
-            s.note(stamp_ns, arrival_ns, processing_ns, self.params.max_wait_ns)
-
-    def forget(self, sensor_id: str) -> None:
-        self.sensors.pop(sensor_id, None)
 
     def instant(self, in_use: Iterable[str], now_ns: int, last_ns: int) -> int | None:
         """The instant to fuse now, or None while nothing new can be fused.

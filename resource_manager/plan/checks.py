@@ -28,6 +28,7 @@ import numpy as np
 
 from common.arrays import BoolArray, FloatArray
 from common.error_model import normalised_error_xy, pair_position_error
+from resource_manager.stereo.pairs import PAIR_CAMERAS
 
 if TYPE_CHECKING:
     from resource_manager.plan.scene import PlanCamera, PlannerParams, Scene
@@ -92,7 +93,7 @@ def move_payoff(
     blind_s = float(np.hypot(*(goal_xy - cam.xy))) / max(p.speed_mps, 1e-3) + p.settle_cost_s
     gain = p.horizon_s * (found(min(goal_err, others_err), p.found_m) - found_here)
     cost = 0.0
-    if len(sc.fixed) < 2:
+    if len(sc.fixed) < PAIR_CAMERAS:
         cost = blind_s * sum(
             found_here if t.track_id == sc.tgt.track_id else found(t.predicted_error_m, p.found_m)
             for t in sc.people

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from common.arrays import FloatArray
+from common.schema import MAX_METRES
 from resource_manager.plan.checks import feasible, found, move_payoff, others_error, predicted_error
 from resource_manager.plan.scene import (
     PlanCamera,
@@ -231,8 +232,8 @@ class ViewPlanner:
             goal_xy=(float(goal_xy[0]), float(goal_xy[1])),
             baseline_m=float(np.hypot(*v2)),
             phi1_rad=float(phi1),
-            predicted_error_m=min(goal_err, 1e5),
-            current_error_m=min(now_err, 1e5),
+            predicted_error_m=min(goal_err, MAX_METRES),
+            current_error_m=min(now_err, MAX_METRES),
         )
         self.held[cam.sensor_id].last = goal
         return goal

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 from common.arrays import FloatArray
 from common.schema import PanoramicModel, SensorInfo
+from resource_manager.config import PlannerSection, default_of
 
 __all__ = [
-    "HEAD_HEIGHT_M",
     "PAL_ELEV_MAX_RAD",
     "PAL_ELEV_MIN_RAD",
     "PlanCamera",
@@ -31,27 +31,21 @@ PAL_ELEV_MAX_RAD = math.radians(20.0)
 
 @dataclass(frozen=True, slots=True)
 class PlannerParams:
-    enabled: bool = True
-    period_ns: int = 500_000_000
+    """``[planner]`` in the planner's units (ns, rad), with the planner's own knobs; the config's are defaulted
+    in :class:`resource_manager.config.PlannerSection`."""
+
+    enabled: bool = default_of(PlannerSection, "enabled")
+    period_ns: int = int(default_of(PlannerSection, "period_s") * 1e9)
     room: tuple[float, float, float, float] | None = None
-    margin_m: float = 0.4
-    min_move_m: float = 0.15
-    """A new goal closer than this to the held one is not a new goal."""
-    gain_frac: float = 0.25
-    """Hysteresis: re-plan only when the predicted error falls below (1 - gain_frac) of the held goal's..."""
-    min_gain_m: float = 0.05
-    """...and by at least this much (a move costs the robot's detections while it drives)."""
-    settle_ns: int = 4_000_000_000
-    """After a new goal, keep it this long unless it becomes infeasible."""
-    band_z_m: float = 0.62
-    """Height on the bodies' marking band that must stay in view (the band spans 0.50..0.65 m on the paper's
-    0.9 m robots: its upper part, enough rows for the occluding boundaries of Eq. 3)."""
-    elev_margin_rad: float = math.radians(1.0)
-    """Margin inside the elevation limits for bands and heads."""
-    min_band_px: float = 12.0
-    """The ranged body must be at least this wide in the panorama (maximum baseline)."""
-    keep_m: float = 0.8
-    """Clearance from people on the drive and at the goal."""
+    margin_m: float = default_of(PlannerSection, "margin_m")
+    min_move_m: float = default_of(PlannerSection, "min_move_m")
+    gain_frac: float = default_of(PlannerSection, "gain_frac")
+    min_gain_m: float = default_of(PlannerSection, "min_gain_m")
+    settle_ns: int = int(default_of(PlannerSection, "settle_s") * 1e9)
+    band_z_m: float = default_of(PlannerSection, "band_z_m")
+    elev_margin_rad: float = math.radians(default_of(PlannerSection, "elev_margin_deg"))
+    min_band_px: float = default_of(PlannerSection, "min_band_px")
+    keep_m: float = default_of(PlannerSection, "keep_m")
     body_clearance_m: float = 0.15
     """Extra clearance between two bodies (beyond the sum of their radii)."""
     sight_clearance_m: float = 0.35
@@ -62,16 +56,11 @@ class PlannerParams:
     travel_frac_per_m: float = 0.01
     """Among near-equal goals (the map is flat; Fig. 4 has two symmetric optima) the nearer wins: the
     error is weighed (1 + this x the drive's length) when choosing."""
-    speed_mps: float = 0.4
-    """The robots' driving speed, for the time a move costs (``drive / speed + settle_cost_s``)."""
+    speed_mps: float = default_of(PlannerSection, "speed_mps")
     settle_cost_s: float = 1.5
     """After the stop, its node relearns the background and its pose re-converges (settling.py) first."""
-    horizon_s: float = 15.0
-    """Cost of moving: how long a new viewpoint is counted on (from when the robot has settled there)."""
-    found_m: float = 0.5
-    """A person counts as found when localised within this (CLEAR-MOT's match distance): with predicted error
-    e, with probability 1 - exp(-found_m² / e²). A move must gain more found person-seconds than it loses
-    while the robot drives and settles. 0: moves cost nothing."""
+    horizon_s: float = default_of(PlannerSection, "horizon_s")
+    found_m: float = default_of(PlannerSection, "found_m")
     min_found_gain_s: float = 1.0
     """A move must gain this many found person-seconds more than it loses (everyone found either way: no gain)."""
     persist_s: float = 3.0
@@ -91,10 +80,6 @@ class PlanGoal:
     current_error_m: float
 
 
-HEAD_HEIGHT_M = 1.8
-"""Head top assumed for a track whose height is not measured yet."""
-
-
 @dataclass(frozen=True, slots=True)
 class PlanTarget:
     """What the planner needs of a track."""
@@ -103,7 +88,7 @@ class PlanTarget:
     xy: FloatArray
     predicted_error_m: float
     sensors: tuple[str, ...]
-    height_m: float = HEAD_HEIGHT_M
+    height_m: float
     """Top of the head above the floor."""
 
 

@@ -57,7 +57,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -67,38 +67,43 @@ from common.angles import wrap_angle
 from common.arrays import FloatArray
 from common.geometry import baseline_from_alpha, sighting_bearing
 from common.schema import SensorInfo
+from resource_manager.config import ManagerSection, MutualSection, default_of
 from resource_manager.ingest.align import AlignedSighting
 from resource_manager.poses.witness import Estimate, Reference, blame, combine, consistent
 
 __all__ = ["MutualParams", "PoseEstimate", "PoseSolver", "RawPose"]
+
+TRUSTED_POSES = 3
+"""A calibrated pose is trusted (a reference for the witnesses, refusing raw poses far off it, fixable as the mean
+of those taken since the camera stopped) once this many raw poses made it: fewer, and one bad start would stick."""
+SAME_POINT_M = 1e-6
+"""Two positions closer than this (m) are one point: no direction between them."""
+RESECTION_TARGETS = 2
+"""A camera placed from its own sightings alone needs two sighted cameras of known pose (a resection)."""
 
 logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
 class MutualParams:
-    enabled: bool = True
-    smoothing_s: float = 1.0
-    timeout_s: float = 2.0
-    jump_m: float = 1.0
-    """A raw pose this far from the smoothed one is refused like an outlier; ``outlier_run`` of them that agree
-    restart the filter there (the robot was moved)."""
+    """``[mutual]`` in the solver's units (rad), with the solver's own knobs; the config's are documented, and
+    defaulted, in :class:`resource_manager.config.MutualSection`."""
+
+    enabled: bool = default_of(MutualSection, "enabled")
+    smoothing_s: float = default_of(MutualSection, "smoothing_s")
+    timeout_s: float = default_of(MutualSection, "timeout_s")
+    jump_m: float = default_of(MutualSection, "jump_m")
     hold: bool = True
     """Keep a pose (predicted) between instants where it could be solved, until ``timeout_s``."""
     outlier_sigmas: float = 3.0
     """A raw pose further than this many sigmas (plus 5 cm, 0.5 deg) from the smoothed one is refused; 0: off."""
     outlier_run: int = 5
     """...unless this many in a row were, and agree with each other (then it is followed: the robot moved)."""
-    boundary_sigma_rad: float = 0.0
-    """0: use the observer's bearing sigma."""
-    default_bearing_sigma_rad: float = math.radians(0.2)
-    default_height_m: float = 1.1
-    """Camera height of a mobile sensor whose SensorInfo carries no pose (z is a constant of the robot)."""
-    settle_s: float = 3.0
-    """A camera whose node reports no motion for this long has its pose fixed (the mean over that time); only
-    its own node reporting motion releases it."""
-    max_speed_mps: float = 1.0
-    """A released camera's pose moves at most this fast beyond its noise (a robot's top speed)."""
+    boundary_sigma_rad: float = math.radians(default_of(MutualSection, "boundary_sigma_deg"))
+    default_bearing_sigma_rad: float = math.radians(default_of(ManagerSection, "default_bearing_sigma_deg"))
+    default_height_m: float = default_of(MutualSection, "default_height_m")
+    settle_s: float = default_of(MutualSection, "settle_s")
+    max_speed_mps: float = default_of(MutualSection, "max_speed_mps")
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,7 +176,8 @@ class PoseSolver:
 
     params: MutualParams = field(default_factory=MutualParams)
     overrides: dict[str, PoseEstimate] = field(default_factory=dict)
-    infos: dict[str, SensorInfo] = field(default_factory=dict)
+    infos: Mapping[str, SensorInfo] = field(default_factory=dict)
+    """Every sensor's SensorInfo, read from the manager's sensor registry (:mod:`resource_manager.sensors`)."""
     filters: dict[str, _Filter] = field(default_factory=dict)
     refused: dict[str, int] = field(default_factory=dict)
     """Sender id -> its sightings refused since :meth:`take_refused` (one count per sender, target and instant)."""
@@ -188,18 +194,8 @@ class PoseSolver:
             if sid in self.refused or len(self.refused) < 4 * max(16, len(self.infos)):
                 self.refused[sid] = self.refused.get(sid, 0) + 1
 
-    def update_info(self, info: SensorInfo) -> bool:
-        """Take a SensorInfo; return True if it changed anything.
-
-        Whichever arrives last wins: the manager's shell passes only what the sensor's own queryable
-        confirmed (resource_manager/ingest/infos.py). Its stamp is not compared: a forged one from 2262
-        would otherwise shadow every real SensorInfo after it.
-        """
-        old = self.infos.get(info.sensor_id)
-        self.infos[info.sensor_id] = info
-        return old != info
-
     def forget(self, sensor_id: str) -> None:
+        """The sensor left: its calibrated pose goes."""
         self.filters.pop(sensor_id, None)
 
     def bearing_sigma(self, sensor_id: str) -> float:
@@ -316,7 +312,7 @@ class PoseSolver:
     def _reference(self, t: str) -> Reference | None:
         """Where ``t`` was held before this instant (its filter), if anywhere."""
         f = self.filters.get(t)
-        return None if f is None or f.n < 3 else Reference(f.x, f.y, f.sigma_xy)
+        return None if f is None or f.n < TRUSTED_POSES else Reference(f.x, f.y, f.sigma_xy)
 
     def _yaw_from_own(
         self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
@@ -328,7 +324,7 @@ class PoseSolver:
                 continue
             kx, ky, ksxy = positions[k]
             dist = math.hypot(kx - tx, ky - ty)
-            if dist < 1e-6:
+            if dist < SAME_POINT_M:
                 continue
             yaw = math.atan2(ky - ty, kx - tx) - ob.bearing_rad
             s = math.hypot(self.bearing_sigma(t), math.hypot(tsxy, ksxy) / dist)
@@ -344,7 +340,7 @@ class PoseSolver:
         self, t: str, obs: dict[tuple[str, str], _Obs], positions: dict[str, tuple[float, float, float]]
     ) -> RawPose | None:
         seen = [(k, ob) for (o, k), ob in obs.items() if o == t and k in positions and k != t]
-        if len(seen) < 2:
+        if len(seen) < RESECTION_TARGETS:
             return None
         (k1, o1), (k2, o2) = sorted(seen, key=lambda kv: kv[1].sigma_b_m)[:2]
         p1, p2 = positions[k1], positions[k2]
@@ -352,7 +348,7 @@ class PoseSolver:
             o2.baseline_m * math.cos(o2.bearing_rad) - o1.baseline_m * math.cos(o1.bearing_rad),
             o2.baseline_m * math.sin(o2.bearing_rad) - o1.baseline_m * math.sin(o1.bearing_rad),
         )
-        if math.hypot(*v_sensor) < 1e-6:
+        if math.hypot(*v_sensor) < SAME_POINT_M:
             return None
         yaw = float(wrap_angle(math.atan2(p2[1] - p1[1], p2[0] - p1[0]) - math.atan2(v_sensor[1], v_sensor[0])))
         xs = [p[0] - ob.baseline_m * math.cos(yaw + ob.bearing_rad) for p, ob in ((p1, o1), (p2, o2))]
@@ -461,7 +457,12 @@ class PoseSolver:
 
     def _settle(self, f: _Filter, t_ns: int) -> None:
         """Fix the pose of a camera still for ``settle_s``: the mean of its raw poses since it stopped."""
-        if f.fixed or f.still_ns == 0 or t_ns - f.still_ns < int(self.params.settle_s * 1e9) or len(f.settle) < 3:
+        if (
+            f.fixed
+            or f.still_ns == 0
+            or t_ns - f.still_ns < int(self.params.settle_s * 1e9)
+            or len(f.settle) < TRUSTED_POSES
+        ):
             return
         f.x = sum(p.x_m for p in f.settle) / len(f.settle)
         f.y = sum(p.y_m for p in f.settle) / len(f.settle)
@@ -498,7 +499,7 @@ class PoseSolver:
         # How far the camera may have gone since its last taken pose: only while its node reported motion.
         reach = self.params.max_speed_mps * dt if f.moved_ns else 0.0
         if math.hypot(rp.x_m - f.x, rp.y_m - f.y) > self.params.jump_m + reach:
-            if f.n >= 3:
+            if f.n >= TRUSTED_POSES:
                 self._refuse(sid, f, rp, t_ns)
                 return False
             # A young filter follows: it may have started from a bad pose.
@@ -511,7 +512,7 @@ class PoseSolver:
         px, py, pyaw = f.x + f.vx * dt, f.y + f.vy * dt, f.yaw + f.vyaw * dt
         rx, ry, ryaw = rp.x_m - px, rp.y_m - py, float(wrap_angle(rp.yaw_rad - pyaw))
         k = self.params.outlier_sigmas
-        if k > 0 and f.n >= 3:
+        if k > 0 and f.n >= TRUSTED_POSES:
             # A raw pose far off the smoothed one (a person in front of the other robot's body shifts its
             # boundaries) is refused; when such poses persist, the robot really moved: start again there.
             tol_xy = k * math.hypot(rp.sigma_xy_m, f.sigma_xy) + 0.05

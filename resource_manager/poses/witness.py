@@ -24,6 +24,10 @@ from dataclasses import dataclass
 __all__ = ["SLACK_M", "Estimate", "blame", "combine", "consistent"]
 
 SLACK_M = 0.05
+
+PAIR_OF_WITNESSES = 2
+"""Witnesses are checked against each other from two on; between just two that disagree, only a reference (where
+the target was held) can tell which is wrong."""
 """Added to every position tolerance: what the sigmas leave out (a robot body is not a perfect cylinder)."""
 
 
@@ -66,7 +70,7 @@ def consistent(
     """The estimates that agree with each other, and the observers of those refused."""
     kept = list(estimates)
     refused: list[str] = []
-    while len(kept) >= 2:
+    while len(kept) >= PAIR_OF_WITNESSES:
         worst, worst_off = kept[0], 0.0
         for e in kept:
             x, y, s = combine([o for o in kept if o is not e])
@@ -75,7 +79,7 @@ def consistent(
                 worst, worst_off = e, off
         if worst_off <= 1.0:
             break
-        if len(kept) == 2:
+        if len(kept) == PAIR_OF_WITNESSES:
             if reference is None:
                 break
             worst = max(kept, key=lambda e: _off(e, reference.x_m, reference.y_m, reference.sigma_m, k))

@@ -9,7 +9,7 @@ a person's first moments, while their track was still tentative, are published u
 (a new one, or the lost person's it took back), where it was placed well enough then; a tentative track that was
 never confirmed is never published.
 
-Pure: the tracker's snapshots in, instants of published tracks out; :class:`~resource_manager.fusion.Fusion`
+Pure: the tracker's snapshots in, instants of published tracks out; :func:`~resource_manager.serve.messages.lagged_set`
 turns them into TrackSets.
 """
 

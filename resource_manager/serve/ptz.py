@@ -30,25 +30,30 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from common.schema import PtzRequest, SensorInfo
+from resource_manager.config import PtzSection, default_of
 
 __all__ = ["Assignment", "PtzAim", "PtzAllocator", "PtzAnswer", "PtzAsk", "PtzParams", "PtzTarget"]
+
+MIN_AIM_DISTANCE_M = 1e-3
+"""A person this close to a PTZ camera's axis foot (m) gives it no pan to aim at."""
 
 
 @dataclass(frozen=True, slots=True)
 class PtzParams:
-    max_range_m: float = 25.0
-    aim_height_frac: float = 0.85
-    target_width_m: float = 1.5
-    hfov_rad: float = math.radians(60.0)
-    max_zoom: float = 10.0
-    min_tilt_rad: float = math.radians(-80.0)
-    max_tilt_rad: float = math.radians(60.0)
-    lease_s: float = 30.0
-    """A hold ends this long after the agent's last request for it (a request may ask for less)."""
+    """``[ptz]`` in the allocator's units (rad); each knob is documented, and defaulted, in
+    :class:`resource_manager.config.PtzSection`."""
+
+    max_range_m: float = default_of(PtzSection, "max_range_m")
+    aim_height_frac: float = default_of(PtzSection, "aim_height_frac")
+    target_width_m: float = default_of(PtzSection, "target_width_m")
+    hfov_rad: float = math.radians(default_of(PtzSection, "hfov_deg"))
+    max_zoom: float = default_of(PtzSection, "max_zoom")
+    min_tilt_rad: float = math.radians(default_of(PtzSection, "min_tilt_deg"))
+    max_tilt_rad: float = math.radians(default_of(PtzSection, "max_tilt_deg"))
+    lease_s: float = default_of(PtzSection, "lease_s")
     max_priority: Mapping[str, int] = field(default_factory=dict)
     """Agent id -> the highest priority its requests get (higher asks are clipped to it)."""
-    default_max_priority: int = 0
-    """The cap of every agent not in ``max_priority`` (equal for all: nobody preempts anybody)."""
+    default_max_priority: int = default_of(PtzSection, "default_max_priority")
 
     def cap(self, agent_id: str) -> int:
         """The highest priority ``agent_id``'s requests get."""
@@ -120,37 +125,48 @@ class _Cam:
 @dataclass(slots=True)
 class PtzAllocator:
     params: PtzParams = field(default_factory=PtzParams)
-    cameras: dict[str, _Cam] = field(default_factory=dict)
+    infos: Mapping[str, SensorInfo] = field(default_factory=dict)
+    """Every sensor's SensorInfo, read from the manager's sensor registry (:mod:`resource_manager.sensors`)."""
+    present: Mapping[str, bool] = field(default_factory=dict)
+    """...and its liveliness (sensor id -> alive; a sensor never mentioned counts as present)."""
     assignments: dict[str, Assignment] = field(default_factory=dict)
     """PTZ sensor id -> who holds it."""
     ended: list[tuple[Assignment, str]] = field(default_factory=list)
-    """Assignments ended since the last tick, with the reason (for logs)."""
+    """Assignments ended since :meth:`take_ended`, with the reason (for logs)."""
 
-    def update_info(self, info: SensorInfo) -> None:
-        if info.kind != "ptz":
-            return
-        if info.pose is None:
-            self.cameras.pop(info.sensor_id, None)
-            return
-        p = info.pose
-        self.cameras[info.sensor_id] = _Cam(info.sensor_id, p.x_m, p.y_m, p.z_m)
+    def _camera(self, sensor_id: str) -> _Cam | None:
+        """The PTZ camera ``sensor_id`` if it is present and its pose known."""
+        info = self.infos.get(sensor_id)
+        if info is None or info.kind != "ptz" or info.pose is None or not self.present.get(sensor_id, True):
+            return None
+        return _Cam(sensor_id, info.pose.x_m, info.pose.y_m, info.pose.z_m)
+
+    @property
+    def cameras(self) -> dict[str, _Cam]:
+        """The PTZ cameras present with a known pose."""
+        return {sid: cam for sid in self.infos if (cam := self._camera(sid)) is not None}
+
+    def take_ended(self) -> list[tuple[Assignment, str]]:
+        """The holds ended since the last call, with the reason."""
+        out, self.ended = self.ended, []
+        return out
 
     def forget(self, sensor_id: str) -> None:
-        self.cameras.pop(sensor_id, None)
+        """The camera left: its hold ends."""
         a = self.assignments.pop(sensor_id, None)
         if a is not None:
             self.ended.append((a, "camera left"))
 
     def aim(self, sensor_id: str, target: PtzTarget) -> PtzAim | None:
         """Pan/tilt/zoom that centre the person, or None if out of reach."""
-        cam = self.cameras.get(sensor_id)
+        cam = self._camera(sensor_id)
         if cam is None:
             return None
         dx, dy = target.x_m - cam.x_m, target.y_m - cam.y_m
         dist = math.hypot(dx, dy)
-        if dist > self.params.max_range_m or dist < 1e-3:
+        if dist > self.params.max_range_m or dist < MIN_AIM_DISTANCE_M:
             return None
-        aim_z = (target.height_m if target.height_m > 0 else 1.7) * self.params.aim_height_frac
+        aim_z = target.height_m * self.params.aim_height_frac
         tilt = math.atan2(aim_z - cam.z_m, dist)
         if not self.params.min_tilt_rad <= tilt <= self.params.max_tilt_rad:
             return None
@@ -204,14 +220,23 @@ class PtzAllocator:
             if a.agent_id == agent_id and a.track_id == track_id:
                 self.assignments[sid] = Assignment(sid, agent_id, track_id, priority, a.since_ns, expires)
                 return sid, ""
-        if not self.cameras:
+        return self._assign(agent_id, target, track_id, priority, (t_ns, expires))
+
+    def _assign(
+        self, agent_id: str, target: PtzTarget, track_id: str, priority: int, span_ns: tuple[int, int]
+    ) -> tuple[str, str]:
+        """A camera for an agent that holds none for the track: the nearest free one that can see the person, or
+        the weakest held one if the agent's priority is higher."""
+        t_ns, expires = span_ns
+        cameras = self.cameras
+        if not cameras:
             return "", "no PTZ camera with a known pose is online"
-        able = [sid for sid in self.cameras if self.aim(sid, target) is not None]
+        able = [sid for sid in cameras if self.aim(sid, target) is not None]
         if not able:
             return "", f"no PTZ camera can see track {track_id!r} (out of range or tilt limits)"
 
         def dist(sid: str) -> float:
-            c = self.cameras[sid]
+            c = cameras[sid]
             return math.hypot(c.x_m - target.x_m, c.y_m - target.y_m)
 
         free = sorted((s for s in able if s not in self.assignments), key=dist)

@@ -38,11 +38,12 @@ def manager_status(
     gate: SenderGate,
     refused_partial: bool,
     schedule: Scheduler,
+    frames_received: int,
     latencies: Collection[Latency],
 ) -> ManagerStatus:
     """The status message; lists are capped at their schema bounds. ``known``: the sensors heard of now (before
     the first fusion too). ``latencies``: the capture -> publish split of each TrackSet published in the period,
-    oldest first."""
+    oldest first. ``frames_received``: every Features message offered to the sensor registry so far."""
     ms = np.asarray(list(tick_ms) or [0.0])
     c = result.counters if result is not None else None
     refusals = gate.refusals
@@ -77,7 +78,7 @@ def manager_status(
         refused=refusals.top(MAX_SENSORS),
         refused_partial=refused_partial,
         schedule=schedule.params.mode,
-        frames_received=schedule.received,
+        frames_received=frames_received,
         latency=_latency(latencies),
         timing=_timing(schedule)[:MAX_SENSORS],
     )

@@ -27,7 +27,7 @@ import numpy as np
 
 from common.arrays import FloatArray
 from common.error_model import pair_error_f
-from common.geometry import intersect_rays, localize_pair
+from common.geometry import MIN_RAYS, intersect_rays, localize_pair
 from common.schema import Method
 from resource_manager.views.blobs import ViewBlobs
 
@@ -42,6 +42,9 @@ __all__ = [
 
 MAX_PERSON_WIDTH_M = 0.75
 """A blob wider than this (metric width at its distance) holds several people (simulated bodies: 0.40-0.52 m)."""
+
+AT_CAMERA_M = 1e-6
+"""A point this close to a camera (m) has no direction from it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,7 +83,7 @@ def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
         views = whole  # a head cut by the image border gives only a lower bound: the other views' heights
     for v, i in views:  # plain floats: two views, numpy per element would cost more
         d = math.hypot(x - float(v.origin_xy[0]), y - float(v.origin_xy[1]))
-        if d <= 1e-6:
+        if d <= AT_CAMERA_M:
             continue
         z = v.z_m + d * math.tan(float(v.top_elev_rad[i]))
         w = 1.0 / (d * d)
@@ -163,7 +166,7 @@ def localize_least_squares(
     views: list[tuple[ViewBlobs, int]], sigma_xy: dict[str, float], min_sigma_m: float = 0.02
 ) -> Measurement | None:
     """Fuse every view of one person by least squares on the bearing rays; None if degenerate."""
-    if len(views) < 2:
+    if len(views) < MIN_RAYS:
         return None
     origins = np.array([v.origin_xy for v, _ in views], dtype=np.float64)
     bearings = np.array([float(v.bearing_rad[i]) for v, i in views], dtype=np.float64)

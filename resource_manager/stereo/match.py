@@ -29,15 +29,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
 import numpy.typing as npt
 from scipy.special import ndtr
 
 from common.angles import wrap_angle
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.errors import GeometryError
-from common.geometry import size_ratio
+from common.geometry import MIN_SIN, size_ratio
+from resource_manager.config import MatchSection, default_of
 from resource_manager.stereo.match_tables import Tables, colour_table
 from resource_manager.stereo.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
 from resource_manager.views.blobs import ViewBlobs
@@ -55,20 +57,23 @@ __all__ = [
     "match_matrix",
 ]
 
+FEET_SIGMAS: Final = 4.0
+"""The feet's floor check allows this many bearing errors times the distance (a box bottom is coarser than a
+head bearing)."""
+
 
 @dataclass(frozen=True, slots=True)
 class MatchParams:
-    """The knobs of Eq. 7 (see ``[match]`` in the config)."""
+    """The knobs of Eq. 7: ``[match]``'s are defaulted and documented in
+    :class:`resource_manager.config.MatchSection`."""
 
-    max_range_m: float = 30.0
-    width_sigma: float = 0.35
-    height_sigma: float = 0.12
-    use_colour: bool = True
+    max_range_m: float = default_of(MatchSection, "max_range_m")
+    width_sigma: float = default_of(MatchSection, "width_sigma")
+    height_sigma: float = default_of(MatchSection, "height_sigma")
+    use_colour: bool = default_of(MatchSection, "use_colour")
     temporal_weight: float = 1.0
-    floor_sigma_m: float = 0.0
-    """Spread of the feet height z_cam + D tan(bottom) around the floor (0: not used)."""
-    width_floor: float = 0.0
-    """Smallest r_wc (merged blobs of occluding people are wide; 0: strict)."""
+    floor_sigma_m: float = default_of(MatchSection, "floor_sigma_m")
+    width_floor: float = default_of(MatchSection, "width_floor")
     temporal_gate_m: float = 0.6
     """Distance of a hypothesis from a track's prediction at which the positional temporal term is exp(-1/2)."""
     colinear_sigmas: float = 2.0
@@ -85,7 +90,7 @@ class MatchMatrix:
     d2_m: FloatArray
     xy: FloatArray
     """(na, nb, 2) hypothesised target positions."""
-    size_ratio: npt.NDArray[np.bool_]
+    size_ratio: BoolArray
     """(na, nb) True where Eq. 2 (size-ratio) was used instead of Eq. 1."""
     parts: dict[str, FloatArray]
     """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
@@ -118,6 +123,279 @@ def match_matrix(
     return match_matrices([(a, b)], params, [temporal], threshold)[0]
 
 
+@dataclass(slots=True)
+class _Batch:
+    """The pairs' per-blob inputs, padded to the largest blob counts, with a leading pair axis p."""
+
+    nas: list[int]
+    nbs: list[int]
+    shape: tuple[int, int, int]
+    uniq: list[ViewBlobs]
+    """Every view of the batch once."""
+    tabs: Tables
+    ia: IntArray
+    """(p,) index in ``uniq`` of each pair's camera 1 (O1)..."""
+    ib: IntArray
+    """...and of its camera 2 (O2)."""
+    per_blob: FloatArray
+    """(v, n, c) bearing, width, top (and with the floor term bottom) elevations of every view's blobs."""
+    tan_w: FloatArray
+    tan_top: FloatArray
+    cut: BoolArray
+    z_view: FloatArray
+    o1: FloatArray
+    base: FloatArray
+    """(p, 1, 1) baseline lengths B."""
+    psi12: FloatArray
+    sigma: FloatArray
+    """(p, 1, 1) the pair's bearing error (at least 1e-6 rad)."""
+    th1: FloatArray
+    """(p, na, 1) camera 1's bearings."""
+    th2: FloatArray
+    """(p, 1, nb) camera 2's bearings."""
+
+
+@dataclass(slots=True)
+class _Rays:
+    """Eqs. 1-2 on every blob pair: inner angles, the method, and the distances where the rays meet in range."""
+
+    abs1: FloatArray
+    abs2: FloatArray
+    same_side: BoolArray
+    converge: BoolArray
+    pi1: FloatArray
+    col_d: FloatArray
+    """How far from colinear with the baseline (rad)."""
+    use_sr: BoolArray
+    """Eq. 2 (size-ratio) rather than Eq. 1."""
+    d1: FloatArray
+    d2: FloatArray
+    valid: BoolArray
+    """Both distances positive and within ``max_range_m``."""
+
+
+def _gather(pairs: list[tuple[ViewBlobs, ViewBlobs]], floor: bool) -> _Batch:
+    """The per-view tables, gathered per pair (each view padded once however many pairs share it)."""
+    nas = [a.n for a, _ in pairs]
+    nbs = [b.n for _, b in pairs]
+    na, nb = max(*nas, 1), max(*nbs, 1)
+    index: dict[int, int] = {}
+    uniq: list[ViewBlobs] = []
+    for a, b in pairs:
+        for v in (a, b):
+            if id(v) not in index:
+                index[id(v)] = len(uniq)
+                uniq.append(v)
+    tabs = Tables(uniq, max(na, nb))
+    ia = np.array([index[id(a)] for a, _ in pairs], dtype=np.int64)
+    ib = np.array([index[id(b)] for _, b in pairs], dtype=np.int64)
+    columns = [[v.bearing_rad for v in uniq], [v.width_rad for v in uniq], [v.top_elev_rad for v in uniq]]
+    if floor:
+        columns.append([v.bottom_elev_rad if v.bottom_elev_rad is not None else np.full(v.n, np.nan) for v in uniq])
+    per_blob = tabs.table(columns)
+    bearing, width = per_blob[:, :, 0], per_blob[:, :, 1]
+    origin = np.array([v.origin_xy for v in uniq], dtype=np.float64).reshape(-1, 2)
+    o1, o2 = origin[ia], origin[ib]
+    d = o2 - o1
+    sigma = np.maximum(np.array([math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0) for a, b in pairs]), 1e-6)
+    return _Batch(
+        nas=nas,
+        nbs=nbs,
+        shape=(len(pairs), na, nb),
+        uniq=uniq,
+        tabs=tabs,
+        ia=ia,
+        ib=ib,
+        per_blob=per_blob,
+        tan_w=np.tan(np.nan_to_num(width) / 2.0),
+        tan_top=np.tan(np.nan_to_num(per_blob[:, :, 2])),
+        cut=tabs.flags([v.top_cut for v in uniq]),
+        z_view=np.array([v.z_m for v in uniq], dtype=np.float64),
+        o1=o1,
+        base=np.hypot(d[:, 0], d[:, 1])[:, None, None],
+        psi12=np.arctan2(d[:, 1], d[:, 0])[:, None, None],
+        sigma=sigma[:, None, None],
+        th1=bearing[ia, :na][:, :, None],
+        th2=bearing[ib, :nb][:, None, :],
+    )
+
+
+def _rays(g: _Batch, params: MatchParams) -> _Rays:
+    """Ray geometry on every blob pair: signed inner angles at O1 and O2 (docs/geometry.md §4), then the
+    distances by Eq. 2 where target and baseline are (nearly) colinear, by Eq. 1 elsewhere."""
+    _, na, nb = g.shape
+    a1 = wrap_angle(g.th1 - g.psi12)
+    a2 = wrap_angle(g.psi12 + math.pi - g.th2)
+    abs1, abs2 = np.abs(a1), np.abs(a2)
+    same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
+    converge = same_side & (abs1 + abs2 < math.pi)
+    # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
+    # docs/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
+    pi1, pi2 = math.pi - abs1, math.pi - abs2
+    col_d = np.minimum(np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, pi2), np.maximum(pi1, abs2)))
+    width = g.per_blob[:, :, 1]
+    w1, w2 = width[g.ia, :na][:, :, None], width[g.ib, :nb][:, None, :]
+    with np.errstate(invalid="ignore"):
+        colinear_gap = np.maximum(params.colinear_sigmas * g.sigma, 0.5 * np.minimum(w1, w2))
+        use_sr = col_d < colinear_gap
+    d1 = np.full(g.shape, np.nan)
+    d2 = np.full(g.shape, np.nan)
+    _size_ratio_distances(g.base, abs1, abs2, w1=w1, w2=w2, use_sr=use_sr, d1=d1, d2=d2)
+    _triangulated_distances(g.base, abs1, abs2, candidates=converge & ~use_sr & (g.base > 0), d1=d1, d2=d2)
+    with np.errstate(invalid="ignore"):
+        valid = (d1 > 0) & (d2 > 0) & (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
+    d1[~valid] = 0.0
+    d2[~valid] = 0.0
+    return _Rays(abs1, abs2, same_side, converge, pi1, col_d, use_sr, d1, d2, valid)
+
+
+def _size_ratio_distances(
+    base: FloatArray,
+    abs1: FloatArray,
+    abs2: FloatArray,
+    *,
+    w1: FloatArray,
+    w2: FloatArray,
+    use_sr: BoolArray,
+    d1: FloatArray,
+    d2: FloatArray,
+) -> None:
+    """Eq. 2 into ``d1``, ``d2`` where ``use_sr``, with sizes sin(w/2) (exact for a cylinder of the target's
+    width); a pair Eq. 2 cannot place is taken off ``use_sr``."""
+    for k, i, j in np.argwhere(use_sr):
+        c1 = 1.0 if abs1[k, i, 0] < math.pi / 2 else -1.0
+        c2 = 1.0 if abs2[k, 0, j] < math.pi / 2 else -1.0
+        try:
+            d1[k, i, j], d2[k, i, j] = size_ratio(
+                float(base[k, 0, 0]), math.sin(w1[k, i, 0] / 2), math.sin(w2[k, 0, j] / 2), c1, c2
+            )
+        except GeometryError:
+            use_sr[k, i, j] = False
+
+
+def _triangulated_distances(
+    base: FloatArray,
+    abs1: FloatArray,
+    abs2: FloatArray,
+    *,
+    candidates: BoolArray,
+    d1: FloatArray,
+    d2: FloatArray,
+) -> None:
+    """Eq. 1 into ``d1``, ``d2`` among ``candidates`` where the triangle is proper (common.geometry.triangulate
+    on the converging pairs)."""
+    kk, ii, jj = np.nonzero(candidates)
+    s0 = np.sin(abs1[kk, ii, 0] + abs2[kk, 0, jj])
+    proper = s0 > MIN_SIN
+    kk, ii, jj, s0 = kk[proper], ii[proper], jj[proper], s0[proper]
+    bb = base[kk, 0, 0]
+    d1[kk, ii, jj] = bb * np.sin(abs2)[kk, 0, jj] / s0
+    d2[kk, ii, jj] = bb * np.sin(abs1)[kk, ii, 0] / s0
+
+
+def _convergence(g: _Batch, rays: _Rays, at: tuple[npt.NDArray[np.intp], ...]) -> FloatArray:
+    """r_rc at the blob pairs ``at`` (where the rays meet in range): soft, from the smallest inner angle of the
+    triangle against the bearing error; near colinear, from the distance to colinearity."""
+    kk, ii, jj = at
+    sig_v = g.sigma[kk, 0, 0]
+    sr_v = rays.use_sr[kk, ii, jj]
+    phi0 = rays.pi1[kk, ii, 0] - rays.abs2[kk, 0, jj]
+    v1, v2 = rays.abs1[kk, ii, 0], rays.abs2[kk, 0, jj]
+    margin = np.where(
+        rays.converge[kk, ii, jj],
+        np.minimum(np.minimum(v1, v2), phi0),
+        np.where(rays.same_side[kk, ii, jj], phi0, -np.minimum(v1, v2)),
+    )
+    r_rc_v = ndtr(margin / (math.sqrt(2.0) * sig_v))
+    if sr_v.any():
+        c = rays.col_d[kk, ii, jj][sr_v]
+        r_rc_v[sr_v] = np.maximum(r_rc_v[sr_v], np.exp(-(c**2) / (4.0 * sig_v[sr_v] ** 2)))
+    return np.asarray(r_rc_v, dtype=np.float64)
+
+
+def _heights(
+    g: _Batch, rays: _Rays, at: tuple[npt.NDArray[np.intp], ...], params: MatchParams
+) -> tuple[FloatArray, FloatArray]:
+    """r_hc at the blob pairs ``at`` (head-top heights from each view, and the feet on the floor where
+    visible), and r_hc elsewhere (no distance: the cameras' own heights), broadcastable to (p, na, nb)."""
+    _, na, nb = g.shape
+    kk, ii, jj = at
+    i1, i2 = g.ia[kk], g.ib[kk]
+    d1v, d2v = rays.d1[at], rays.d2[at]
+    z1, z2 = g.z_view[i1], g.z_view[i2]
+    h1 = z1 + d1v * g.tan_top[i1, ii]
+    h2 = z2 + d2v * g.tan_top[i2, jj]
+    # Elsewhere (no distance) the height is the camera's own: constants of the pair and the cut flags.
+    zc1, zc2 = g.z_view[g.ia][:, None, None], g.z_view[g.ib][:, None, None]
+    hc1, hc2 = zc1, zc2
+    cut1, cut2 = g.cut[g.ia, :na][:, :, None], g.cut[g.ib, :nb][:, None, :]
+    if cut1.any() or cut2.any():
+        # A head cut by the image's upper border is at least as high as it looks: consistent with any
+        # taller height from the other view (both cut: no height evidence).
+        c1v, c2v = cut1[kk, ii, 0], cut2[kk, 0, jj]
+        h1, h2 = np.where(c1v, np.maximum(h1, h2), h1), np.where(c2v, np.maximum(h1, h2), h2)
+        top = np.maximum(zc1, zc2)
+        hc1, hc2 = np.where(cut1, top, zc1), np.where(cut2, top, zc2)
+    r_hc_v = _log_ratio_score(h1, h2, params.height_sigma)
+    r_hc = _log_ratio_score(hc1, hc2, params.height_sigma)
+    if params.floor_sigma_m <= 0:
+        return r_hc_v, r_hc
+    # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
+    with np.errstate(invalid="ignore"):
+        tan_bot = np.tan(g.per_blob[:, :, 3])
+        s_view = np.array([v.sigma_rad for v in g.uniq], dtype=np.float64)
+        g0 = 2.0 * params.floor_sigma_m**2
+        for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
+            zf = zs + dist * tb  # NaN where the feet are not visible: factor 1
+            sig = params.floor_sigma_m + dist * sv * FEET_SIGMAS
+            fin = np.isfinite(zf)
+            r_hc_v = r_hc_v * np.where(fin, np.exp(-(np.where(fin, zf, 0.0) ** 2) / (2.0 * sig**2)), 1.0)
+    # No distance: the feet are at the camera's height (where visible at all).
+    feet1 = np.isfinite(tan_bot[g.ia, :na])[:, :, None]
+    feet2 = np.isfinite(tan_bot[g.ib, :nb])[:, None, :]
+    r_hc = r_hc * np.where(feet1, np.exp(-(zc1**2) / g0), 1.0)
+    r_hc = r_hc * np.where(feet2, np.exp(-(zc2**2) / g0), 1.0)
+    return r_hc_v, r_hc
+
+
+def _temporal(
+    r: FloatArray,
+    hx: FloatArray,
+    hy: FloatArray,
+    g: _Batch,
+    params: MatchParams,
+    *,
+    temporals: Sequence[FloatArray | None] | None,
+    threshold: float,
+    track_xy: FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Eq. 7 with the temporal term: ``r' = (r + λ c_t) / (1 + λ)``, and c_t (the link-based ``temporals``, and
+    the positional term where ``track_xy`` is given)."""
+    shape = g.shape
+    lam = params.temporal_weight
+    temporals = list(temporals) if temporals is not None else [None] * shape[0]
+    c_t = np.zeros(shape)
+    for k, temporal in enumerate(temporals):
+        if temporal is not None:
+            c_t[k, : g.nas[k], : g.nbs[k]] = temporal
+    apply = np.array([t is not None for t in temporals], dtype=bool)
+    if track_xy is not None and track_xy.size and lam > 0 and params.temporal_gate_m > 0:
+        # Only where it can count (r above the threshold; below, r' = r / (1 + lam) whatever c_t is): the
+        # nearest-track distance of every hypothesis to every track is the costliest array of the tick.
+        tx, ty = track_xy[:, 0], track_xy[:, 1]
+        near = r > threshold
+        d2min = np.min((hx[near][:, None] - tx) ** 2 + (hy[near][:, None] - ty) ** 2, axis=-1)
+        c_pos = np.zeros(shape)
+        c_pos[near] = np.exp(-d2min / (2.0 * params.temporal_gate_m**2))
+        c_t = np.maximum(c_t, c_pos)
+        apply[:] = True
+    if lam > 0 and apply.any():
+        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
+        lifted = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
+        r = np.where(apply[:, None, None], lifted, r)
+    return r, c_t
+
+
 def match_matrices(
     pairs: list[tuple[ViewBlobs, ViewBlobs]],
     params: MatchParams,
@@ -139,175 +417,41 @@ def match_matrices(
     """
     if not pairs:
         return []
-    npairs = len(pairs)
-    nas = [a.n for a, _ in pairs]
-    nbs = [b.n for _, b in pairs]
-    na, nb = max(*nas, 1), max(*nbs, 1)
-    shape = (npairs, na, nb)
-    # -- per-view tables, gathered per pair ----------------------------------------------------------------
-    index: dict[int, int] = {}
-    uniq: list[ViewBlobs] = []
-    for a, b in pairs:
-        for v in (a, b):
-            if id(v) not in index:
-                index[id(v)] = len(uniq)
-                uniq.append(v)
-    tabs = Tables(uniq, max(na, nb))
-    ia = np.array([index[id(a)] for a, _ in pairs], dtype=np.int64)
-    ib = np.array([index[id(b)] for _, b in pairs], dtype=np.int64)
-    floor = params.floor_sigma_m > 0
-    columns = [[v.bearing_rad for v in uniq], [v.width_rad for v in uniq], [v.top_elev_rad for v in uniq]]
-    if floor:
-        columns.append([v.bottom_elev_rad if v.bottom_elev_rad is not None else np.full(v.n, np.nan) for v in uniq])
-    per_blob = tabs.table(columns)
-    bearing, width = per_blob[:, :, 0], per_blob[:, :, 1]
-    tan_w = np.tan(np.nan_to_num(width) / 2.0)
-    tan_top = np.tan(np.nan_to_num(per_blob[:, :, 2]))
-    cut = tabs.flags([v.top_cut for v in uniq])
-    origin = np.array([v.origin_xy for v in uniq], dtype=np.float64).reshape(-1, 2)
-    z_view = np.array([v.z_m for v in uniq], dtype=np.float64)
-    o1, o2 = origin[ia], origin[ib]
-    d = o2 - o1
-    base = np.hypot(d[:, 0], d[:, 1])[:, None, None]
-    psi12 = np.arctan2(d[:, 1], d[:, 0])[:, None, None]
-    sigma = np.maximum(np.array([math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0) for a, b in pairs]), 1e-6)[
-        :, None, None
-    ]
-    th1 = bearing[ia, :na][:, :, None]  # (p, na, 1)
-    th2 = bearing[ib, :nb][:, None, :]  # (p, 1, nb)
-    # -- ray geometry on every blob pair: signed inner angles at O1 and O2 (docs/geometry.md §4) ----------
-    a1 = wrap_angle(th1 - psi12)
-    a2 = wrap_angle(psi12 + math.pi - th2)
-    abs1, abs2 = np.abs(a1), np.abs(a2)
-    same_side = np.sign(a1) == np.sign(a2)  # (p, na, nb) from here on
-    converge = same_side & (abs1 + abs2 < math.pi)
-    # Eq. 2 (size-ratio) where target and baseline are (nearly) colinear: the crossover of
-    # docs/geometry.md §3, phi1 < w1·dphi/dw, taken here as "the target's image covers the epipole".
-    pi1, pi2 = math.pi - abs1, math.pi - abs2
-    col_d = np.minimum(np.maximum(abs1, abs2), np.minimum(np.maximum(abs1, pi2), np.maximum(pi1, abs2)))
-    w1, w2 = width[ia, :na][:, :, None], width[ib, :nb][:, None, :]
-    with np.errstate(invalid="ignore"):
-        colinear_gap = np.maximum(params.colinear_sigmas * sigma, 0.5 * np.minimum(w1, w2))
-        use_sr = col_d < colinear_gap
-    d1 = np.full(shape, np.nan)
-    d2 = np.full(shape, np.nan)
-    for k, i, j in np.argwhere(use_sr):
-        c1 = 1.0 if abs1[k, i, 0] < math.pi / 2 else -1.0
-        c2 = 1.0 if abs2[k, 0, j] < math.pi / 2 else -1.0
-        try:  # Eq. 2 with sizes sin(w/2) (exact for a cylinder of the target's width)
-            d1[k, i, j], d2[k, i, j] = size_ratio(
-                float(base[k, 0, 0]), math.sin(w1[k, i, 0] / 2), math.sin(w2[k, 0, j] / 2), c1, c2
-            )
-        except GeometryError:
-            use_sr[k, i, j] = False
-    # Eq. 1 (triangulation) where the triangle is proper (common.geometry.triangulate on the converging pairs).
-    kk, ii, jj = np.nonzero(converge & ~use_sr & (base > 0))
-    s0 = np.sin(abs1[kk, ii, 0] + abs2[kk, 0, jj])
-    proper = s0 > 1e-12
-    kk, ii, jj, s0 = kk[proper], ii[proper], jj[proper], s0[proper]
-    bb = base[kk, 0, 0]
-    d1[kk, ii, jj] = bb * np.sin(abs2)[kk, 0, jj] / s0
-    d2[kk, ii, jj] = bb * np.sin(abs1)[kk, ii, 0] / s0
-    with np.errstate(invalid="ignore"):
-        valid = (d1 > 0) & (d2 > 0) & (d1 <= params.max_range_m) & (d2 <= params.max_range_m)
-    d1[~valid] = 0.0
-    d2[~valid] = 0.0
+    g = _gather(pairs, params.floor_sigma_m > 0)
+    rays = _rays(g, params)
+    valid, use_sr, d1, d2 = rays.valid, rays.use_sr, rays.d1, rays.d2
     # -- the measures that depend on the distances: only where the rays meet in range ---------------------
-    kk, ii, jj = np.nonzero(valid)
-    i1, i2 = ia[kk], ib[kk]
-    d1v, d2v = d1[kk, ii, jj], d2[kk, ii, jj]
-    sig_v = sigma[kk, 0, 0]
-    sr_v = use_sr[kk, ii, jj]
-    phi0 = pi1[kk, ii, 0] - abs2[kk, 0, jj]
-    v1, v2 = abs1[kk, ii, 0], abs2[kk, 0, jj]
-    margin = np.where(
-        converge[kk, ii, jj],
-        np.minimum(np.minimum(v1, v2), phi0),
-        np.where(same_side[kk, ii, jj], phi0, -np.minimum(v1, v2)),
-    )
-    r_rc_v = ndtr(margin / (math.sqrt(2.0) * sig_v))
-    if sr_v.any():
-        c = col_d[kk, ii, jj][sr_v]
-        r_rc_v[sr_v] = np.maximum(r_rc_v[sr_v], np.exp(-(c**2) / (4.0 * sig_v[sr_v] ** 2)))
+    at = np.nonzero(valid)
+    kk, ii, jj = at
+    r_rc_v = _convergence(g, rays, at)
     # Width consistency: metric widths from both views (1 where Eq. 2 made them equal by construction).
     # A blob much wider than its partner is usually two people merged (occlusion), not a wrong match:
     # the width term never drops below ``width_floor``.
-    width1 = 2.0 * d1v * tan_w[i1, ii]
-    width2 = 2.0 * d2v * tan_w[i2, jj]
-    r_wc_v = np.where(sr_v, 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor))
-    # Height consistency: head-top height from each view.
-    z1, z2 = z_view[i1], z_view[i2]
-    h1 = z1 + d1v * tan_top[i1, ii]
-    h2 = z2 + d2v * tan_top[i2, jj]
-    # Elsewhere (no distance) the height is the camera's own: constants of the pair and the cut flags.
-    zc1, zc2 = z_view[ia][:, None, None], z_view[ib][:, None, None]
-    hc1, hc2 = zc1, zc2
-    cut1, cut2 = cut[ia, :na][:, :, None], cut[ib, :nb][:, None, :]
-    if cut1.any() or cut2.any():
-        # A head cut by the image's upper border is at least as high as it looks: consistent with any
-        # taller height from the other view (both cut: no height evidence).
-        c1v, c2v = cut1[kk, ii, 0], cut2[kk, 0, jj]
-        h1, h2 = np.where(c1v, np.maximum(h1, h2), h1), np.where(c2v, np.maximum(h1, h2), h2)
-        top = np.maximum(zc1, zc2)
-        hc1, hc2 = np.where(cut1, top, zc1), np.where(cut2, top, zc2)
-    r_hc_v = _log_ratio_score(h1, h2, params.height_sigma)
-    r_hc = _log_ratio_score(hc1, hc2, params.height_sigma)  # broadcast to (p, na, nb) below
-    # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
-    if floor:
-        with np.errstate(invalid="ignore"):
-            tan_bot = np.tan(per_blob[:, :, 3])
-            s_view = np.array([v.sigma_rad for v in uniq], dtype=np.float64)
-            g0 = 2.0 * params.floor_sigma_m**2
-            for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
-                zf = zs + dist * tb  # NaN where the feet are not visible: factor 1
-                sig = params.floor_sigma_m + dist * sv * 4.0
-                fin = np.isfinite(zf)
-                r_hc_v = r_hc_v * np.where(fin, np.exp(-(np.where(fin, zf, 0.0) ** 2) / (2.0 * sig**2)), 1.0)
-        # No distance: the feet are at the camera's height (where visible at all).
-        feet1 = np.isfinite(tan_bot[ia, :na])[:, :, None]
-        feet2 = np.isfinite(tan_bot[ib, :nb])[:, None, :]
-        r_hc = r_hc * np.where(feet1, np.exp(-(zc1**2) / g0), 1.0)
-        r_hc = r_hc * np.where(feet2, np.exp(-(zc2**2) / g0), 1.0)
+    width1 = 2.0 * d1[at] * g.tan_w[g.ia[kk], ii]
+    width2 = 2.0 * d2[at] * g.tan_w[g.ib[kk], jj]
+    r_wc_v = np.where(
+        use_sr[at], 1.0, np.maximum(_log_ratio_score(width1, width2, params.width_sigma), params.width_floor)
+    )
+    r_hc_v, r_hc_elsewhere = _heights(g, rays, at, params)
+    shape = g.shape
     r_rc = np.zeros(shape)
     r_rc[valid] = r_rc_v
     r_wc = np.where(use_sr, 1.0, max(0.0, params.width_floor))
     r_wc[valid] = r_wc_v
-    r_hc = np.array(np.broadcast_to(r_hc, shape), dtype=np.float64)  # writable
+    r_hc = np.array(np.broadcast_to(r_hc_elsewhere, shape), dtype=np.float64)  # writable
     r_hc[valid] = r_hc_v
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
     # -- colour and the temporal term ------------------------------------------------------------------------
-    r_is = colour_table(pairs, params.use_colour, shape, tabs=tabs, ia=ia, ib=ib)
-    r = r_is * r_all
-    cos1, sin1 = np.cos(th1), np.sin(th1)
-    hx = o1[:, 0, None, None] + d1 * cos1  # (p, na, nb) hypothesised positions along camera 1's ray
-    hy = o1[:, 1, None, None] + d1 * sin1
-    lam = params.temporal_weight
-    temporals = list(temporals) if temporals is not None else [None] * npairs
-    c_t = np.zeros(shape)
-    for k, temporal in enumerate(temporals):
-        if temporal is not None:
-            c_t[k, : nas[k], : nbs[k]] = temporal
-    apply = np.array([t is not None for t in temporals], dtype=bool)
-    if track_xy is not None and track_xy.size and lam > 0 and params.temporal_gate_m > 0:
-        # Only where it can count (r above the threshold; below, r' = r / (1 + lam) whatever c_t is): the
-        # nearest-track distance of every hypothesis to every track is the costliest array of the tick.
-        tx, ty = track_xy[:, 0], track_xy[:, 1]
-        near = r > threshold
-        d2min = np.min((hx[near][:, None] - tx) ** 2 + (hy[near][:, None] - ty) ** 2, axis=-1)
-        c_pos = np.zeros(shape)
-        c_pos[near] = np.exp(-d2min / (2.0 * params.temporal_gate_m**2))
-        c_t = np.maximum(c_t, c_pos)
-        apply[:] = True
-    if lam > 0 and apply.any():
-        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
-        lifted = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
-        r = np.where(apply[:, None, None], lifted, r)
+    r_is = colour_table(pairs, params.use_colour, shape, tabs=g.tabs, ia=g.ia, ib=g.ib)
+    hx = g.o1[:, 0, None, None] + d1 * np.cos(g.th1)  # (p, na, nb) hypothesised positions along camera 1's ray
+    hy = g.o1[:, 1, None, None] + d1 * np.sin(g.th1)
+    r, c_t = _temporal(r_is * r_all, hx, hy, g, params, temporals=temporals, threshold=threshold, track_xy=track_xy)
     xy = np.stack([hx, hy], axis=-1)
     sr_valid = use_sr & valid
     out: list[MatchMatrix] = []
-    for k in range(npairs):
-        ka, kb = nas[k], nbs[k]
+    for k in range(len(pairs)):
+        ka, kb = g.nas[k], g.nbs[k]
         parts = {
             "r_is": r_is[k, :ka, :kb],
             "r_rc": r_rc[k, :ka, :kb],

@@ -15,6 +15,9 @@ from resource_manager.views.blobs import ViewBlobs
 
 __all__ = ["Tables", "colour_table"]
 
+LOOP_MAX_PAIRS = 2
+"""Up to this many pairs, r_is is a loop over the pairs (cheaper than building the stacked table)."""
+
 
 class Tables:
     """Per-blob quantities of every view used by a batch of pairs, padded to a common blob count.
@@ -72,7 +75,7 @@ def colour_table(
     bins = {r.shape[1] for r in roots if r is not None}
     _, na, nb = shape
     if (
-        len(pairs) > 2
+        len(pairs) > LOOP_MAX_PAIRS
         and len(bins) == 1
         and all(r is not None or v.n == 0 for r, v in zip(roots, tabs.views, strict=True))
     ):

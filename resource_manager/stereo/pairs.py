@@ -24,6 +24,9 @@ from common.error_model import pair_error_f, pair_position_errors
 
 __all__ = ["CameraGeom", "PairCandidate", "rank_pairs", "rank_pairs_many"]
 
+PAIR_CAMERAS = 2
+"""Cameras in a stereo pair: with fewer seeing a person, no pair localises them."""
+
 
 @dataclass(frozen=True, slots=True)
 class CameraGeom:
@@ -46,7 +49,7 @@ class PairCandidate:
 
 def rank_pairs(target_xy: FloatArray, cameras: list[CameraGeom], max_cameras: int = 5) -> list[PairCandidate]:
     """Every pair among the cameras that see the target, best (smallest predicted error) first."""
-    if len(cameras) < 2:
+    if len(cameras) < PAIR_CAMERAS:
         return []
     tx, ty = float(target_xy[0]), float(target_xy[1])
     # Plain floats: at most max_cameras (5) cameras, 10 pairs; numpy per pair (or per 10-element array) costs more.
@@ -92,7 +95,7 @@ def rank_pairs_many(
     k, w = sigma_rad.shape
     used = np.arange(w) < count[:, None]
     m = min(w, max_cameras)
-    if m < 2:
+    if m < PAIR_CAMERAS:
         return np.zeros((k, 0), np.int64), np.zeros((k, 0), np.int64), np.zeros((k, 0)), np.zeros(k, np.int64)
     # The nearest max_cameras cameras (in order of distance) where there are more; else all, in their order.
     dist = np.where(

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
@@ -173,9 +173,6 @@ def find_births(
     needs (the prior and the deletion threshold). ``stack``: ``views`` stacked in order of sensor ids with their
     ``spread`` (default: stacked here).
     """
-    sids = sorted(views)
-    with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
-    sub = {sids[i]: subset_view(views[sids[i]], free[sids[i]]) for i in with_free}
     sure = {sid: _sure(views[sid], blobs, model.birth_confidence) for sid, blobs in free.items()}
     sure_sub = {sid: subset_view(views[sid], blobs) for sid, blobs in sure.items() if blobs}
     found = _hypotheses(sure_sub, sure, params, tick) + _singles(sure_sub, sure, model.publish_sigma_m)
@@ -183,43 +180,92 @@ def find_births(
     found = [h for h in found if _in_area(h[0].xy, scene) and not _near(h[0].xy, blockers.xy)]
     if not found:
         return []
-    cand_table, cands = _provisional(found, views, model)
-    # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
+    sids = sorted(views)
     every = stack if stack is not None else ViewStack.of([views[sid] for sid in sids], [spread(sid) for sid in sids])
-    vis = visibility_many(every, cand_table, model, scene.max_range_m, blockers=blockers)
-    pd = vis.p_detect
-    misses = np.zeros(len(cands))
-    for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
-        misses += row
-    unexplained = every.subset([sub[sids[i]] for i in with_free], with_free, [free[sids[i]] for i in with_free])
-    scores = score_views(
-        unexplained,
-        cands,
-        cand_table,
-        Visibility(pd[with_free], vis.feet_hidden[with_free], vis.cut_reach_m[with_free]),
-        model=model,
-        max_range_m=scene.max_range_m,
-    )
-    # The unexplained blobs side by side, view after view: (hypothesis, blob) gains, each blob's view and index.
-    gain = np.concatenate([sc.gain for sc in scores], axis=1)
-    starts = unexplained.offsets[:-1]
-    column = {(sids[i], j): c for c, (i, j) in enumerate((i, j) for i in with_free for j in free[sids[i]])}
-    blob_of = [j for i in with_free for j in free[sids[i]]]
-    free_sids = [sids[i] for i in with_free]
+    gains = _Gains.of(found, views, free, every, blockers, model=model, max_range_m=scene.max_range_m)
+    return _pick(found, gains, blockers, min_evidence)
+
+
+@dataclass(slots=True)
+class _Gains:
+    """What each hypothesis gains from each unexplained blob (the blobs side by side, view after view)."""
+
+    gain: FloatArray
+    """(hypothesis, blob) log likelihood ratio of the blob being that person."""
+    misses: FloatArray
+    """(hypothesis,) the views' miss terms (hidden by the tracks only)."""
+    offsets: IntArray
+    """Where each view's blobs start in ``gain``'s columns, and the end."""
+    column: dict[tuple[str, int], int]
+    """(sensor id, blob index) -> column."""
+    blob_of: list[int]
+    """Column -> blob index in its view."""
+    free_sids: list[str]
+    """The views with unexplained blobs, in column order."""
+    alive: BoolArray
+    """Which hypotheses may be started at all (one view: only where no other camera has a clear view)."""
+
+    @classmethod
+    def of(
+        cls,
+        found: list[tuple[Measurement, str, int, str, int]],
+        views: dict[str, ViewBlobs],
+        free: dict[str, list[int]],
+        every: ViewStack,
+        blockers: TrackTable,
+        *,
+        model: TrackModel,
+        max_range_m: float,
+    ) -> _Gains:
+        sids = sorted(views)
+        with_free = [i for i, sid in enumerate(sids) if free.get(sid)]
+        cand_table, cands = _provisional(found, views, model)
+        # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
+        vis = visibility_many(every, cand_table, model, max_range_m, blockers=blockers)
+        pd = vis.p_detect
+        misses = np.zeros(len(cands))
+        for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
+            misses += row
+        unexplained = every.subset(with_free, [free[sids[i]] for i in with_free])
+        scores = score_views(
+            unexplained,
+            cands,
+            cand_table,
+            Visibility(pd[with_free], vis.feet_hidden[with_free], vis.cut_reach_m[with_free]),
+            model=model,
+            max_range_m=max_range_m,
+        )
+        alive = np.ones(len(cands), dtype=bool)
+        row = {sid: i for i, sid in enumerate(sids)}
+        for k, (_, a, _, b, _) in enumerate(found):
+            if not b:  # one view: only where no other camera has a clear view of the spot
+                others = np.delete(pd[:, k], row[a])
+                alive[k] = not bool(np.any(others > model.p_detect_hidden + 1e-9))
+        return cls(
+            gain=np.concatenate([sc.gain for sc in scores], axis=1),
+            misses=misses,
+            offsets=unexplained.offsets,
+            column={(sids[i], j): c for c, (i, j) in enumerate((i, j) for i in with_free for j in free[sids[i]])},
+            blob_of=[j for i in with_free for j in free[sids[i]]],
+            free_sids=[sids[i] for i in with_free],
+            alive=alive,
+        )
+
+
+def _pick(
+    found: list[tuple[Measurement, str, int, str, int]], g: _Gains, blockers: TrackTable, min_evidence: float
+) -> list[Hypothesis]:
+    """Greedily, best evidence first: start a hypothesis, take its blobs from the others."""
+    gain, alive, column = g.gain, g.alive, g.column
+    starts = g.offsets[:-1]
     open_ = np.ones(gain.shape[1], dtype=bool)
-    alive = np.ones(len(cands), dtype=bool)
-    row = {sid: i for i, sid in enumerate(sids)}
-    for k, (_, a, _, b, _) in enumerate(found):
-        if not b:  # one view: only where no other camera has a clear view of the spot
-            others = np.delete(pd[:, k], row[a])
-            alive[k] = not bool(np.any(others > model.p_detect_hidden + 1e-9))
     out: list[Hypothesis] = []
     taken_xy = blockers.xy.reshape(-1, 2)
     while alive.any():
         # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
         open_gain = np.where(open_, gain, -np.inf)
         best = np.maximum.reduceat(open_gain, starts, axis=1)
-        evidence = misses.copy()
+        evidence = g.misses.copy()
         for v in range(best.shape[1]):
             evidence += np.maximum(best[:, v], 0.0)
         evidence = np.where(alive, evidence, -np.inf)
@@ -228,9 +274,9 @@ def find_births(
             break
         fix, a, ia, b, ib = found[c]
         blobs: dict[str, int] = {}
-        for v, (lo, hi) in enumerate(zip(starts.tolist(), unexplained.offsets[1:].tolist(), strict=True)):
+        for v, (lo, hi) in enumerate(zip(starts.tolist(), g.offsets[1:].tolist(), strict=True)):
             if best[c, v] > 0:
-                blobs[free_sids[v]] = blob_of[lo + int(np.argmax(open_gain[c, lo:hi]))]
+                blobs[g.free_sids[v]] = g.blob_of[lo + int(np.argmax(open_gain[c, lo:hi]))]
         alive[c] = False
         if blobs.get(a) != ia or (b and blobs.get(b) != ib):
             continue  # its own pair no longer fits it best: another hypothesis of those blobs will say

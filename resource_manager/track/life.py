@@ -66,6 +66,9 @@ Coverage = Callable[[FloatArray], BoolArray]
 EDGE_DIRECTIONS = 8
 """Directions in which a track's reach is probed for the edge of the cameras' joint view."""
 
+PAIR_OF_TRACKS = 2
+"""Close tracks come in pairs: with fewer tracks there is nothing to compare."""
+
 
 def at_exit(xy: FloatArray, sigma_m: FloatArray, model: TrackModel, scene: Scene, coverage: Coverage) -> BoolArray:
     """(n,) tracks standing where their person may leave: within reach (:func:`exit_reach_m`) of an exit of the
@@ -147,7 +150,7 @@ class Separation:
         detected as two separate people) shows them apart at ``t_ns``; pairs no longer close are forgotten."""
         keep: dict[tuple[int, int], int] = {}
         together: dict[tuple[int, int], int] = {}
-        if len(xy) >= 2:
+        if len(xy) >= PAIR_OF_TRACKS:
             d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
             seen_apart = {(min(a, b), max(a, b)) for view in apart for a, b in view}
             # Pairs are followed a little beyond where they merge, so that the clock of a pair that hovers about

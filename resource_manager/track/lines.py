@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from common.arrays import BoolArray, FloatArray, pairs_of
-from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD
+from common.geometry import MAX_SIZE_RATIO_OFFSET_RAD, MIN_RAYS, MIN_SIZE_RATIO_DEN
 from resource_manager.stereo.localize import MAX_PERSON_WIDTH_M
 
 __all__ = ["size_ratio_lines"]
@@ -41,7 +41,7 @@ def size_ratio_lines(
         :meth:`~resource_manager.track.motion.ObservationBatch.padded` takes them), and (k, l) which are there.
     """
     k, width = used.shape
-    if width < 2:
+    if width < MIN_RAYS:  # no pair of views
         return np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
     ia, ib = pairs_of(width)
     ray = np.stack([np.cos(blob[:, :, 0]), np.sin(blob[:, :, 0])], axis=2)  # each blob's bearing as a vector
@@ -67,7 +67,7 @@ def size_ratio_lines(
     w1, w2 = np.sin(wa / 2), np.sin(wb / 2)
     ok &= (w1 > 0) & (w2 > 0)
     den = w1 * c1 + w2 * c2
-    ok &= np.abs(den) >= 1e-15
+    ok &= np.abs(den) >= MIN_SIZE_RATIO_DEN
     den = np.where(ok, den, 1.0)
     d1 = length * w2 * c2 / den * c1
     d2 = length * w1 * c1 / den * c2

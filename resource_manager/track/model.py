@@ -17,10 +17,14 @@ import msgspec
 from common.area import Area
 from common.config import ConfigStruct
 
-__all__ = ["PERSON_RADIUS_M", "Scene", "TrackModel", "logit"]
+__all__ = ["HEAD_HEIGHT_M", "HEAD_HEIGHT_SIGMA_M", "PERSON_RADIUS_M", "Scene", "TrackModel", "logit"]
 
 PERSON_RADIUS_M = 0.25
 """Half the width of a person seen from any side (m): who hides whom, and how far apart two people stand."""
+HEAD_HEIGHT_M = 1.7
+"""Head-top height of a person before any view measured it (m): the default of ``[tracker] height_prior_m``."""
+HEAD_HEIGHT_SIGMA_M = 0.15
+"""Spread of people's head-top heights around it (m): the default of ``[tracker] height_sigma_m``."""
 
 Pos = Annotated[float, msgspec.Meta(gt=0.0)]
 NonNeg = Annotated[float, msgspec.Meta(ge=0.0)]
@@ -63,9 +67,10 @@ class TrackModel(ConfigStruct, frozen=True):
     """...and that it is not, for a person whose feet someone nearer or another camera's body hides in the picture
     (in between: by the share of the feet hidden): a detector that boxes what it sees cuts them there; an
     annotator's box reaches the feet behind anyone."""
-    height_prior_m: Pos = 1.7
-    """Head-top height of a person before any view measured it."""
-    height_sigma_m: Pos = 0.15
+    height_prior_m: Pos = HEAD_HEIGHT_M
+    """Head-top height of a person before any view measured it (also where the planner and the PTZ cameras
+    aim at a track whose height is unknown)."""
+    height_sigma_m: Pos = HEAD_HEIGHT_SIGMA_M
     """Spread of people's heights around ``height_prior_m``."""
     height_change_mps: Pos = 0.05
     """How fast a person's head-top height changes (bending, sitting)."""

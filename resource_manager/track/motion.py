@@ -44,6 +44,9 @@ IEKF_ITERATIONS = 4
 MIN_RANGE_M = 0.3
 """Closer to a camera than this a bearing says nothing (the person stands on the lens)."""
 
+CONVERGED_STEP_M = 1e-4
+"""A track whose iterated update moved its position less than this (m) has converged: its iterations stop."""
+
 
 @dataclass(frozen=True, slots=True)
 class MotionModel:
@@ -322,13 +325,13 @@ def update_many(
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
         p_new = np.where(active[:, None, None], p_step, p_new)
-        last = not (active & (moved >= 1e-4)).any()
+        last = not (active & (moved >= CONVERGED_STEP_M)).any()
         if outlier is not None or not last:
             h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
             resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
             resp_line = np.where(active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line)
-        active &= moved >= 1e-4
+        active &= moved >= CONVERGED_STEP_M
         if last:
             break
     return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp

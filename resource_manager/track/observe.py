@@ -280,7 +280,9 @@ def score_views(
     n, m = table.n, stack.view_of.shape[0]
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
-        return [ViewScores(np.full((n, v.n), -np.inf), ln_miss[i], p_detect[i]) for i, v in enumerate(stack.views)]
+        return [
+            ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(stack.counts.tolist())
+        ]
     col = stack.view_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
     d = table.xy[None, :, :] - stack.origin[:, None, :]
     r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
@@ -297,26 +299,13 @@ def score_views(
     ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
     has = np.isfinite(stack.mono_range_m)
     feet: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    density_gate = gate
     if has.any():
-        # The floor distance given the bearing (conditioned on its innovation), with its own outlier model: a box
-        # whose bottom is not the feet (someone nearer hides them) puts the person farther than they are.
         s_td = quadratic_form(jac, pc, unit)[col].T
-        rng = np.where(has, stack.mono_range_m, 0.0)
-        feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
-        s_dd = s_dd_track[col].T + feet_var[None, :]
-        range_innovation = rng[None, :] - dist[col].T
-        nu_d = range_innovation - s_td / blob_s_tt * nu_t
-        s_cond = np.maximum(s_dd - s_td**2 / blob_s_tt, 1e-18)
-        near = np.abs(range_innovation) <= model.gate_sigmas * np.sqrt(s_dd)
-        # Farther than the gate only where someone nearer or a camera's body may cut the box above the feet.
-        cut_ok = (vis.feet_hidden > HALF)[col].T
-        far = (nu_d > 0) & cut_ok
-        density_gate = gate & np.where(has[None, :], near, True)
-        gate &= np.where(has[None, :], near | far, True)
-        feet = (nu_d, s_cond, dist[col].T)
+        feet, density_gate, gate = _feet_gates(
+            stack, s_dd_track[col].T, s_td, dist[col].T, gate, nu_t=nu_t, blob_s_tt=blob_s_tt, vis=vis, model=model
+        )
         ln_clutter = ln_clutter + np.where(has, -math.log(max_range_m), 0.0)
-    else:
-        density_gate = gate
     # Other people's blobs near the track are the alternative explanation of a blob there: the local density of
     # blobs in each track's gate beyond the one it would have (non-parametric PDA), when above the view's mean.
     counted = np.concatenate([np.zeros((n, 1)), np.cumsum(density_gate, axis=1, dtype=np.float64)], axis=1)
@@ -343,6 +332,41 @@ def score_views(
     ln_lr = np.full((n, m), -np.inf)
     ln_lr[track, blob] = entry
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
+
+
+def _feet_gates(
+    stack: ViewStack,
+    s_dd_track: FloatArray,
+    s_td: FloatArray,
+    dist: FloatArray,
+    gate: BoolArray,
+    *,
+    nu_t: FloatArray,
+    blob_s_tt: FloatArray,
+    vis: Visibility,
+    model: TrackModel,
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray], BoolArray, BoolArray]:
+    """The floor distance given the bearing (conditioned on its innovation), with its own outlier model: a box
+    whose bottom is not the feet (someone nearer hides them) puts the person farther than they are.
+
+    All (track, blob): ``s_dd_track`` the track's distance variance, ``s_td`` its bearing-distance covariance,
+    ``dist`` its predicted distance. Returns the feet terms (innovation, conditional variance, predicted
+    distance), the gate that counts blobs for the local density, and the gate of the likelihood ratio."""
+    col = stack.view_of
+    has = np.isfinite(stack.mono_range_m)
+    rng = np.where(has, stack.mono_range_m, 0.0)
+    feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
+    s_dd = s_dd_track + feet_var[None, :]
+    range_innovation = rng[None, :] - dist
+    nu_d = range_innovation - s_td / blob_s_tt * nu_t
+    s_cond = np.maximum(s_dd - s_td**2 / blob_s_tt, 1e-18)
+    near = np.abs(range_innovation) <= model.gate_sigmas * np.sqrt(s_dd)
+    # Farther than the gate only where someone nearer or a camera's body may cut the box above the feet.
+    cut_ok = (vis.feet_hidden > HALF)[col].T
+    far = (nu_d > 0) & cut_ok
+    density_gate = gate & np.where(has[None, :], near, True)
+    gate = gate & np.where(has[None, :], near | far, True)
+    return (nu_d, s_cond, dist), density_gate, gate
 
 
 def feet_cut_prob(feet_hidden: FloatArray, model: TrackModel) -> FloatArray:

@@ -36,6 +36,8 @@ class ViewStack:
     """Several views' blobs along one axis (view after view), with each view's own quantities per row."""
 
     views: tuple[ViewBlobs, ...]
+    """Each row's view, for its camera's own quantities (sensor id, picture, field of view); its blobs in the stack
+    are entries ``offsets[i]:offsets[i + 1]`` (in a :meth:`subset`, only some of the view's)."""
     rows: dict[str, int]
     """sensor id -> its view's row."""
     offsets: IntArray
@@ -80,6 +82,11 @@ class ViewStack:
     @property
     def n_views(self) -> int:
         return len(self.views)
+
+    @property
+    def counts(self) -> IntArray:
+        """(s,) blobs of each row in the stack."""
+        return np.diff(self.offsets)
 
     @staticmethod
     def of(views: Sequence[ViewBlobs], spreads: Sequence[Spread]) -> ViewStack:
@@ -130,12 +137,13 @@ class ViewStack:
             hist_sqrt=hists,
         )
 
-    def subset(self, views: Sequence[ViewBlobs], rows: Sequence[int], blobs: Sequence[Sequence[int]]) -> ViewStack:
-        """The stack of some of its views with some of their blobs: ``views``, the views of ``rows`` with only
-        their blobs ``blobs`` (:func:`~resource_manager.views.build.subset_view`), taken from these arrays."""
+    def subset(self, rows: Sequence[int], blobs: Sequence[Sequence[int]]) -> ViewStack:
+        """The stack of some of its views with some of their blobs: the views of ``rows`` with only their blobs
+        ``blobs`` (indices in each view), taken from these arrays (no view is copied)."""
         counts = np.array([len(b) for b in blobs], dtype=np.int64)
         row = np.asarray(rows, dtype=np.int64)
         pick = np.array([self.offsets[r] + j for r, b in zip(rows, blobs, strict=True) for j in b], dtype=np.int64)
+        views = [self.views[r] for r in rows]
         return ViewStack(
             views=tuple(views),
             rows={v.sensor_id: i for i, v in enumerate(views)},

@@ -40,6 +40,7 @@ from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.filter import TrackFilter
 from resource_manager.track.life import (
     CLOSE_M,
+    PAIR_OF_TRACKS,
     RETURN_CHI2,
     Coverage,
     Graveyard,
@@ -453,7 +454,7 @@ class Tracker:
         """Which close tracks some view showed as two people this tick (:class:`~.life.Separation`)."""
         f = self.filter
         apart: list[list[tuple[int, int]]] = []
-        if f.n >= 2:
+        if f.n >= PAIR_OF_TRACKS:
             xy = f.x[:, :2]
             d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
             close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist()

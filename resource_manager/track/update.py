@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from common.arrays import FloatArray, IntArray
-from common.schema import Method, PairEntry
+from common.schema import MAX_METRES, Method, PairEntry
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.filter import TrackFilter
@@ -249,7 +249,7 @@ class Updater:
                     track_id=tr.track_id,
                     sensor_a=best.a,
                     sensor_b=best.b,
-                    predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), 1e5)),
+                    predicted_error_m=float(min(max(tr.predicted_error_m, 0.0), MAX_METRES)),
                     method=fix.method,
                     candidates=ranking.candidates,
                 )

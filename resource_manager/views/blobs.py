@@ -12,6 +12,9 @@ from common.arrays import FloatArray
 
 __all__ = ["ImageBounds", "ViewBlobs"]
 
+MIN_DEPTH_M = 1e-6
+"""A point must be at least this far in front of a perspective camera (m) to project into its picture."""
+
 
 @dataclass(frozen=True, slots=True)
 class ImageBounds:
@@ -33,7 +36,7 @@ class ImageBounds:
     def inside(self, xyz: FloatArray, margin_px: float = 0.0) -> npt.NDArray[np.bool_]:
         """(n,) whether world points (n, 3) project into the picture (in front of the camera)."""
         c = np.asarray(xyz, dtype=np.float64).reshape(-1, 3) @ self.r.T + self.t
-        front = c[:, 2] > 1e-6
+        front = c[:, 2] > MIN_DEPTH_M
         z = np.where(front, c[:, 2], 1.0)
         u = self.k[0, 0] * c[:, 0] / z + self.k[0, 1] * c[:, 1] / z + self.k[0, 2]
         v = self.k[1, 1] * c[:, 1] / z + self.k[1, 2]

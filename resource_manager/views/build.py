@@ -19,10 +19,11 @@ import numpy as np
 import numpy.typing as npt
 
 from common.angles import wrap_angle
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import PinholeModel, SensorInfo
 from resource_manager.ingest.align import AlignedBlob, AlignedView
 from resource_manager.poses.solver import PoseEstimate
+from resource_manager.track.model import HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M
 from resource_manager.views.blobs import ImageBounds, ViewBlobs
 from resource_manager.views.mono import mono_ranges
 
@@ -43,6 +44,10 @@ BODY_TOP_MARGIN_M = 0.2
 FEET_CUT_PX = 2.0
 """A box whose bottom is this close to the image's lower border does not show the feet."""
 
+DOWNWARD_AXIS_Z = 0.9
+"""A perspective camera whose optical axis has a vertical component above this (cos 26 deg) looks nearly
+straight down: it sees every azimuth around its foot."""
+
 
 @dataclass(frozen=True, slots=True)
 class FeetModel:
@@ -54,7 +59,7 @@ class FeetModel:
     """Added to every floor-distance sigma: the feet are not exactly below the point tracked."""
     max_range_m: float
     """Farther than this a floor distance is not used."""
-    height_m: tuple[float, float] = (1.7, 0.15)
+    height_m: tuple[float, float] = (HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M)
     """People's head-top heights (mean, spread): a box whose distance from its bottom and whose top put the head
     at no person's height does not show the feet (someone nearer, or the picture's edge, cut it above them)."""
 
@@ -86,72 +91,29 @@ def build_views(
     entries = [(sid, av.blobs, poses[sid]) for sid, av in aligned.items() if sid in poses]
     if not entries:
         return out
-    # Every blob of every view in one table (this runs for every sensor on every tick): one pass in Python,
-    # then whole-array operations, each view a slice of the result.
-    nan = math.nan
-    blobs_all = [b for _, blobs, _ in entries for b in blobs]
-    counts = [len(blobs) for _, blobs, _ in entries]
-    tab = np.fromiter(  # np.fromiter over one flat stream: ~3x faster than np.array of tuples
-        chain.from_iterable(
-            (
-                b.bearing_rad,
-                b.width_rad,
-                b.top_elev_rad,
-                b.bottom_elev_rad if b.feet_visible else nan,
-                b.bottom_px,
-                b.top_px,
-            )
-            for b in blobs_all
-        ),
-        dtype=np.float64,
-        count=6 * len(blobs_all),
-    ).reshape(-1, 6)
-    view_of = np.repeat(np.arange(len(entries)), counts)
+    t = _BlobTable.of(entries)
     sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, _, pose in entries]
-    keep = _not_bodies(entries, tab, view_of=view_of, sigmas=sigmas, bodies=bodies, poses=poses)
+    keep = _not_bodies(entries, t.tab, view_of=t.view_of, sigmas=sigmas, bodies=bodies, poses=poses)
     if not keep.all():
-        blobs_all = [b for b, k in zip(blobs_all, keep.tolist(), strict=True) if k]
-        tab, view_of = tab[keep], view_of[keep]
-        counts = np.bincount(view_of, minlength=len(entries)).tolist()
+        t = t.kept(keep, len(entries))
+    tab, blobs_all = t.tab, t.blobs
     yaw = np.array([pose.yaw_rad for _, _, pose in entries], dtype=np.float64)
-    bearing_world = tab[:, 0] + yaw[view_of]
+    bearing_world = tab[:, 0] + yaw[t.view_of]
     local_id = np.array([b.local_id for b in blobs_all], dtype=np.int64)
     confidence = np.array([b.confidence for b in blobs_all], dtype=np.float64)
     top_cut = (tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX)
-    hist_lens = {len(b.hist) for b in blobs_all}
-    hist_all = hist_sqrt_all = None
-    if len(hist_lens) == 1 and next(iter(hist_lens)) > 0:
-        bins = next(iter(hist_lens))
-        hist_all = np.fromiter(
-            chain.from_iterable(b.hist for b in blobs_all), dtype=np.float64, count=bins * len(blobs_all)
-        ).reshape(-1, bins)
-        hist_sqrt_all = np.sqrt(np.clip(hist_all, 0.0, None))
-    ends = np.cumsum(counts).tolist()
-    for (sid, _, pose), sigma, stop, n in zip(entries, sigmas, ends, counts, strict=True):
+    hist_all, hist_sqrt_all = _histograms(blobs_all)
+    ends = np.cumsum(t.counts).tolist()
+    for (sid, _, pose), sigma, stop, n in zip(entries, sigmas, ends, t.counts, strict=True):
         sl = slice(stop - n, stop)
         bottom = tab[sl, 3]
         hist = hist_sqrt = None
         if n and hist_all is not None and hist_sqrt_all is not None:
             hist, hist_sqrt = hist_all[sl], hist_sqrt_all[sl]
         elif n and hist_all is None:
-            lens = {len(b.hist) for b in blobs_all[sl]}
-            if len(lens) == 1 and next(iter(lens)) > 0:
-                hist = np.array([b.hist for b in blobs_all[sl]], dtype=np.float64)
-                hist_sqrt = np.sqrt(np.clip(hist, 0.0, None))
-        mono_range = mono_sigma = None
+            hist, hist_sqrt = _histograms(blobs_all[sl])
         model = pinholes.get(sid)
-        if model is not None and feet is not None:
-            cut = tab[sl, 4] >= model.height_px - FEET_CUT_PX
-            mono_range, mono_sigma = mono_ranges(
-                np.where(cut, np.nan, bottom),
-                pose.z_m,
-                feet.sigma_elev_rad,
-                feet.base_sigma_m,
-                feet.max_range_m,
-                top_elev_rad=tab[sl, 2],
-                height_m=feet.height_m,
-                sigma_top_rad=sigma,
-            )
+        mono_range, mono_sigma = _mono(tab[sl], pose, sigma, model, feet)
         info = infos.get(sid)
         out[sid] = ViewBlobs(
             sensor_id=sid,
@@ -179,15 +141,94 @@ def build_views(
     return out
 
 
+TABLE_COLUMNS = 6
+"""Columns of :class:`_BlobTable`'s ``tab``: bearing, width, top and bottom elevations (rad), bottom and top rows
+(px)."""
+
+
+@dataclass(slots=True)
+class _BlobTable:
+    """Every blob of every view in one table (this runs for every sensor on every tick): one pass in Python, then
+    whole-array operations, each view a slice of the result."""
+
+    blobs: list[AlignedBlob]
+    tab: FloatArray
+    """(n, :data:`TABLE_COLUMNS`) per blob; the bottom elevation NaN where the feet are not visible."""
+    view_of: IntArray
+    """(n,) the view (entry) of each blob."""
+    counts: list[int]
+    """Blobs per view."""
+
+    @classmethod
+    def of(cls, entries: list[tuple[str, list[AlignedBlob], PoseEstimate]]) -> _BlobTable:
+        nan = math.nan
+        blobs_all = [b for _, blobs, _ in entries for b in blobs]
+        counts = [len(blobs) for _, blobs, _ in entries]
+        tab = np.fromiter(  # np.fromiter over one flat stream: ~3x faster than np.array of tuples
+            chain.from_iterable(
+                (
+                    b.bearing_rad,
+                    b.width_rad,
+                    b.top_elev_rad,
+                    b.bottom_elev_rad if b.feet_visible else nan,
+                    b.bottom_px,
+                    b.top_px,
+                )
+                for b in blobs_all
+            ),
+            dtype=np.float64,
+            count=TABLE_COLUMNS * len(blobs_all),
+        ).reshape(-1, TABLE_COLUMNS)
+        return cls(blobs_all, tab, np.repeat(np.arange(len(entries)), counts), counts)
+
+    def kept(self, keep: BoolArray, views: int) -> _BlobTable:
+        """Only the blobs ``keep`` says."""
+        blobs = [b for b, k in zip(self.blobs, keep.tolist(), strict=True) if k]
+        view_of = self.view_of[keep]
+        return _BlobTable(blobs, self.tab[keep], view_of, np.bincount(view_of, minlength=views).tolist())
+
+
+def _histograms(blobs: list[AlignedBlob]) -> tuple[FloatArray | None, FloatArray | None]:
+    """The blobs' colour histograms as one (n, bins) array and its square roots, when they all have the same
+    (non-zero) number of bins; else (None, None)."""
+    hist_lens = {len(b.hist) for b in blobs}
+    if len(hist_lens) != 1 or next(iter(hist_lens)) <= 0:
+        return None, None
+    bins = next(iter(hist_lens))
+    hist = np.fromiter(chain.from_iterable(b.hist for b in blobs), dtype=np.float64, count=bins * len(blobs))
+    hist = hist.reshape(-1, bins)
+    return hist, np.sqrt(np.clip(hist, 0.0, None))
+
+
+def _mono(
+    tab: FloatArray, pose: PoseEstimate, sigma: float, model: PinholeModel | None, feet: FeetModel | None
+) -> tuple[FloatArray | None, FloatArray | None]:
+    """Floor distances (and their sigmas) of one perspective view's blobs from their box bottoms (None: the view
+    gives none)."""
+    if model is None or feet is None:
+        return None, None
+    cut = tab[:, 4] >= model.height_px - FEET_CUT_PX
+    return mono_ranges(
+        np.where(cut, np.nan, tab[:, 3]),
+        pose.z_m,
+        feet.sigma_elev_rad,
+        feet.base_sigma_m,
+        feet.max_range_m,
+        top_elev_rad=tab[:, 2],
+        height_m=feet.height_m,
+        sigma_top_rad=sigma,
+    )
+
+
 def _not_bodies(
     entries: list[tuple[str, list[AlignedBlob], PoseEstimate]],
     tab: FloatArray,
     *,
-    view_of: npt.NDArray[np.int64],
+    view_of: IntArray,
     sigmas: list[float],
     bodies: dict[str, float] | None,
     poses: dict[str, PoseEstimate],
-) -> npt.NDArray[np.bool_]:
+) -> BoolArray:
     """(n,) False for the blobs that are a known robot/tripod body seen by another camera.
 
     A blob on a body's bearing, about its angular width, whose top is below the body's camera (plus
@@ -242,7 +283,7 @@ def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, f
     """
     r, k = model.r, model.k
     axis_x, axis_y, axis_z = r[6], r[7], r[8]  # the camera z axis in the world: third row of R
-    if abs(axis_z) > 0.9 or k[0] <= 0:
+    if abs(axis_z) > DOWNWARD_AXIS_Z or k[0] <= 0:
         return None
     half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
     return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)

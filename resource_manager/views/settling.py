@@ -109,38 +109,46 @@ class ViewTrust:
                 st.still_since_ns = None
                 out.append(sid)  # no pose: its views are not used anyway
                 continue
-            st.history.append((t_ns, pose.x_m, pose.y_m, pose.yaw_rad))
-            while st.history and st.history[0][0] < t_ns - 2 * p.still_ns:
-                st.history.popleft()
-            if st.anchor is None:
-                st.anchor = (pose.x_m, pose.y_m)
             state = states.get(sid, "ok")
-            if state != "ok":
-                st.reports_state = True  # a node that says when it cannot see (older ones always say "ok")
-            # Its node says it moves; or, from an older node, it goes blank on its way to a goal.
-            driving = state == "moving" or (sid in en_route and sid not in with_blobs and not st.reports_state)
-            if driving or (not st.reports_state and math.dist(st.anchor, (pose.x_m, pose.y_m)) > p.move_m):
-                st.moved = True
-            if not st.moved:
-                if self._still(st, t_ns, pose):
-                    st.anchor = (pose.x_m, pose.y_m)  # follows a converging pose, not a robot driving off
-                continue  # where it settled: its pose's noise is no reason to drop its views
-            if sid in en_route or not self._still(st, t_ns, pose):
-                st.still_since_ns = None
-                out.append(sid)
-                continue
-            if st.still_since_ns is None:
-                st.still_since_ns = t_ns - p.still_ns  # the window just checked: still since then
-            since = t_ns - st.still_since_ns
-            # A node that tells says "ok" once relearnt; from an older one, blobs again (or the longest relearn).
-            relearnt = (state == "ok") if st.reports_state else (sid in with_blobs or since >= p.relearn_max_ns)
-            if pose.sigma_xy_m <= p.max_sigma_xy_m and relearnt:
-                st.moved, st.anchor, st.still_since_ns = False, (pose.x_m, pose.y_m), None
-            else:
+            if self._unsettled(st, t_ns, pose, state, en_route=sid in en_route, blank=sid not in with_blobs):
                 out.append(sid)
         for sid in [s for s in self.states if s not in mobile]:
             del self.states[sid]
         return frozenset(out)
+
+    def _unsettled(
+        self, st: _State, t_ns: int, pose: PoseEstimate, state: DetectorState, *, en_route: bool, blank: bool
+    ) -> bool:
+        """Follow one mobile camera with a pose; True while its views must not be used (``en_route``: sent to a
+        goal not reached yet; ``blank``: no blob in its view now)."""
+        p = self.params
+        st.history.append((t_ns, pose.x_m, pose.y_m, pose.yaw_rad))
+        while st.history and st.history[0][0] < t_ns - 2 * p.still_ns:
+            st.history.popleft()
+        if st.anchor is None:
+            st.anchor = (pose.x_m, pose.y_m)
+        if state != "ok":
+            st.reports_state = True  # a node that says when it cannot see (older ones always say "ok")
+        # Its node says it moves; or, from an older node, it goes blank on its way to a goal.
+        driving = state == "moving" or (en_route and blank and not st.reports_state)
+        if driving or (not st.reports_state and math.dist(st.anchor, (pose.x_m, pose.y_m)) > p.move_m):
+            st.moved = True
+        if not st.moved:
+            if self._still(st, t_ns, pose):
+                st.anchor = (pose.x_m, pose.y_m)  # follows a converging pose, not a robot driving off
+            return False  # where it settled: its pose's noise is no reason to drop its views
+        if en_route or not self._still(st, t_ns, pose):
+            st.still_since_ns = None
+            return True
+        if st.still_since_ns is None:
+            st.still_since_ns = t_ns - p.still_ns  # the window just checked: still since then
+        since = t_ns - st.still_since_ns
+        # A node that tells says "ok" once relearnt; from an older one, blobs again (or the longest relearn).
+        relearnt = (state == "ok") if st.reports_state else (not blank or since >= p.relearn_max_ns)
+        if pose.sigma_xy_m <= p.max_sigma_xy_m and relearnt:
+            st.moved, st.anchor, st.still_since_ns = False, (pose.x_m, pose.y_m), None
+            return False
+        return True
 
     def _still(self, st: _State, t_ns: int, pose: PoseEstimate) -> bool:
         """The pose stayed within ``still_m``/``still_yaw_rad`` of ``pose`` over the last ``still_ns``."""

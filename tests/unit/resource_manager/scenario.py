@@ -98,7 +98,8 @@ def run_scenario(
             continue
         start = time.perf_counter()
         cpu0 = time.thread_time()
-        res = fusion.step(Batch(features=batch, infos=infos), T0_NS + int(t_fuse * 1e9))
+        fusion.absorb(Batch(features=batch, infos=infos))
+        res = fusion.step(T0_NS + int(t_fuse * 1e9))
         cpu_ms.append((time.thread_time() - cpu0) * 1e3)
         tick_ms.append((time.perf_counter() - start) * 1e3)
         if keep_results:

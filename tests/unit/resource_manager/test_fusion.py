@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from common.schema import Features
+from resource_manager.fusion import Batch, Fusion
 from tests.unit.resource_manager.scenario import make_config, run_scenario
-from tests.unit.resource_manager.synth import Cam, Person, RandomWalk, rectangle_path
+from tests.unit.resource_manager.synth import Cam, Person, RandomWalk, features_for, info_for, rectangle_path
 
 PX = math.radians(0.2)
 """One pixel of a 1800-px panorama (the paper's 0.2 deg/px)."""
@@ -181,3 +182,30 @@ def test_view_plan_moves_robot_and_error_falls() -> None:
     plan = next(p for r in reversed(run.results) for p in r.plans)
     assert plan.sensor_id == "r1" and plan.partner_id == "p1"
     assert plan.predicted_error_m <= plan.current_error_m + 1e-6
+
+
+def test_absorb_files_and_step_fuses_and_a_sensor_that_goes_is_forgotten_once() -> None:
+    """absorb(batch) files what arrived (nothing is fused), step(t) fuses only what was absorbed; a sensor whose
+    liveliness goes leaves the registry's frames and timing and the pose solver at once, and stays reported absent."""
+    cams = [Cam("p1", 0.5, 0.5), Cam("p2", 3.5, 0.5, yaw=0.7)]
+    fusion = Fusion(make_config())
+    rng = np.random.default_rng(0)
+    t0 = 1_800_000_000_000_000_000
+    absorbed = fusion.absorb(
+        Batch(
+            features=[features_for(c, one_person(0.0), cams, t0, 1, rng) for c in cams],
+            infos=[info_for(c) for c in cams],
+            presence={"p1": True, "p2": True},
+        )
+    )
+    assert absorbed.ptz_answers == [] and absorbed.ptz_ended == []
+    assert fusion.last_t_ns == 0 and fusion.sensors.in_use() == ["p1", "p2"]
+    result = fusion.step(t0)
+    assert not result.skipped and result.counters.sensors_in_use == ["p1", "p2"] and set(result.views) == {"p1", "p2"}
+    assert fusion.step(t0).skipped  # nothing new: the same instant is not fused twice
+    fusion.absorb(Batch(presence={"p2": False}))
+    assert "p2" not in fusion.sensors.buffers and "p2" not in fusion.sensors.timing
+    assert "p2" not in fusion.poses.filters and fusion.sensors.absent() == ["p2"]
+    late = fusion.absorb(Batch(features=[features_for(cams[1], one_person(0.1), cams, t0 + 10**8, 2, rng)]))
+    assert late.ptz_answers == [] and "p2" not in fusion.sensors.buffers  # a gone sensor's late frame is dropped
+    assert fusion.step(t0 + 10**8).counters.sensors_absent == ["p2"]

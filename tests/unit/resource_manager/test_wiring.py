@@ -55,7 +55,7 @@ def test_times_reach_the_stages_in_nanoseconds(tmp_path: Path) -> None:
     cfg = _config(tmp_path)
     align = wiring.align_params(cfg)
     assert (align.max_extrapolation_ns, align.stale_ns) == (150_000_000, 2_500_000_000)
-    sched = wiring.schedule(cfg).params
+    sched = wiring.schedule(cfg, wiring.sensor_registry(cfg)).params
     assert (sched.max_wait_ns, sched.min_interval_ns) == (80_000_000, 50_000_000)  # 20 Hz at most
     planner = wiring.view_planner(cfg).params
     assert (planner.period_ns, planner.settle_ns) == (250_000_000, 3_000_000_000)
@@ -64,14 +64,14 @@ def test_times_reach_the_stages_in_nanoseconds(tmp_path: Path) -> None:
 def test_angles_reach_the_stages_in_radians(tmp_path: Path) -> None:
     cfg = _config(tmp_path)
     assert wiring.view_planner(cfg).params.elev_margin_rad == pytest.approx(math.radians(2.0))
-    ptz = wiring.ptz_allocator(cfg).params
+    ptz = wiring.ptz_allocator(cfg, wiring.sensor_registry(cfg)).params
     assert ptz.hfov_rad == pytest.approx(math.radians(50.0)) and ptz.min_tilt_rad == pytest.approx(-math.pi / 4)
     feet = wiring.feet_model(cfg)
     assert feet is not None and feet.sigma_elev_rad == pytest.approx(math.radians(1.5)) and feet.max_range_m == 12.0
 
 
 def test_a_pose_override_is_a_surveyed_pose_with_its_yaw_wrapped(tmp_path: Path) -> None:
-    pose = wiring.pose_solver(_config(tmp_path)).overrides["wall1"]
+    pose = wiring.pose_solver(cfg := _config(tmp_path), wiring.sensor_registry(cfg)).overrides["wall1"]
     assert (pose.x_m, pose.y_m, pose.z_m, pose.source) == (1.0, 2.0, 2.4, "surveyed")
     assert pose.yaw_rad == pytest.approx(-math.pi / 2)  # 270 deg is -90 deg
 

@@ -121,13 +121,10 @@ def test_fusion_keeps_a_static_pose_whatever_the_info_stamp() -> None:
 
 
 def _alloc(lease_s: float = 10.0) -> PtzAllocator:
-    a = PtzAllocator(PtzParams(lease_s=lease_s))
-    a.update_info(
-        msgspec.structs.replace(
-            info_for(Cam("z1", 0.0, 0.0)), kind="ptz", pose=Pose(x_m=0.0, y_m=0.0, z_m=2.5, yaw_rad=0.0)
-        )
+    z1 = msgspec.structs.replace(
+        info_for(Cam("z1", 0.0, 0.0)), kind="ptz", pose=Pose(x_m=0.0, y_m=0.0, z_m=2.5, yaw_rad=0.0)
     )
-    return a
+    return PtzAllocator(PtzParams(lease_s=lease_s), infos={"z1": z1})
 
 
 PERSON = PtzTarget("m-1", 3.0, 4.0, 1.8)
@@ -161,17 +158,14 @@ def test_a_hold_ends_when_its_agent_goes_and_another_gets_the_camera() -> None:
     f = Fusion(cfg)
     f.ptz = _alloc()
     f.ptz_targets = lambda: {"m-1": PERSON}  # type: ignore[method-assign]
-    f.absorb(Batch(ptz_requests=[ask("a1")]))
-    (first,) = f.ptz_answers
+    (first,) = f.absorb(Batch(ptz_requests=[ask("a1")])).ptz_answers
     assert first.sensor_id == "z1"
-    f.ptz_answers.clear()
-    f.absorb(Batch(ptz_requests=[ask("a2", prio=0)]))
-    assert f.ptz_answers[0].sensor_id == "" and "held" in f.ptz_answers[0].reason
-    assert "a1" not in f.ptz_answers[0].reason  # who holds it is not the asker's business
-    f.ptz_answers.clear()
-    f.absorb(Batch(agents={"a1": False}, ptz_requests=[ask("a2")]))  # a1 exited; a2 asks in the same tick
-    assert f.ptz_answers[0].sensor_id == "z1"
-    assert any("agent left" in why for _, why in f.ptz.ended)
+    (second,) = f.absorb(Batch(ptz_requests=[ask("a2", prio=0)])).ptz_answers
+    assert second.sensor_id == "" and "held" in second.reason
+    assert "a1" not in second.reason  # who holds it is not the asker's business
+    third = f.absorb(Batch(agents={"a1": False}, ptz_requests=[ask("a2")]))  # a1 exited; a2 asks in the same tick
+    assert third.ptz_answers[0].sensor_id == "z1"
+    assert any("agent left" in why for _, why in third.ptz_ended)
 
 
 def test_release_is_the_holders_own() -> None:

@@ -23,9 +23,7 @@ WAIT = 200 * MS
 
 
 def _scheduler(timings: dict[str, FrameTiming], mode: str = "watermark", min_interval_ns: int = 0) -> Scheduler:
-    sch = Scheduler(ScheduleParams(mode=mode, max_wait_ns=WAIT, min_interval_ns=min_interval_ns))  # type: ignore[arg-type]
-    sch.sensors.update(timings)
-    return sch
+    return Scheduler(ScheduleParams(mode=mode, max_wait_ns=WAIT, min_interval_ns=min_interval_ns), timings)  # type: ignore[arg-type]
 
 
 def _at(newest_ms: int, late_ms: float = 0.0) -> FrameTiming:
@@ -79,30 +77,28 @@ def test_each_sensor_is_waited_for_as_long_as_its_recent_frames_predict(
 
 
 def test_a_sensor_not_yet_measured_is_waited_for_the_longest() -> None:
-    sch = _scheduler({})
-    sch.declare("a", 10.0)
+    a = FrameTiming(declared_period_ns=PERIOD)
     for k in range(1, WARMUP_FRAMES):
-        sch.arrived("a", k * PERIOD, k * PERIOD + 1 * MS, 0, "accepted")
-    assert sch.sensors["a"].allowance_ns(WAIT) == WAIT
-    sch.arrived("a", WARMUP_FRAMES * PERIOD, WARMUP_FRAMES * PERIOD + 1 * MS, 0, "accepted")
-    assert sch.sensors["a"].allowance_ns(WAIT) == MIN_ALLOWANCE_NS  # measured now: frames 1 ms after capture
+        a.arrived("accepted", k * PERIOD, k * PERIOD + 1 * MS, 0, WAIT)
+    assert a.allowance_ns(WAIT) == WAIT
+    a.arrived("accepted", WARMUP_FRAMES * PERIOD, WARMUP_FRAMES * PERIOD + 1 * MS, 0, WAIT)
+    assert a.allowance_ns(WAIT) == MIN_ALLOWANCE_NS  # measured now: frames 1 ms after capture
 
 
 def test_measured_timing_follows_the_frames() -> None:
-    sch = _scheduler({})
+    a = FrameTiming()
     for k in range(1, 60):  # 30 fps frames, delivered 12 ms after capture, +-2 ms
         stamp = k * 33 * MS
-        sch.arrived("a", stamp, stamp + (12 + (2 if k % 2 else -2)) * MS, 3 * MS, "accepted")
-    a = sch.sensors["a"]
+        a.arrived("accepted", stamp, stamp + (12 + (2 if k % 2 else -2)) * MS, 3 * MS, WAIT)
     assert a.period() == pytest.approx(33 * MS, rel=0.01)
     assert a.delay_ns == pytest.approx(12 * MS, abs=2 * MS)
     assert 0 < a.delay_dev_ns <= 2 * MS
     assert a.allowance_ns(WAIT) >= MIN_ALLOWANCE_NS
     # a frame dropped between (a 66 ms step) is not a slower camera
-    sch.arrived("a", 61 * 33 * MS, 61 * 33 * MS + 12 * MS, 3 * MS, "accepted")
+    a.arrived("accepted", 61 * 33 * MS, 61 * 33 * MS + 12 * MS, 3 * MS, WAIT)
     assert a.period() == pytest.approx(33 * MS, rel=0.01)
     # a clock step forgets what the old stamps said
-    sch.arrived("a", 10 * 33 * MS, 61 * 33 * MS + 50 * MS, 3 * MS, "clock_step")
+    a.arrived("clock_step", 10 * 33 * MS, 61 * 33 * MS + 50 * MS, 3 * MS, WAIT)
     assert a.frames == 1 and a.newest_ns == 10 * 33 * MS
 
 
@@ -155,7 +151,7 @@ def _drive(fusion: Fusion, arrivals: list[tuple[int, Features]]) -> list[tuple[i
     def fuse_at(now_ns: int) -> None:
         t = fusion.next_instant(now_ns)
         if t is not None:
-            fusion.step(Batch(), t)
+            fusion.step(t)
             fused.append(((t - T0) // MS, (now_ns - T0) // MS))
 
     now = T0
@@ -200,8 +196,8 @@ def test_a_frame_300_ms_late_is_dropped_once_its_instant_is_fused_and_never_rewi
     assert [t for t, _ in fused] == [100 * k for k in range(1, 21)]  # every instant once, in order
     assert max(at - t for t, at in fused) <= 5 + MIN_ALLOWANCE_NS // MS  # none held back by the late frame
     assert fusion.schedule.sensors["b"].late == 1  # its instant was fused: counted, dropped
-    assert fusion.ingest.counters.late == 1
-    assert fusion.step(Batch(), T0 + 1300 * MS).skipped  # never rewinds
+    assert fusion.sensors.counters.late == 1
+    assert fusion.step(T0 + 1300 * MS).skipped  # never rewinds
 
 
 def test_a_sensor_always_300_ms_late_never_holds_the_others_back() -> None:
@@ -247,19 +243,19 @@ def test_out_of_order_frames_are_sorted_and_a_clock_step_restarts_a_sensor() -> 
     fusion = _fusion()
     fusion.absorb(Batch(features=[_frame("a", 2, 200), _frame("a", 1, 100), _frame("b", 1, 100), _frame("b", 2, 200)]))
     assert fusion.next_instant(T0 + 205 * MS) == T0 + 200 * MS
-    assert fusion.ingest.counters.out_of_order == 1
-    fusion.step(Batch(), T0 + 200 * MS)
+    assert fusion.sensors.counters.out_of_order == 1
+    fusion.step(T0 + 200 * MS)
     # b's clock steps back 2 s (a newer seq, an older stamp): its buffer restarts, a is not held back by it forever.
     fusion.absorb(Batch(features=[_frame("a", 3, 300), _frame("b", 3, -1800)]))
-    assert fusion.ingest.counters.clock_steps == 1
+    assert fusion.sensors.counters.clock_steps == 1
     t = fusion.next_instant(T0 + 305 * MS)
     assert t == T0 + 300 * MS  # b's newest is far behind: late, not waited for
-    fusion.step(Batch(), t)
+    fusion.step(t)
     # b's stepped clock keeps counting from there: its frames are late for the instants already fused, and its
     # measured delay (2 s behind the manager's clock) is bounded, so a stays on its own pace.
     for k in range(4, 8):
         fusion.absorb(Batch(features=[_frame("a", k, 100 * k), _frame("b", k, 100 * k - 2100)]))
         t = fusion.next_instant(T0 + (100 * k + 5) * MS)
         assert t == T0 + 100 * k * MS
-        fusion.step(Batch(), t)
+        fusion.step(t)
     assert fusion.schedule.sensors["b"].allowance_ns(WAIT) <= WAIT

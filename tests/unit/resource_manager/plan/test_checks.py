@@ -30,7 +30,7 @@ def _cam(sid: str, x: float, y: float, *, mobile: bool = False, z_m: float = 1.1
 
 def _scene(fixed: int = 1) -> Scene:
     robot, main = _cam("r", 6.0, 1.0, mobile=True), _cam("m", 1.0, 3.0)
-    tgt = PlanTarget("t1", np.array([4.0, 3.0]), 0.3, ("m", "r"))
+    tgt = PlanTarget("t1", np.array([4.0, 3.0]), 0.3, ("m", "r"), 1.8)
     extra = [_cam("x", 7.0, 5.0)][: max(fixed - 1, 0)]
     return Scene(cam=robot, main=main, tgt=tgt, others=[main, *extra], people=[tgt], fixed=[main, *extra])
 

@@ -24,10 +24,7 @@ def sightings(cams: list[Cam], rng: np.random.Generator, noise: float) -> dict[s
 
 
 def solver(cams: list[Cam], **params: object) -> PoseSolver:
-    s = PoseSolver(MutualParams(**params))  # type: ignore[arg-type]
-    for c in cams:
-        s.update_info(info_for(c))
-    return s
+    return PoseSolver(MutualParams(**params), infos={c.id: info_for(c) for c in cams})  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(

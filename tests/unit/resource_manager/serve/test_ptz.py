@@ -23,9 +23,7 @@ def _ptz(sid: str, x: float, y: float) -> SensorInfo:
 
 
 def test_ptz_priority_preemption_release_and_track_end() -> None:
-    alloc = PtzAllocator()
-    alloc.update_info(_ptz("z1", 0.0, 0.0))
-    alloc.update_info(_ptz("z2", 50.0, 0.0))  # too far from the person
+    alloc = PtzAllocator(infos={"z1": _ptz("z1", 0.0, 0.0), "z2": _ptz("z2", 50.0, 0.0)})  # z2: too far
     person = PtzTarget("m-1", 3.0, 4.0, 1.8)
     assert alloc.acquire("a1", person, "m-1", 1, 10) == ("z1", "")
     sid, why = alloc.acquire("a2", person, "m-1", 1, 11)
@@ -44,8 +42,7 @@ def test_ptz_priority_preemption_release_and_track_end() -> None:
 
 
 def test_ptz_none_can_see() -> None:
-    alloc = PtzAllocator()
-    alloc.update_info(_ptz("z2", 50.0, 0.0))
+    alloc = PtzAllocator(infos={"z2": _ptz("z2", 50.0, 0.0)})
     sid, why = alloc.acquire("a1", PtzTarget("m-1", 3.0, 4.0, 1.8), "m-1", 0, 1)
     assert sid == "" and "can see" in why
 
@@ -56,8 +53,8 @@ def _ask(agent: str, priority: int, token: int) -> PtzAsk:
 
 
 def test_a_request_above_its_agents_cap_is_clipped_and_the_refusal_names_no_holder() -> None:
-    alloc = PtzAllocator(PtzParams(max_priority={"ops": 10}, default_max_priority=1))
-    alloc.update_info(_ptz("z1", 0.0, 0.0))
+    params = PtzParams(max_priority={"ops": 10}, default_max_priority=1)
+    alloc = PtzAllocator(params, infos={"z1": _ptz("z1", 0.0, 0.0)})
     person = PtzTarget("m-1", 3.0, 4.0, 1.8)
     first = alloc.answer(_ask("a1", 1, 1), person)
     assert first.sensor_id == "z1" and first.reason == ""

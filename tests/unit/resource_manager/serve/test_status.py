@@ -39,6 +39,7 @@ def _status(tick_ms: list[float], latencies: list[Latency]) -> ManagerStatus:
         gate=gate,
         refused_partial=False,
         schedule=schedule,
+        frames_received=0,
         latencies=latencies,
     )
 

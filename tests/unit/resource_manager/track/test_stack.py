@@ -51,8 +51,8 @@ def test_views_with_histograms_of_different_sizes_keep_each_size_apart() -> None
 def test_a_subset_takes_the_chosen_blobs_of_the_chosen_views_and_split_undoes_stacking() -> None:
     views = _views()
     stack = ViewStack.of(views, [SPREAD] * 3)
-    sub = stack.subset([views[2], views[0]], [2, 0], [[2, 0], [1]])
-    assert sub.rows == {"c": 0, "a": 1}
+    sub = stack.subset([2, 0], [[2, 0], [1]])
+    assert sub.rows == {"c": 0, "a": 1} and sub.counts.tolist() == [2, 1]
     assert sub.bearing_rad.tolist() == [views[2].bearing_rad[2], views[2].bearing_rad[0], views[0].bearing_rad[1]]
     assert sub.z_m.tolist() == [1.4, 1.1]
     parts = stack.split(np.arange(10.0).reshape(2, 5))

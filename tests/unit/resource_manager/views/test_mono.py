@@ -98,7 +98,8 @@ def test_the_feet_tell_people_from_ghosts_of_crossing_rays() -> None:
 
     for n in range(12):
         t_ns = t0 + n * 250_000_000
-        res = fusion.step(Batch(features=[feats(s, n + 1, t_ns) for s in cams], infos=infos if n == 0 else []), t_ns)
+        fusion.absorb(Batch(features=[feats(s, n + 1, t_ns) for s in cams], infos=infos if n == 0 else []))
+        res = fusion.step(t_ns)
     tracks = res.trackset.tracks
     assert len(tracks) == 2
     for p in people:
@@ -166,7 +167,8 @@ def test_tracks_of_people_who_left_end_at_once_and_unknown_ids_are_bounded() -> 
         t_ns = t0 + n * 250_000_000
         here = n < 20
         batch = Batch(features=[feats(s, n + 1, t_ns, here) for s in cams], infos=infos if n == 0 else [])
-        res = fusion.step(batch, t_ns + 1)
+        fusion.absorb(batch)
+        res = fusion.step(t_ns + 1)
         tracks = [tr for tr in res.trackset.tracks if tr.state != "tentative"]
         if n == 19:
             confirmed_at_leave = len(tracks)
@@ -176,10 +178,11 @@ def test_tracks_of_people_who_left_end_at_once_and_unknown_ids_are_bounded() -> 
     assert confirmed_at_leave == 1
     # Made-up sensor ids cannot grow the buffers without bound.
     fakes = [Features(sensor_id=f"fake{i:05d}", seq=1, stamp_ns=t0 + 8_000_000_000, frame_index=1) for i in range(500)]
-    fusion.step(Batch(features=fakes), t0 + 8_000_000_001)
-    assert len(fusion.ingest.buffers) <= 64
-    fusion.step(Batch(), t0 + 12_000_000_000)
-    assert set(fusion.ingest.buffers) <= set(cams)  # stale, never announced: forgotten
+    fusion.absorb(Batch(features=fakes))
+    fusion.step(t0 + 8_000_000_001)
+    assert len(fusion.sensors.buffers) <= 64
+    fusion.step(t0 + 12_000_000_000)
+    assert set(fusion.sensors.buffers) <= set(cams)  # stale, never announced: forgotten
 
 
 @pytest.mark.parametrize("kind", ["pinhole", "ptz"])
@@ -189,7 +192,8 @@ def test_one_blank_frame_of_every_camera_does_not_end_the_tracks(kind: str) -> N
     t0 = 1_800_000_000_000_000_000
     cams = {"a": (0.0, 0.0, math.pi / 4), "b": (10.0, 0.0, 3 * math.pi / 4), "c": (5.0, 10.0, -math.pi / 2)}
     infos = [_pinhole_info(s, x, y, yaw, kind) for s, (x, y, yaw) in cams.items()]
-    assert fusion.step(Batch(infos=infos), t0).skipped is False
+    fusion.absorb(Batch(infos=infos))
+    assert fusion.step(t0).skipped is False
     person = (5.0, 4.0)
 
     def feats(sid: str, seq: int, t_ns: int, blank: bool) -> Features:
@@ -200,6 +204,7 @@ def test_one_blank_frame_of_every_camera_does_not_end_the_tracks(kind: str) -> N
     ids = []
     for n in range(1, 20):
         t_ns = t0 + n * 250_000_000
-        res = fusion.step(Batch(features=[feats(s, n, t_ns, n == 10) for s in cams]), t_ns + 1)
+        fusion.absorb(Batch(features=[feats(s, n, t_ns, n == 10) for s in cams]))
+        res = fusion.step(t_ns + 1)
         ids.append([tr.track_id for tr in res.trackset.tracks if tr.state != "tentative"])
     assert ids[8] == ids[9] == ids[10] == ids[-1] == ["m1-1"]
