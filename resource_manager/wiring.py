@@ -103,7 +103,6 @@ def match_params(config: ManagerConfig) -> MatchParams:
         width_sigma=mc.width_sigma,
         height_sigma=mc.height_sigma,
         use_colour=mc.use_colour,
-        temporal_weight=0.0,
         floor_sigma_m=mc.floor_sigma_m,
         width_floor=mc.width_floor,
     )

@@ -12,10 +12,11 @@ every blob j of camera b::
 * r_wc: width consistency of the metric widths W_k = 2 D_k tan(w_k / 2);
 * r_hc: height consistency of the head-top heights H_k = z_k + D_k tan(top_k).
 
-A temporal consistency term from the current tracks is added:
-``r' = (r + λ c_t) / (1 + λ)`` with c_t = 1 when both blobs already support
-the same track (only where r alone already exceeds the threshold). Two matchers turn the
-matrix into pairs, chosen by name (docs/STYLE.md habit 12): ``greedy`` (the
+The paper adds a temporal consistency term from the tracks to each r(i, j);
+here tracking history enters earlier: the tracker assigns each view's blobs to
+the tracks' predictions first (resource_manager/track/observe.py), and Eq. 7
+pairs only the blobs no track explains, for which no track has a say. Two
+matchers turn the matrix into pairs, chosen by name (docs/STYLE.md habit 12): ``greedy`` (the
 paper's: repeatedly take the largest entry; one sort of the entries above the
 threshold gives the same pairs) and ``global`` (Hungarian on the sum of
 confidences, with a private "unmatched" dummy per row and column).
@@ -27,7 +28,6 @@ confidences, with a private "unmatched" dummy per row and column).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
 
@@ -71,11 +71,8 @@ class MatchParams:
     width_sigma: float = default_of(MatchSection, "width_sigma")
     height_sigma: float = default_of(MatchSection, "height_sigma")
     use_colour: bool = default_of(MatchSection, "use_colour")
-    temporal_weight: float = 1.0
     floor_sigma_m: float = default_of(MatchSection, "floor_sigma_m")
     width_floor: float = default_of(MatchSection, "width_floor")
-    temporal_gate_m: float = 0.6
-    """Distance of a hypothesis from a track's prediction at which the positional temporal term is exp(-1/2)."""
     colinear_sigmas: float = 2.0
     """A target within this many bearing sigmas (or its own half width) of the baseline is size-ratio."""
 
@@ -85,7 +82,7 @@ class MatchMatrix:
     """Eq. 7 for every blob pair of two views, and the hypothesised targets."""
 
     r: FloatArray
-    """(na, nb) total confidence (with the temporal term when given)."""
+    """(na, nb) total confidence."""
     d1_m: FloatArray
     d2_m: FloatArray
     xy: FloatArray
@@ -93,8 +90,7 @@ class MatchMatrix:
     size_ratio: BoolArray
     """(na, nb) True where Eq. 2 (size-ratio) was used instead of Eq. 1."""
     parts: dict[str, FloatArray]
-    """The factors r_is, r_rc, r_wc, r_hc, c_t (for tests and diagnostics). The positional part of c_t
-    is evaluated only where Eq. 7 alone exceeds the threshold, the only place it counts."""
+    """The factors r_is, r_rc, r_wc, r_hc (for tests and diagnostics)."""
 
 
 def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray:
@@ -108,19 +104,9 @@ def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray
     return np.where(ok, np.exp(-(lr**2) / (2.0 * sigma**2)), 0.0)
 
 
-def match_matrix(
-    a: ViewBlobs, b: ViewBlobs, params: MatchParams, temporal: FloatArray | None = None, threshold: float = 0.1
-) -> MatchMatrix:
-    """Score every blob of ``a`` against every blob of ``b`` (Eq. 7).
-
-    Args:
-        a: camera 1 (O1).
-        b: camera 2 (O2).
-        params: measure settings.
-        temporal: (na, nb) c_t in [0, 1] from the current tracks, or None.
-        threshold: tau; the temporal term is added only where r itself exceeds it.
-    """
-    return match_matrices([(a, b)], params, [temporal], threshold)[0]
+def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams) -> MatchMatrix:
+    """Score every blob of ``a`` (camera 1, O1) against every blob of ``b`` (camera 2, O2) (Eq. 7)."""
+    return match_matrices([(a, b)], params)[0]
 
 
 @dataclass(slots=True)
@@ -358,62 +344,15 @@ def _heights(
     return r_hc_v, r_hc
 
 
-def _temporal(
-    r: FloatArray,
-    hx: FloatArray,
-    hy: FloatArray,
-    g: _Batch,
-    params: MatchParams,
-    *,
-    temporals: Sequence[FloatArray | None] | None,
-    threshold: float,
-    track_xy: FloatArray | None,
-) -> tuple[FloatArray, FloatArray]:
-    """Eq. 7 with the temporal term: ``r' = (r + λ c_t) / (1 + λ)``, and c_t (the link-based ``temporals``, and
-    the positional term where ``track_xy`` is given)."""
-    shape = g.shape
-    lam = params.temporal_weight
-    temporals = list(temporals) if temporals is not None else [None] * shape[0]
-    c_t = np.zeros(shape)
-    for k, temporal in enumerate(temporals):
-        if temporal is not None:
-            c_t[k, : g.nas[k], : g.nbs[k]] = temporal
-    apply = np.array([t is not None for t in temporals], dtype=bool)
-    if track_xy is not None and track_xy.size and lam > 0 and params.temporal_gate_m > 0:
-        # Only where it can count (r above the threshold; below, r' = r / (1 + lam) whatever c_t is): the
-        # nearest-track distance of every hypothesis to every track is the costliest array of the tick.
-        tx, ty = track_xy[:, 0], track_xy[:, 1]
-        near = r > threshold
-        d2min = np.min((hx[near][:, None] - tx) ** 2 + (hy[near][:, None] - ty) ** 2, axis=-1)
-        c_pos = np.zeros(shape)
-        c_pos[near] = np.exp(-d2min / (2.0 * params.temporal_gate_m**2))
-        c_t = np.maximum(c_t, c_pos)
-        apply[:] = True
-    if lam > 0 and apply.any():
-        # The temporal term can lift a plausible pair, never rescue one that Eq. 7 itself rejects.
-        lifted = (r + lam * c_t * (r > threshold)) / (1.0 + lam)
-        r = np.where(apply[:, None, None], lifted, r)
-    return r, c_t
-
-
-def match_matrices(
-    pairs: list[tuple[ViewBlobs, ViewBlobs]],
-    params: MatchParams,
-    temporals: Sequence[FloatArray | None] | None = None,
-    threshold: float = 0.1,
-    track_xy: FloatArray | None = None,
-) -> list[MatchMatrix]:
+def match_matrices(pairs: list[tuple[ViewBlobs, ViewBlobs]], params: MatchParams) -> list[MatchMatrix]:
     """Eq. 7 for several camera pairs at once (one vectorised pass: with many cameras the largest tick stage).
 
     Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is a view of
-    its pair's (na, nb) corner. See :func:`match_matrix` for the measures. ``track_xy`` (m, 2): the tracks'
-    predicted positions; a hypothesis near one gets the temporal term c_t = exp(-d²/2g²) even when the
-    nodes' 2D ids changed (the link-based c_t of ``temporals`` needs them unchanged).
+    its pair's (na, nb) corner. See :func:`match_matrix` for the measures.
 
     Cost: the ray geometry (Eqs. 1-2) runs on every blob pair; the distance-dependent measures (ray
     convergence, widths, heights, feet) only on the pairs whose rays meet in range (in a room, most of
-    them), their values elsewhere being constants of the views (0 distance); the positional temporal term
-    only where Eq. 7 alone exceeds the threshold.
+    them), their values elsewhere being constants of the views (0 distance).
     """
     if not pairs:
         return []
@@ -442,11 +381,11 @@ def match_matrices(
     r_hc[valid] = r_hc_v
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
-    # -- colour and the temporal term ------------------------------------------------------------------------
+    # -- colour ------------------------------------------------------------------------------------------------
     r_is = colour_table(pairs, params.use_colour, shape, tabs=g.tabs, ia=g.ia, ib=g.ib)
     hx = g.o1[:, 0, None, None] + d1 * np.cos(g.th1)  # (p, na, nb) hypothesised positions along camera 1's ray
     hy = g.o1[:, 1, None, None] + d1 * np.sin(g.th1)
-    r, c_t = _temporal(r_is * r_all, hx, hy, g, params, temporals=temporals, threshold=threshold, track_xy=track_xy)
+    r = r_is * r_all
     xy = np.stack([hx, hy], axis=-1)
     sr_valid = use_sr & valid
     out: list[MatchMatrix] = []
@@ -457,7 +396,6 @@ def match_matrices(
             "r_rc": r_rc[k, :ka, :kb],
             "r_wc": r_wc[k, :ka, :kb],
             "r_hc": r_hc[k, :ka, :kb],
-            "c_t": c_t[k, :ka, :kb],
         }
         out.append(
             MatchMatrix(

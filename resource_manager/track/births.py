@@ -76,7 +76,7 @@ def _hypotheses(
         pairs = (pairs[start:] + pairs[:start])[: params.max_pairs]
     if not pairs:
         return []
-    mats = match_matrices([(sub[a], sub[b]) for a, b in pairs], params.match, threshold=params.threshold)
+    mats = match_matrices([(sub[a], sub[b]) for a, b in pairs], params.match)
     out = []
     for (a, b), mm in zip(pairs, mats, strict=True):
         for i, j in params.matcher.match(mm.r, params.threshold):

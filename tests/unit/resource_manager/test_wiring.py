@@ -98,4 +98,4 @@ def test_no_feet_model_without_a_feet_sigma(tmp_path: Path) -> None:
 def test_the_tracker_births_with_the_configured_matcher(tmp_path: Path, matcher: str) -> None:
     births = wiring.tracker(_config(tmp_path, matcher=matcher), lambda: "t").birth_params
     assert type(births.matcher) is type(get_matcher(matcher))
-    assert births.match.max_range_m == 12.0 and births.match.temporal_weight == 0.0
+    assert births.match.max_range_m == 12.0

@@ -41,16 +41,6 @@ def test_measures_reject_diverging_and_inconsistent_pairs() -> None:
     assert match_matrix(v1, v4, MatchParams()).parts["r_is"][0, 0] < 0.5
 
 
-def test_temporal_term_lifts_only_plausible_pairs() -> None:
-    v1 = view("p1", (0.0, 0.0), [(2.0, 2.0, 1.8, 1)])
-    v2 = view("p2", (4.0, 0.0), [(2.0, 2.0, 1.8, 1), (6.0, -2.0, 1.8, 1)])
-    plain = match_matrix(v1, v2, MatchParams())
-    ct = np.array([[1.0, 1.0]])
-    lifted = match_matrix(v1, v2, MatchParams(temporal_weight=1.0), ct, threshold=0.1)
-    assert lifted.r[0, 0] > plain.r[0, 0] / 2.0 + 0.4  # (r + 1)/2
-    assert lifted.r[0, 1] == 0.0  # geometry says no: the track cannot rescue it
-
-
 def test_colinear_target_uses_size_ratio() -> None:
     """A target on the baseline between the cameras: Eq. 1 is singular, Eq. 2 localises it."""
     v1 = view("p1", (0.0, 0.0), [(3.0, 0.0, 1.8, 1)])
@@ -68,10 +58,9 @@ def test_batched_matrices_equal_single_ones() -> None:
     people = [(float(rng.uniform(0, 8)), float(rng.uniform(0, 6)), 1.7, k) for k in range(6)]
     views = [view(f"c{k}", o, people[: 2 + k]) for k, o in enumerate([(0.0, 0.0), (8.0, 0.0), (8.0, 6.0), (0.0, 6.0)])]
     pairs = [(views[0], views[1]), (views[2], views[3]), (views[1], views[3]), (views[0], view("e", (4.0, 3.0), []))]
-    temporals = [np.eye(a.n, b.n) for a, b in pairs]
-    batched = match_matrices(pairs, MatchParams(), temporals, 0.1)
-    for (a, b), t, mb in zip(pairs, temporals, batched, strict=True):
-        single = match_matrix(a, b, MatchParams(), t, 0.1)
+    batched = match_matrices(pairs, MatchParams())
+    for (a, b), mb in zip(pairs, batched, strict=True):
+        single = match_matrix(a, b, MatchParams())
         assert mb.r.shape == (a.n, b.n)
         assert np.allclose(mb.r, single.r) and np.allclose(mb.xy, single.xy)
         assert np.array_equal(mb.size_ratio, single.size_ratio)
@@ -99,9 +88,7 @@ def test_head_cut_by_the_image_top_is_only_a_lower_bound() -> None:
 # -- the vectorised Eq. 7 against a plain dense evaluation --------------------------------------------------
 
 
-def _dense_reference(
-    a: ViewBlobs, b: ViewBlobs, p: MatchParams, temporal: np.ndarray | None, thr: float, txy: np.ndarray | None
-) -> dict[str, np.ndarray]:
+def _dense_reference(a: ViewBlobs, b: ViewBlobs, p: MatchParams) -> dict[str, np.ndarray]:
     """Eq. 7 of one pair, every measure on every blob pair (the implementation before the batched one)."""
     from scipy.special import ndtr
 
@@ -172,17 +159,8 @@ def _dense_reference(
     xy = np.stack(
         [a.origin_xy[0] + d1 * np.cos(a.bearing_rad[:, None]), a.origin_xy[1] + d1 * np.sin(a.bearing_rad[:, None])], -1
     )
-    c_t = np.zeros((a.n, b.n)) if temporal is None else temporal
-    if txy is not None:
-        dmin = np.min((xy[..., 0, None] - txy[:, 0]) ** 2 + (xy[..., 1, None] - txy[:, 1]) ** 2, axis=-1)
-        c_t = np.maximum(c_t, np.where(valid, np.exp(-dmin / (2.0 * p.temporal_gate_m**2)), 0.0))
-    r = (
-        r0
-        if temporal is None and txy is None
-        else (r0 + p.temporal_weight * c_t * (r0 > thr)) / (1 + p.temporal_weight)
-    )
-    return {"r": r, "r0": r0, "d1": d1, "d2": d2, "xy": xy, "sr": use_sr & valid, "r_is": r_is, "r_rc": r_rc,
-            "r_wc": r_wc, "r_hc": r_hc, "c_t": c_t}  # fmt: skip
+    return {"r": r0, "d1": d1, "d2": d2, "xy": xy, "sr": use_sr & valid, "r_is": r_is, "r_rc": r_rc,
+            "r_wc": r_wc, "r_hc": r_hc}  # fmt: skip
 
 
 def _random_view(rng: np.random.Generator, sid: str, origin: tuple[float, float], people: np.ndarray) -> ViewBlobs:
@@ -212,7 +190,7 @@ def test_batched_eq7_equals_dense_reference(seed: int) -> None:
     """The batched, gated Eq. 7 gives the dense evaluation's values on every blob pair of every pair.
 
     Cameras on one line (colinear targets: Eq. 2), targets out of range, cut heads, hidden feet, a view
-    without histograms, link-based and positional temporal terms.
+    without histograms.
     """
     from resource_manager.stereo.match import match_matrices
 
@@ -224,25 +202,18 @@ def test_batched_eq7_equals_dense_reference(seed: int) -> None:
     views = [_random_view(rng, f"c{k}", o, people) for k, o in enumerate(origins)]
     views.append(_random_view(rng, "nohist", (-1.0, 3.0), people))
     params = MatchParams(max_range_m=25.0, floor_sigma_m=0.25, width_floor=0.1)
-    txy = people[4:9, :2] + rng.normal(0, 0.3, (5, 2))
     for with_hist in (True, False):
         pool = views if not with_hist else views[:-1]
         pairs = [(pool[i], pool[j]) for i in range(len(pool)) for j in range(len(pool)) if i != j]
-        temporals = [
-            None if k % 3 == 0 else (rng.random((a.n, b.n)) < 0.2).astype(float) for k, (a, b) in enumerate(pairs)
-        ]
-        for track_xy in (None, txy):
-            got = match_matrices(pairs, params, temporals, 0.2, track_xy)
-            for (a, b), t, mm in zip(pairs, temporals, got, strict=True):
-                ref = _dense_reference(a, b, params, t, 0.2, track_xy)
-                assert mm.r.shape == (a.n, b.n)
-                np.testing.assert_allclose(mm.r, ref["r"], rtol=1e-12, atol=1e-15)
-                for name, key in (("d1_m", "d1"), ("d2_m", "d2"), ("xy", "xy")):
-                    np.testing.assert_allclose(getattr(mm, name), ref[key], rtol=1e-12, atol=1e-12)
-                assert np.array_equal(mm.size_ratio, ref["sr"])
-                for part in ("r_is", "r_rc", "r_wc", "r_hc"):
-                    np.testing.assert_allclose(mm.parts[part], ref[part], rtol=1e-12, atol=1e-15)
-                counts = ref["r0"] > 0.2  # the positional temporal term is evaluated where it counts
-                np.testing.assert_allclose(mm.parts["c_t"][counts], ref["c_t"][counts], rtol=1e-12, atol=1e-15)
-            assert any(mm.size_ratio.any() for mm in got)  # the colinear branch was exercised
-            assert any((mm.r > 0.2).any() for mm in got)
+        got = match_matrices(pairs, params)
+        for (a, b), mm in zip(pairs, got, strict=True):
+            ref = _dense_reference(a, b, params)
+            assert mm.r.shape == (a.n, b.n)
+            np.testing.assert_allclose(mm.r, ref["r"], rtol=1e-12, atol=1e-15)
+            for name, key in (("d1_m", "d1"), ("d2_m", "d2"), ("xy", "xy")):
+                np.testing.assert_allclose(getattr(mm, name), ref[key], rtol=1e-12, atol=1e-12)
+            assert np.array_equal(mm.size_ratio, ref["sr"])
+            for part in ("r_is", "r_rc", "r_wc", "r_hc"):
+                np.testing.assert_allclose(mm.parts[part], ref[part], rtol=1e-12, atol=1e-15)
+        assert any(mm.size_ratio.any() for mm in got)  # the colinear branch was exercised
+        assert any((mm.r > 0.2).any() for mm in got)
