@@ -371,7 +371,7 @@ def _prepare(site: SiteConfig, args: argparse.Namespace) -> _Setup:
     env = {EPOCH_ENV: str(epoch_ns), SEED_ENV: str(site.site.seed), STATE_ENV: str(out / "state")}
     start_file = out / "start_ns"
     if dataset is not None:
-        # Recorded sources wait for this file and play their frame 1 at the epoch it holds (written below).
+        # Recorded sources wait for this file and play their frame 1 at the epoch it holds (_mark_start writes it).
         start_file.unlink(missing_ok=True)
         env[START_ENV] = str(start_file)
     log_dir = out / "logs"
