@@ -14,7 +14,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeAlias
 
 import msgspec
 
@@ -44,10 +44,20 @@ def _net(p: argparse.ArgumentParser) -> None:
     add_session_args(p)
 
 
-def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one flat add_argument list per action
+Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+"""What ``add_subparsers`` returns: the agent's actions are added to it."""
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
     """Add the agent's subcommands to ``parser`` (used by ``panostereo agent`` too)."""
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
+    _add_live_actions(sub)
+    _add_recording_actions(sub)
+    _add_offline_actions(sub)
 
+
+def _add_live_actions(sub: Subparsers) -> None:
+    """The actions that ask the running network: watch, tracks, history, sensors, view."""
     p = sub.add_parser("watch", help="live terminal view of tracks, sensors and managers")
     p.add_argument("--interval", type=positive, default=0.5, help="refresh period in seconds")
     p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
@@ -84,6 +94,9 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     )
     _net(p)
 
+
+def _add_recording_actions(sub: Subparsers) -> None:
+    """The actions that take the network's messages out or put them back: record, replay, foxglove."""
     p = sub.add_parser("record", help="record everything under {prefix}/@v1/** (or --keys) into MCAP")
     p.add_argument("out", metavar="OUT.mcap", help="the recording to write")
     p.add_argument(
@@ -116,6 +129,9 @@ def configure(parser: argparse.ArgumentParser) -> None:  # noqa: PLR0915 - one f
     p.add_argument("--duration", type=non_negative, default=0.0, help="stop after this many seconds (0: until Ctrl-C)")
     _net(p)
 
+
+def _add_offline_actions(sub: Subparsers) -> None:
+    """The actions on a recording, with no network: plot, export, evaluate."""
     p = sub.add_parser("plot", help="picture of a recording: top view (ground truth beside it) and a timeline")
     p.add_argument("input", metavar="IN.mcap", help="the recording (a demo run's, or agent record's)")
     p.add_argument("--out", required=True, metavar="PNG", help="the picture to write")

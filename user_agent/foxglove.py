@@ -39,7 +39,7 @@ from foxglove.messages import (
     Pose as FgPose,
 )
 
-from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, TrackSet
+from common.schema import ManagerStatus, Pose, PoseEstimate, SensorInfo, Track, TrackSet
 from user_agent.colors import id_color
 from user_agent.messages import camera_poses, placed_pose
 
@@ -123,82 +123,86 @@ def tracks_scene(
         lifetime_s: how long an entity stays without an update (so lost tracks vanish).
     """
     life = _lifetime(int(lifetime_s * 1e9))
-    entities = []
-    for tr in ts.tracks:
-        h = tr.height_m if tr.height_m > MIN_HEIGHT_M else DEFAULT_HEIGHT_M
-        col = _color(tr.track_id, 0.9 if tr.state == "confirmed" else 0.5)
-        speed = math.hypot(tr.vx_mps, tr.vy_mps)
-        head_z = h - HEAD_SIZE_M / 2
-        rays: list[Point3] = []
-        for sid in tr.sensors:
-            if sid in camera_xyz:
-                cx, cy, cz = camera_xyz[sid]
-                rays += [Point3(x=cx, y=cy, z=cz), Point3(x=tr.x_m, y=tr.y_m, z=h - 0.1)]
-        lines = (
-            [
-                LinePrimitive(
-                    type=LinePrimitiveLineType.LineList,
-                    pose=_pose(0, 0, 0),
-                    thickness=2.0,
-                    scale_invariant=True,
-                    points=rays,
-                    color=_color(tr.track_id, 0.5),
-                )
-            ]
-            if rays
-            else []
-        )
-        arrows = (
-            [
-                ArrowPrimitive(
-                    pose=_pose(tr.x_m, tr.y_m, 0.05, math.atan2(tr.vy_mps, tr.vx_mps)),
-                    shaft_length=speed,
-                    shaft_diameter=0.04,
-                    head_length=0.12,
-                    head_diameter=0.1,
-                    color=col,
-                )
-            ]
-            if speed > MIN_SPEED_MPS
-            else []
-        )
-        body_h = h - NECK_M
-        entities.append(
-            SceneEntity(
-                timestamp=_time(ts.stamp_ns),
-                frame_id=WORLD_FRAME,
-                id=f"track/{tr.track_id}",
-                lifetime=life,
-                metadata=[
-                    KeyValuePair(key="track_id", value=tr.track_id),
-                    KeyValuePair(key="state", value=tr.state),
-                    KeyValuePair(key="method", value=tr.method),
-                    KeyValuePair(key="sensors", value=",".join(tr.sensors)),
-                ],
-                cylinders=[
-                    CylinderPrimitive(
-                        pose=_pose(tr.x_m, tr.y_m, body_h / 2),
-                        color=col,
-                        bottom_scale=1.0,
-                        size=Vector3(x=BODY_WIDTH_M, y=BODY_WIDTH_M, z=body_h),
-                        top_scale=0.9,
-                    )
-                ],
-                spheres=[
-                    SpherePrimitive(
-                        pose=_pose(tr.x_m, tr.y_m, head_z),
-                        color=col,
-                        size=Vector3(x=HEAD_SIZE_M, y=HEAD_SIZE_M, z=HEAD_SIZE_M),
-                    )
-                ],
-                texts=[
-                    _text(tr.x_m, tr.y_m, h + LABEL_ABOVE_M, f"{tr.track_id} {tr.method} ±{tr.predicted_error_m:.2f} m")
-                ],
-                arrows=arrows,
-                lines=lines,
+    return SceneUpdate(entities=[_track_entity(tr, ts.stamp_ns, life, camera_xyz) for tr in ts.tracks])
+
+
+def _track_entity(
+    tr: Track, stamp_ns: int, life: Duration, camera_xyz: dict[str, tuple[float, float, float]]
+) -> SceneEntity:
+    """One tracked person: body, head, label, velocity arrow and rays, faded while the track is tentative."""
+    h = tr.height_m if tr.height_m > MIN_HEIGHT_M else DEFAULT_HEIGHT_M
+    col = _color(tr.track_id, 0.9 if tr.state == "confirmed" else 0.5)
+    head_z = h - HEAD_SIZE_M / 2
+    body_h = h - NECK_M
+    return SceneEntity(
+        timestamp=_time(stamp_ns),
+        frame_id=WORLD_FRAME,
+        id=f"track/{tr.track_id}",
+        lifetime=life,
+        metadata=[
+            KeyValuePair(key="track_id", value=tr.track_id),
+            KeyValuePair(key="state", value=tr.state),
+            KeyValuePair(key="method", value=tr.method),
+            KeyValuePair(key="sensors", value=",".join(tr.sensors)),
+        ],
+        cylinders=[
+            CylinderPrimitive(
+                pose=_pose(tr.x_m, tr.y_m, body_h / 2),
+                color=col,
+                bottom_scale=1.0,
+                size=Vector3(x=BODY_WIDTH_M, y=BODY_WIDTH_M, z=body_h),
+                top_scale=0.9,
             )
+        ],
+        spheres=[
+            SpherePrimitive(
+                pose=_pose(tr.x_m, tr.y_m, head_z),
+                color=col,
+                size=Vector3(x=HEAD_SIZE_M, y=HEAD_SIZE_M, z=HEAD_SIZE_M),
+            )
+        ],
+        texts=[_text(tr.x_m, tr.y_m, h + LABEL_ABOVE_M, f"{tr.track_id} {tr.method} ±{tr.predicted_error_m:.2f} m")],
+        arrows=_velocity_arrows(tr, col),
+        lines=_rays(tr, camera_xyz, h),
+    )
+
+
+def _rays(tr: Track, camera_xyz: dict[str, tuple[float, float, float]], height_m: float) -> list[LinePrimitive]:
+    """The rays from each camera that saw the track to just below its head top (none if no camera is placed)."""
+    rays: list[Point3] = []
+    for sid in tr.sensors:
+        if sid in camera_xyz:
+            cx, cy, cz = camera_xyz[sid]
+            rays += [Point3(x=cx, y=cy, z=cz), Point3(x=tr.x_m, y=tr.y_m, z=height_m - 0.1)]
+    if not rays:
+        return []
+    return [
+        LinePrimitive(
+            type=LinePrimitiveLineType.LineList,
+            pose=_pose(0, 0, 0),
+            thickness=2.0,
+            scale_invariant=True,
+            points=rays,
+            color=_color(tr.track_id, 0.5),
         )
-    return SceneUpdate(entities=entities)
+    ]
+
+
+def _velocity_arrows(tr: Track, col: Color) -> list[ArrowPrimitive]:
+    """An arrow on the floor along the track's velocity, as long as its speed in m/s (none when nearly still)."""
+    speed = math.hypot(tr.vx_mps, tr.vy_mps)
+    if speed > MIN_SPEED_MPS:
+        return [
+            ArrowPrimitive(
+                pose=_pose(tr.x_m, tr.y_m, 0.05, math.atan2(tr.vy_mps, tr.vx_mps)),
+                shaft_length=speed,
+                shaft_diameter=0.04,
+                head_length=0.12,
+                head_diameter=0.1,
+                color=col,
+            )
+        ]
+    return []
 
 
 def cameras_scene(infos: list[SensorInfo], stamp_ns: int, poses: Mapping[str, Pose] | None = None) -> SceneUpdate:

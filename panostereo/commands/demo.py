@@ -40,6 +40,7 @@ from panostereo.launcher import (
     SEED_ENV,
     START_ENV,
     STATE_ENV,
+    ProcessPlan,
     Supervisor,
     process_ids,
     router_plan,
@@ -328,17 +329,36 @@ def _mark_start(client: Any, sink: Any, keys: Keys, start_file: Path | None, *, 
     return epoch_ns
 
 
-def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cycle in order, each step a helper
-    """Run the demo; returns 0 when it completed (whatever the scores), 1 when a process could not start.
+@dataclass(frozen=True, slots=True)
+class _Setup:
+    """What the run needs, worked out from the site and the flags before anything starts."""
 
-    One sequence, kept whole so its nested clean-up reads in order: router, session, recorder and agent,
-    the site's processes; wait until they are up; watch the run; stop them in reverse; score and report.
+    site: SiteConfig
+    fps: float
+    duration_s: float
+    warmup_s: float
+    out: Path
+    listen: str | None
+    """Where the demo's router listens (``None``: it joins a running router)."""
+    endpoint: str
+    """Where every process of the site, and the demo itself, connects."""
+    epoch_ns: int
+    start_file: Path | None
+    """A dataset site's start file (its frame 1 plays at the epoch written there); ``None`` on a simulated site."""
+    log_dir: Path
+    plans: list[ProcessPlan]
+    keys: Keys
+    meta: dict[str, str]
+    sensors: set[str]
+    managers: set[str]
+
+
+def _prepare(site: SiteConfig, args: argparse.Namespace) -> _Setup:
+    """Work out the run's times, output folder, endpoints, environment and process plans (creates ``out``).
+
+    Raises:
+        ConfigError: bad times, or a site with no process to run on this machine.
     """
-    from sim.world import site_with_seed
-    from user_agent.client import AgentClient
-    from user_agent.record import McapSink, Recorder
-
-    site = site_with_seed(load_site(args.site or default_site()), args.seed)
     dataset = site.dataset
     fps = dataset.fps if dataset is not None else site.site.fps
     duration, warmup = _run_times(site, args)
@@ -347,70 +367,132 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
     ids = process_ids(site)
     listen, connect = site_endpoints(site, listen=args.listen, connect=args.connect, router=args.connect is None)
     assert connect is not None  # the demo always says where its processes connect
-    endpoint = connect
     epoch_ns = time.time_ns()
     env = {EPOCH_ENV: str(epoch_ns), SEED_ENV: str(site.site.seed), STATE_ENV: str(out / "state")}
     start_file = out / "start_ns"
     if dataset is not None:
-        # Recorded sources wait for this file and play their frame 1 at the epoch it holds (written below).
+        # Recorded sources wait for this file and play their frame 1 at the epoch it holds (_mark_start writes it).
         start_file.unlink(missing_ok=True)
         env[START_ENV] = str(start_file)
     log_dir = out / "logs"
-    plans = site_plans(site, connect=endpoint, env=env, log_dir=log_dir)
+    plans = site_plans(site, connect=connect, env=env, log_dir=log_dir)
     if not plans:
         raise ConfigError(f"{site.path}: no [[process]] to run on localhost")
-    keys = Keys(site.site.prefix)
-    meta = _run_facts(site, epoch_ns, fps)
+    return _Setup(
+        site=site,
+        fps=fps,
+        duration_s=duration,
+        warmup_s=warmup,
+        out=out,
+        listen=listen,
+        endpoint=connect,
+        epoch_ns=epoch_ns,
+        start_file=start_file if dataset is not None else None,
+        log_dir=log_dir,
+        plans=plans,
+        keys=Keys(site.site.prefix),
+        meta=_run_facts(site, epoch_ns, fps),
+        sensors={i for c, i in ids.values() if c == "node"},
+        managers={i for c, i in ids.values() if c == "manager"},
+    )
 
-    shutdown = install_signal_handlers()
-    router_log = log_dir / "router.log"
-    recorder: Any = None
-    last_status: dict[str, Any] = {}
-    seen_sensors: set[str] = set()
+
+@dataclass(frozen=True, slots=True)
+class _Attended:
+    """What watching the site leaves for the summary (or, when a process failed to start, for the failure report)."""
+
+    failed: dict[str, dict[str, Any]]
+    """Processes that exited while the site was coming up (:func:`_start_failures`); empty when it ran."""
+    epoch_ns: int
+    """The run's epoch (a dataset's: when its frame 1 played)."""
+    t_stop_ns: int
+    last_status: dict[str, Any]
+    """Manager id -> its last status."""
+    seen_sensors: set[str]
+    seen_alive: set[str]
+
+
+def _attend(
+    client: Any,
+    procs: Supervisor,
+    recorder: Any,
+    setup: _Setup,
+    shutdown: Shutdown,
+    *,
+    ready_timeout_s: float,
+    tty: bool,
+) -> _Attended:
+    """Start the site's processes, wait until they are up, mark the start and watch the run to its end."""
     seen_alive: set[str] = set()
-    failed: dict[str, dict[str, Any]] = {}
+    procs.start()
+    wait = _wait_ready(
+        client,
+        procs,
+        setup.sensors,
+        setup.managers,
+        shutdown=shutdown,
+        timeout_s=ready_timeout_s,
+        seen_alive=seen_alive,
+    )
+    if wait == "failed":
+        failed = _start_failures(procs, setup.log_dir)
+        return _Attended(
+            failed=failed,
+            epoch_ns=setup.epoch_ns,
+            t_stop_ns=setup.epoch_ns,
+            last_status={},
+            seen_sensors=set(),
+            seen_alive=seen_alive,
+        )
+    if wait == "timeout":
+        logger.warning("not every process came up within %.0f s; running anyway", ready_timeout_s)
+    epoch_ns = _mark_start(
+        client, recorder.sink, setup.keys, setup.start_file, epoch_ns=setup.epoch_ns, warmup_s=setup.warmup_s
+    )
+    title = f"site {setup.site.site.name}  out {setup.out}"
+    _watch_run(client, procs, recorder, setup.sensors, shutdown, duration=setup.duration_s, tty=tty, title=title)
+    t_stop_ns = time.time_ns()
+    last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
+    views = client.sensors(timeout_s=0.5)
+    seen_alive |= {v.sensor_id for v in views if v.alive}
+    return _Attended(
+        failed={},
+        epoch_ns=epoch_ns,
+        t_stop_ns=t_stop_ns,
+        last_status=last_status,
+        seen_sensors={v.sensor_id for v in views},
+        seen_alive=seen_alive,
+    )
+
+
+def _run_site(
+    setup: _Setup, procs: Supervisor, shutdown: Shutdown, *, ready_timeout_s: float, tty: bool
+) -> tuple[Any, _Attended]:
+    """Run the site under the demo's router, recording it, and stop it all in reverse order.
+
+    Returns the recorder, its sink left open (the ground truth is added after the run; on an error it is closed
+    here), and what the run left.
+    """
+    from user_agent.client import AgentClient
+    from user_agent.record import McapSink, Recorder
+
+    router_log = setup.log_dir / "router.log"
+    listen = setup.listen
     router = Supervisor([router_plan([listen], log_path=router_log)] if listen else [], restart=False, grace_s=3.0)
-    procs = Supervisor(plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
-    tty = sys.stdout.isatty() and not args.no_view
     router.start()
     sink: Any = None
-    recording = out / "recording.mcap"
-    t_stop_ns = epoch_ns
-    sensors = {i for c, i in ids.values() if c == "node"}
+    sensors = sorted(setup.sensors)
     try:
         if listen:
-            _wait_router(router, endpoint, router_log)
-        settings = SessionSettings(connect=[endpoint], connect_timeout_ms=15_000)
+            _wait_router(router, setup.endpoint, router_log)
+        settings = SessionSettings(connect=[setup.endpoint], connect_timeout_ms=15_000)
         with open_session(settings) as session:
-            recorder = Recorder(session, recorded_keys(keys, sorted(sensors)), McapSink(recording, meta))
+            recording = setup.out / "recording.mcap"
+            recorder = Recorder(session, recorded_keys(setup.keys, sensors), McapSink(recording, setup.meta))
             sink = recorder.sink
-            client = AgentClient(session=session, prefix=site.site.prefix, agent_id="demo", sensors=sorted(sensors))
+            client = AgentClient(session=session, prefix=setup.site.site.prefix, agent_id="demo", sensors=sensors)
             try:
-                procs.start()
-                managers = {i for c, i in ids.values() if c == "manager"}
-                wait = _wait_ready(
-                    client,
-                    procs,
-                    sensors,
-                    managers,
-                    shutdown=shutdown,
-                    timeout_s=args.ready_timeout,
-                    seen_alive=seen_alive,
-                )
-                if wait == "failed":
-                    failed = _start_failures(procs, log_dir)
-                else:
-                    if wait == "timeout":
-                        logger.warning("not every process came up within %.0f s; running anyway", args.ready_timeout)
-                    start = start_file if dataset is not None else None
-                    epoch_ns = _mark_start(client, recorder.sink, keys, start, epoch_ns=epoch_ns, warmup_s=warmup)
-                    title = f"site {site.site.name}  out {out}"
-                    _watch_run(client, procs, recorder, sensors, shutdown, duration=duration, tty=tty, title=title)
-                    t_stop_ns = time.time_ns()
-                    last_status = {m.manager_id: m.status for m in client.managers(0.5) if m.status is not None}
-                    views = client.sensors(timeout_s=0.5)
-                    seen_sensors = {v.sensor_id for v in views}
-                    seen_alive |= {v.sensor_id for v in views if v.alive}
+                attended = _attend(client, procs, recorder, setup, shutdown, ready_timeout_s=ready_timeout_s, tty=tty)
             finally:
                 recorder.stop(close=False)  # the ground-truth scene is added before the file is finished
                 client.close()
@@ -421,27 +503,40 @@ def run(args: argparse.Namespace) -> int:  # noqa: PLR0915 - the site's life cyc
         raise
     finally:
         router.stop()
-    if failed:
+    return recorder, attended
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; returns 0 when it completed (whatever the scores), 1 when a process could not start.
+
+    The site's life cycle in order: work out the run, start the router, recorder and processes, watch them
+    (:func:`_run_site`), then score and report.
+    """
+    from sim.world import site_with_seed
+
+    site = site_with_seed(load_site(args.site or default_site()), args.seed)
+    setup = _prepare(site, args)
+    shutdown = install_signal_handlers()
+    procs = Supervisor(setup.plans, backoff_min_s=1.0, max_restarts=3, grace_s=5.0)
+    tty = sys.stdout.isatty() and not args.no_view
+    recorder, attended = _run_site(setup, procs, shutdown, ready_timeout_s=args.ready_timeout, tty=tty)
+    sink = recorder.sink
+    if attended.failed:
         sink.close()
-        return _report_failure(site, out, failed, sensors=sensors, started=seen_alive)
+        return _report_failure(site, setup.out, attended.failed, sensors=setup.sensors, started=attended.seen_alive)
     try:
-        return _finish(
-            site,
-            sink=sink,
-            out=out,
-            recording=recording,
-            epoch_ns=epoch_ns,
-            t_stop_ns=t_stop_ns,
-            fps=fps,
-            threshold_m=args.threshold,
+        ran = _Ran(
+            epoch_ns=attended.epoch_ns,
+            t_stop_ns=attended.t_stop_ns,
             restarts=procs.restarts(),
-            cameras=Cameras(site=sensors, started=seen_alive),
-            recorder=recorder.status() if recorder is not None else None,
-            refused=_refusals(last_status),
-            sightings_refused=_sightings_refused(last_status),
-            seen_sensors=seen_sensors,
+            cameras=Cameras(site=setup.sensors, started=attended.seen_alive),
+            recorder=recorder.status(),
+            refused=_refusals(attended.last_status),
+            sightings_refused=_sightings_refused(attended.last_status),
+            seen_sensors=attended.seen_sensors,
             interrupted=shutdown.is_set(),
         )
+        return _finish(site, sink=sink, out=setup.out, fps=setup.fps, threshold_m=args.threshold, ran=ran)
     finally:
         sink.close()
 
@@ -498,45 +593,118 @@ def _write_truth_scene(sink: Any, gt: Any, epoch_ns: int, fps: float) -> None:
         sink.add_foxglove("/scene/ground_truth", scene, stamp)
 
 
-def _finish(
-    site: SiteConfig,
-    *,
-    sink: Any,
-    out: Path,
-    recording: Path,
-    epoch_ns: int,
-    t_stop_ns: int,
-    fps: float,
-    threshold_m: float,
-    restarts: dict[str, int],
-    cameras: Cameras,
-    recorder: Any,
-    refused: dict[str, Refused],
-    sightings_refused: dict[str, int],
-    seen_sensors: set[str],
-    interrupted: bool,
-) -> int:
-    from user_agent.groundtruth import read_gt_csv
-    from user_agent.recording import load_recording
-    from user_agent.report import plot_recording, score_recording
+@dataclass(frozen=True, slots=True)
+class _Ran:
+    """What the run leaves for its summary besides the recording."""
 
-    gt_path = out / "gt.csv"
-    gt_cameras: dict[str, list[tuple[float, float]]] | None = None
+    epoch_ns: int
+    t_stop_ns: int
+    restarts: dict[str, int]
+    cameras: Cameras
+    recorder: Any
+    """The recorder's last status (what it wrote and lost), or ``None``."""
+    refused: dict[str, Refused]
+    sightings_refused: dict[str, int]
+    seen_sensors: set[str]
+    interrupted: bool
+
+
+def _write_ground_truth(
+    site: SiteConfig, sink: Any, gt_path: Path, *, epoch_ns: int, t_stop_ns: int, fps: float
+) -> dict[str, list[tuple[float, float]]] | None:
+    """Write ``gt.csv``: a dataset's copied, a simulated world's replayed with the goals its robots got.
+
+    Returns:
+        The camera platforms' true paths on a simulated site (for the plot), ``None`` on a dataset site.
+
+    Raises:
+        ConfigError: a dataset site whose ground truth is missing.
+    """
     if site.dataset is not None:
         src = site.resolve(site.dataset.ground_truth)
         if not src.is_file():
             raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({src})")
         shutil.copyfile(src, gt_path)
-    else:
-        from sim.world import World, write_gt_csv
+        return None
+    from sim.world import World, write_gt_csv
 
-        world = World.from_site(site).with_goals(
-            goals_from_plans(sink.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
-        )
-        write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
-        gt_cameras = _platform_paths(world, (t_stop_ns - epoch_ns) / 1e9)
+    world = World.from_site(site).with_goals(
+        goals_from_plans(sink.plans, epoch_ns, {c.id for c in site.camera if c.mobile})
+    )
+    write_gt_csv(world, gt_path, fps, (t_stop_ns - epoch_ns) / 1e9 + 1.0)
+    return _platform_paths(world, (t_stop_ns - epoch_ns) / 1e9)
+
+
+def _summary(site: SiteConfig, rec: Any, gt: Any, scored: Any, ran: _Ran, *, files: dict[str, str]) -> dict[str, Any]:
+    """The run's summary: cameras that started, published and were fused; the scores; what was lost or refused.
+
+    ``files`` holds the paths of the ``recording``, the ``plot`` and the ``ground_truth``.
+    """
+    m = scored.metrics
+    started = ran.cameras.site
+    seen = set(rec.sensor_infos) | set(rec.node_status) | ran.seen_sensors
+    publishing = {sid for sid, n in rec.frames.items() if n > 0} & started
+    fused = {sid for ts in rec.tracksets for sid in ts.sensors_used} & started
+    metrics = m.to_dict()
+    recorder = ran.recorder
+    lost = {
+        "dropped": recorder.dropped if recorder else 0,
+        "dropped_raw": recorder.dropped_raw if recorder else 0,
+        "max_lag_s": round(recorder.max_lag_s, 2) if recorder else 0.0,
+        "unscored_s": round(scored.unseen_s, 2),
+    }
+    return {
+        "cameras": {
+            "site": len(started),
+            "started": len(ran.cameras.started & started),
+            "publishing": len(publishing),
+            "fused": len(fused),
+        },
+        "cameras_silent": sorted(started - publishing),
+        "people": m.gt_ids if m.frames else len(gt.person_ids),
+        "frames": m.frames,
+        "tracks_published": scored.tracks_published,
+        **{k: metrics[k] for k in _SUMMARY_METRICS},
+        **files,
+        **{k: metrics[k] for k in _EXTRA_METRICS},
+        "site": site.site.name,
+        "seed": site.site.seed,
+        "duration_s": round((ran.t_stop_ns - ran.epoch_ns) / 1e9, 2),
+        "scored_from_s": round((rec.meta_int("score_from_ns", ran.epoch_ns) - ran.epoch_ns) / 1e9, 2),
+        "recorded_samples": rec.samples,
+        "recording_lost": lost,
+        "sensors_not_started": sorted((seen | set(ran.refused)) - started),
+        "refused_by_manager": _split_refusals(ran.refused)[0],
+        "refused_by_clock": _split_refusals(ran.refused)[1],
+        "sightings_refused": ran.sightings_refused,
+        "restarts": ran.restarts,
+        "interrupted": ran.interrupted,
+    }
+
+
+def _report(summary: dict[str, Any], out: Path, ran: _Ran) -> None:
+    """Write ``summary.json``, print it, then what its reader must not miss, then where it is."""
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    print(json.dumps(summary, indent=2))
+    strays = summary["sensors_not_started"]
+    for level, line in _warnings(summary["recording_lost"], strays, ran.refused, ran.cameras.site):
+        print(f"{level}: {line}")
+    if ran.interrupted:
+        print(f"NOTE: the run was interrupted after {summary['duration_s']} s: the figures cover what ran")
+    print(f"summary: {out / 'summary.json'}")
+
+
+def _finish(site: SiteConfig, *, sink: Any, out: Path, fps: float, threshold_m: float, ran: _Ran) -> int:
+    """Write the ground truth into ``gt.csv`` and the recording, score and plot the recording, and report; 0."""
+    from user_agent.groundtruth import read_gt_csv
+    from user_agent.recording import load_recording
+    from user_agent.report import plot_recording, score_recording
+
+    gt_path = out / "gt.csv"
+    recording = out / "recording.mcap"
+    gt_cameras = _write_ground_truth(site, sink, gt_path, epoch_ns=ran.epoch_ns, t_stop_ns=ran.t_stop_ns, fps=fps)
     gt = read_gt_csv(gt_path)
-    _write_truth_scene(sink, gt, epoch_ns, fps)
+    _write_truth_scene(sink, gt, ran.epoch_ns, fps)
     sink.close()
     rec = load_recording(recording)
     area = gt.area() if site.dataset is not None and site.dataset.scored_area == "ground_truth" else None
@@ -551,54 +719,8 @@ def _finish(
         threshold_m=threshold_m,
         scored_area=area,
     )
-    started = cameras.site
-    seen = set(rec.sensor_infos) | set(rec.node_status) | seen_sensors
-    strays = sorted((seen | set(refused)) - started)
-    publishing = {sid for sid, n in rec.frames.items() if n > 0} & started
-    fused = {sid for ts in rec.tracksets for sid in ts.sensors_used} & started
-    metrics = m.to_dict()
-    lost = {
-        "dropped": recorder.dropped if recorder else 0,
-        "dropped_raw": recorder.dropped_raw if recorder else 0,
-        "max_lag_s": round(recorder.max_lag_s, 2) if recorder else 0.0,
-        "unscored_s": round(scored.unseen_s, 2),
-    }
-    summary: dict[str, Any] = {
-        "cameras": {
-            "site": len(started),
-            "started": len(cameras.started & started),
-            "publishing": len(publishing),
-            "fused": len(fused),
-        },
-        "cameras_silent": sorted(started - publishing),
-        "people": m.gt_ids if m.frames else len(gt.person_ids),
-        "frames": m.frames,
-        "tracks_published": scored.tracks_published,
-        **{k: metrics[k] for k in _SUMMARY_METRICS},
-        "recording": str(recording),
-        "plot": str(plot),
-        "ground_truth": str(gt_path),
-        **{k: metrics[k] for k in _EXTRA_METRICS},
-        "site": site.site.name,
-        "seed": site.site.seed,
-        "duration_s": round((t_stop_ns - epoch_ns) / 1e9, 2),
-        "scored_from_s": round((rec.meta_int("score_from_ns", epoch_ns) - epoch_ns) / 1e9, 2),
-        "recorded_samples": rec.samples,
-        "recording_lost": lost,
-        "sensors_not_started": strays,
-        "refused_by_manager": _split_refusals(refused)[0],
-        "refused_by_clock": _split_refusals(refused)[1],
-        "sightings_refused": sightings_refused,
-        "restarts": restarts,
-        "interrupted": interrupted,
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    print(json.dumps(summary, indent=2))
-    for level, line in _warnings(lost, strays, refused, started):
-        print(f"{level}: {line}")
-    if interrupted:
-        print(f"NOTE: the run was interrupted after {summary['duration_s']} s: the figures cover what ran")
-    print(f"summary: {out / 'summary.json'}")
+    files = {"recording": str(recording), "plot": str(plot), "ground_truth": str(gt_path)}
+    _report(_summary(site, rec, gt, scored, ran, files=files), out, ran)
     return 0
 
 

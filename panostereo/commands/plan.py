@@ -14,6 +14,7 @@ import argparse
 import json
 import logging
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -210,7 +211,15 @@ def render_error_map(d1_m: float, radius_m: float, cfg: OptimalConfig, px_per_m:
         0.45,
     )
 
-    # Markers: O1, T, both optima.
+    _mark_optima(img, to_px, d1_m, cfg)
+    _colour_bar(img, (left + field.shape[1] + 30, top), field.shape[0], bar_w, (e_star, e_max))
+    return img
+
+
+def _mark_optima(
+    img: np.ndarray, to_px: Callable[[float, float], tuple[int, int]], d1_m: float, cfg: OptimalConfig
+) -> None:
+    """Markers on the error map: camera 1 (O1), the target (T), and both optimal places of camera 2 with their rays."""
     o1, t = to_px(0.0, 0.0), to_px(d1_m, 0.0)
     cv2.circle(img, o1, 7, _WHITE, -1, cv2.LINE_AA)
     cv2.circle(img, o1, 7, _BLACK, 2, cv2.LINE_AA)
@@ -226,9 +235,6 @@ def render_error_map(d1_m: float, radius_m: float, cfg: OptimalConfig, px_per_m:
         cv2.drawMarker(img, p, _WHITE, cv2.MARKER_STAR, 18, 2, cv2.LINE_AA)
         label = f"O2* ({ox:.2f}, {oy:+.2f}) m"
         _text(img, label, (p[0] + 14, p[1] + (-12 if k == 0 else 24)), 0.45, boxed=True)
-
-    _colour_bar(img, (left + field.shape[1] + 30, top), field.shape[0], bar_w, (e_star, e_max))
-    return img
 
 
 def _y_label(img: np.ndarray, centre_row: int) -> None:

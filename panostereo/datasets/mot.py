@@ -244,6 +244,63 @@ def _check_args(fps: float, area: AreaSpec | None, noise_px: float, drop_rate: f
         raise ConfigError(f"--min-confidence must be in [0, 1], got {min_conf}")
 
 
+@dataclass(frozen=True, slots=True)
+class _CameraFiles:
+    """One camera of the dataset: its sensor id and its two files."""
+
+    sensor_id: str
+    calib: Path
+    detections: Path
+
+
+def _camera_files(src: Path) -> list[_CameraFiles]:
+    """The cameras with both a calibration and a detection file, by name; a camera with only one is left out.
+
+    Raises:
+        ConfigError: no camera has both, or two camera names give the same sensor id.
+    """
+    calib_dir, det_dir = src / "calib", src / "detections"
+    calibs = {p.stem: p for p in sorted(calib_dir.glob("*.json"))}
+    dets = {p.stem: p for p in sorted(det_dir.glob("*.txt"))}
+    names = sorted(set(calibs) & set(dets))
+    if not names:
+        raise ConfigError(
+            f"{src}: expected calib/<cam>.json and detections/<cam>.txt for the same cameras, "
+            f"found calibrations {sorted(calibs)} and detection files {sorted(dets)}"
+        )
+    for orphan in sorted(set(calibs) ^ set(dets)):
+        has = "a calibration" if orphan in calibs else "detections"
+        logger.warning("%s: camera %r has %s only: left out", src, orphan, has)
+    ids = [camera_id(n) for n in names]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"{src}: camera names {names} give duplicate sensor ids {ids}")
+    return [_CameraFiles(cid, calibs[n], dets[n]) for n, cid in zip(names, ids, strict=True)]
+
+
+def _import_camera(
+    cam: _CameraFiles, dst: Path, *, noise_px: float, drop_rate: float, rng: np.random.Generator
+) -> tuple[int, int, int]:
+    """Copy one camera's calibration and detections into ``dst`` (perturbed when asked).
+
+    Returns:
+        (boxes written, boxes dropped, last frame).
+    """
+    size = _check_calibration(cam.calib)
+    shutil.copyfile(cam.calib, dst / "calib" / f"{cam.sensor_id}.json")
+    if noise_px or drop_rate:
+        return _perturb(
+            cam.detections,
+            dst / "detections" / f"{cam.sensor_id}.txt",
+            size,
+            noise_px=noise_px,
+            drop_rate=drop_rate,
+            rng=rng,
+        )
+    shutil.copyfile(cam.detections, dst / "detections" / f"{cam.sensor_id}.txt")
+    b, last = _last_frame(cam.detections)
+    return b, 0, last
+
+
 def import_mot(
     root: str | Path,
     out: str | Path,
@@ -276,38 +333,16 @@ def import_mot(
     _check_args(fps, area, noise_px, drop_rate, min_confidence)
     if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
         raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
-    calib_dir, det_dir = src / "calib", src / "detections"
-    calibs = {p.stem: p for p in sorted(calib_dir.glob("*.json"))}
-    dets = {p.stem: p for p in sorted(det_dir.glob("*.txt"))}
-    names = sorted(set(calibs) & set(dets))
-    if not names:
-        raise ConfigError(
-            f"{src}: expected calib/<cam>.json and detections/<cam>.txt for the same cameras, "
-            f"found calibrations {sorted(calibs)} and detection files {sorted(dets)}"
-        )
-    for orphan in sorted(set(calibs) ^ set(dets)):
-        has = "a calibration" if orphan in calibs else "detections"
-        logger.warning("%s: camera %r has %s only: left out", src, orphan, has)
-    ids = [camera_id(n) for n in names]
-    if len(set(ids)) != len(ids):
-        raise ConfigError(f"{src}: camera names {names} give duplicate sensor ids {ids}")
+    cameras = _camera_files(src)
+    ids = [cam.sensor_id for cam in cameras]
     gt_src = src / "gt.csv"
     gt = read_gt_csv(gt_src) if gt_src.is_file() else None
     for sub in ("calib", "detections"):
         (dst / sub).mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     boxes = dropped = frames = 0
-    for n, cid in zip(names, ids, strict=True):
-        size = _check_calibration(calibs[n])
-        shutil.copyfile(calibs[n], dst / "calib" / f"{cid}.json")
-        if noise_px or drop_rate:
-            b, d, last = _perturb(
-                dets[n], dst / "detections" / f"{cid}.txt", size, noise_px=noise_px, drop_rate=drop_rate, rng=rng
-            )
-        else:
-            shutil.copyfile(dets[n], dst / "detections" / f"{cid}.txt")
-            b, last = _last_frame(dets[n])
-            d = 0
+    for cam in cameras:
+        b, d, last = _import_camera(cam, dst, noise_px=noise_px, drop_rate=drop_rate, rng=rng)
         boxes, dropped, frames = boxes + b, dropped + d, max(frames, last)
     people = 0
     if gt is not None:
