@@ -116,8 +116,8 @@ class Visibility(NamedTuple):
     ends above the feet."""
     cut_reach_m: FloatArray
     """(s, n) the farthest floor distance a box cut by those covers can read: the box's bottom is at most the
-    highest cover's top, whose line of sight meets the floor there (inf: a cover that reaches above the camera,
-    or none)."""
+    highest cover's top, whose line of sight meets the floor there (inf: a cover that reaches the camera's height
+    or above; 0: nothing covers the feet. Neither bounds a cut)."""
 
 
 def visibility(
@@ -137,7 +137,7 @@ def visibility_many(
     n = table.n
     p = np.zeros((stack.n_views, n))
     if n == 0 or stack.n_views == 0:
-        return Visibility(p, p.copy(), np.full(p.shape, math.inf))
+        return Visibility(p, p.copy(), p.copy())
     dist, seen = _in_view(stack, table, max_range_m)
     hiders = None
     if n + (blockers.n if blockers is not None else 0) > 1:
