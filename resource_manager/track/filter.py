@@ -137,8 +137,7 @@ class TrackFilter:
     ) -> list[FloatArray]:
         """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob) (:func:`.fuse.fuse`; ``feet_cut``
         (s, len(rows)): the chance that a view's box of each is cut above the feet, ``cut_reach_m`` how far such a box
-        can read); returns each one's weight of
-        each of its blobs (low: an outlier)."""
+        can read); returns each one's weight of each of its blobs (low: an outlier)."""
         if not len(rows):
             return []
         rows = np.asarray(rows, dtype=np.int64)

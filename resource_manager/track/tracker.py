@@ -237,8 +237,7 @@ class Tracker:
             pose_sigma or {},
             stack,
             np.array([evidence[sid][0] for sid in sids]),
-            vis.feet_hidden,
-            vis.cut_reach_m,
+            vis,
         )
         # 3. Assign, per view.
         scores = score_views(stack, self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m)

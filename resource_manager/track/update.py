@@ -23,7 +23,7 @@ from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.filter import TrackFilter
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import TrackModel
-from resource_manager.track.observe import feet_cut_prob
+from resource_manager.track.observe import Visibility, feet_cut_prob
 from resource_manager.track.stack import ViewStack
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import ViewBlobs
@@ -55,12 +55,9 @@ class Tick:
     """The views stacked into arrays, in order of sensor ids."""
     position_weight: FloatArray
     """(s,) the position weight of each view of ``stack``."""
-    feet_hidden: FloatArray | None = None
-    """(s, n) the share of each track's feet hidden in each view (:attr:`.observe.Visibility.feet_hidden`, row for
-    row with the filter); None: none hidden."""
-    cut_reach_m: FloatArray | None = None
-    """(s, n) the farthest floor distance a cut box of each track can read in each view
-    (:attr:`.observe.Visibility.cut_reach_m`, row for row with ``feet_hidden``)."""
+    visibility: Visibility | None = None
+    """What each view should see of each track, row for row with the filter (its feet hidden, and how far a cut
+    box can read); None: nothing hidden."""
 
 
 class Ranking(NamedTuple):
@@ -146,11 +143,10 @@ class Updater:
         # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
         hidden = np.zeros((tick.stack.n_views, len(rows)))
         reach = np.zeros_like(hidden)
-        if tick.feet_hidden is not None:
-            known = rows < tick.feet_hidden.shape[1]
-            hidden[:, known] = tick.feet_hidden[:, rows[known]]
-            if tick.cut_reach_m is not None:
-                reach[:, known] = tick.cut_reach_m[:, rows[known]]
+        if tick.visibility is not None:
+            known = rows < tick.visibility.feet_hidden.shape[1]
+            hidden[:, known] = tick.visibility.feet_hidden[:, rows[known]]
+            reach[:, known] = tick.visibility.cut_reach_m[:, rows[known]]
         return filt.fuse(
             rows,
             [[(a.sensor_id, a.blob) for a in got] for got in gots],
