@@ -523,8 +523,24 @@ class Tracker:
         )
 
     def _same_person(self, i: int, k: int, t_ns: int) -> bool:
+        """Whether track ``i`` is track ``k``'s person followed twice: :meth:`_one_spot`, and, both published, for
+        long enough: together, never told apart, for ``evidence_time_s``, or ``apart_time_s`` if some view has
+        shown them as two people."""
+        if not self._one_spot(i, k, t_ns):
+            return False
+        a, b = self.tracks[i], self.tracks[k]
+        if not (a.confirmed and b.confirmed):
+            return True
+        since_apart = self.separation.since_apart_s(a.serial, b.serial, t_ns)
+        need = self.model.evidence_time_s if math.isinf(since_apart) else self.model.apart_time_s
+        together = min(self.separation.together_s(a.serial, b.serial, t_ns), since_apart)
+        return together >= need - 1e-9
+
+    def _one_spot(self, i: int, k: int, t_ns: int) -> bool:
         """Whether track ``i`` stands where only one person fits beside track ``k``, their estimates agree that
-        they are one, and no view has shown them apart for ``evidence_time_s``."""
+        they are one, no view has shown them apart for ``evidence_time_s`` and, both published, they move alike
+        (two published people who meet are likelier two people passing than one followed twice: one person's two
+        tracks share a velocity; people who cross do not)."""
         f = self.filter
         dx, dy = float(f.x[i, 0] - f.x[k, 0]), float(f.x[i, 1] - f.x[k, 1])
         if math.hypot(dx, dy) >= CLOSE_M:
@@ -540,14 +556,9 @@ class Tracker:
             return False
         if not (a.confirmed and b.confirmed):
             return True
-        # Two published people who meet are likelier two people passing than one followed twice: they are one only
-        # when they also move alike (one person's two tracks share a velocity; people who cross do not) and have
-        # stayed together, never told apart, for ``evidence_time_s``.
         dv = f.x[i, 2:] - f.x[k, 2:]
         sv = f.p[i, 2:, 2:] + f.p[k, 2:, 2:]
-        moving_alike = float(dv @ np.linalg.solve(sv, dv)) < SAME_PERSON_CHI2
-        together = self.separation.together_s(a.serial, b.serial, t_ns)
-        return moving_alike and together >= self.model.evidence_time_s - 1e-9
+        return float(dv @ np.linalg.solve(sv, dv)) < SAME_PERSON_CHI2
 
     def _implausible_height(self, i: int) -> bool:
         """Whether the track's measured head height rules out a person (the height prior, Eq. 7's r_hc in
