@@ -336,16 +336,17 @@ def _stats(errors_m: list[float]) -> dict[str, Any]:
 
 
 def _first_fix(
-    order: list[tuple[str, str]], views: dict[str, Any], sup: dict[str, int], gt_xy: Any, width_rel_sigma: float
+    order: list[tuple[str, str]], views: Any, sup: dict[str, int], gt_xy: Any, width_rel_sigma: float
 ) -> float | None:
-    """Error of the first pair in ``order`` whose rays meet (the manager tries its ranked pairs in turn)."""
+    """Error of the first pair in ``order`` whose rays meet (the manager tries its ranked pairs in turn); ``sup``:
+    sensor id -> the person's blob (entry) in ``views``."""
     import numpy as np
 
     from resource_manager.stereo.localize import localize_best_pair
 
     for p, q in order:
         a, b = sorted((p, q))
-        m = localize_best_pair(views[a], sup[a], views[b], sup[b], width_rel_sigma=width_rel_sigma)
+        m = localize_best_pair(views, sup[a], sup[b], width_rel_sigma=width_rel_sigma)
         if m is not None:
             return float(np.hypot(*(m.xy - gt_xy)))
     return None
@@ -466,7 +467,11 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
         for (kk, pid), gt in truth.items():
             if kk != k:
                 continue
-            sup = {sid: int(np.nonzero(v.local_id == pid)[0][0]) for sid, v in views.items() if pid in v.local_id}
+            sup = {}  # sensor id -> the person's blob (entry)
+            for row, sid in enumerate(views.sensor_ids):
+                hit = np.flatnonzero(views.local_id[views.span(row)] == pid)
+                if hit.size:
+                    sup[sid] = views.entry(sid, int(hit[0]))
             if len(sup) < 2:
                 continue
             views_seen.append(len(sup))
@@ -479,12 +484,12 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
                 else:
                     errors[method].append(err)
 
-            lsq = localize_least_squares([(views[s], i) for s, i in sup.items()], {})
+            lsq = localize_least_squares(views, list(sup.values()), {})
             if lsq is None:
                 failed["all_views"] += 1
             else:
                 errors["all_views"].append(float(np.hypot(*(lsq.xy - gt_xy))))
-            geoms = [CameraGeom(s, views[s].origin_xy, views[s].sigma_rad) for s in sup]
+            geoms = [CameraGeom(s, views.origin[views.rows[s]], float(views.sigma_rad[views.rows[s]])) for s in sup]
             if lsq is not None:
                 run("error_model", [(c.a, c.b) for c in rank_pairs(lsq.xy, geoms, max_cams)])
             else:
@@ -493,8 +498,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
             pairs = list(itertools.combinations(sorted(sup), 2))
             run("random", [pairs[int(i)] for i in rng.permutation(len(pairs))])
             crossing = [
-                abs(math.sin(float(views[p].bearing_rad[sup[p]]) - float(views[q].bearing_rad[sup[q]])))
-                for p, q in pairs
+                abs(math.sin(float(views.bearing_rad[sup[p]]) - float(views.bearing_rad[sup[q]]))) for p, q in pairs
             ]
             run("best_angle", [pairs[int(i)] for i in np.argsort(crossing)[::-1]])
     res: dict[str, Any] = {

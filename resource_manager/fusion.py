@@ -47,7 +47,7 @@ from resource_manager.serve import messages
 from resource_manager.serve.lag import LaggedTracks
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 from resource_manager.views.build import build_views
 
 __all__ = ["Absorbed", "Batch", "Fusion", "TickCounters", "TickResult"]
@@ -123,7 +123,7 @@ class TickResult:
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
     live_tracks: list[Track] = field(default_factory=list)
     """This instant's published tracks (the same as ``trackset``'s without ``publish_lag_s``)."""
-    views: Mapping[str, ViewBlobs] = field(default_factory=dict)
+    views: Views = field(default_factory=Views.empty)
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
     """PTZ holds ended at this instant (a lease run out, a track ended), with the reason."""
@@ -228,7 +228,14 @@ class Fusion:
             else frozenset()
         )
         seeing = {sid: v for sid, v in aligned.items() if sid not in unsettled}
-        views = build_views(seeing, poses, self.sensors.infos, self.poses.bearing_sigma, feet=self.feet)
+        views = build_views(
+            seeing,
+            poses,
+            self.sensors.infos,
+            self.poses.bearing_sigma,
+            feet=self.feet,
+            point_sigma_m=self.config.tracker.body_sigma_m,
+        )
         outcome = self.tracker.step(
             views,
             t_ns,
@@ -240,7 +247,13 @@ class Fusion:
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
         return self._result(
-            outcome.pair_entries, plans, commands, outcome.ended, in_use=sorted(views), aligned=aligned, views=views
+            outcome.pair_entries,
+            plans,
+            commands,
+            outcome.ended,
+            in_use=list(views.sensor_ids),
+            aligned=aligned,
+            views=views,
         )
 
     def _align(self, t_ns: int) -> dict[str, AlignedView]:
@@ -367,7 +380,7 @@ class Fusion:
         skipped: bool = False,
         in_use: list[str] | None = None,
         aligned: Mapping[str, AlignedView] | None = None,
-        views: Mapping[str, ViewBlobs] | None = None,
+        views: Views | None = None,
     ) -> TickResult:
         if not skipped:
             self.seq += 1
@@ -403,7 +416,7 @@ class Fusion:
             ended=ended,
             skipped=skipped,
             live_tracks=live,
-            views=views or {},
+            views=views if views is not None else Views.empty(),
             ptz_ended=self.ptz.take_ended(),
             latency=last if (last := self.schedule.last) is not None and last.t_ns == self.last_t_ns else None,
             sightings_refused=self.poses.take_refused(),

@@ -194,22 +194,23 @@ def test_world_views_drop_known_bodies_keep_people() -> None:
 
     infos = {"a": info("a", 0.0), "b": info("b", radius), "c": info("c", radius)}
     views = build_views(aligned, poses, infos, lambda sid: 0.002)
-    assert list(views) == ["a", "b", "c"]
-    assert views["a"].local_id.tolist() == [2, 3]  # b's body dropped, the person behind it kept
-    assert views["b"].local_id.tolist() == [8]  # c's body dropped, camera a has no body
-    assert views["c"].local_id.tolist() == [4]  # b's body dropped
-    for sid, v in views.items():
-        kept = [b for b in blobs[sid] if b.local_id in v.local_id.tolist()]
+    assert views.sensor_ids == ("a", "b", "c")
+    assert views.local_id[views.span(0)].tolist() == [2, 3]  # b's body dropped, the person behind it kept
+    assert views.local_id[views.span(1)].tolist() == [8]  # c's body dropped, camera a has no body
+    assert views.local_id[views.span(2)].tolist() == [4]  # b's body dropped
+    for row, sid in enumerate(views.sensor_ids):
+        span = views.span(row)
+        kept = [b for b in blobs[sid] if b.local_id in views.local_id[span].tolist()]
         world = [math.remainder(b.bearing_rad + poses[sid].yaw_rad, 2 * math.pi) for b in kept]
-        assert np.allclose(np.remainder(v.bearing_rad - world + math.pi, 2 * math.pi) - math.pi, 0.0, atol=1e-12)
-        assert v.width_rad.tolist() == [b.width_rad for b in kept]
-        assert v.sigma_rad == pytest.approx(0.002)
+        bearing = views.bearing_rad[span]
+        assert np.allclose(np.remainder(bearing - world + math.pi, 2 * math.pi) - math.pi, 0.0, atol=1e-12)
+        assert views.width_rad[span].tolist() == [b.width_rad for b in kept]
+        assert views.sigma_rad[row] == pytest.approx(0.002)
         if sid == "c":
-            assert v.hist is None and v.hist_sqrt is None
+            assert views.hist_bins[row] == 0
         else:
-            assert v.hist is not None and v.hist_sqrt is not None
-            assert v.hist.tolist() == [b.hist for b in kept]
-            assert np.allclose(v.hist_sqrt**2, v.hist)
+            assert views.hist_bins[row] == 3
+            assert np.allclose(views.hist_sqrt[3][span] ** 2, [b.hist for b in kept])
     # Without bodies nothing is dropped.
     views = build_views(aligned, poses, {}, lambda sid: 0.002)
-    assert [v.n for v in views.values()] == [3, 2, 2]
+    assert views.counts.tolist() == [3, 2, 2]
