@@ -377,12 +377,14 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     import itertools
     import json as _json
 
+    import msgspec
     import numpy as np
 
     from common.pinhole import PinholeCamera
     from panostereo.datasets.wildtrack import GridSpec, calibration, camera_id
     from resource_manager.config import MatchSection
-    from resource_manager.ingest.align import AlignedBlob, AlignedView
+    from resource_manager.ingest.align import AlignParams, align
+    from resource_manager.ingest.buffers import SensorBuffer
     from resource_manager.poses.solver import PoseEstimate
     from resource_manager.stereo.localize import localize_least_squares
     from resource_manager.stereo.pairs import CameraGeom, rank_pairs
@@ -445,25 +447,19 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     failed = dict.fromkeys(errors, 0)
     views_seen: list[int] = []
     for k in sorted({k for k, _ in truth}):
-        aligned = {}
+        held = []  # each camera's frame, held as it is at its own stamp
         for cid in ids:
             feats = features_from_detections(
                 dets[cid].get(k, []), cams[cid], sensor_id=cid, seq=k, stamp_ns=k * 500_000_000, frame_index=k
             )
-            blobs = [
-                AlignedBlob(
-                    b.local_id,
-                    b.bearing_rad + (float(rng.normal(0.0, noise)) if noise > 0 else 0.0),
-                    b.width_rad,
-                    b.top_elev_rad,
-                    b.bottom_elev_rad,
-                    list(b.hist),
-                    b.feet_visible,
-                )
-                for b in feats.blobs
-            ]
-            aligned[cid] = AlignedView(cid, feats.stamp_ns, blobs, [], "held")
-        views = build_views(aligned, poses, {}, lambda _sid: sigma_rad)
+            if noise > 0:
+                noisy = [
+                    msgspec.structs.replace(b, bearing_rad=b.bearing_rad + float(rng.normal(0.0, noise)))
+                    for b in feats.blobs
+                ]
+                feats = msgspec.structs.replace(feats, blobs=noisy)
+            held.append((cid, SensorBuffer(capacity=2, stamps=[feats.stamp_ns], frames=[feats]), AlignParams()))
+        views = build_views(align(held, k * 500_000_000), poses, {}, lambda _sid: sigma_rad)
         for (kk, pid), gt in truth.items():
             if kk != k:
                 continue

@@ -10,7 +10,7 @@ that is a known robot or tripod body seen by another camera (known bodies are no
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from itertools import chain
 
@@ -19,7 +19,7 @@ import numpy as np
 from common.angles import wrap_angle
 from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import PinholeModel, SensorInfo
-from resource_manager.ingest.align import AlignedBlob, AlignedView
+from resource_manager.ingest.align import Aligned
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.track.model import HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M
 from resource_manager.views.blobs import ImageBounds, Views, stack_histograms
@@ -61,13 +61,14 @@ class FeetModel:
 
 
 def build_views(
-    aligned: dict[str, AlignedView],
+    aligned: Aligned,
     poses: dict[str, PoseEstimate],
     infos: Mapping[str, SensorInfo],
     sigma_of: Callable[[str], float],
     *,
     feet: FeetModel | None = None,
     point_sigma_m: float = 0.0,
+    skip: Collection[str] = (),
 ) -> Views:
     """World-frame blobs of every aligned sensor whose pose is known, in order of sensor ids.
 
@@ -79,49 +80,53 @@ def build_views(
         feet: how perspective cameras' box bottoms give floor distances (None: they give none).
         point_sigma_m: the spread of a sensor's measured point around a person's floor position, for a sensor
             whose SensorInfo states none.
+        skip: sensors that give no view at this instant (a robot that has not settled).
     """
-    entries = [(sid, aligned[sid].blobs, poses[sid]) for sid in sorted(aligned) if sid in poses]
-    if not entries:
+    order = sorted((sid, i) for i, sid in enumerate(aligned.sensor_ids) if sid in poses and sid not in skip)
+    if not order:
         return Views.empty()
+    sids = [sid for sid, _ in order]
+    pose_of = [poses[sid] for sid in sids]
+    sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, pose in zip(sids, pose_of, strict=True)]
+    bounds = aligned.offsets.tolist()
+    take = np.concatenate([np.arange(bounds[i], bounds[i + 1], dtype=np.int64) for _, i in order])
+    view_of = np.repeat(np.arange(len(order), dtype=np.int64), aligned.counts[[i for _, i in order]])
+    tab = aligned.values[take]
     bodies = {sid: info.body_radius_m for sid, info in infos.items() if info.body_radius_m > 0}
-    t = _BlobTable.of(entries)
-    sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, _, pose in entries]
-    keep = _not_bodies(entries, t.tab, view_of=t.view_of, sigmas=sigmas, bodies=bodies, poses=poses)
+    keep = _not_bodies(sids, pose_of, tab, view_of=view_of, sigmas=sigmas, bodies=bodies, poses=poses)
     if not keep.all():
-        t = t.kept(keep, len(entries))
-    tab, blobs_all = t.tab, t.blobs
-    yaw = np.array([pose.yaw_rad for _, _, pose in entries], dtype=np.float64)
-    offsets = np.concatenate([[0], np.cumsum(t.counts)]).astype(np.int64)
-    hist_bins, hist_sqrt = _histograms_of(blobs_all, offsets)
-    cams = _Cameras.of([sid for sid, _, _ in entries], infos, point_sigma_m)
-    mono_range, mono_sigma = np.full(len(blobs_all), math.nan), np.full(len(blobs_all), math.nan)
-    for i, ((_, _, pose), sigma, model) in enumerate(zip(entries, sigmas, cams.models, strict=True)):
+        take, view_of, tab = take[keep], view_of[keep], tab[keep]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(view_of, minlength=len(sids)))]).astype(np.int64)
+    hist_bins, hist_sqrt = _histograms_of([aligned.hist[e] for e in take.tolist()], offsets)
+    cams = _Cameras.of(sids, infos, point_sigma_m)
+    mono_range, mono_sigma = np.full(len(take), math.nan), np.full(len(take), math.nan)
+    for i, (pose, sigma, model) in enumerate(zip(pose_of, sigmas, cams.models, strict=True)):
         sl = slice(int(offsets[i]), int(offsets[i + 1]))
         got = _mono(tab[sl], pose, sigma, model, feet)
         if got is not None:
             mono_range[sl], mono_sigma[sl] = got
     return Views(
-        sensor_ids=tuple(sid for sid, _, _ in entries),
+        sensor_ids=tuple(sids),
         offsets=offsets,
-        origin=np.array([pose.origin for _, _, pose in entries], dtype=np.float64).reshape(-1, 2),
-        z_m=np.array([pose.z_m for _, _, pose in entries], dtype=np.float64),
+        origin=np.array([pose.origin for pose in pose_of], dtype=np.float64).reshape(-1, 2),
+        z_m=np.array([pose.z_m for pose in pose_of], dtype=np.float64),
         sigma_rad=np.array(sigmas, dtype=np.float64),
-        sigma_xy_m=np.array([pose.sigma_xy_m for _, _, pose in entries], dtype=np.float64),
+        sigma_xy_m=np.array([pose.sigma_xy_m for pose in pose_of], dtype=np.float64),
         point_var_m2=cams.point_var_m2,
         period_s=cams.period_s,
         body_radius_m=cams.body_radius_m,
         fov=cams.fov,
         image=cams.image,
         hist_bins=hist_bins,
-        bearing_rad=tab[:, 0] + yaw[t.view_of],
+        bearing_rad=tab[:, 0] + np.array([pose.yaw_rad for pose in pose_of], dtype=np.float64)[view_of],
         width_rad=tab[:, 1],
         top_elev_rad=tab[:, 2],
         bottom_elev_rad=tab[:, 3],
         top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
         mono_range_m=mono_range,
         mono_sigma_m=mono_sigma,
-        local_id=np.array([b.local_id for b in blobs_all], dtype=np.int64),
-        confidence=np.array([b.confidence for b in blobs_all], dtype=np.float64),
+        local_id=aligned.local_id[take],
+        confidence=tab[:, 6],
         hist_sqrt=hist_sqrt,
     )
 
@@ -160,73 +165,26 @@ class _Cameras:
         )
 
 
-TABLE_COLUMNS = 6
-"""Columns of :class:`_BlobTable`'s ``tab``: bearing, width, top and bottom elevations (rad), bottom and top rows
-(px)."""
-
-
-@dataclass(slots=True)
-class _BlobTable:
-    """Every blob of every view in one table (this runs for every sensor on every tick): one pass in Python, then
-    whole-array operations, each view a slice of the result."""
-
-    blobs: list[AlignedBlob]
-    tab: FloatArray
-    """(n, :data:`TABLE_COLUMNS`) per blob; the bottom elevation NaN where the feet are not visible."""
-    view_of: IntArray
-    """(n,) the view (entry) of each blob."""
-    counts: list[int]
-    """Blobs per view."""
-
-    @classmethod
-    def of(cls, entries: list[tuple[str, list[AlignedBlob], PoseEstimate]]) -> _BlobTable:
-        nan = math.nan
-        blobs_all = [b for _, blobs, _ in entries for b in blobs]
-        counts = [len(blobs) for _, blobs, _ in entries]
-        tab = np.fromiter(  # np.fromiter over one flat stream: ~3x faster than np.array of tuples
-            chain.from_iterable(
-                (
-                    b.bearing_rad,
-                    b.width_rad,
-                    b.top_elev_rad,
-                    b.bottom_elev_rad if b.feet_visible else nan,
-                    b.bottom_px,
-                    b.top_px,
-                )
-                for b in blobs_all
-            ),
-            dtype=np.float64,
-            count=TABLE_COLUMNS * len(blobs_all),
-        ).reshape(-1, TABLE_COLUMNS)
-        return cls(blobs_all, tab, np.repeat(np.arange(len(entries)), counts), counts)
-
-    def kept(self, keep: BoolArray, views: int) -> _BlobTable:
-        """Only the blobs ``keep`` says."""
-        blobs = [b for b, k in zip(self.blobs, keep.tolist(), strict=True) if k]
-        view_of = self.view_of[keep]
-        return _BlobTable(blobs, self.tab[keep], view_of, np.bincount(view_of, minlength=views).tolist())
-
-
-def _histograms(blobs: list[AlignedBlob]) -> FloatArray | None:
-    """The square roots of the blobs' colour histograms as one (n, bins) array, when they all have the same (non-zero)
-    number of bins; else None."""
-    hist_lens = {len(b.hist) for b in blobs}
+def _histograms(hists: list[list[float]]) -> FloatArray | None:
+    """The square roots of colour histograms as one (n, bins) array, when they all have the same (non-zero) number
+    of bins; else None."""
+    hist_lens = {len(h) for h in hists}
     if len(hist_lens) != 1 or next(iter(hist_lens)) <= 0:
         return None
     bins = next(iter(hist_lens))
-    hist = np.fromiter(chain.from_iterable(b.hist for b in blobs), dtype=np.float64, count=bins * len(blobs))
+    hist = np.fromiter(chain.from_iterable(hists), dtype=np.float64, count=bins * len(hists))
     return np.sqrt(np.clip(hist.reshape(-1, bins), 0.0, None))
 
 
-def _histograms_of(blobs: list[AlignedBlob], offsets: IntArray) -> tuple[IntArray, dict[int, FloatArray]]:
+def _histograms_of(hists: list[list[float]], offsets: IntArray) -> tuple[IntArray, dict[int, FloatArray]]:
     """Each view's histogram size (0: none) and the square-rooted histograms per size (:attr:`Views.hist_sqrt`): all
     at once when every blob has histograms of one size, else view by view."""
     counts = np.diff(offsets)
-    every = _histograms(blobs)
+    every = _histograms(hists)
     if every is not None:
         return np.where(counts > 0, every.shape[1], 0).astype(np.int64), {every.shape[1]: every}
     per_view = [
-        _histograms(blobs[lo:hi]) if hi > lo else None
+        _histograms(hists[lo:hi]) if hi > lo else None
         for lo, hi in zip(offsets[:-1].tolist(), offsets[1:].tolist(), strict=True)
     ]
     return stack_histograms(per_view, offsets)
@@ -253,7 +211,8 @@ def _mono(
 
 
 def _not_bodies(
-    entries: list[tuple[str, list[AlignedBlob], PoseEstimate]],
+    sids: list[str],
+    pose_of: list[PoseEstimate],
     tab: FloatArray,
     *,
     view_of: IntArray,
@@ -261,7 +220,8 @@ def _not_bodies(
     bodies: dict[str, float] | None,
     poses: dict[str, PoseEstimate],
 ) -> BoolArray:
-    """(n,) False for the blobs that are a known robot/tripod body seen by another camera.
+    """(n,) False for the blobs (rows of ``tab``, of the views ``view_of``: cameras ``sids`` at ``pose_of``) that are a
+    known robot/tripod body seen by another camera.
 
     A blob on a body's bearing, about its angular width, whose top is below the body's camera (plus
     :data:`BODY_TOP_MARGIN_M`) is that body; a person behind it shows a taller top.
@@ -274,14 +234,14 @@ def _not_bodies(
     by = np.array([poses[o].y_m for o, _ in body_list])
     bz = np.array([poses[o].z_m for o, _ in body_list])
     radius = np.array([r for _, r in body_list])
-    vx = np.array([pose.x_m for _, _, pose in entries])[:, None]
-    vy = np.array([pose.y_m for _, _, pose in entries])[:, None]
-    vz = np.array([pose.z_m for _, _, pose in entries])[:, None]
-    yaw = np.array([pose.yaw_rad for _, _, pose in entries])[:, None]
+    vx = np.array([pose.x_m for pose in pose_of])[:, None]
+    vy = np.array([pose.y_m for pose in pose_of])[:, None]
+    vz = np.array([pose.z_m for pose in pose_of])[:, None]
+    yaw = np.array([pose.yaw_rad for pose in pose_of])[:, None]
     sig = np.array(sigmas)[:, None]
     ox, oy, oz = bx - vx, by - vy, bz - vz  # (views, bodies)
     dist = np.hypot(ox, oy)
-    ok = (dist > radius) & (np.array([sid for sid, _, _ in entries])[:, None] != np.array([o for o, _ in body_list]))
+    ok = (dist > radius) & (np.array(sids)[:, None] != np.array([o for o, _ in body_list]))
     half = np.arcsin(np.where(ok, radius / np.maximum(dist, 1e-9), 0.0))
     az = np.arctan2(oy, ox) - yaw
     # The body ends at the other camera (on its axis); a person behind it shows a taller top.

@@ -18,6 +18,8 @@ import numpy as np
 from common.angles import wrap_angle
 from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo, Sighting
+from resource_manager.ingest.align import Aligned, AlignParams, align
+from resource_manager.ingest.buffers import SensorBuffer
 from resource_manager.views.blobs import ImageBounds, Views, stack_histograms
 
 
@@ -241,6 +243,14 @@ class RandomWalk:
             else:
                 out.append(Person(legs[-1][4], legs[-1][5], self.heights[k]))  # type: ignore[misc]
         return out
+
+
+def aligned_of(frames: Sequence[Features]) -> Aligned:
+    """The blobs of one frame per sensor as alignment gives them at the frames' (common) stamp: held as they are."""
+    return align(
+        [(f.sensor_id, SensorBuffer(capacity=2, stamps=[f.stamp_ns], frames=[f]), AlignParams()) for f in frames],
+        frames[0].stamp_ns,
+    )
 
 
 @dataclass(frozen=True)
