@@ -67,7 +67,7 @@ class Measurement:
 
 def wide_blob(views: Views, blob: int, distance_m: float) -> bool:
     """Whether blob (entry) ``blob`` is plainly wider than one person at ``distance_m`` (a merged group)."""
-    return 2.0 * distance_m * math.tan(0.5 * float(views.width_rad[blob])) > MAX_PERSON_WIDTH_M
+    return 2.0 * distance_m * math.tan(0.5 * views.width_rad.item(blob)) > MAX_PERSON_WIDTH_M
 
 
 def pair_sigmas(sigma_a_rad: float, sigma_b_rad: float, sigma_xy_a: float, sigma_xy_b: float) -> tuple[float, float]:
@@ -78,22 +78,22 @@ def pair_sigmas(sigma_a_rad: float, sigma_b_rad: float, sigma_xy_a: float, sigma
 
 def _in_view(views: Views, blob: int) -> tuple[str, int]:
     """(sensor id, index in its view) of blob (entry) ``blob``."""
-    row = int(views.view_of[blob])
-    return views.sensor_ids[row], blob - int(views.offsets[row])
+    row = views.view_of.item(blob)
+    return views.sensor_ids[row], blob - views.offsets.item(row)
 
 
 def _height(views: Views, blobs: list[int], xy: FloatArray) -> float:
     x, y = float(xy[0]), float(xy[1])
     num = den = 0.0
-    whole = [e for e in blobs if not views.top_cut[e]]
+    whole = [e for e in blobs if not views.top_cut.item(e)]
     if whole:
         blobs = whole  # a head cut by the image border gives only a lower bound: the other views' heights
-    for e in blobs:  # plain floats: two views, numpy per element would cost more
-        row = int(views.view_of[e])
-        d = math.hypot(x - float(views.origin[row, 0]), y - float(views.origin[row, 1]))
+    for e in blobs:  # plain floats (.item): two views, numpy per element would cost more
+        row = views.view_of.item(e)
+        d = math.hypot(x - views.origin.item(row, 0), y - views.origin.item(row, 1))
         if d <= AT_CAMERA_M:
             continue
-        z = float(views.z_m[row]) + d * math.tan(float(views.top_elev_rad[e]))
+        z = views.z_m.item(row) + d * math.tan(views.top_elev_rad.item(e))
         w = 1.0 / (d * d)
         num += w * z
         den += w
@@ -112,14 +112,12 @@ def localize_best_pair(
 ) -> Measurement | None:
     """Localise blob (entry) ``i`` of one camera (a, O1) and blob ``j`` of another (b, O2) (Eq. 1 or Eq. 2); None if
     the rays do not meet."""
-    ra, rb = int(views.view_of[i]), int(views.view_of[j])
-    sigma, sigma_base = pair_sigmas(float(views.sigma_rad[ra]), float(views.sigma_rad[rb]), sigma_xy_a, sigma_xy_b)
-    w1, w2 = float(views.width_rad[i]), float(views.width_rad[j])
+    ra, rb = views.view_of.item(i), views.view_of.item(j)
+    sigma, sigma_base = pair_sigmas(views.sigma_rad.item(ra), views.sigma_rad.item(rb), sigma_xy_a, sigma_xy_b)
+    w1, w2 = views.width_rad.item(i), views.width_rad.item(j)
     sigma_w = width_rel_sigma * 0.5 * (w1 + w2)
     o1, o2 = views.origin[ra], views.origin[rb]
-    fix = localize_pair(
-        o1, float(views.bearing_rad[i]), w1, o2, float(views.bearing_rad[j]), w2, sigma, max(sigma_w, 1e-6)
-    )
+    fix = localize_pair(o1, views.bearing_rad.item(i), w1, o2, views.bearing_rad.item(j), w2, sigma, max(sigma_w, 1e-6))
     if not fix.converges:
         return None
     xy = fix.xy

@@ -276,7 +276,7 @@ def score_views(
     module docstring); ``vis``: what every view should see of each track; ``tracks``: their looks and links (row
     for row with ``table``); nobody is seen farther than ``max_range_m``."""
     rows = blobs.rows
-    vis = Visibility(vis.p_detect[rows], vis.feet_hidden[rows], vis.cut_reach_m[rows])  # the views scored
+    vis = Visibility(blobs.pick(vis.p_detect), blobs.pick(vis.feet_hidden), blobs.pick(vis.cut_reach_m))
     p_detect = vis.p_detect
     n, m = table.n, len(blobs.entries)
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
@@ -285,7 +285,7 @@ def score_views(
             ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(blobs.counts.tolist())
         ]
     col = blobs.row_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
-    d = table.xy[None, :, :] - views.origin[rows][:, None, :]
+    d = table.xy[None, :, :] - blobs.pick(views.origin)[:, None, :]
     r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
     dist = np.sqrt(r2)
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
@@ -294,11 +294,11 @@ def score_views(
     s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, rows[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
     blob_s_tt = s_tt[col].T
-    nu_t = wrap_angle(views.bearing_rad[blobs.entries][None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
+    nu_t = wrap_angle(blobs.take(views.bearing_rad)[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
-    ln_clutter = np.log(np.maximum(model.clutter_per_view, blobs.counts) / views.fov_width_rad[rows])[col]
-    has = np.isfinite(views.mono_range_m[blobs.entries])
+    ln_clutter = np.log(np.maximum(model.clutter_per_view, blobs.counts) / blobs.pick(views.fov_width_rad))[col]
+    has = np.isfinite(blobs.take(views.mono_range_m))
     feet: tuple[FloatArray, FloatArray, FloatArray] | None = None
     density_gate = gate
     if has.any():
@@ -360,13 +360,13 @@ def _feet_gates(
     distance. Returns the feet terms (innovation, conditional variance, predicted distance), the gate that counts
     blobs for the local density, and the gate of the likelihood ratio."""
     s_dd_track, s_td, dist = track
-    col, entries = blobs.row_of, blobs.entries
-    view = views.view_of[entries]
-    mono = views.mono_range_m[entries]
+    col = blobs.row_of
+    view = blobs.take(views.view_of)
+    mono = blobs.take(views.mono_range_m)
     has = np.isfinite(mono)
     rng = np.where(has, mono, 0.0)
     feet_var = (
-        np.where(has, views.mono_sigma_m[entries], 1.0) ** 2 + views.sigma_xy_m[view] ** 2 + views.point_var_m2[view]
+        np.where(has, blobs.take(views.mono_sigma_m), 1.0) ** 2 + views.sigma_xy_m[view] ** 2 + views.point_var_m2[view]
     )
     s_dd = s_dd_track + feet_var[None, :]
     range_innovation = rng[None, :] - dist

@@ -245,7 +245,8 @@ class Tracker:
                 hits[sid][i] = j
         # 5. Births and returns.
         unexplained = np.ones(views.n, dtype=bool)
-        unexplained[[views.entry(sid, j) for sid, hit in hits.items() for j in hit.values()]] = False
+        starts = views.offsets.tolist()
+        unexplained[[starts[views.rows[sid]] + j for sid, hit in hits.items() for j in hit.values()]] = False
         hyps = self._hypotheses(tick, unexplained)
         hyps, returned = self._returns(hyps, tick, t_ns, hits, predicted)
         out.returned = len(returned)

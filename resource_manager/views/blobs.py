@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -18,7 +19,9 @@ import numpy.typing as npt
 from common.angles import TWO_PI
 from common.arrays import BoolArray, FloatArray, IntArray
 
-__all__ = ["ImageBounds", "Subset", "Views"]
+__all__ = ["ImageBounds", "Subset", "Views", "stack_histograms"]
+
+_A = TypeVar("_A", bound=npt.NDArray[Any])
 
 MIN_DEPTH_M = 1e-6
 """A point must be at least this far in front of a perspective camera (m) to project into its picture."""
@@ -66,11 +69,21 @@ class Subset:
     """(k,) the blobs (entries of the views' per-blob arrays), view after view."""
     row_of: IntArray
     """(k,) the position in ``rows`` of each blob's view."""
+    whole: bool = False
+    """Every blob of every view, in order (:meth:`Views.every`): the views' arrays are read as they are."""
 
     @property
     def counts(self) -> IntArray:
         """(r,) blobs of each view in the subset."""
         return np.diff(self.offsets)
+
+    def take(self, per_blob: _A) -> _A:
+        """The values of the subset's blobs, of a per-blob array (m, ...) of the views."""
+        return per_blob if self.whole else cast(_A, per_blob[self.entries])
+
+    def pick(self, per_view: _A) -> _A:
+        """The values of the subset's views, of a per-view array (s, ...) of the views."""
+        return per_view if self.whole else cast(_A, per_view[self.rows])
 
     def part(self, i: int) -> IntArray:
         """The blobs of view ``rows[i]``."""
@@ -173,17 +186,17 @@ class Views:
 
     def entry(self, sensor_id: str, blob: int) -> int:
         """The entry of blob ``blob`` (its index in its view) of view ``sensor_id``."""
-        return int(self.offsets[self.rows[sensor_id]]) + blob
+        return self.offsets.item(self.rows[sensor_id]) + blob
 
     def hist_of(self, entry: int) -> FloatArray | None:
         """The square-rooted histogram of one blob (None: its view sends none)."""
-        bins = int(self.hist_bins[self.view_of[entry]])
+        bins = self.hist_bins.item(self.view_of.item(entry))
         return self.hist_sqrt[bins][entry] if bins else None
 
     def every(self) -> Subset:
         """Every blob, every view (with or without blobs)."""
         return Subset(
-            np.arange(self.n_views, dtype=np.int64), self.offsets, np.arange(self.n, dtype=np.int64), self.view_of
+            np.arange(self.n_views, dtype=np.int64), self.offsets, np.arange(self.n, dtype=np.int64), self.view_of, True
         )
 
     def subset(self, blobs: BoolArray) -> Subset:

@@ -88,18 +88,20 @@ def build_views(
     sids = [sid for sid, _ in order]
     pose_of = [poses[sid] for sid in sids]
     sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, pose in zip(sids, pose_of, strict=True)]
-    bounds = aligned.offsets.tolist()
-    take = np.concatenate([np.arange(bounds[i], bounds[i + 1], dtype=np.int64) for _, i in order])
-    view_of = np.repeat(np.arange(len(order), dtype=np.int64), aligned.counts[[i for _, i in order]])
-    tab = aligned.values[take]
+    rows = [i for _, i in order]
+    take = _gather(aligned, rows)
+    tab = aligned.values if take is None else aligned.values[take]
+    view_of = np.repeat(np.arange(len(order), dtype=np.int64), aligned.counts[rows])
     bodies = {sid: info.body_radius_m for sid, info in infos.items() if info.body_radius_m > 0}
     keep = _not_bodies(sids, pose_of, tab, view_of=view_of, sigmas=sigmas, bodies=bodies, poses=poses)
     if not keep.all():
-        take, view_of, tab = take[keep], view_of[keep], tab[keep]
+        take = np.flatnonzero(keep) if take is None else take[keep]
+        view_of, tab = view_of[keep], tab[keep]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(view_of, minlength=len(sids)))]).astype(np.int64)
-    hist_bins, hist_sqrt = _histograms_of([aligned.hist[e] for e in take.tolist()], offsets)
+    hists = aligned.hist if take is None else [aligned.hist[e] for e in take.tolist()]
+    hist_bins, hist_sqrt = _histograms_of(hists, offsets)
     cams = _Cameras.of(sids, infos, point_sigma_m)
-    mono_range, mono_sigma = np.full(len(take), math.nan), np.full(len(take), math.nan)
+    mono_range, mono_sigma = np.full(len(tab), math.nan), np.full(len(tab), math.nan)
     for i, (pose, sigma, model) in enumerate(zip(pose_of, sigmas, cams.models, strict=True)):
         sl = slice(int(offsets[i]), int(offsets[i + 1]))
         got = _mono(tab[sl], pose, sigma, model, feet)
@@ -125,10 +127,19 @@ def build_views(
         top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
         mono_range_m=mono_range,
         mono_sigma_m=mono_sigma,
-        local_id=aligned.local_id[take],
+        local_id=aligned.local_id if take is None else aligned.local_id[take],
         confidence=tab[:, 6],
         hist_sqrt=hist_sqrt,
     )
+
+
+def _gather(aligned: Aligned, rows: list[int]) -> IntArray | None:
+    """The blobs (entries of ``aligned``) of its sensors ``rows``, in that order; None: all of them in their order
+    (nothing to gather)."""
+    if rows == list(range(len(aligned.sensor_ids))):
+        return None
+    bounds = aligned.offsets.tolist()
+    return np.concatenate([np.arange(bounds[i], bounds[i + 1], dtype=np.int64) for i in rows])
 
 
 @dataclass(frozen=True, slots=True)

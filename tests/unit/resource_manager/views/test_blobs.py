@@ -54,8 +54,10 @@ def test_a_subset_is_index_arrays_into_the_views_and_split_undoes_the_stacking()
     assert sub.rows.tolist() == [0, 2]  # only the views with blobs in it
     assert sub.entries.tolist() == [1, 2, 4] and sub.offsets.tolist() == [0, 1, 3] and sub.row_of.tolist() == [0, 1, 1]
     assert sub.part(1).tolist() == [2, 4] and sub.counts.tolist() == [1, 2]
+    assert sub.take(views.local_id).tolist() == [1, 0, 2] and sub.pick(views.z_m).tolist() == [1.1, 1.4]
     every = views.every()
     assert every.rows.tolist() == [0, 1, 2] and every.entries.tolist() == [0, 1, 2, 3, 4]
+    assert every.take(views.bearing_rad) is views.bearing_rad  # every blob: the arrays as they are, no copy
     parts = every.split(np.arange(10.0).reshape(2, 5))
     assert [p.shape for p in parts] == [(2, 2), (2, 0), (2, 3)]
     assert parts[2][1].tolist() == [7.0, 8.0, 9.0]

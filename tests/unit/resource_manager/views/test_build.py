@@ -51,7 +51,9 @@ def test_known_bodies_are_not_people() -> None:
     views = build_views(av, poses, {"r1": robot}, lambda s: SIG)
     assert views.sensor_ids == ("p1",) and list(views.local_id) == [2, 3, 4]  # only the body is gone
     bodiless = msgspec.structs.replace(robot, body_radius_m=0.0)
-    assert list(build_views(av, poses, {"r1": bodiless}, lambda s: SIG).local_id) == [1, 2, 3, 4]
+    every = build_views(av, poses, {"r1": bodiless}, lambda s: SIG)
+    assert list(every.local_id) == [1, 2, 3, 4]
+    assert np.shares_memory(every.width_rad, av.values)  # every blob kept, in order: the aligned arrays, not copied
 
 
 def test_pinhole_field_of_view() -> None:
