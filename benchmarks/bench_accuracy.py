@@ -336,16 +336,17 @@ def _stats(errors_m: list[float]) -> dict[str, Any]:
 
 
 def _first_fix(
-    order: list[tuple[str, str]], views: dict[str, Any], sup: dict[str, int], gt_xy: Any, width_rel_sigma: float
+    order: list[tuple[str, str]], views: Any, sup: dict[str, int], gt_xy: Any, width_rel_sigma: float
 ) -> float | None:
-    """Error of the first pair in ``order`` whose rays meet (the manager tries its ranked pairs in turn)."""
+    """Error of the first pair in ``order`` whose rays meet (the manager tries its ranked pairs in turn); ``sup``:
+    sensor id -> the person's blob (entry) in ``views``."""
     import numpy as np
 
     from resource_manager.stereo.localize import localize_best_pair
 
     for p, q in order:
         a, b = sorted((p, q))
-        m = localize_best_pair(views[a], sup[a], views[b], sup[b], width_rel_sigma=width_rel_sigma)
+        m = localize_best_pair(views, sup[a], sup[b], width_rel_sigma=width_rel_sigma)
         if m is not None:
             return float(np.hypot(*(m.xy - gt_xy)))
     return None
@@ -376,12 +377,14 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     import itertools
     import json as _json
 
+    import msgspec
     import numpy as np
 
     from common.pinhole import PinholeCamera
     from panostereo.datasets.wildtrack import GridSpec, calibration, camera_id
     from resource_manager.config import MatchSection
-    from resource_manager.ingest.align import AlignedBlob, AlignedView
+    from resource_manager.ingest.align import AlignParams, align
+    from resource_manager.ingest.buffers import SensorBuffer
     from resource_manager.poses.solver import PoseEstimate
     from resource_manager.stereo.localize import localize_least_squares
     from resource_manager.stereo.pairs import CameraGeom, rank_pairs
@@ -444,29 +447,27 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
     failed = dict.fromkeys(errors, 0)
     views_seen: list[int] = []
     for k in sorted({k for k, _ in truth}):
-        aligned = {}
+        held = []  # each camera's frame, held as it is at its own stamp
         for cid in ids:
             feats = features_from_detections(
                 dets[cid].get(k, []), cams[cid], sensor_id=cid, seq=k, stamp_ns=k * 500_000_000, frame_index=k
             )
-            blobs = [
-                AlignedBlob(
-                    b.local_id,
-                    b.bearing_rad + (float(rng.normal(0.0, noise)) if noise > 0 else 0.0),
-                    b.width_rad,
-                    b.top_elev_rad,
-                    b.bottom_elev_rad,
-                    list(b.hist),
-                    b.feet_visible,
-                )
-                for b in feats.blobs
-            ]
-            aligned[cid] = AlignedView(cid, feats.stamp_ns, blobs, [], "held")
-        views = build_views(aligned, poses, {}, lambda _sid: sigma_rad)
+            if noise > 0:
+                noisy = [
+                    msgspec.structs.replace(b, bearing_rad=b.bearing_rad + float(rng.normal(0.0, noise)))
+                    for b in feats.blobs
+                ]
+                feats = msgspec.structs.replace(feats, blobs=noisy)
+            held.append((cid, SensorBuffer(capacity=2, stamps=[feats.stamp_ns], frames=[feats]), AlignParams()))
+        views = build_views(align(held, k * 500_000_000), poses, {}, lambda _sid: sigma_rad)
         for (kk, pid), gt in truth.items():
             if kk != k:
                 continue
-            sup = {sid: int(np.nonzero(v.local_id == pid)[0][0]) for sid, v in views.items() if pid in v.local_id}
+            sup = {}  # sensor id -> the person's blob (entry)
+            for row, sid in enumerate(views.sensor_ids):
+                hit = np.flatnonzero(views.local_id[views.span(row)] == pid)
+                if hit.size:
+                    sup[sid] = views.entry(sid, int(hit[0]))
             if len(sup) < 2:
                 continue
             views_seen.append(len(sup))
@@ -479,12 +480,12 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
                 else:
                     errors[method].append(err)
 
-            lsq = localize_least_squares([(views[s], i) for s, i in sup.items()], {})
+            lsq = localize_least_squares(views, list(sup.values()), {})
             if lsq is None:
                 failed["all_views"] += 1
             else:
                 errors["all_views"].append(float(np.hypot(*(lsq.xy - gt_xy))))
-            geoms = [CameraGeom(s, views[s].origin_xy, views[s].sigma_rad) for s in sup]
+            geoms = [CameraGeom(s, views.origin[views.rows[s]], float(views.sigma_rad[views.rows[s]])) for s in sup]
             if lsq is not None:
                 run("error_model", [(c.a, c.b) for c in rank_pairs(lsq.xy, geoms, max_cams)])
             else:
@@ -493,8 +494,7 @@ def wildtrack_pairs(dataset: Path, out: Path, frames: int = 0, seed: int = 0, no
             pairs = list(itertools.combinations(sorted(sup), 2))
             run("random", [pairs[int(i)] for i in rng.permutation(len(pairs))])
             crossing = [
-                abs(math.sin(float(views[p].bearing_rad[sup[p]]) - float(views[q].bearing_rad[sup[q]])))
-                for p, q in pairs
+                abs(math.sin(float(views.bearing_rad[sup[p]]) - float(views.bearing_rad[sup[q]]))) for p, q in pairs
             ]
             run("best_angle", [pairs[int(i)] for i in np.argsort(crossing)[::-1]])
     res: dict[str, Any] = {

@@ -39,7 +39,7 @@ from common.schema import (
 )
 from resource_manager import wiring
 from resource_manager.config import ManagerConfig
-from resource_manager.ingest.align import AlignedView, AlignParams, align_sensor
+from resource_manager.ingest.align import Aligned, AlignParams, align
 from resource_manager.ingest.schedule import TickLatency
 from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
@@ -47,7 +47,7 @@ from resource_manager.serve import messages
 from resource_manager.serve.lag import LaggedTracks
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 from resource_manager.views.build import build_views
 
 __all__ = ["Absorbed", "Batch", "Fusion", "TickCounters", "TickResult"]
@@ -123,7 +123,7 @@ class TickResult:
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
     live_tracks: list[Track] = field(default_factory=list)
     """This instant's published tracks (the same as ``trackset``'s without ``publish_lag_s``)."""
-    views: Mapping[str, ViewBlobs] = field(default_factory=dict)
+    views: Views = field(default_factory=Views.empty)
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
     """PTZ holds ended at this instant (a lease run out, a track ended), with the reason."""
@@ -208,7 +208,7 @@ class Fusion:
         states = self._detector_states(t_ns)
         # Only a camera whose own node reports motion may move (resource_manager/poses/solver.py).
         moving = [sid for sid, state in states.items() if state == "moving"]
-        poses = self.poses.solve({sid: v.sightings for sid, v in aligned.items()}, t_ns, moving)
+        poses = self.poses.solve(aligned.sightings, t_ns, moving)
         self.last_poses = poses
         # A robot that moves, or has stopped but not settled (node relearning its background, pose converging),
         # gives no views: the tracks carry on with the other cameras (views/settling.py).
@@ -221,14 +221,21 @@ class Fusion:
                 poses,
                 mobile=[sid for sid, info in self.sensors.infos.items() if info.mobile],
                 en_route=self.planner.en_route(positions) if self.planner.held else (),
-                with_blobs=[sid for sid, v in aligned.items() if v.blobs],
+                with_blobs=[sid for sid, n in zip(aligned.sensor_ids, aligned.counts.tolist(), strict=True) if n],
                 states=states,
             )
             if self.trust.params.enabled
             else frozenset()
         )
-        seeing = {sid: v for sid, v in aligned.items() if sid not in unsettled}
-        views = build_views(seeing, poses, self.sensors.infos, self.poses.bearing_sigma, feet=self.feet)
+        views = build_views(
+            aligned,
+            poses,
+            self.sensors.infos,
+            self.poses.bearing_sigma,
+            feet=self.feet,
+            point_sigma_m=self.config.tracker.body_sigma_m,
+            skip=unsettled,
+        )
         outcome = self.tracker.step(
             views,
             t_ns,
@@ -240,22 +247,23 @@ class Fusion:
         plans = self._plans(t_ns, poses)
         commands = self._ptz_commands(t_ns)
         return self._result(
-            outcome.pair_entries, plans, commands, outcome.ended, in_use=sorted(views), aligned=aligned, views=views
+            outcome.pair_entries,
+            plans,
+            commands,
+            outcome.ended,
+            in_use=list(views.sensor_ids),
+            aligned=aligned,
+            views=views,
         )
 
-    def _align(self, t_ns: int) -> dict[str, AlignedView]:
+    def _align(self, t_ns: int) -> Aligned:
         """Every present sensor's blobs (and, while some camera's pose is still to calibrate, sightings) at
         ``t_ns``."""
         surveyed = self.poses.surveyed()
         present = list(self.sensors.present_buffers())
         # Mutual calibration matters only while some present sensor has no surveyed pose.
         need_sightings = self.poses.params.enabled and any(sid not in surveyed for sid, _ in present)
-        aligned: dict[str, AlignedView] = {}
-        for sid, buf in present:
-            view = align_sensor(buf, sid, t_ns, self._align_params(sid), sightings=need_sightings)
-            if view is not None:
-                aligned[sid] = view
-        return aligned
+        return align(((sid, buf, self._align_params(sid)) for sid, buf in present), t_ns, sightings=need_sightings)
 
     def _align_params(self, sid: str) -> AlignParams:
         """The alignment limits for one sensor: the config's, widened to its frame period (a 2 fps camera's
@@ -366,8 +374,8 @@ class Fusion:
         *,
         skipped: bool = False,
         in_use: list[str] | None = None,
-        aligned: Mapping[str, AlignedView] | None = None,
-        views: Mapping[str, ViewBlobs] | None = None,
+        aligned: Aligned | None = None,
+        views: Views | None = None,
     ) -> TickResult:
         if not skipped:
             self.seq += 1
@@ -384,7 +392,9 @@ class Fusion:
         counters = TickCounters(
             sensors_in_use=used,
             sensors_known=self.known_sensors(),
-            sensors_without_pose=sorted(s for s in (aligned or {}) if s not in self.last_poses),
+            sensors_without_pose=sorted(
+                s for s in (aligned.sensor_ids if aligned is not None else ()) if s not in self.last_poses
+            ),
             late=c.late,
             duplicate=c.duplicate,
             out_of_order=c.out_of_order,
@@ -403,7 +413,7 @@ class Fusion:
             ended=ended,
             skipped=skipped,
             live_tracks=live,
-            views=views or {},
+            views=views if views is not None else Views.empty(),
             ptz_ended=self.ptz.take_ended(),
             latency=last if (last := self.schedule.last) is not None and last.t_ns == self.last_t_ns else None,
             sightings_refused=self.poses.take_refused(),

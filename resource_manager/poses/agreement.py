@@ -17,13 +17,13 @@ Pure: reads the views and the published tracks, changes neither.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from common.schema import SensorAgreement, Track
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 
 __all__ = ["Agreement", "AgreementParams"]
 
@@ -57,18 +57,18 @@ class Agreement:
         self.params = params or AgreementParams()
         self._hist: dict[str, _History] = {}
 
-    def update(self, t_ns: int, views: Mapping[str, ViewBlobs], tracks: Sequence[Track]) -> None:
+    def update(self, t_ns: int, views: Views, tracks: Sequence[Track]) -> None:
         """Add one tick's blobs (see the module docstring)."""
         p = self.params
-        for sid, view in views.items():
-            n = view.bearing_rad.size
-            if n == 0:
+        for row, sid in enumerate(views.sensor_ids):
+            bearing = views.bearing_rad[views.span(row)]
+            if bearing.size == 0:
                 continue
             others = [t for t in tracks if sum(1 for s in t.sensors if s != sid) >= MIN_OTHER_CAMERAS]
             if not others:
                 continue
-            pts = np.array([(t.x_m, t.y_m) for t in others], dtype=np.float64) - view.origin_xy
-            dirs = np.column_stack([np.cos(view.bearing_rad), np.sin(view.bearing_rad)])
+            pts = np.array([(t.x_m, t.y_m) for t in others], dtype=np.float64) - views.origin[row]
+            dirs = np.column_stack([np.cos(bearing), np.sin(bearing)])
             along = dirs @ pts.T  # (blobs, people)
             across = np.abs(dirs[:, 0:1] * pts[None, :, 1] - dirs[:, 1:2] * pts[None, :, 0])
             across = np.where(along > 0, across, np.inf)

@@ -29,7 +29,7 @@ from common.arrays import FloatArray
 from common.error_model import pair_error_f
 from common.geometry import MIN_RAYS, intersect_rays, localize_pair
 from common.schema import Method
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 
 __all__ = [
     "MAX_PERSON_WIDTH_M",
@@ -62,30 +62,38 @@ class Measurement:
     predicted_error_m: float
     """The error model's predicted position error of the views used."""
     blobs: tuple[tuple[str, int], ...]
-    """(sensor_id, blob index) of every view used."""
+    """(sensor_id, blob index in its view) of every view used."""
 
 
-def wide_blob(v: ViewBlobs, i: int, distance_m: float) -> bool:
-    """Whether blob ``i`` of view ``v`` is plainly wider than one person at ``distance_m`` (a merged group)."""
-    return 2.0 * distance_m * math.tan(0.5 * float(v.width_rad[i])) > MAX_PERSON_WIDTH_M
+def wide_blob(views: Views, blob: int, distance_m: float) -> bool:
+    """Whether blob (entry) ``blob`` is plainly wider than one person at ``distance_m`` (a merged group)."""
+    return 2.0 * distance_m * math.tan(0.5 * views.width_rad.item(blob)) > MAX_PERSON_WIDTH_M
 
 
-def pair_sigmas(a: ViewBlobs, b: ViewBlobs, sigma_xy_a: float, sigma_xy_b: float) -> tuple[float, float]:
-    """Bearing sigma of the pair and the baseline sigma (non-zero when a pose came from mutual calibration)."""
-    return math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0), math.hypot(sigma_xy_a, sigma_xy_b)
+def pair_sigmas(sigma_a_rad: float, sigma_b_rad: float, sigma_xy_a: float, sigma_xy_b: float) -> tuple[float, float]:
+    """Bearing sigma of the pair of cameras with bearing errors ``sigma_a_rad``, ``sigma_b_rad`` and the baseline
+    sigma (non-zero when a pose came from mutual calibration)."""
+    return math.hypot(sigma_a_rad, sigma_b_rad) / math.sqrt(2.0), math.hypot(sigma_xy_a, sigma_xy_b)
 
 
-def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
+def _in_view(views: Views, blob: int) -> tuple[str, int]:
+    """(sensor id, index in its view) of blob (entry) ``blob``."""
+    row = views.view_of.item(blob)
+    return views.sensor_ids[row], blob - views.offsets.item(row)
+
+
+def _height(views: Views, blobs: list[int], xy: FloatArray) -> float:
     x, y = float(xy[0]), float(xy[1])
     num = den = 0.0
-    whole = [(v, i) for v, i in views if v.top_cut is None or not v.top_cut[i]]
+    whole = [e for e in blobs if not views.top_cut.item(e)]
     if whole:
-        views = whole  # a head cut by the image border gives only a lower bound: the other views' heights
-    for v, i in views:  # plain floats: two views, numpy per element would cost more
-        d = math.hypot(x - float(v.origin_xy[0]), y - float(v.origin_xy[1]))
+        blobs = whole  # a head cut by the image border gives only a lower bound: the other views' heights
+    for e in blobs:  # plain floats (.item): two views, numpy per element would cost more
+        row = views.view_of.item(e)
+        d = math.hypot(x - views.origin.item(row, 0), y - views.origin.item(row, 1))
         if d <= AT_CAMERA_M:
             continue
-        z = v.z_m + d * math.tan(float(v.top_elev_rad[i]))
+        z = views.z_m.item(row) + d * math.tan(views.top_elev_rad.item(e))
         w = 1.0 / (d * d)
         num += w * z
         den += w
@@ -93,9 +101,8 @@ def _height(views: list[tuple[ViewBlobs, int]], xy: FloatArray) -> float:
 
 
 def localize_best_pair(
-    a: ViewBlobs,
+    views: Views,
     i: int,
-    b: ViewBlobs,
     j: int,
     *,
     sigma_xy_a: float = 0.0,
@@ -103,24 +110,24 @@ def localize_best_pair(
     width_rel_sigma: float = 0.1,
     min_sigma_m: float = 0.02,
 ) -> Measurement | None:
-    """Localise blob i of camera a and blob j of camera b (Eq. 1 or Eq. 2); None if the rays do not meet."""
-    sigma, sigma_base = pair_sigmas(a, b, sigma_xy_a, sigma_xy_b)
-    w1, w2 = float(a.width_rad[i]), float(b.width_rad[j])
+    """Localise blob (entry) ``i`` of one camera (a, O1) and blob ``j`` of another (b, O2) (Eq. 1 or Eq. 2); None if
+    the rays do not meet."""
+    ra, rb = views.view_of.item(i), views.view_of.item(j)
+    sigma, sigma_base = pair_sigmas(views.sigma_rad.item(ra), views.sigma_rad.item(rb), sigma_xy_a, sigma_xy_b)
+    w1, w2 = views.width_rad.item(i), views.width_rad.item(j)
     sigma_w = width_rel_sigma * 0.5 * (w1 + w2)
-    fix = localize_pair(
-        a.origin_xy, float(a.bearing_rad[i]), w1, b.origin_xy, float(b.bearing_rad[j]), w2, sigma, max(sigma_w, 1e-6)
-    )
+    o1, o2 = views.origin[ra], views.origin[rb]
+    fix = localize_pair(o1, views.bearing_rad.item(i), w1, o2, views.bearing_rad.item(j), w2, sigma, max(sigma_w, 1e-6))
     if not fix.converges:
         return None
     xy = fix.xy
     x, y = float(xy[0]), float(xy[1])
     if not (math.isfinite(x) and math.isfinite(y)):
         return None
-    o1, o2 = a.origin_xy, b.origin_xy
     x1, y1, x2, y2 = float(o1[0]), float(o1[1]), float(o2[0]), float(o2[1])
     base = math.hypot(x2 - x1, y2 - y1)
     d1, d2 = float(fix.d1_m), float(fix.d2_m)
-    if fix.method == "size_ratio" and (wide_blob(a, i, d1) or wide_blob(b, j, d2)):
+    if fix.method == "size_ratio" and (wide_blob(views, i, d1) or wide_blob(views, j, d2)):
         # Eq. 2 takes the widths for one person's: a merged group's blob puts the fix far off along the baseline.
         return None
     # Covariance as (xx, xy, yy) in plain floats (one small matrix per call: numpy per element costs more).
@@ -154,25 +161,25 @@ def localize_best_pair(
     return Measurement(
         xy=xy,
         cov=cov,
-        height_m=_height([(a, i), (b, j)], xy),
+        height_m=_height(views, [i, j], xy),
         method="size_ratio" if fix.method == "size_ratio" else "triangulation",
-        sensors=(a.sensor_id, b.sensor_id),
+        sensors=(views.sensor_ids[ra], views.sensor_ids[rb]),
         predicted_error_m=predicted,
-        blobs=((a.sensor_id, i), (b.sensor_id, j)),
+        blobs=(_in_view(views, i), _in_view(views, j)),
     )
 
 
 def localize_least_squares(
-    views: list[tuple[ViewBlobs, int]], sigma_xy: dict[str, float], min_sigma_m: float = 0.02
+    views: Views, blobs: list[int], sigma_xy: dict[str, float], min_sigma_m: float = 0.02
 ) -> Measurement | None:
-    """Fuse every view of one person by least squares on the bearing rays; None if degenerate."""
-    if len(views) < MIN_RAYS:
+    """Fuse the blobs (entries) ``blobs`` of one person, one per view, by least squares on the bearing rays; None if
+    degenerate."""
+    if len(blobs) < MIN_RAYS:
         return None
-    origins = np.array([v.origin_xy for v, _ in views], dtype=np.float64)
-    bearings = np.array([float(v.bearing_rad[i]) for v, i in views], dtype=np.float64)
-    sigmas = []
-    for v, _ in views:
-        sigmas.append(v.sigma_rad)
+    rows = [int(views.view_of[e]) for e in blobs]
+    origins = np.array([views.origin[r] for r in rows], dtype=np.float64)
+    bearings = np.array([float(views.bearing_rad[e]) for e in blobs], dtype=np.float64)
+    sigmas = [float(views.sigma_rad[r]) for r in rows]
     try:
         fix = intersect_rays(origins, bearings, np.array(sigmas, dtype=np.float64))
     except Exception:  # GeometryError on parallel rays
@@ -181,14 +188,15 @@ def localize_least_squares(
     if not np.all(np.isfinite(xy)):
         return None
     cov = np.asarray(fix.cov, dtype=np.float64)
-    pose_var = max(sigma_xy.get(v.sensor_id, 0.0) for v, _ in views) ** 2
+    sensors = tuple(views.sensor_ids[r] for r in rows)
+    pose_var = max(sigma_xy.get(sid, 0.0) for sid in sensors) ** 2
     cov = cov + (pose_var + min_sigma_m**2) * np.eye(2)
     return Measurement(
         xy=xy,
         cov=cov,
-        height_m=_height(views, xy),
+        height_m=_height(views, blobs, xy),
         method="least_squares",
-        sensors=tuple(v.sensor_id for v, _ in views),
+        sensors=sensors,
         predicted_error_m=math.sqrt(max(float(np.trace(cov)), 0.0)),
-        blobs=tuple((v.sensor_id, i) for v, i in views),
+        blobs=tuple(_in_view(views, e) for e in blobs),
     )

@@ -21,13 +21,16 @@ paper's: repeatedly take the largest entry; one sort of the entries above the
 threshold gives the same pairs) and ``global`` (Hungarian on the sum of
 confidences, with a private "unmatched" dummy per row and column).
 
-:func:`match_matrices` scores many camera pairs in one vectorised pass; with
-16 cameras and 20 people it is the largest single stage of a manager tick.
+:func:`match_matrices` scores many camera pairs in one vectorised pass, on the
+tick's :class:`~resource_manager.views.blobs.Views` (each view with only some of
+its blobs: a :class:`~resource_manager.views.blobs.Subset`); with 16 cameras and
+20 people it is the largest single stage of a manager tick.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
 
@@ -42,7 +45,7 @@ from common.geometry import MIN_SIN, size_ratio
 from resource_manager.config import MatchSection, default_of
 from resource_manager.stereo.match_tables import Tables, colour_table
 from resource_manager.stereo.matchers import MATCHERS, GlobalMatcher, GreedyMatcher, Matcher, get_matcher
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Subset, Views
 
 __all__ = [
     "MATCHERS",
@@ -51,7 +54,6 @@ __all__ = [
     "MatchMatrix",
     "MatchParams",
     "Matcher",
-    "ViewBlobs",
     "get_matcher",
     "match_matrices",
     "match_matrix",
@@ -104,9 +106,9 @@ def _log_ratio_score(v1: FloatArray, v2: FloatArray, sigma: float) -> FloatArray
     return np.where(ok, np.exp(-(lr**2) / (2.0 * sigma**2)), 0.0)
 
 
-def match_matrix(a: ViewBlobs, b: ViewBlobs, params: MatchParams) -> MatchMatrix:
-    """Score every blob of ``a`` (camera 1, O1) against every blob of ``b`` (camera 2, O2) (Eq. 7)."""
-    return match_matrices([(a, b)], params)[0]
+def match_matrix(views: Views, a: int, b: int, params: MatchParams) -> MatchMatrix:
+    """Score every blob of view ``a`` (camera 1, O1) against every blob of view ``b`` (camera 2, O2) (Eq. 7)."""
+    return match_matrices(views, [(a, b)], params)[0]
 
 
 @dataclass(slots=True)
@@ -116,11 +118,11 @@ class _Batch:
     nas: list[int]
     nbs: list[int]
     shape: tuple[int, int, int]
-    uniq: list[ViewBlobs]
-    """Every view of the batch once."""
+    rows: IntArray
+    """Every view (row) of the batch once."""
     tabs: Tables
     ia: IntArray
-    """(p,) index in ``uniq`` of each pair's camera 1 (O1)..."""
+    """(p,) index in ``rows`` of each pair's camera 1 (O1)..."""
     ib: IntArray
     """...and of its camera 2 (O2)."""
     per_blob: FloatArray
@@ -160,43 +162,51 @@ class _Rays:
     """Both distances positive and within ``max_range_m``."""
 
 
-def _gather(pairs: list[tuple[ViewBlobs, ViewBlobs]], floor: bool) -> _Batch:
+def _gather(views: Views, blobs: Subset, pairs: Sequence[tuple[int, int]], floor: bool) -> _Batch:
     """The per-view tables, gathered per pair (each view padded once however many pairs share it)."""
-    nas = [a.n for a, _ in pairs]
-    nbs = [b.n for _, b in pairs]
+    counts = blobs.counts.tolist()
+    nas = [counts[a] for a, _ in pairs]
+    nbs = [counts[b] for _, b in pairs]
     na, nb = max(*nas, 1), max(*nbs, 1)
-    index: dict[int, int] = {}
-    uniq: list[ViewBlobs] = []
+    index: dict[int, int] = {}  # position in ``blobs.rows`` -> in the batch, in order of first use
     for a, b in pairs:
         for v in (a, b):
-            if id(v) not in index:
-                index[id(v)] = len(uniq)
-                uniq.append(v)
-    tabs = Tables(uniq, max(na, nb))
-    ia = np.array([index[id(a)] for a, _ in pairs], dtype=np.int64)
-    ib = np.array([index[id(b)] for _, b in pairs], dtype=np.int64)
-    columns = [[v.bearing_rad for v in uniq], [v.width_rad for v in uniq], [v.top_elev_rad for v in uniq]]
+            index.setdefault(v, len(index))
+    rows = blobs.rows[list(index)]
+    tabs = Tables(views, rows.tolist(), [blobs.part(v) for v in index], max(na, nb))
+    ia = np.array([index[a] for a, _ in pairs], dtype=np.int64)
+    ib = np.array([index[b] for _, b in pairs], dtype=np.int64)
+    columns = [views.bearing_rad, views.width_rad, views.top_elev_rad]
     if floor:
-        columns.append([v.bottom_elev_rad if v.bottom_elev_rad is not None else np.full(v.n, np.nan) for v in uniq])
+        columns.append(views.bottom_elev_rad)
     per_blob = tabs.table(columns)
     bearing, width = per_blob[:, :, 0], per_blob[:, :, 1]
-    origin = np.array([v.origin_xy for v in uniq], dtype=np.float64).reshape(-1, 2)
+    origin = views.origin[rows]
     o1, o2 = origin[ia], origin[ib]
     d = o2 - o1
-    sigma = np.maximum(np.array([math.hypot(a.sigma_rad, b.sigma_rad) / math.sqrt(2.0) for a, b in pairs]), 1e-6)
+    sigma_rad = views.sigma_rad[rows].tolist()
+    sigma = np.maximum(
+        np.array(
+            [
+                math.hypot(sigma_rad[a], sigma_rad[b]) / math.sqrt(2.0)
+                for a, b in zip(ia.tolist(), ib.tolist(), strict=True)
+            ]
+        ),
+        1e-6,
+    )
     return _Batch(
         nas=nas,
         nbs=nbs,
         shape=(len(pairs), na, nb),
-        uniq=uniq,
+        rows=rows,
         tabs=tabs,
         ia=ia,
         ib=ib,
         per_blob=per_blob,
         tan_w=np.tan(np.nan_to_num(width) / 2.0),
         tan_top=np.tan(np.nan_to_num(per_blob[:, :, 2])),
-        cut=tabs.flags([v.top_cut for v in uniq]),
-        z_view=np.array([v.z_m for v in uniq], dtype=np.float64),
+        cut=tabs.flags(views.top_cut),
+        z_view=views.z_m[rows],
         o1=o1,
         base=np.hypot(d[:, 0], d[:, 1])[:, None, None],
         psi12=np.arctan2(d[:, 1], d[:, 0])[:, None, None],
@@ -329,7 +339,7 @@ def _heights(
     # ... and the feet, where visible, must stand on the floor (z = 0) seen from both cameras.
     with np.errstate(invalid="ignore"):
         tan_bot = np.tan(g.per_blob[:, :, 3])
-        s_view = np.array([v.sigma_rad for v in g.uniq], dtype=np.float64)
+        s_view = g.tabs.views.sigma_rad[g.rows]
         g0 = 2.0 * params.floor_sigma_m**2
         for zs, dist, tb, sv in ((z1, d1v, tan_bot[i1, ii], s_view[i1]), (z2, d2v, tan_bot[i2, jj], s_view[i2])):
             zf = zs + dist * tb  # NaN where the feet are not visible: factor 1
@@ -344,8 +354,14 @@ def _heights(
     return r_hc_v, r_hc
 
 
-def match_matrices(pairs: list[tuple[ViewBlobs, ViewBlobs]], params: MatchParams) -> list[MatchMatrix]:
+def match_matrices(
+    views: Views, pairs: Sequence[tuple[int, int]], params: MatchParams, blobs: Subset | None = None
+) -> list[MatchMatrix]:
     """Eq. 7 for several camera pairs at once (one vectorised pass: with many cameras the largest tick stage).
+
+    Each pair is (camera 1, camera 2) as positions in ``blobs.rows``, each view with only its blobs of ``blobs``
+    (default: every blob of every view, positions then being view rows); row ``i`` of a result is the ``i``-th of
+    camera 1's blobs there, column ``j`` the ``j``-th of camera 2's.
 
     Arrays carry a leading pair axis p and are padded to the largest blob counts; each result is a view of
     its pair's (na, nb) corner. See :func:`match_matrix` for the measures.
@@ -356,7 +372,7 @@ def match_matrices(pairs: list[tuple[ViewBlobs, ViewBlobs]], params: MatchParams
     """
     if not pairs:
         return []
-    g = _gather(pairs, params.floor_sigma_m > 0)
+    g = _gather(views, blobs if blobs is not None else views.every(), pairs, params.floor_sigma_m > 0)
     rays = _rays(g, params)
     valid, use_sr, d1, d2 = rays.valid, rays.use_sr, rays.d1, rays.d2
     # -- the measures that depend on the distances: only where the rays meet in range ---------------------
@@ -382,7 +398,7 @@ def match_matrices(pairs: list[tuple[ViewBlobs, ViewBlobs]], params: MatchParams
     r_all = np.zeros(shape)
     r_all[valid] = r_rc_v * r_wc_v * r_hc_v
     # -- colour ------------------------------------------------------------------------------------------------
-    r_is = colour_table(pairs, params.use_colour, shape, tabs=g.tabs, ia=g.ia, ib=g.ib)
+    r_is = colour_table(params.use_colour, shape, tabs=g.tabs, ia=g.ia, ib=g.ib)
     hx = g.o1[:, 0, None, None] + d1 * np.cos(g.th1)  # (p, na, nb) hypothesised positions along camera 1's ray
     hy = g.o1[:, 1, None, None] + d1 * np.sin(g.th1)
     r = r_is * r_all

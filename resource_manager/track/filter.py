@@ -25,7 +25,7 @@ from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.fuse import Slots, fuse, fuse_heights
 from resource_manager.track.motion import MotionModel, predict_many
 from resource_manager.track.observe import TrackTable
-from resource_manager.track.stack import ViewStack
+from resource_manager.views.blobs import Views
 
 __all__ = ["TrackFilter"]
 
@@ -126,7 +126,7 @@ class TrackFilter:
         self,
         rows: IntArray,
         assigned: Sequence[Sequence[tuple[str, int]]],
-        stack: ViewStack,
+        views: Views,
         *,
         position_weight: FloatArray,
         outlier: tuple[float, float],
@@ -144,8 +144,8 @@ class TrackFilter:
         x, p, resp = fuse(
             self.x[rows],
             self.p[rows],
-            Slots.of(assigned, stack),
-            stack,
+            Slots.of(assigned, views),
+            views,
             position_weight=position_weight,
             outlier=outlier,
             width_rel_sigma=width_rel_sigma,
@@ -167,13 +167,13 @@ class TrackFilter:
         p_new = (np.eye(4) - k @ h) @ p
         self.p[row] = 0.5 * (p_new + p_new.T)
 
-    def fuse_heights(self, rows: IntArray, assigned: Sequence[Sequence[tuple[str, int]]], stack: ViewStack) -> None:
+    def fuse_heights(self, rows: IntArray, assigned: Sequence[Sequence[tuple[str, int]]], views: Views) -> None:
         """Fuse into ``rows`` the head-top heights their assigned blobs imply at their distances."""
         if not len(rows):
             return
         rows = np.asarray(rows, dtype=np.int64)
         self.height[rows], self.height_var[rows] = fuse_heights(
-            self.x[rows, :2], self.height[rows], self.height_var[rows], Slots.of(assigned, stack), stack
+            self.x[rows, :2], self.height[rows], self.height_var[rows], Slots.of(assigned, views), views
         )
 
     def existence_update(self, delta: FloatArray, weight: FloatArray, sees: BoolArray, cap: FloatArray) -> None:

@@ -1,8 +1,8 @@
 """Every track's measurement update of one tick at once: the floor filter and the head height.
 
-The blobs assigned to the tracks are gathered from the tick's :class:`~.stack.ViewStack` by index arrays
-(:class:`Slots`: one slot per view of each track, in order of sensor ids), so that the arithmetic runs once per
-tick on arrays rather than once per track and view:
+The blobs assigned to the tracks are gathered from the tick's :class:`~resource_manager.views.blobs.Views` by
+index arrays (:class:`Slots`: one slot per view of each track, in order of sensor ids), so that the arithmetic runs
+once per tick on arrays rather than once per track and view:
 
 * :func:`fuse`: the iterated EKF of :mod:`.motion` with each view's bearing and, where the camera sees the feet,
   its floor distance, and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`);
@@ -25,8 +25,8 @@ import numpy.typing as npt
 from common.arrays import FloatArray, IntArray
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.motion import MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
-from resource_manager.track.observe import feet_ln
-from resource_manager.track.stack import ViewStack
+from resource_manager.track.observe import bearing_var, feet_ln
+from resource_manager.views.blobs import Views
 
 __all__ = ["Slots", "fuse", "fuse_heights"]
 
@@ -37,8 +37,8 @@ HALF = 0.5
 
 @dataclass(frozen=True, slots=True)
 class Slots:
-    """Tracks' assigned blobs as indices into a :class:`ViewStack`: the ``slot[e]``-th blob assigned to track
-    ``track[e]`` is the stack's blob ``blob[e]``, of its view ``view[e]``."""
+    """Tracks' assigned blobs as indices into the tick's :class:`Views`: the ``slot[e]``-th blob assigned to track
+    ``track[e]`` is the blob (entry) ``blob[e]``, of its view ``view[e]``."""
 
     track: IntArray
     slot: IntArray
@@ -48,14 +48,14 @@ class Slots:
     """(tracks, most slots of any)."""
 
     @staticmethod
-    def of(assigned: Sequence[Sequence[tuple[str, int]]], stack: ViewStack) -> Slots:
+    def of(assigned: Sequence[Sequence[tuple[str, int]]], views: Views) -> Slots:
         """The slots of each track's assigned (sensor id, blob index in its view), in that order."""
-        rows = stack.rows
+        rows = views.rows
         flat = [(k, c, rows[sid], j) for k, got in enumerate(assigned) for c, (sid, j) in enumerate(got)]
         idx = np.array(flat, dtype=np.int64).reshape(-1, 4)
         view = idx[:, 2]
         width = max((len(got) for got in assigned), default=0)
-        return Slots(idx[:, 0], idx[:, 1], view, stack.offsets[view] + idx[:, 3], (len(assigned), width))
+        return Slots(idx[:, 0], idx[:, 1], view, views.offsets[view] + idx[:, 3], (len(assigned), width))
 
     def per_slot(self, values: npt.NDArray[_Scalar], fill: float = 0.0) -> npt.NDArray[_Scalar]:
         """(k, w, ...) per-slot array of ``values`` (one per entry), ``fill`` in the empty slots."""
@@ -74,7 +74,7 @@ def fuse(
     xs: FloatArray,
     ps: FloatArray,
     slots: Slots,
-    stack: ViewStack,
+    views: Views,
     *,
     position_weight: FloatArray,
     outlier: tuple[float, float],
@@ -103,14 +103,14 @@ def fuse(
     # Each assigned blob as an observation of its track: its bearing and, where the camera sees the feet, its
     # floor distance (motion.ObservationBatch.padded's rows).
     obs = np.full((len(view), 6), math.nan)
-    obs[:, :2] = origin = stack.origin[view]
-    obs[:, 2] = stack.bearing_rad[blob]
+    obs[:, :2] = origin = views.origin[view]
+    obs[:, 2] = views.bearing_rad[blob]
     weight = position_weight[view]
     dist = np.hypot(xs[slots.track, 0] - origin[:, 0], xs[slots.track, 1] - origin[:, 1])
-    obs[:, 3] = stack.bearing_var(view, dist) / weight
-    has = np.isfinite(stack.mono_range_m[blob])
-    obs[has, 4] = stack.mono_range_m[blob[has]]
-    feet_var = stack.mono_sigma_m[blob[has]] ** 2 + stack.sigma_xy_m[view[has]] ** 2 + stack.range_var[view[has]]
+    obs[:, 3] = bearing_var(views, view, dist) / weight
+    has = np.isfinite(views.mono_range_m[blob])
+    obs[has, 4] = views.mono_range_m[blob[has]]
+    feet_var = views.mono_sigma_m[blob[has]] ** 2 + views.sigma_xy_m[view[has]] ** 2 + views.point_var_m2[view[has]]
     obs[has, 5] = feet_var / weight[has]
     if feet_cut is not None and has.any():
         # A box cut above the feet puts the person farther than they are. Judged against the prediction, a
@@ -132,7 +132,7 @@ def fuse(
         first = slice(0, line_views)
         line_rows, line_valid = size_ratio_lines(
             slots.per_slot(origin)[:, first],
-            slots.per_slot(np.column_stack([stack.bearing_rad[blob], stack.width_rad[blob]]))[:, first],
+            slots.per_slot(np.column_stack([views.bearing_rad[blob], views.width_rad[blob]]))[:, first],
             slots.used()[:, first],
             width_rel_sigma,
         )
@@ -141,18 +141,18 @@ def fuse(
 
 
 def fuse_heights(
-    xy: FloatArray, height_m: FloatArray, height_var: FloatArray, slots: Slots, stack: ViewStack
+    xy: FloatArray, height_m: FloatArray, height_var: FloatArray, slots: Slots, views: Views
 ) -> tuple[FloatArray, FloatArray]:
     """Head-top heights ``height_m`` (k,) and their variances ``height_var`` of tracks at ``xy`` (k, 2) after the
     heights their slots' blobs imply (scalar Kalman updates, slot after slot)."""
     view, blob = slots.view, slots.blob
     at = xy[slots.track]
-    d = np.hypot(at[:, 0] - stack.origin[view, 0], at[:, 1] - stack.origin[view, 1])
-    tan_top = np.tan(stack.top_elev_rad[blob])
-    z = slots.per_slot(stack.z_m[view] + d * tan_top)
-    var = slots.per_slot((d * stack.sigma_rad[view] * (1.0 + tan_top * tan_top)) ** 2 + stack.cross_var[view])
+    d = np.hypot(at[:, 0] - views.origin[view, 0], at[:, 1] - views.origin[view, 1])
+    tan_top = np.tan(views.top_elev_rad[blob])
+    z = slots.per_slot(views.z_m[view] + d * tan_top)
+    var = slots.per_slot((d * views.sigma_rad[view] * (1.0 + tan_top * tan_top)) ** 2 + views.point_var_m2[view])
     # A head cut by the picture's top gives a lower bound only: left out.
-    use = slots.used() & ~slots.per_slot(stack.top_cut[blob])
+    use = slots.used() & ~slots.per_slot(views.top_cut[blob])
     for c in range(slots.shape[1]):
         k = height_var / (height_var + var[:, c])
         height_m = np.where(use[:, c], height_m + k * (z[:, c] - height_m), height_m)

@@ -20,8 +20,8 @@ from common.arrays import FloatArray
 from common.histograms import bhattacharyya_coefficients
 
 if TYPE_CHECKING:
-    from resource_manager.track.stack import ViewStack
     from resource_manager.track.state import TrackRecord
+    from resource_manager.views.blobs import Views
 
 __all__ = ["bhattacharyya", "colour_ln_lr", "learn_looks", "looks_ln_odds"]
 
@@ -70,15 +70,15 @@ def looks_ln_odds(
     return float(np.sum(colour_ln_lr(bc, sigma, outlier_prob)))
 
 
-def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
+def learn_looks(learnt: Sequence[tuple[TrackRecord, dict[str, int], float]], views: Views) -> None:
     """Fold the colours of the blobs assigned to each track into its per-view looks (running mean of weight
     alpha, renormalised): ``learnt`` holds (track, sensor id -> blob index in its view, alpha), the blobs those of
-    the views of ``stack``; all tracks at once."""
-    bins = stack.hist_bins.tolist()
-    offsets = stack.offsets.tolist()
-    # (track, sensor id, its view's row, the blob's entry in the stack, alpha) of every blob assigned.
-    seen = [(tr, sid, stack.rows[sid], j, alpha) for tr, used_blobs, alpha in learnt for sid, j in used_blobs.items()]
-    for size, hist in stack.hist_sqrt.items():
+    the tick's ``views``; all tracks at once."""
+    bins = views.hist_bins.tolist()
+    offsets = views.offsets.tolist()
+    # (track, sensor id, its view's row, the blob's entry in the views, alpha) of every blob assigned.
+    seen = [(tr, sid, views.rows[sid], j, alpha) for tr, used_blobs, alpha in learnt for sid, j in used_blobs.items()]
+    for size, hist in views.hist_sqrt.items():
         group = [(tr, sid, row, offsets[row] + j, alpha) for tr, sid, row, j, alpha in seen if bins[row] == size]
         if not group:
             continue

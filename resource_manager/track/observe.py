@@ -20,7 +20,8 @@ Whether the camera should see the person at all (in its picture, in range, not h
 sets the detection probability P_D of both alternatives: a detected person scores ln P_D + ln(g / λ), a missed
 one ln(1 - P_D).
 
-Every view of a tick is scored at once, on the views stacked into arrays (:class:`~.stack.ViewStack`).
+Every view of a tick is scored at once, on the tick's :class:`~resource_manager.views.blobs.Views` (or some of its
+blobs: a :class:`~resource_manager.views.blobs.Subset`).
 """
 
 from __future__ import annotations
@@ -37,22 +38,18 @@ from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.looks import colour_ln_lr
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel
 from resource_manager.track.motion import MIN_RANGE_M, quadratic_form
-from resource_manager.track.stack import Spread, ViewStack, fov_width
 from resource_manager.track.state import TrackRecord
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Subset, Views
 
 __all__ = [
-    "Spread",
     "TrackTable",
     "ViewScores",
-    "ViewStack",
     "Visibility",
+    "bearing_var",
     "feet_cut_prob",
     "feet_ln",
-    "fov_width",
     "in_any_view",
     "score_views",
-    "visibility",
     "visibility_many",
 ]
 
@@ -120,73 +117,74 @@ class Visibility(NamedTuple):
     or above; 0: nothing covers the feet. Neither bounds a cut)."""
 
 
-def visibility(
-    v: ViewBlobs, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
-) -> FloatArray:
-    """(n,) detection probability of each track in this view (:func:`visibility_many` of one view)."""
-    return visibility_many(ViewStack.of([v], [Spread(0.0, 0.0)]), table, model, max_range_m, blockers).p_detect[0]
+def bearing_var(views: Views, rows: IntArray, dist: FloatArray) -> FloatArray:
+    """Bearing variance of a person at ``dist`` from the camera of view ``rows`` (each element its own): the
+    sensor's and its yaw's, its position's and the spread of the point seen around the person."""
+    d = np.maximum(dist, MIN_RANGE_M)
+    spread = views.point_var_m2[rows] + views.sigma_xy_m[rows] ** 2
+    return np.asarray(views.sigma_rad[rows] ** 2 + spread / (d * d), dtype=np.float64)
 
 
 def visibility_many(
-    stack: ViewStack, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
+    views: Views, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
 ) -> Visibility:
     """Each track in each view: its detection probability, 0 out of the picture or ``max_range_m``, lower when
     someone nearer stands on the same bearing (one of the tracks of ``blockers``; default: of ``table`` itself,
     new people's hypotheses are hidden by the tracks, not by each other) or another camera's body does; and the
     share of its feet those hide."""
     n = table.n
-    p = np.zeros((stack.n_views, n))
-    if n == 0 or stack.n_views == 0:
+    p = np.zeros((views.n_views, n))
+    if n == 0 or views.n_views == 0:
         return Visibility(p, p.copy(), p.copy())
-    dist, seen = _in_view(stack, table, max_range_m)
+    dist, seen = _in_view(views, table, max_range_m)
     hiders = None
     if n + (blockers.n if blockers is not None else 0) > 1:
-        hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(stack, blockers, max_range_m))
-    covered, feet, reach = _covered(stack, table, dist, hiders)
+        hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(views, blockers, max_range_m))
+    covered, feet, reach = _covered(views, table, dist, hiders)
     p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
     return Visibility(p, np.where(seen, feet, 0.0), reach)
 
 
-def in_any_view(stack: ViewStack, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
-    """(n,) whether some camera of ``stack`` has a person ``height_m`` tall standing at ``xy`` (n, 2) in its picture
+def in_any_view(views: Views, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
+    """(n,) whether some camera of ``views`` has a person ``height_m`` tall standing at ``xy`` (n, 2) in its picture
     and range."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    if not stack.n_views or not len(xy):
+    if not views.n_views or not len(xy):
         return np.zeros(len(xy), dtype=bool)
     n = len(xy)
     table = TrackTable(xy, np.zeros((n, 2, 2)), np.full(n, height_m), np.zeros(n))
-    return np.asarray(_in_view(stack, table, max_range_m)[1].any(axis=0), dtype=bool)
+    return np.asarray(_in_view(views, table, max_range_m)[1].any(axis=0), dtype=bool)
 
 
-def _in_view(stack: ViewStack, table: TrackTable, max_range_m: float) -> tuple[FloatArray, BoolArray]:
+def _in_view(views: Views, table: TrackTable, max_range_m: float) -> tuple[FloatArray, BoolArray]:
     """(s, n) distance of each track from each camera and whether it is in the camera's picture and range."""
-    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    d = table.xy[None, :, :] - views.origin[:, None, :]
     dist = np.hypot(d[:, :, 0], d[:, :, 1])
     seen = (dist > MIN_RANGE_M) & (dist <= max_range_m)
     feet = head = None
-    for i, v in enumerate(stack.views):
-        if v.image is not None:
+    for i, (image, fov) in enumerate(zip(views.image, views.fov, strict=True)):
+        if image is not None:
             if feet is None or head is None:
                 feet = np.column_stack([table.xy, np.zeros(table.n)])
                 head = np.column_stack([table.xy, table.height])
-            seen[i] &= v.image.inside(feet) | v.image.inside(head)
-        elif v.fov is not None:
-            seen[i] &= np.abs(wrap_angle(np.arctan2(d[i, :, 1], d[i, :, 0]) - v.fov[0])) <= v.fov[1]
+            seen[i] &= image.inside(feet) | image.inside(head)
+        elif fov is not None:
+            seen[i] &= np.abs(wrap_angle(np.arctan2(d[i, :, 1], d[i, :, 0]) - fov[0])) <= fov[1]
     return dist, seen
 
 
 def _silhouettes(
-    stack: ViewStack, table: TrackTable, dist: FloatArray
+    views: Views, table: TrackTable, dist: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """(s, n) azimuth, half width, feet and head elevations of each track's silhouette in each view."""
-    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    d = table.xy[None, :, :] - views.origin[:, None, :]
     r = np.maximum(dist, MIN_RANGE_M)
-    z = stack.z_m[:, None]
+    z = views.z_m[:, None]
     return np.arctan2(d[:, :, 1], d[:, :, 0]), PERSON_RADIUS_M / r, np.arctan2(-z, r), np.arctan2(table.height - z, r)
 
 
 def _covered(
-    stack: ViewStack,
+    views: Views,
     table: TrackTable,
     dist: FloatArray,
     hiders: tuple[TrackTable, FloatArray, BoolArray] | None,
@@ -201,25 +199,25 @@ def _covered(
     camera). A camera above the crowd sees the head of someone behind a nearer person; one at head height does
     not; a high camera sees over a short robot, but not the feet just behind it.
     """
-    az, half, lo, hi = (a[:, :, None] for a in _silhouettes(stack, table, dist))
+    az, half, lo, hi = (a[:, :, None] for a in _silhouettes(views, table, dist))
     area = np.maximum(2.0 * half * (hi - lo), 1e-12)
     clear = np.ones(dist.shape)
     clear_feet = np.ones(dist.shape)
     reach = np.zeros(dist.shape)
-    z = stack.z_m[:, None, None]
+    z = views.z_m[:, None, None]
     covers: list[_Cover] = []
     if hiders is not None:
         others, hdist, hseen = hiders
         if others is table:
             az_k, half_k, lo_k, hi_k = (np.swapaxes(a, 1, 2) for a in (az, half, lo, hi))
         else:
-            az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(stack, others, hdist))
+            az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(views, others, hdist))
         # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
         front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
         covers.append(_Cover(az_k, half_k, lo_k, hi_k, front))
-    bodies = np.flatnonzero(stack.body_radius_m > 0.0)
+    bodies = np.flatnonzero(views.body_radius_m > 0.0)
     if bodies.size:
-        covers.append(_bodies(stack, bodies, dist))
+        covers.append(_bodies(views, bodies, dist))
     for az_k, half_k, lo_k, hi_k, front in covers:
         width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
         over_az = np.clip(half + half_k - np.abs(wrap_angle(az - az_k)), 0.0, width)
@@ -238,19 +236,19 @@ def _covered(
     )
 
 
-def _bodies(stack: ViewStack, bodies: IntArray, dist: FloatArray) -> _Cover:
+def _bodies(views: Views, bodies: IntArray, dist: FloatArray) -> _Cover:
     """The silhouettes of the cameras' bodies ``bodies`` (view rows) in every view, as (s, 1, b) azimuth, half
     width, floor and top elevations, and (s, n, b) whether each stands in front of each track (a camera's own body
     hides nothing from it)."""
-    d = stack.origin[bodies][None, :, :] - stack.origin[:, None, :]
+    d = views.origin[bodies][None, :, :] - views.origin[:, None, :]
     r = np.hypot(d[:, :, 0], d[:, :, 1])
-    radius = stack.body_radius_m[bodies][None, :]
+    radius = views.body_radius_m[bodies][None, :]
     r_safe = np.maximum(r, MIN_RANGE_M)
-    z = stack.z_m[:, None]
+    z = views.z_m[:, None]
     az = np.arctan2(d[:, :, 1], d[:, :, 0])
     half = np.arcsin(np.minimum(radius / r_safe, 1.0))
     lo = np.arctan2(-z, np.maximum(r - radius, MIN_RANGE_M))
-    hi = np.arctan2(stack.z_m[bodies][None, :] - z, r_safe)
+    hi = np.arctan2(views.z_m[bodies][None, :] - z, r_safe)
     own = r <= radius + PERSON_RADIUS_M  # its own body, or one it stands against
     front = ((r + radius)[:, None, :] < dist[:, :, None]) & ~own[:, None, :]
     return _Cover(az[:, None, :], half[:, None, :], lo[:, None, :], hi[:, None, :], front)
@@ -265,7 +263,8 @@ def _mixture_ln(d2: FloatArray, ln_det: FloatArray, dim: FloatArray, model: Trac
 
 
 def score_views(
-    stack: ViewStack,
+    views: Views,
+    blobs: Subset,
     tracks: Sequence[TrackRecord],
     table: TrackTable,
     vis: Visibility,
@@ -273,43 +272,52 @@ def score_views(
     model: TrackModel,
     max_range_m: float,
 ) -> list[ViewScores]:
-    """Every blob of every view of ``stack`` against every track (see the module docstring); ``vis``: what each
-    view should see of each track; ``tracks``: their looks and links (row for row with ``table``); nobody is seen
-    farther than ``max_range_m``."""
+    """The ``blobs`` of ``views`` against every track, one :class:`ViewScores` per view of ``blobs.rows`` (see the
+    module docstring); ``vis``: what every view should see of each track; ``tracks``: their looks and links (row
+    for row with ``table``); nobody is seen farther than ``max_range_m``."""
+    rows = blobs.rows
+    vis = Visibility(blobs.pick(vis.p_detect), blobs.pick(vis.feet_hidden), blobs.pick(vis.cut_reach_m))
     p_detect = vis.p_detect
-    n, m = table.n, stack.view_of.shape[0]
+    n, m = table.n, len(blobs.entries)
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
     if n == 0 or m == 0:
         return [
-            ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(stack.counts.tolist())
+            ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(blobs.counts.tolist())
         ]
-    col = stack.view_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
-    d = table.xy[None, :, :] - stack.origin[:, None, :]
+    col = blobs.row_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
+    d = table.xy[None, :, :] - blobs.pick(views.origin)[:, None, :]
     r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
     dist = np.sqrt(r2)
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
     unit = d / dist[:, :, None]  # d distance / d position
     pc = table.pos_cov
-    s_tt = quadratic_form(jac, pc, jac) + stack.bearing_var(np.arange(stack.n_views)[:, None], dist)
+    s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, rows[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
     blob_s_tt = s_tt[col].T
-    nu_t = wrap_angle(stack.bearing_rad[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
+    nu_t = wrap_angle(blobs.take(views.bearing_rad)[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
-    ln_clutter = np.log(np.maximum(model.clutter_per_view, np.diff(stack.offsets)) / stack.fov_width_rad)[col]
-    has = np.isfinite(stack.mono_range_m)
+    ln_clutter = np.log(np.maximum(model.clutter_per_view, blobs.counts) / blobs.pick(views.fov_width_rad))[col]
+    has = np.isfinite(blobs.take(views.mono_range_m))
     feet: tuple[FloatArray, FloatArray, FloatArray] | None = None
     density_gate = gate
     if has.any():
         s_td = quadratic_form(jac, pc, unit)[col].T
         feet, density_gate, gate = _feet_gates(
-            stack, s_dd_track[col].T, s_td, dist[col].T, gate, nu_t=nu_t, blob_s_tt=blob_s_tt, vis=vis, model=model
+            views,
+            blobs,
+            (s_dd_track[col].T, s_td, dist[col].T),
+            gate,
+            nu_t=nu_t,
+            blob_s_tt=blob_s_tt,
+            vis=vis,
+            model=model,
         )
         ln_clutter = ln_clutter + np.where(has, -math.log(max_range_m), 0.0)
     # Other people's blobs near the track are the alternative explanation of a blob there: the local density of
     # blobs in each track's gate beyond the one it would have (non-parametric PDA), when above the view's mean.
     counted = np.concatenate([np.zeros((n, 1)), np.cumsum(density_gate, axis=1, dtype=np.float64)], axis=1)
-    in_gate = counted[:, stack.offsets[1:]] - counted[:, stack.offsets[:-1]]
+    in_gate = counted[:, blobs.offsets[1:]] - counted[:, blobs.offsets[:-1]]
     local = np.log(np.maximum(in_gate - 1.0, 1e-9) / (2.0 * model.gate_sigmas * np.sqrt(s_tt.T)))
     # The likelihood ratio where it can be finite: (track, blob) entries in the gate of a track the view can see.
     track, blob = np.nonzero(gate & (p_detect[col].T > 0))
@@ -325,20 +333,19 @@ def score_views(
     ln_alt = np.maximum(ln_clutter[blob], local[track, view])
     entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
     entry = entry + _height_term(
-        stack, table, track, blob, dist=dist[view, track], s_dd=s_dd_track[view, track], model=model
+        views, table, track, blobs.entries[blob], dist=dist[view, track], s_dd=s_dd_track[view, track], model=model
     )
-    entry = entry + _colour_term(stack, tracks, track, blob, model)
-    entry = entry + _link_term(stack, tracks, track, blob, model)
+    entry = entry + _colour_term(views, blobs, tracks, track, blob, model=model)
+    entry = entry + _link_term(views, blobs, tracks, track, blob, model=model)
     ln_lr = np.full((n, m), -np.inf)
     ln_lr[track, blob] = entry
-    return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(stack.split(ln_lr))]
+    return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(blobs.split(ln_lr))]
 
 
 def _feet_gates(
-    stack: ViewStack,
-    s_dd_track: FloatArray,
-    s_td: FloatArray,
-    dist: FloatArray,
+    views: Views,
+    blobs: Subset,
+    track: tuple[FloatArray, FloatArray, FloatArray],
     gate: BoolArray,
     *,
     nu_t: FloatArray,
@@ -349,13 +356,18 @@ def _feet_gates(
     """The floor distance given the bearing (conditioned on its innovation), with its own outlier model: a box
     whose bottom is not the feet (someone nearer hides them) puts the person farther than they are.
 
-    All (track, blob): ``s_dd_track`` the track's distance variance, ``s_td`` its bearing-distance covariance,
-    ``dist`` its predicted distance. Returns the feet terms (innovation, conditional variance, predicted
-    distance), the gate that counts blobs for the local density, and the gate of the likelihood ratio."""
-    col = stack.view_of
-    has = np.isfinite(stack.mono_range_m)
-    rng = np.where(has, stack.mono_range_m, 0.0)
-    feet_var = np.where(has, stack.mono_sigma_m, 1.0) ** 2 + stack.sigma_xy_m[col] ** 2 + stack.range_var[col]
+    ``track``, all (track, blob): the track's distance variance, its bearing-distance covariance and its predicted
+    distance. Returns the feet terms (innovation, conditional variance, predicted distance), the gate that counts
+    blobs for the local density, and the gate of the likelihood ratio."""
+    s_dd_track, s_td, dist = track
+    col = blobs.row_of
+    view = blobs.take(views.view_of)
+    mono = blobs.take(views.mono_range_m)
+    has = np.isfinite(mono)
+    rng = np.where(has, mono, 0.0)
+    feet_var = (
+        np.where(has, blobs.take(views.mono_sigma_m), 1.0) ** 2 + views.sigma_xy_m[view] ** 2 + views.point_var_m2[view]
+    )
     s_dd = s_dd_track + feet_var[None, :]
     range_innovation = rng[None, :] - dist
     nu_d = range_innovation - s_td / blob_s_tt * nu_t
@@ -409,39 +421,40 @@ def feet_ln(
 
 
 def _height_term(
-    stack: ViewStack,
+    views: Views,
     table: TrackTable,
     track: IntArray,
-    blob: IntArray,
+    entry: IntArray,
     *,
     dist: FloatArray,
     s_dd: FloatArray,
     model: TrackModel,
 ) -> FloatArray:
-    """ln [N(implied head height; track height) · height_range] of each (``track``, ``blob``) entry: the paper's
+    """ln [N(implied head height; track height) · height_range] of each (``track``, blob ``entry``) pair: the paper's
     height consistency (``dist``, ``s_dd``: the track's distance and its variance from the blob's camera)."""
-    view = stack.view_of[blob]
-    tan_top = np.tan(stack.top_elev_rad[blob])
+    view = views.view_of[entry]
+    tan_top = np.tan(views.top_elev_rad[entry])
     sec2 = 1.0 + tan_top**2
-    z = stack.z_m[view] + dist * tan_top
+    z = views.z_m[view] + dist * tan_top
     var = (
         table.height_var[track]
-        + (dist * stack.sigma_rad[view] * sec2) ** 2
+        + (dist * views.sigma_rad[view] * sec2) ** 2
         + (tan_top**2) * s_dd
-        + stack.cross_var[view]
+        + views.point_var_m2[view]
     )
     nu = z - table.height[track]
     term = -0.5 * (nu**2 / var + np.log(var) + LN_2PI) + math.log(model.height_range_m)
     # A head above the picture gives only a lower bound: no evidence either way.
     return np.asarray(
-        np.where(stack.top_cut[blob], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64
+        np.where(views.top_cut[entry], 0.0, np.maximum(term, math.log(model.outlier_prob))), dtype=np.float64
     )
 
 
 def _colour_term(
-    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+    views: Views, blobs: Subset, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, *, model: TrackModel
 ) -> FloatArray:
-    """ln [p(colour | this person) / p(colour | anyone else)] of each (``track``, ``blob``) entry, the paper's
+    """ln [p(colour | this person) / p(colour | anyone else)] of each (``track``, ``blob``) pair (``blob``: a
+    position in ``blobs``), the paper's
     intensity similarity, twice:
 
     * against the track's own look in this view, once it has one (the same shirt, from this side, over time);
@@ -451,17 +464,18 @@ def _colour_term(
     0 where the track has no look to compare, or the view no histograms.
     """
     out = np.zeros(len(track))
-    view = stack.view_of[blob]
-    for bins, hist in stack.hist_sqrt.items():
-        own, own_ok, total, count = _look_arrays(tracks, stack, bins, model.look_min_s)
+    view, entry = blobs.row_of[blob], blobs.entries[blob]
+    blob_bins = views.hist_bins[views.view_of[entry]]
+    for bins, hist in views.hist_sqrt.items():
+        own, own_ok, total, count = _look_arrays(tracks, views, blobs.rows, bins, model.look_min_s)
         # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's
         # direction).
         others = total[:, None, :] - own * own_ok[:, :, None]
         others_ok = count[:, None] - own_ok > 0
         norm = np.linalg.norm(others, axis=2)
         others = others / np.maximum(norm, 1e-12)[:, :, None]
-        here = stack.hist_bins[view] == bins
-        t, v, h = track[here], view[here], hist[blob[here]]
+        here = blob_bins == bins
+        t, v, h = track[here], view[here], hist[entry[here]]
         # Bhattacharyya coefficients of each blob with the track's looks in the blob's view.
         bc_own = np.einsum("ek,ek->e", own[t, v], h)
         bc_others = np.einsum("ek,ek->e", others[t, v], h)
@@ -473,18 +487,18 @@ def _colour_term(
 
 
 def _look_arrays(
-    tracks: Sequence[TrackRecord], stack: ViewStack, bins: int, min_s: float
+    tracks: Sequence[TrackRecord], views: Views, rows: IntArray, bins: int, min_s: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``stack`` and (n, s) 1/0
-    whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
-    column = stack.rows
+    """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view ``rows`` of ``views`` and (n, s)
+    1/0 whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
+    column = {views.sensor_ids[r]: i for i, r in enumerate(rows.tolist())}
     learnt = [
         (i, column.get(sid, -1), look)
         for i, tr in enumerate(tracks)
         for sid, look in tr.looks.items()
         if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
     ]
-    n, s = len(tracks), stack.n_views
+    n, s = len(tracks), len(rows)
     own = np.zeros((n * s, bins))
     own_ok = np.zeros(n * s)
     if not learnt:
@@ -505,12 +519,12 @@ def _look_arrays(
 
 
 def _link_term(
-    stack: ViewStack, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, model: TrackModel
+    views: Views, blobs: Subset, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, *, model: TrackModel
 ) -> FloatArray:
-    """ln(link_odds) of each (``track``, ``blob``) entry where the blob continues the node's 2D track last assigned
-    to the track, else 0."""
-    sids = [v.sensor_id for v in stack.views]
+    """ln(link_odds) of each (``track``, ``blob``) pair (``blob``: a position in ``blobs``) where the blob continues
+    the node's 2D track last assigned to the track, else 0."""
+    sids = [views.sensor_ids[r] for r in blobs.rows.tolist()]
     linked = np.array([[tr.links.get(sid, -1) for sid in sids] for tr in tracks], dtype=np.int64)
-    linked = linked.reshape(len(tracks), len(sids))[track, stack.view_of[blob]]
-    same = (linked == stack.local_id[blob]) & (linked >= 0)
+    linked = linked.reshape(len(tracks), len(sids))[track, blobs.row_of[blob]]
+    same = (linked == views.local_id[blobs.entries[blob]]) & (linked >= 0)
     return np.where(same, math.log(model.link_odds), 0.0)

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from common.angles import angle_diff
-from common.arrays import FloatArray
+from common.arrays import BoolArray, FloatArray
 from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.filter import TrackFilter
@@ -55,17 +55,10 @@ from resource_manager.track.life import (
 from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
-from resource_manager.track.observe import (
-    Spread,
-    ViewScores,
-    in_any_view,
-    score_views,
-    visibility_many,
-)
-from resource_manager.track.stack import ViewStack
+from resource_manager.track.observe import ViewScores, in_any_view, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 
 __all__ = ["TrackSnapshot", "Tracker", "TrackerOutcome"]
 
@@ -205,13 +198,13 @@ class Tracker:
     # -- the tick -------------------------------------------------------------------------------------
     def step(
         self,
-        views: dict[str, ViewBlobs],
+        views: Views,
         t_ns: int,
         *,
         blind: frozenset[str] = frozenset(),
         pose_sigma: dict[str, float] | None = None,
     ) -> TrackerOutcome:
-        """One tick at instant ``t_ns`` with the views of every camera that can tell something.
+        """One tick at instant ``t_ns`` with the views of every camera that can tell something (in order of sensor ids).
 
         ``blind``: cameras that cannot detect anyone now (a robot driving): their blobs are used, their empty
         places are no evidence that nobody is there.
@@ -225,22 +218,16 @@ class Tracker:
         # 1. Predict.
         self.filter.predict(t_ns)
         # 2. Expected detections.
-        evidence = {sid: self._weights(v, dt_s) for sid, v in views.items()}
-        sids = sorted(views)
-        stack = ViewStack.of([views[sid] for sid in sids], [self._spread(views[sid]) for sid in sids])
+        sids = views.sensor_ids
+        evidence = {sid: self._weights(period, dt_s) for sid, period in zip(sids, views.period_s.tolist(), strict=True)}
         table = self.filter.table()
-        vis = visibility_many(stack, table, self.model, self.scene.max_range_m)
+        vis = visibility_many(views, table, self.model, self.scene.max_range_m)
         vis.p_detect[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
-        tick = Tick(
-            views,
-            evidence,
-            pose_sigma or {},
-            stack,
-            np.array([evidence[sid][0] for sid in sids]),
-            vis,
-        )
+        tick = Tick(views, evidence, pose_sigma or {}, np.array([evidence[sid][0] for sid in sids]), vis)
         # 3. Assign, per view.
-        scores = score_views(stack, self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m)
+        scores = score_views(
+            views, views.every(), self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m
+        )
         scored = dict(zip(sids, scores, strict=True))
         assigned: list[list[Assigned]] = [[] for _ in self.tracks]
         for sid, sc in scored.items():
@@ -252,18 +239,19 @@ class Tracker:
         out.pair_entries = updated.pair_entries
         out.detected = sum(1 for got in updated.kept if got)
         self.filter.mark_seen(np.array([i for i, got in enumerate(updated.kept) if got], dtype=np.int64))
-        hits: dict[str, dict[int, int]] = {sid: {} for sid in views}
+        hits: dict[str, dict[int, int]] = {sid: {} for sid in views.sensor_ids}
         for i, got in enumerate(updated.kept):
             for sid, j in got:
                 hits[sid][i] = j
         # 5. Births and returns.
-        taken = {sid: set(hit.values()) for sid, hit in hits.items()}
-        free = {sid: [j for j in range(views[sid].n) if j not in taken[sid]] for sid in scored}
-        hyps = self._hypotheses(tick, free)
+        unexplained = np.ones(views.n, dtype=bool)
+        starts = views.offsets.tolist()
+        unexplained[[starts[views.rows[sid]] + j for sid, hit in hits.items() for j in hit.values()]] = False
+        hyps = self._hypotheses(tick, unexplained)
         hyps, returned = self._returns(hyps, tick, t_ns, hits, predicted)
         out.returned = len(returned)
         # 6. Existence (of the tracks there were; new ones start from their own evidence).
-        coverage = self._coverage(stack)
+        coverage = self._coverage(views)
         exits = at_exit(self.filter.x[:, :2], self.filter.position_sigma(), self.model, self.scene, coverage)
         self._existence(scored, hits, tick, existence_caps(exits, self.model, self.scene))
         out.births = self._spawn(hyps, tick, t_ns)
@@ -273,27 +261,23 @@ class Tracker:
         out.reidentified = self._confirm(t_ns)
         return out
 
-    def _weights(self, v: ViewBlobs, dt_s: float) -> tuple[float, float]:
-        """(position, existence) weight of a view's evidence at this tick.
+    def _weights(self, period_s: float, dt_s: float) -> tuple[float, float]:
+        """(position, existence) weight at this tick of the evidence of a view whose frames come every ``period_s``
+        (0: unknown).
 
         A tick between two frames sees an interpolation of frames already used: it carries ``dt / period`` of a
         frame's information. Existence moves at most one view's worth per ``evidence_time_s``.
         """
-        period = v.period_s if v.period_s > 0 else dt_s
+        period = period_s if period_s > 0 else dt_s
         if dt_s <= 0:  # the first tick: one frame's worth
             dt_s = period if period > 0 else self.model.evidence_time_s
         w_pos = min(1.0, dt_s / period) if period > 0 else 1.0
         w_exist = min(w_pos, dt_s / self.model.evidence_time_s, 1.0)
         return max(w_pos, 1e-3), w_exist
 
-    def _spread(self, v: ViewBlobs) -> Spread:
-        """The spread of a view's points around a person: what its sensor states, else the model's default."""
-        sigma = v.point_sigma_m if v.point_sigma_m > 0 else self.model.body_sigma_m
-        return Spread(sigma * sigma, sigma * sigma)
-
-    def _coverage(self, stack: ViewStack) -> Coverage:
+    def _coverage(self, views: Views) -> Coverage:
         """Where the cameras of this tick see a person of the usual height (their joint view)."""
-        return lambda xy: in_any_view(stack, xy, self.model.height_prior_m, self.scene.max_range_m)
+        return lambda xy: in_any_view(views, xy, self.model.height_prior_m, self.scene.max_range_m)
 
     def _existence(
         self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: Tick, caps: FloatArray
@@ -320,8 +304,9 @@ class Tracker:
         self.filter.existence_update(delta, weight, p_detect > 0, caps)
 
     # -- births and returns ---------------------------------------------------------------------------
-    def _hypotheses(self, tick: Tick, free: dict[str, list[int]]) -> list[Hypothesis]:
-        """New people among the unexplained blobs; nobody next to a track a view detected."""
+    def _hypotheses(self, tick: Tick, unexplained: BoolArray) -> list[Hypothesis]:
+        """New people among the unexplained blobs (``unexplained``: (m,) over the tick's blobs); nobody next to a
+        track a view detected."""
         m = self.model
         w = min((we for _, we in tick.weights.values()), default=1.0)
         if w <= 0:
@@ -331,15 +316,13 @@ class Tracker:
         detected = np.array([i for i, tr in enumerate(self.tracks) if tr.detected], dtype=np.int64)
         return find_births(
             tick.views,
-            free,
+            unexplained,
             self.filter.table(detected),
             m,
             scene=self.scene,
             params=self.birth_params,
-            spread=lambda sid: self._spread(tick.views[sid]),
             tick=self._tick,
             min_evidence=need,
-            stack=tick.stack,
         )
 
     def _returns(
@@ -376,7 +359,7 @@ class Tracker:
             for row in back.tolist():
                 hit.pop(row, None)
         self.updater.fuse(f, back, gots, tick, lines=False)
-        f.fuse_heights(back, gots, tick.stack)
+        f.fuse_heights(back, gots, tick.views)
         f.mark_seen(back)
         for row, got in zip(back.tolist(), gots, strict=True):
             tr = self.tracks[row]
@@ -387,7 +370,7 @@ class Tracker:
                 hits[sid][row] = j
         self.updater.learn(
             [(self.tracks[r], {a.sensor_id: a.blob for a in g}, 1.0) for r, g in zip(back.tolist(), gots, strict=True)],
-            tick.stack,
+            tick.views,
         )
         used = {a for a, _ in pairs}
         return [h for k, h in enumerate(hyps) if k not in used], back.tolist()
@@ -441,15 +424,15 @@ class Tracker:
                 tr.predicted_error_m = best.error_m
             born.append(tr)
         self.tracks.extend(born)
-        self.filter.fuse_heights(rows, gots, tick.stack)
+        self.filter.fuse_heights(rows, gots, tick.views)
         self.filter.mark_seen(rows)
         self.updater.learn(
             [(tr, h.blobs, min(tick.weights[s][0] for s in h.blobs)) for tr, h in zip(born, hyps, strict=True)],
-            tick.stack,
+            tick.views,
         )
         return len(hyps)
 
-    def _note_apart(self, hits: dict[str, dict[int, int]], views: dict[str, ViewBlobs], t_ns: int) -> None:
+    def _note_apart(self, hits: dict[str, dict[int, int]], views: Views, t_ns: int) -> None:
         """Which close tracks some view showed as two people this tick (:class:`~.life.Separation`)."""
         f = self.filter
         apart: list[list[tuple[int, int]]] = []
@@ -458,15 +441,17 @@ class Tracker:
             d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
             close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist()
             for sid, hit in hits.items():
-                v = views[sid]
+                row = views.rows[sid]
+                origin, start = views.origin[row], int(views.offsets[row])
                 pairs = []
                 for a, b in close:
                     if a in hit and b in hit:
                         # The view must tell the two apart (their bearings from it differ by a person's width),
                         # and its two blobs must each lie on its own track's side.
-                        pa, pb = (math.atan2(xy[r, 1] - v.origin_xy[1], xy[r, 0] - v.origin_xy[0]) for r in (a, b))
-                        ba, bb = float(v.bearing_rad[hit[a]]), float(v.bearing_rad[hit[b]])
-                        width = 0.5 * float(v.width_rad[hit[a]] + v.width_rad[hit[b]])
+                        pa, pb = (math.atan2(xy[r, 1] - origin[1], xy[r, 0] - origin[0]) for r in (a, b))
+                        ea, eb = start + hit[a], start + hit[b]
+                        ba, bb = float(views.bearing_rad[ea]), float(views.bearing_rad[eb])
+                        width = 0.5 * float(views.width_rad[ea] + views.width_rad[eb])
                         resolved = _arc(pa, pb) >= self.separation.apart_widths * width
                         if resolved and _arc(ba, pa) < _arc(ba, pb) and _arc(bb, pb) < _arc(bb, pa):
                             pairs.append((a, b))

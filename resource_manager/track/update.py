@@ -24,9 +24,8 @@ from resource_manager.track.filter import TrackFilter
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import TrackModel
 from resource_manager.track.observe import Visibility, feet_cut_prob
-from resource_manager.track.stack import ViewStack
 from resource_manager.track.state import TrackRecord
-from resource_manager.views.blobs import ViewBlobs
+from resource_manager.views.blobs import Views
 
 __all__ = ["MAX_PAIR_CAMERAS", "Assigned", "Tick", "Updater"]
 
@@ -47,14 +46,13 @@ class Assigned(NamedTuple):
 class Tick:
     """What every stage of one tick reads: the views, their evidence weights, the cameras' position errors."""
 
-    views: dict[str, ViewBlobs]
+    views: Views
+    """Every view's blobs, in order of sensor ids."""
     weights: dict[str, tuple[float, float]]
     """sensor id -> (position, existence) weight of its evidence at this tick."""
     pose_sigma: dict[str, float]
-    stack: ViewStack
-    """The views stacked into arrays, in order of sensor ids."""
     position_weight: FloatArray
-    """(s,) the position weight of each view of ``stack``."""
+    """(s,) the position weight of each view."""
     visibility: Visibility | None = None
     """What each view should see of each track, row for row with the filter (its feet hidden, and how far a cut
     box can read); None: nothing hidden."""
@@ -129,8 +127,8 @@ class Updater:
                 self.report(tr, sigma_m[i], ranking, by_sid=by_sid, tick=tick, entries=out.pair_entries)
             learnt.append((tr, by_sid, min(tick.weights[a.sensor_id][0] for a in got)))
         seen = [i for i, got in enumerate(out.kept) if got]
-        filt.fuse_heights(np.array(seen, dtype=np.int64), [out.kept[i] for i in seen], tick.stack)
-        self.learn(learnt, tick.stack)
+        filt.fuse_heights(np.array(seen, dtype=np.int64), [out.kept[i] for i in seen], tick.views)
+        self.learn(learnt, tick.views)
         return out
 
     def fuse(
@@ -141,7 +139,7 @@ class Updater:
         of its blobs (low: an outlier)."""
         m = self.model
         # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
-        hidden = np.zeros((tick.stack.n_views, len(rows)))
+        hidden = np.zeros((tick.views.n_views, len(rows)))
         reach = np.zeros_like(hidden)
         if tick.visibility is not None:
             known = rows < tick.visibility.feet_hidden.shape[1]
@@ -150,7 +148,7 @@ class Updater:
         return filt.fuse(
             rows,
             [[(a.sensor_id, a.blob) for a in got] for got in gots],
-            tick.stack,
+            tick.views,
             feet_cut=feet_cut_prob(hidden, m),
             cut_reach_m=reach,
             position_weight=tick.position_weight,
@@ -181,12 +179,12 @@ class Updater:
     def rank_many(self, xys: FloatArray, sids: list[list[str]], tick: Tick) -> list[Ranking]:
         """The best pair of each track's cameras ``sids`` (at ``xys`` (k, 2)) by the error model (or at random:
         ``pair_choice = random``), all at once."""
-        st = tick.stack
+        st = tick.views
         width = max((len(ids) for ids in sids), default=0)
         view = np.zeros((len(sids), width), dtype=np.int64)
         for i, ids in enumerate(sids):
             view[i, : len(ids)] = [st.rows[s] for s in ids]
-        pose_sigma = np.array([tick.pose_sigma.get(v.sensor_id, 0.0) for v in st.views])
+        pose_sigma = np.array([tick.pose_sigma.get(sid, 0.0) for sid in st.sensor_ids])
         random = self.pair_choice == "random"
         a, b, err, count = rank_pairs_many(
             np.asarray(xys, dtype=np.float64).reshape(-1, 2),
@@ -209,10 +207,9 @@ class Updater:
     def pair_fix(self, pair: PairCandidate, by_sid: dict[str, int], tick: Tick) -> Measurement | None:
         """The paper's localisation: Eq. (1) or, near colinearity, Eq. (2) with one pair of views."""
         return localize_best_pair(
-            tick.views[pair.a],
-            by_sid[pair.a],
-            tick.views[pair.b],
-            by_sid[pair.b],
+            tick.views,
+            tick.views.entry(pair.a, by_sid[pair.a]),
+            tick.views.entry(pair.b, by_sid[pair.b]),
             sigma_xy_a=tick.pose_sigma.get(pair.a, 0.0),
             sigma_xy_b=tick.pose_sigma.get(pair.b, 0.0),
             width_rel_sigma=self.width_rel_sigma,
@@ -251,13 +248,13 @@ class Updater:
                 )
             )
 
-    def learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], stack: ViewStack) -> None:
+    def learn(self, learnt: list[tuple[TrackRecord, dict[str, int], float]], views: Views) -> None:
         """Links to the nodes' 2D tracks and the per-view colour looks of the blobs assigned to each of ``learnt``
         (track, sensor id -> blob, the evidence weight of those views), all tracks' looks at once."""
-        offsets = stack.offsets.tolist()
-        with_hist = (stack.hist_bins > 0).tolist()
-        entries = [(tr, sid, stack.rows[sid], j) for tr, by_sid, _ in learnt for sid, j in by_sid.items()]
-        local_id = stack.local_id[[offsets[row] + j for _, _, row, j in entries]].tolist()
+        offsets = views.offsets.tolist()
+        with_hist = (views.hist_bins > 0).tolist()
+        entries = [(tr, sid, views.rows[sid], j) for tr, by_sid, _ in learnt for sid, j in by_sid.items()]
+        local_id = views.local_id[[offsets[row] + j for _, _, row, j in entries]].tolist()
         for (tr, sid, _, _), lid in zip(entries, local_id, strict=True):
             tr.links[sid] = lid
         looks: list[tuple[TrackRecord, dict[str, int], float]] = []
@@ -265,6 +262,6 @@ class Updater:
             dt = weight * self.model.evidence_time_s
             looks.append((tr, by_sid, 1.0 - math.exp(-dt / self.model.look_time_s)))
             for sid in by_sid:
-                if with_hist[stack.rows[sid]]:
+                if with_hist[views.rows[sid]]:
                     tr.look_s[sid] = tr.look_s.get(sid, 0.0) + dt
-        learn_looks(looks, stack)
+        learn_looks(looks, views)

@@ -1,30 +1,28 @@
 """World-frame views of the cameras at the fusion instant: what the tracker works on.
 
-Each aligned sensor with a known pose becomes a :class:`~resource_manager.views.blobs.ViewBlobs`: bearings
-rotated into the world (``yaw + bearing``), the sensor's bearing error plus its pose's yaw error, the floor
-distance of each blob whose feet a perspective camera sees (:mod:`~resource_manager.views.mono`), the
-camera's picture (to know whom it can see) and frame period, and no blob that is a known robot or tripod
-body seen by another camera (known bodies are not people).
+Every aligned sensor with a known pose becomes a view of the tick's :class:`~resource_manager.views.blobs.Views`,
+built here once per tick: bearings rotated into the world (``yaw + bearing``), the sensor's bearing error plus its
+pose's yaw error, the floor distance of each blob whose feet a perspective camera sees
+(:mod:`~resource_manager.views.mono`), the camera's picture (to know whom it can see) and frame period, and no blob
+that is a known robot or tripod body seen by another camera (known bodies are not people).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Collection, Mapping
+from dataclasses import dataclass
 from itertools import chain
-from typing import Any, TypeVar, cast
 
 import numpy as np
-import numpy.typing as npt
 
 from common.angles import wrap_angle
 from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import PinholeModel, SensorInfo
-from resource_manager.ingest.align import AlignedBlob, AlignedView
+from resource_manager.ingest.align import Aligned
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.track.model import HEAD_HEIGHT_M, HEAD_HEIGHT_SIGMA_M
-from resource_manager.views.blobs import ImageBounds, ViewBlobs
+from resource_manager.views.blobs import ImageBounds, Views, stack_histograms
 from resource_manager.views.mono import mono_ranges
 
 __all__ = [
@@ -33,10 +31,8 @@ __all__ = [
     "build_views",
     "image_bounds",
     "pinhole_fov",
-    "subset_view",
 ]
 
-T = TypeVar("T", bound=npt.NDArray[Any])
 TOP_CUT_PX = 0.5
 """A blob whose box starts this close to the image's upper border has its head cut off (too close)."""
 BODY_TOP_MARGIN_M = 0.2
@@ -65,148 +61,153 @@ class FeetModel:
 
 
 def build_views(
-    aligned: dict[str, AlignedView],
+    aligned: Aligned,
     poses: dict[str, PoseEstimate],
     infos: Mapping[str, SensorInfo],
     sigma_of: Callable[[str], float],
     *,
     feet: FeetModel | None = None,
-) -> dict[str, ViewBlobs]:
-    """World-frame blobs of every aligned sensor whose pose is known.
+    point_sigma_m: float = 0.0,
+    skip: Collection[str] = (),
+) -> Views:
+    """World-frame blobs of every aligned sensor whose pose is known, in order of sensor ids.
 
     Args:
         aligned: every sensor's blobs at the fusion instant.
         poses: the known poses.
-        infos: every sensor's SensorInfo (camera model, frame rate, body radius).
+        infos: every sensor's SensorInfo (camera model, frame rate, body radius, point spread).
         sigma_of: a sensor's bearing sigma.
         feet: how perspective cameras' box bottoms give floor distances (None: they give none).
+        point_sigma_m: the spread of a sensor's measured point around a person's floor position, for a sensor
+            whose SensorInfo states none.
+        skip: sensors that give no view at this instant (a robot that has not settled).
     """
+    order = sorted((sid, i) for i, sid in enumerate(aligned.sensor_ids) if sid in poses and sid not in skip)
+    if not order:
+        return Views.empty()
+    sids = [sid for sid, _ in order]
+    pose_of = [poses[sid] for sid in sids]
+    sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, pose in zip(sids, pose_of, strict=True)]
+    rows = [i for _, i in order]
+    take = _gather(aligned, rows)
+    tab = aligned.values if take is None else aligned.values[take]
+    view_of = np.repeat(np.arange(len(order), dtype=np.int64), aligned.counts[rows])
     bodies = {sid: info.body_radius_m for sid, info in infos.items() if info.body_radius_m > 0}
-    pinholes = {
-        sid: info.model
-        for sid, info in infos.items()
-        if info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel)
-    }
-    out: dict[str, ViewBlobs] = {}
-    entries = [(sid, av.blobs, poses[sid]) for sid, av in aligned.items() if sid in poses]
-    if not entries:
-        return out
-    t = _BlobTable.of(entries)
-    sigmas = [math.hypot(sigma_of(sid), pose.sigma_yaw_rad) for sid, _, pose in entries]
-    keep = _not_bodies(entries, t.tab, view_of=t.view_of, sigmas=sigmas, bodies=bodies, poses=poses)
+    keep = _not_bodies(sids, pose_of, tab, view_of=view_of, sigmas=sigmas, bodies=bodies, poses=poses)
     if not keep.all():
-        t = t.kept(keep, len(entries))
-    tab, blobs_all = t.tab, t.blobs
-    yaw = np.array([pose.yaw_rad for _, _, pose in entries], dtype=np.float64)
-    bearing_world = tab[:, 0] + yaw[t.view_of]
-    local_id = np.array([b.local_id for b in blobs_all], dtype=np.int64)
-    confidence = np.array([b.confidence for b in blobs_all], dtype=np.float64)
-    top_cut = (tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX)
-    hist_all, hist_sqrt_all = _histograms(blobs_all)
-    ends = np.cumsum(t.counts).tolist()
-    for (sid, _, pose), sigma, stop, n in zip(entries, sigmas, ends, t.counts, strict=True):
-        sl = slice(stop - n, stop)
-        bottom = tab[sl, 3]
-        hist = hist_sqrt = None
-        if n and hist_all is not None and hist_sqrt_all is not None:
-            hist, hist_sqrt = hist_all[sl], hist_sqrt_all[sl]
-        elif n and hist_all is None:
-            hist, hist_sqrt = _histograms(blobs_all[sl])
-        model = pinholes.get(sid)
-        mono_range, mono_sigma = _mono(tab[sl], pose, sigma, model, feet)
-        info = infos.get(sid)
-        out[sid] = ViewBlobs(
-            sensor_id=sid,
-            origin_xy=pose.origin,
-            z_m=pose.z_m,
-            sigma_rad=sigma,
-            bearing_rad=bearing_world[sl],
-            width_rad=tab[sl, 1],
-            top_elev_rad=tab[sl, 2],
-            hist=hist,
-            local_id=local_id[sl],
-            hist_sqrt=hist_sqrt,
-            bottom_elev_rad=bottom,
-            fov=pinhole_fov(model) if model is not None else None,
-            mono_range_m=mono_range,
-            mono_sigma_m=mono_sigma,
-            top_cut=top_cut[sl],
-            sigma_xy_m=pose.sigma_xy_m,
-            point_sigma_m=info.point_sigma_m if info is not None else 0.0,
-            period_s=1.0 / info.fps if info is not None and info.fps > 0 else 0.0,
-            image=image_bounds(model) if model is not None else None,
-            body_radius_m=info.body_radius_m if info is not None else 0.0,
-            confidence=confidence[sl],
-        )
-    return out
+        take = np.flatnonzero(keep) if take is None else take[keep]
+        view_of, tab = view_of[keep], tab[keep]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(view_of, minlength=len(sids)))]).astype(np.int64)
+    hists = aligned.hist if take is None else [aligned.hist[e] for e in take.tolist()]
+    hist_bins, hist_sqrt = _histograms_of(hists, offsets)
+    cams = _Cameras.of(sids, infos, point_sigma_m)
+    mono_range, mono_sigma = np.full(len(tab), math.nan), np.full(len(tab), math.nan)
+    for i, (pose, sigma, model) in enumerate(zip(pose_of, sigmas, cams.models, strict=True)):
+        sl = slice(int(offsets[i]), int(offsets[i + 1]))
+        got = _mono(tab[sl], pose, sigma, model, feet)
+        if got is not None:
+            mono_range[sl], mono_sigma[sl] = got
+    return Views(
+        sensor_ids=tuple(sids),
+        offsets=offsets,
+        origin=np.array([pose.origin for pose in pose_of], dtype=np.float64).reshape(-1, 2),
+        z_m=np.array([pose.z_m for pose in pose_of], dtype=np.float64),
+        sigma_rad=np.array(sigmas, dtype=np.float64),
+        sigma_xy_m=np.array([pose.sigma_xy_m for pose in pose_of], dtype=np.float64),
+        point_var_m2=cams.point_var_m2,
+        period_s=cams.period_s,
+        body_radius_m=cams.body_radius_m,
+        fov=cams.fov,
+        image=cams.image,
+        hist_bins=hist_bins,
+        bearing_rad=tab[:, 0] + np.array([pose.yaw_rad for pose in pose_of], dtype=np.float64)[view_of],
+        width_rad=tab[:, 1],
+        top_elev_rad=tab[:, 2],
+        bottom_elev_rad=tab[:, 3],
+        top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
+        mono_range_m=mono_range,
+        mono_sigma_m=mono_sigma,
+        local_id=aligned.local_id if take is None else aligned.local_id[take],
+        confidence=tab[:, 6],
+        hist_sqrt=hist_sqrt,
+    )
 
 
-TABLE_COLUMNS = 6
-"""Columns of :class:`_BlobTable`'s ``tab``: bearing, width, top and bottom elevations (rad), bottom and top rows
-(px)."""
+def _gather(aligned: Aligned, rows: list[int]) -> IntArray | None:
+    """The blobs (entries of ``aligned``) of its sensors ``rows``, in that order; None: all of them in their order
+    (nothing to gather)."""
+    if rows == list(range(len(aligned.sensor_ids))):
+        return None
+    bounds = aligned.offsets.tolist()
+    return np.concatenate([np.arange(bounds[i], bounds[i + 1], dtype=np.int64) for i in rows])
 
 
-@dataclass(slots=True)
-class _BlobTable:
-    """Every blob of every view in one table (this runs for every sensor on every tick): one pass in Python, then
-    whole-array operations, each view a slice of the result."""
+@dataclass(frozen=True, slots=True)
+class _Cameras:
+    """The views' cameras as their SensorInfo describes them (per view)."""
 
-    blobs: list[AlignedBlob]
-    tab: FloatArray
-    """(n, :data:`TABLE_COLUMNS`) per blob; the bottom elevation NaN where the feet are not visible."""
-    view_of: IntArray
-    """(n,) the view (entry) of each blob."""
-    counts: list[int]
-    """Blobs per view."""
+    models: list[PinholeModel | None]
+    """Each perspective camera's model (None: another kind)."""
+    point_var_m2: FloatArray
+    period_s: FloatArray
+    body_radius_m: FloatArray
+    fov: tuple[tuple[float, float] | None, ...]
+    image: tuple[ImageBounds | None, ...]
 
-    @classmethod
-    def of(cls, entries: list[tuple[str, list[AlignedBlob], PoseEstimate]]) -> _BlobTable:
-        nan = math.nan
-        blobs_all = [b for _, blobs, _ in entries for b in blobs]
-        counts = [len(blobs) for _, blobs, _ in entries]
-        tab = np.fromiter(  # np.fromiter over one flat stream: ~3x faster than np.array of tuples
-            chain.from_iterable(
-                (
-                    b.bearing_rad,
-                    b.width_rad,
-                    b.top_elev_rad,
-                    b.bottom_elev_rad if b.feet_visible else nan,
-                    b.bottom_px,
-                    b.top_px,
-                )
-                for b in blobs_all
+    @staticmethod
+    def of(sids: list[str], infos: Mapping[str, SensorInfo], point_sigma_m: float) -> _Cameras:
+        got = [infos.get(sid) for sid in sids]
+        models = [
+            info.model
+            if info is not None and info.kind in ("pinhole", "ptz") and isinstance(info.model, PinholeModel)
+            else None
+            for info in got
+        ]
+        spread = [info.point_sigma_m if info is not None and info.point_sigma_m > 0 else point_sigma_m for info in got]
+        return _Cameras(
+            models=models,
+            point_var_m2=np.array([s * s for s in spread], dtype=np.float64),
+            period_s=np.array(
+                [1.0 / info.fps if info is not None and info.fps > 0 else 0.0 for info in got], dtype=np.float64
             ),
-            dtype=np.float64,
-            count=TABLE_COLUMNS * len(blobs_all),
-        ).reshape(-1, TABLE_COLUMNS)
-        return cls(blobs_all, tab, np.repeat(np.arange(len(entries)), counts), counts)
-
-    def kept(self, keep: BoolArray, views: int) -> _BlobTable:
-        """Only the blobs ``keep`` says."""
-        blobs = [b for b, k in zip(self.blobs, keep.tolist(), strict=True) if k]
-        view_of = self.view_of[keep]
-        return _BlobTable(blobs, self.tab[keep], view_of, np.bincount(view_of, minlength=views).tolist())
+            body_radius_m=np.array([info.body_radius_m if info is not None else 0.0 for info in got], dtype=np.float64),
+            fov=tuple(pinhole_fov(m) if m is not None else None for m in models),
+            image=tuple(image_bounds(m) if m is not None else None for m in models),
+        )
 
 
-def _histograms(blobs: list[AlignedBlob]) -> tuple[FloatArray | None, FloatArray | None]:
-    """The blobs' colour histograms as one (n, bins) array and its square roots, when they all have the same
-    (non-zero) number of bins; else (None, None)."""
-    hist_lens = {len(b.hist) for b in blobs}
+def _histograms(hists: list[list[float]]) -> FloatArray | None:
+    """The square roots of colour histograms as one (n, bins) array, when they all have the same (non-zero) number
+    of bins; else None."""
+    hist_lens = {len(h) for h in hists}
     if len(hist_lens) != 1 or next(iter(hist_lens)) <= 0:
-        return None, None
+        return None
     bins = next(iter(hist_lens))
-    hist = np.fromiter(chain.from_iterable(b.hist for b in blobs), dtype=np.float64, count=bins * len(blobs))
-    hist = hist.reshape(-1, bins)
-    return hist, np.sqrt(np.clip(hist, 0.0, None))
+    hist = np.fromiter(chain.from_iterable(hists), dtype=np.float64, count=bins * len(hists))
+    return np.sqrt(np.clip(hist.reshape(-1, bins), 0.0, None))
+
+
+def _histograms_of(hists: list[list[float]], offsets: IntArray) -> tuple[IntArray, dict[int, FloatArray]]:
+    """Each view's histogram size (0: none) and the square-rooted histograms per size (:attr:`Views.hist_sqrt`): all
+    at once when every blob has histograms of one size, else view by view."""
+    counts = np.diff(offsets)
+    every = _histograms(hists)
+    if every is not None:
+        return np.where(counts > 0, every.shape[1], 0).astype(np.int64), {every.shape[1]: every}
+    per_view = [
+        _histograms(hists[lo:hi]) if hi > lo else None
+        for lo, hi in zip(offsets[:-1].tolist(), offsets[1:].tolist(), strict=True)
+    ]
+    return stack_histograms(per_view, offsets)
 
 
 def _mono(
     tab: FloatArray, pose: PoseEstimate, sigma: float, model: PinholeModel | None, feet: FeetModel | None
-) -> tuple[FloatArray | None, FloatArray | None]:
+) -> tuple[FloatArray, FloatArray] | None:
     """Floor distances (and their sigmas) of one perspective view's blobs from their box bottoms (None: the view
     gives none)."""
     if model is None or feet is None:
-        return None, None
+        return None
     cut = tab[:, 4] >= model.height_px - FEET_CUT_PX
     return mono_ranges(
         np.where(cut, np.nan, tab[:, 3]),
@@ -221,7 +222,8 @@ def _mono(
 
 
 def _not_bodies(
-    entries: list[tuple[str, list[AlignedBlob], PoseEstimate]],
+    sids: list[str],
+    pose_of: list[PoseEstimate],
     tab: FloatArray,
     *,
     view_of: IntArray,
@@ -229,7 +231,8 @@ def _not_bodies(
     bodies: dict[str, float] | None,
     poses: dict[str, PoseEstimate],
 ) -> BoolArray:
-    """(n,) False for the blobs that are a known robot/tripod body seen by another camera.
+    """(n,) False for the blobs (rows of ``tab``, of the views ``view_of``: cameras ``sids`` at ``pose_of``) that are a
+    known robot/tripod body seen by another camera.
 
     A blob on a body's bearing, about its angular width, whose top is below the body's camera (plus
     :data:`BODY_TOP_MARGIN_M`) is that body; a person behind it shows a taller top.
@@ -242,14 +245,14 @@ def _not_bodies(
     by = np.array([poses[o].y_m for o, _ in body_list])
     bz = np.array([poses[o].z_m for o, _ in body_list])
     radius = np.array([r for _, r in body_list])
-    vx = np.array([pose.x_m for _, _, pose in entries])[:, None]
-    vy = np.array([pose.y_m for _, _, pose in entries])[:, None]
-    vz = np.array([pose.z_m for _, _, pose in entries])[:, None]
-    yaw = np.array([pose.yaw_rad for _, _, pose in entries])[:, None]
+    vx = np.array([pose.x_m for pose in pose_of])[:, None]
+    vy = np.array([pose.y_m for pose in pose_of])[:, None]
+    vz = np.array([pose.z_m for pose in pose_of])[:, None]
+    yaw = np.array([pose.yaw_rad for pose in pose_of])[:, None]
     sig = np.array(sigmas)[:, None]
     ox, oy, oz = bx - vx, by - vy, bz - vz  # (views, bodies)
     dist = np.hypot(ox, oy)
-    ok = (dist > radius) & (np.array([sid for sid, _, _ in entries])[:, None] != np.array([o for o, _ in body_list]))
+    ok = (dist > radius) & (np.array(sids)[:, None] != np.array([o for o, _ in body_list]))
     half = np.arcsin(np.where(ok, radius / np.maximum(dist, 1e-9), 0.0))
     az = np.arctan2(oy, ox) - yaw
     # The body ends at the other camera (on its axis); a person behind it shows a taller top.
@@ -287,26 +290,3 @@ def pinhole_fov(model: PinholeModel, margin_rad: float = 0.05) -> tuple[float, f
         return None
     half = math.atan(max(k[2], model.width_px - k[2]) / k[0]) / max(math.sqrt(axis_x**2 + axis_y**2), 0.3)
     return math.atan2(axis_y, axis_x), min(half + margin_rad, math.pi)
-
-
-def subset_view(v: ViewBlobs, idx: list[int]) -> ViewBlobs:
-    """The same view with only the blobs ``idx`` (in that order)."""
-    sel = np.asarray(idx, dtype=np.int64)
-
-    def pick(a: T | None) -> T | None:
-        return None if a is None else cast(T, a[sel])
-
-    return replace(
-        v,
-        bearing_rad=v.bearing_rad[sel],
-        width_rad=v.width_rad[sel],
-        top_elev_rad=v.top_elev_rad[sel],
-        hist=pick(v.hist),
-        local_id=v.local_id[sel],
-        hist_sqrt=pick(v.hist_sqrt),
-        bottom_elev_rad=pick(v.bottom_elev_rad),
-        mono_range_m=pick(v.mono_range_m),
-        mono_sigma_m=pick(v.mono_sigma_m),
-        top_cut=pick(v.top_cut),
-        confidence=pick(v.confidence),
-    )

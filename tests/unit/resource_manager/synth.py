@@ -10,13 +10,17 @@ heads fall within the nearer blob (occlusion), as a real camera would.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from common.angles import wrap_angle
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo, Sighting
-from resource_manager.stereo.match import ViewBlobs
+from resource_manager.ingest.align import Aligned, AlignParams, align
+from resource_manager.ingest.buffers import SensorBuffer
+from resource_manager.views.blobs import ImageBounds, Views, stack_histograms
 
 
 @dataclass
@@ -241,9 +245,86 @@ class RandomWalk:
         return out
 
 
+def aligned_of(frames: Sequence[Features]) -> Aligned:
+    """The blobs of one frame per sensor as alignment gives them at the frames' (common) stamp: held as they are."""
+    return align(
+        [(f.sensor_id, SensorBuffer(capacity=2, stamps=[f.stamp_ns], frames=[f]), AlignParams()) for f in frames],
+        frames[0].stamp_ns,
+    )
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    """One camera's blobs in world terms, for tests: :func:`stack_views` puts several into the tick's
+    :class:`~resource_manager.views.blobs.Views` (what the manager's views stage builds from aligned blobs)."""
+
+    sensor_id: str
+    origin_xy: FloatArray
+    z_m: float
+    sigma_rad: float
+    bearing_rad: FloatArray
+    width_rad: FloatArray
+    top_elev_rad: FloatArray
+    hist: FloatArray | None
+    """(n, k) L1-normalised histograms (None: none sent)."""
+    local_id: IntArray
+    bottom_elev_rad: FloatArray | None = None
+    fov: tuple[float, float] | None = None
+    mono_range_m: FloatArray | None = None
+    mono_sigma_m: FloatArray | None = None
+    top_cut: BoolArray | None = None
+    sigma_xy_m: float = 0.0
+    point_var_m2: float = 0.0
+    period_s: float = 0.0
+    image: ImageBounds | None = None
+    body_radius_m: float = 0.0
+    confidence: FloatArray | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.bearing_rad)
+
+
+def stack_views(specs: Sequence[ViewSpec]) -> Views:
+    """The tick's views of ``specs`` (in their order)."""
+    counts = [v.n for v in specs]
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+    def cat(get: str, fill: float) -> FloatArray:
+        parts = [np.full(v.n, fill) if getattr(v, get) is None else np.asarray(getattr(v, get), float) for v in specs]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    roots = [None if v.hist is None or not v.n else np.sqrt(np.clip(v.hist, 0.0, None)) for v in specs]
+    bins, hist_sqrt = stack_histograms(roots, offsets)
+    return Views(
+        sensor_ids=tuple(v.sensor_id for v in specs),
+        offsets=offsets,
+        origin=np.array([v.origin_xy for v in specs], dtype=np.float64).reshape(-1, 2),
+        z_m=np.array([v.z_m for v in specs], dtype=np.float64),
+        sigma_rad=np.array([v.sigma_rad for v in specs], dtype=np.float64),
+        sigma_xy_m=np.array([v.sigma_xy_m for v in specs], dtype=np.float64),
+        point_var_m2=np.array([v.point_var_m2 for v in specs], dtype=np.float64),
+        period_s=np.array([v.period_s for v in specs], dtype=np.float64),
+        body_radius_m=np.array([v.body_radius_m for v in specs], dtype=np.float64),
+        fov=tuple(v.fov for v in specs),
+        image=tuple(v.image for v in specs),
+        hist_bins=bins,
+        bearing_rad=cat("bearing_rad", 0.0),
+        width_rad=cat("width_rad", 0.0),
+        top_elev_rad=cat("top_elev_rad", 0.0),
+        bottom_elev_rad=cat("bottom_elev_rad", math.nan),
+        top_cut=cat("top_cut", 0.0) > 0,
+        mono_range_m=cat("mono_range_m", math.nan),
+        mono_sigma_m=cat("mono_sigma_m", math.nan),
+        local_id=np.concatenate([np.asarray(v.local_id, np.int64) for v in specs]) if specs else np.zeros(0, np.int64),
+        confidence=cat("confidence", 1.0),
+        hist_sqrt=hist_sqrt,
+    )
+
+
 def view(
     sid: str, origin: tuple[float, float], targets: list[tuple[float, float, float, int]], z: float = 1.1
-) -> ViewBlobs:
+) -> ViewSpec:
     """Blobs seen from ``origin`` of targets (x, y, height, colour index), exact."""
     o = np.array(origin, dtype=np.float64)
     b, w, top, hist = [], [], [], []
@@ -253,7 +334,7 @@ def view(
         w.append(2 * math.atan(0.45 / (2 * d)))
         top.append(math.atan2(h - z, d))
         hist.append(colour_hist(k))
-    return ViewBlobs(
+    return ViewSpec(
         sensor_id=sid,
         origin_xy=o,
         z_m=z,

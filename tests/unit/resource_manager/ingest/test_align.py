@@ -7,7 +7,7 @@ import math
 import pytest
 
 from common.schema import Blob, Features, Sighting
-from resource_manager.ingest.align import AlignParams, align_sensor
+from resource_manager.ingest.align import Aligned, AlignParams, align
 from resource_manager.ingest.buffers import Ingest
 
 MS = 1_000_000
@@ -27,6 +27,11 @@ def blob(lid: int, bearing: float, width: float = 0.1, top: float = 0.2) -> Blob
         bbox_w_px=1,
         bbox_h_px=1,
     )
+
+
+def align_one(ing: Ingest, t_ms: int, params: AlignParams | None = None) -> Aligned:
+    """Sensor p1's blobs aligned at ``BASE_MS + t_ms``."""
+    return align([("p1", ing.buffers["p1"], params or AlignParams())], (BASE_MS + t_ms) * MS)
 
 
 def frame(seq: int, t_ms: int, blobs: list[Blob] | None = None, sid: str = "p1", **kw: object) -> Features:
@@ -77,12 +82,13 @@ def test_interpolation_shortest_arc_and_by_local_id() -> None:
     ing = Ingest()
     ing.add(frame(0, 0, [blob(7, math.pi - 0.1, width=0.10), blob(8, 0.0)]))
     ing.add(frame(1, 100, [blob(8, 0.2), blob(7, -math.pi + 0.1, width=0.20)]))
-    view = align_sensor(ing.buffers["p1"], "p1", (BASE_MS + 50) * MS, AlignParams())
-    assert view is not None and view.mode == "interpolated"
-    by = {b.local_id: b for b in view.blobs}
-    assert abs(abs(by[7].bearing_rad) - math.pi) < 1e-9  # through ±pi, not through 0
-    assert by[7].width_rad == pytest.approx(0.15)
-    assert by[8].bearing_rad == pytest.approx(0.1)
+    view = align_one(ing, 50)
+    assert view.sensor_ids == ("p1",) and view.modes == ("interpolated",)
+    by = {lid: k for k, lid in enumerate(view.local_id.tolist())}
+    assert abs(abs(view.bearing_rad[by[7]]) - math.pi) < 1e-9  # through ±pi, not through 0
+    assert view.width_rad[by[7]] == pytest.approx(0.15)
+    assert view.bearing_rad[by[8]] == pytest.approx(0.1)
+    assert view.hist == [[], []] and view.values[:, 3] == pytest.approx([-0.3, -0.3])  # feet visible in both
 
 
 @pytest.mark.parametrize(
@@ -98,20 +104,20 @@ def test_extrapolation_limits(t_ms: int, mode: str | None, bearing: float | None
     ing = Ingest()
     ing.add(frame(0, 0, [blob(1, 0.0)]))
     ing.add(frame(1, 100, [blob(1, 0.2)]))
-    view = align_sensor(ing.buffers["p1"], "p1", (BASE_MS + t_ms) * MS, AlignParams())
+    view = align_one(ing, t_ms)
     if mode is None:
-        assert view is None
+        assert view.sensor_ids == () and view.values.shape == (0, 7)  # it sits the tick out
         return
-    assert view is not None and view.mode == mode
-    assert view.blobs[0].bearing_rad == pytest.approx(bearing)
+    assert view.modes == (mode,)
+    assert view.bearing_rad[0] == pytest.approx(bearing)
 
 
 def test_gap_too_long_is_not_interpolated() -> None:
     ing = Ingest()
     ing.add(frame(0, 0, [blob(1, 0.0)]))
     ing.add(frame(1, 1000, [blob(1, 1.0)]))
-    view = align_sensor(ing.buffers["p1"], "p1", (BASE_MS + 950) * MS, AlignParams(max_gap_ns=500 * MS))
-    assert view is not None and view.mode == "held" and view.blobs[0].bearing_rad == pytest.approx(1.0)
+    view = align_one(ing, 950, AlignParams(max_gap_ns=500 * MS))
+    assert view.modes == ("held",) and view.bearing_rad[0] == pytest.approx(1.0)
 
 
 def test_sightings_interpolated_by_target() -> None:
@@ -129,9 +135,8 @@ def test_sightings_interpolated_by_target() -> None:
     ing = Ingest()
     ing.add(frame(0, 0, sightings=[s(0.1, -0.1)]))
     ing.add(frame(1, 100, sightings=[s(0.3, 0.1)]))
-    view = align_sensor(ing.buffers["p1"], "p1", (BASE_MS + 50) * MS, AlignParams())
-    assert view is not None
-    (sg,) = view.sightings
+    view = align_one(ing, 50)
+    (sg,) = view.sightings["p1"]
     assert sg.left_rad == pytest.approx(0.2) and sg.right_rad == pytest.approx(0.0)
 
 
@@ -143,73 +148,3 @@ def test_trim_keeps_a_lower_bracket() -> None:
     stamps = ing.buffers["p1"].stamps
     before = [t for t in stamps if t <= (BASE_MS + 550) * MS]
     assert before == [(BASE_MS + 400) * MS, (BASE_MS + 500) * MS]  # the bracket and one more for extrapolation
-
-
-# -- world views of the aligned blobs (resource_manager/views/build.py) --------------------------------------------
-
-
-def test_world_views_drop_known_bodies_keep_people() -> None:
-    """A blob that is another camera's body is dropped; a person behind that body (taller top), a person
-    elsewhere and a blob toward a camera without a body are kept; bearings rotate into the world; every
-    view keeps its own histograms (none for a sensor that sends none)."""
-    import numpy as np
-
-    from common.schema import PanoramicModel, SensorInfo
-    from resource_manager.ingest.align import AlignedBlob, AlignedView
-    from resource_manager.poses.solver import PoseEstimate
-    from resource_manager.views.build import build_views
-
-    poses = {
-        "a": PoseEstimate("a", 0.0, 0.0, 1.1, 0.3, "surveyed"),
-        "b": PoseEstimate("b", 4.0, 0.0, 1.1, 0.0, "surveyed"),
-        "c": PoseEstimate("c", 0.0, 4.0, 1.1, -1.0, "surveyed"),
-    }
-    radius = 0.2
-
-    def seen(sid: str, lid: int, x: float, y: float, top_m: float, width_m: float, hist: list[float]) -> AlignedBlob:
-        p = poses[sid]
-        d = math.hypot(x - p.x_m, y - p.y_m)
-        bearing = math.remainder(math.atan2(y - p.y_m, x - p.x_m) - p.yaw_rad, 2 * math.pi)
-        top = math.atan2(top_m - p.z_m, d)
-        return AlignedBlob(lid, bearing, 2 * math.asin(width_m / 2 / d), top, -0.2, hist, True, 100.0, 10.0)
-
-    h1, h2, h3 = [0.5, 0.5, 0.0], [0.2, 0.3, 0.5], [1.0, 0.0, 0.0]
-    blobs = {
-        # a sees b's body (top at b's camera), a person behind b, a person elsewhere
-        "a": [
-            seen("a", 1, 4.0, 0.0, 1.0, 0.4, h1),
-            seen("a", 2, 6.0, 0.0, 1.8, 0.45, h2),
-            seen("a", 3, 2.0, 3.0, 1.7, 0.45, h3),
-        ],
-        # b sees c's body and camera a (no body: kept)
-        "b": [seen("b", 7, 0.0, 4.0, 1.0, 0.4, h1), seen("b", 8, 0.0, 0.0, 1.0, 0.3, h2)],
-        # c sends no histograms
-        "c": [seen("c", 4, 2.0, 3.0, 1.7, 0.45, []), seen("c", 5, 4.0, 0.0, 1.0, 0.4, [])],
-    }  # fmt: skip
-    aligned = {sid: AlignedView(sid, 0, bl, [], "interpolated") for sid, bl in blobs.items()}
-    model = PanoramicModel(width_px=1080, height_px=162, f_v_px=256.0, v0_px=93.0)
-
-    def info(sid: str, body_m: float) -> SensorInfo:
-        return SensorInfo(sensor_id=sid, seq=0, stamp_ns=1, kind="panoramic", model=model, body_radius_m=body_m)
-
-    infos = {"a": info("a", 0.0), "b": info("b", radius), "c": info("c", radius)}
-    views = build_views(aligned, poses, infos, lambda sid: 0.002)
-    assert list(views) == ["a", "b", "c"]
-    assert views["a"].local_id.tolist() == [2, 3]  # b's body dropped, the person behind it kept
-    assert views["b"].local_id.tolist() == [8]  # c's body dropped, camera a has no body
-    assert views["c"].local_id.tolist() == [4]  # b's body dropped
-    for sid, v in views.items():
-        kept = [b for b in blobs[sid] if b.local_id in v.local_id.tolist()]
-        world = [math.remainder(b.bearing_rad + poses[sid].yaw_rad, 2 * math.pi) for b in kept]
-        assert np.allclose(np.remainder(v.bearing_rad - world + math.pi, 2 * math.pi) - math.pi, 0.0, atol=1e-12)
-        assert v.width_rad.tolist() == [b.width_rad for b in kept]
-        assert v.sigma_rad == pytest.approx(0.002)
-        if sid == "c":
-            assert v.hist is None and v.hist_sqrt is None
-        else:
-            assert v.hist is not None and v.hist_sqrt is not None
-            assert v.hist.tolist() == [b.hist for b in kept]
-            assert np.allclose(v.hist_sqrt**2, v.hist)
-    # Without bodies nothing is dropped.
-    views = build_views(aligned, poses, {}, lambda sid: 0.002)
-    assert [v.n for v in views.values()] == [3, 2, 2]

@@ -8,17 +8,17 @@ import numpy as np
 
 from common.schema import Track
 from resource_manager.poses.agreement import Agreement, AgreementParams
-from resource_manager.views.blobs import ViewBlobs
+from tests.unit.resource_manager.synth import ViewSpec, stack_views
 
 CAMERAS = {"c1": (0.0, 0.0), "c2": (10.0, 0.0), "c3": (5.0, 10.0)}
 PEOPLE = [(3.0, 4.0), (6.0, 3.0), (7.0, 6.0)]
 
 
-def _view(sid: str, yaw_error_rad: float = 0.0) -> ViewBlobs:
+def _view(sid: str, yaw_error_rad: float = 0.0) -> ViewSpec:
     x, y = CAMERAS[sid]
     bearings = np.array([math.atan2(py - y, px - x) for px, py in PEOPLE]) + yaw_error_rad
     n = bearings.size
-    return ViewBlobs(
+    return ViewSpec(
         sensor_id=sid,
         origin_xy=np.array([x, y]),
         z_m=2.0,
@@ -57,7 +57,7 @@ def _tracks(sensors: list[str]) -> list[Track]:
 def _run(yaw_error_rad: float, seconds: int = 12) -> dict[str, tuple[float, bool, float]]:
     agree = Agreement(AgreementParams(window_s=10.0, min_blobs=10))
     for k in range(seconds * 2):
-        views = {"c1": _view("c1"), "c2": _view("c2"), "c3": _view("c3", yaw_error_rad)}
+        views = stack_views([_view("c1"), _view("c2"), _view("c3", yaw_error_rad)])
         agree.update(k * 500_000_000, views, _tracks(["c1", "c2", "c3"]))
     return {a.sensor_id: (a.residual_m, a.disagrees, a.unexplained_frac) for a in agree.report()}
 
@@ -84,6 +84,6 @@ def test_a_camera_turned_away_from_everyone_is_all_unexplained() -> None:
 
 def test_only_tracks_the_others_placed_count() -> None:
     agree = Agreement(AgreementParams(min_blobs=1))
-    views = {"c3": _view("c3", math.radians(6.0))}
+    views = stack_views([_view("c3", math.radians(6.0))])
     agree.update(0, views, _tracks(["c3", "c1"]))  # one other camera: the track rests on c3 too
     assert agree.report() == []

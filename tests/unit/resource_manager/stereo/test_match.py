@@ -7,8 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from resource_manager.stereo.match import MatchParams, ViewBlobs, get_matcher, match_matrix
-from tests.unit.resource_manager.synth import view
+from resource_manager.stereo.match import MatchMatrix, MatchParams, get_matcher, match_matrix
+from tests.unit.resource_manager.synth import ViewSpec, stack_views, view
+
+
+def _match(a: ViewSpec, b: ViewSpec, params: MatchParams) -> MatchMatrix:
+    """Eq. 7 of the blobs of ``a`` (camera 1) against those of ``b`` (camera 2)."""
+    return match_matrix(stack_views([a, b]), 0, 1, params)
 
 
 @pytest.mark.parametrize("matcher", ["greedy", "global"])
@@ -19,7 +24,7 @@ def test_fig6_two_against_three_blobs(matcher: str) -> None:
     # camera 1 sees A and B (C hidden); camera 2 sees B, A, C (in that blob order)
     v1 = view("p1", o1, [people["A"], people["B"]])
     v2 = view("p2", o2, [people["B"], people["A"], people["C"]])
-    mm = match_matrix(v1, v2, MatchParams())
+    mm = _match(v1, v2, MatchParams())
     pairs = sorted(get_matcher(matcher).match(mm.r, 0.1))
     assert pairs == [(0, 1), (1, 0)]
     for i, j in pairs:
@@ -31,21 +36,21 @@ def test_measures_reject_diverging_and_inconsistent_pairs() -> None:
     v1 = view("p1", (0.0, 0.0), [(2.0, 2.0, 1.8, 1)])
     # camera 2 sees a person behind itself: the rays diverge
     v2 = view("p2", (4.0, 0.0), [(6.0, -2.0, 1.8, 1)])
-    mm = match_matrix(v1, v2, MatchParams())
+    mm = _match(v1, v2, MatchParams())
     assert mm.parts["r_rc"][0, 0] == 0.0 and mm.r[0, 0] == 0.0
     # same direction but a child-height head in view 2: height consistency drops
     v3 = view("p3", (4.0, 0.0), [(2.0, 2.0, 1.0, 1)])
-    assert match_matrix(v1, v3, MatchParams()).parts["r_hc"][0, 0] < 0.1
+    assert _match(v1, v3, MatchParams()).parts["r_hc"][0, 0] < 0.1
     # different clothes: colour similarity drops
     v4 = view("p4", (4.0, 0.0), [(2.0, 2.0, 1.8, 7)])
-    assert match_matrix(v1, v4, MatchParams()).parts["r_is"][0, 0] < 0.5
+    assert _match(v1, v4, MatchParams()).parts["r_is"][0, 0] < 0.5
 
 
 def test_colinear_target_uses_size_ratio() -> None:
     """A target on the baseline between the cameras: Eq. 1 is singular, Eq. 2 localises it."""
     v1 = view("p1", (0.0, 0.0), [(3.0, 0.0, 1.8, 1)])
     v2 = view("p2", (5.0, 0.0), [(3.0, 0.0, 1.8, 1)])
-    mm = match_matrix(v1, v2, MatchParams())
+    mm = _match(v1, v2, MatchParams())
     assert bool(mm.size_ratio[0, 0])
     assert mm.r[0, 0] > 0.5
     assert abs(mm.d1_m[0, 0] - 3.0) < 0.05
@@ -57,10 +62,12 @@ def test_batched_matrices_equal_single_ones() -> None:
     rng = np.random.default_rng(3)
     people = [(float(rng.uniform(0, 8)), float(rng.uniform(0, 6)), 1.7, k) for k in range(6)]
     views = [view(f"c{k}", o, people[: 2 + k]) for k, o in enumerate([(0.0, 0.0), (8.0, 0.0), (8.0, 6.0), (0.0, 6.0)])]
-    pairs = [(views[0], views[1]), (views[2], views[3]), (views[1], views[3]), (views[0], view("e", (4.0, 3.0), []))]
-    batched = match_matrices(pairs, MatchParams())
-    for (a, b), mb in zip(pairs, batched, strict=True):
-        single = match_matrix(a, b, MatchParams())
+    views.append(view("e", (4.0, 3.0), []))
+    pairs = [(0, 1), (2, 3), (1, 3), (0, 4)]
+    batched = match_matrices(stack_views(views), pairs, MatchParams())
+    for (i, j), mb in zip(pairs, batched, strict=True):
+        a, b = views[i], views[j]
+        single = _match(a, b, MatchParams())
         assert mb.r.shape == (a.n, b.n)
         assert np.allclose(mb.r, single.r) and np.allclose(mb.xy, single.xy)
         assert np.array_equal(mb.size_ratio, single.size_ratio)
@@ -76,19 +83,19 @@ def test_head_cut_by_the_image_top_is_only_a_lower_bound() -> None:
     a = dataclasses.replace(a, top_elev_rad=np.array([math.radians(20.0)]))
     b = view("b", (1.9, 3.0), [person])
     p = MatchParams()
-    refused = match_matrix(a, b, p).r[0, 0]
+    refused = _match(a, b, p).r[0, 0]
     cut = dataclasses.replace(a, top_cut=np.array([True]))
-    accepted = match_matrix(cut, b, p).r[0, 0]
+    accepted = _match(cut, b, p).r[0, 0]
     assert refused < 0.2 < 0.5 < accepted  # 0.2: the default tau
     # ... but a lower bound still: a cut top above the other view's head is inconsistent.
     short = view("b", (1.9, 3.0), [(1.9, 0.0, 0.9, 0)])
-    assert match_matrix(cut, short, p).r[0, 0] < 0.2
+    assert _match(cut, short, p).r[0, 0] < 0.2
 
 
 # -- the vectorised Eq. 7 against a plain dense evaluation --------------------------------------------------
 
 
-def _dense_reference(a: ViewBlobs, b: ViewBlobs, p: MatchParams) -> dict[str, np.ndarray]:
+def _dense_reference(a: ViewSpec, b: ViewSpec, p: MatchParams) -> dict[str, np.ndarray]:
     """Eq. 7 of one pair, every measure on every blob pair (the implementation before the batched one)."""
     from scipy.special import ndtr
 
@@ -163,7 +170,7 @@ def _dense_reference(a: ViewBlobs, b: ViewBlobs, p: MatchParams) -> dict[str, np
             "r_wc": r_wc, "r_hc": r_hc}  # fmt: skip
 
 
-def _random_view(rng: np.random.Generator, sid: str, origin: tuple[float, float], people: np.ndarray) -> ViewBlobs:
+def _random_view(rng: np.random.Generator, sid: str, origin: tuple[float, float], people: np.ndarray) -> ViewSpec:
     """A camera seeing a random subset of ``people`` (x, y, height) with noise, cut heads, hidden feet, colours."""
     import dataclasses
 
@@ -204,9 +211,10 @@ def test_batched_eq7_equals_dense_reference(seed: int) -> None:
     params = MatchParams(max_range_m=25.0, floor_sigma_m=0.25, width_floor=0.1)
     for with_hist in (True, False):
         pool = views if not with_hist else views[:-1]
-        pairs = [(pool[i], pool[j]) for i in range(len(pool)) for j in range(len(pool)) if i != j]
-        got = match_matrices(pairs, params)
-        for (a, b), mm in zip(pairs, got, strict=True):
+        pairs = [(i, j) for i in range(len(pool)) for j in range(len(pool)) if i != j]
+        got = match_matrices(stack_views(pool), pairs, params)
+        for (i, j), mm in zip(pairs, got, strict=True):
+            a, b = pool[i], pool[j]
             ref = _dense_reference(a, b, params)
             assert mm.r.shape == (a.n, b.n)
             np.testing.assert_allclose(mm.r, ref["r"], rtol=1e-12, atol=1e-15)

@@ -12,8 +12,7 @@ from resource_manager.stereo.matchers import get_matcher
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.model import Scene, TrackModel
 from resource_manager.track.observe import TrackTable
-from resource_manager.track.stack import Spread
-from tests.unit.resource_manager.synth import view
+from tests.unit.resource_manager.synth import stack_views, view
 
 CAMS = {"p1": (0.0, 0.0), "p2": (8.0, 0.0), "p3": (8.0, 6.0), "p4": (0.0, 6.0)}
 PARAMS = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
@@ -27,16 +26,14 @@ def _tracked(x: float, y: float, height: float) -> TrackTable:
 
 
 def _births(people: list[tuple[float, float, float, int]], tracks: TrackTable) -> list[Hypothesis]:
-    views = {sid: view(sid, o, people) for sid, o in CAMS.items()}
-    free = {sid: list(range(len(people))) for sid in CAMS}
+    views = stack_views([dataclasses.replace(view(sid, o, people), point_var_m2=SIGMA_M**2) for sid, o in CAMS.items()])
     return find_births(
         views,
-        free,
+        np.ones(views.n, dtype=bool),
         tracks,
         MODEL,
         scene=Scene(),
         params=PARAMS,
-        spread=lambda sid: Spread(SIGMA_M**2, SIGMA_M**2),
         tick=0,
         min_evidence=math.log(9.0),
     )
@@ -63,14 +60,14 @@ def _one_camera(p2_fov: tuple[float, float] | None, mono_sigma_m: float = 0.2) -
     seen = view("p1", (0.0, 0.0), [(3.0, 2.0, 1.75, 1)])
     p1 = dataclasses.replace(seen, mono_range_m=np.array([math.hypot(3.0, 2.0)]), mono_sigma_m=np.array([mono_sigma_m]))
     p2 = dataclasses.replace(view("p2", (8.0, 0.0), []), fov=p2_fov)
+    views = stack_views([dataclasses.replace(v, point_var_m2=SIGMA_M**2) for v in (p1, p2)])
     return find_births(
-        {"p1": p1, "p2": p2},
-        {"p1": [0], "p2": []},
+        views,
+        np.ones(views.n, dtype=bool),
         NOBODY,
         MODEL,
         scene=Scene(),
         params=PARAMS,
-        spread=lambda sid: Spread(SIGMA_M**2, SIGMA_M**2),
         tick=0,
         min_evidence=0.0,
     )

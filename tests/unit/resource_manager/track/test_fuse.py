@@ -9,25 +9,26 @@ import numpy as np
 import pytest
 
 from resource_manager.track.fuse import Slots, fuse, fuse_heights
-from resource_manager.track.stack import Spread, ViewStack
-from tests.unit.resource_manager.synth import view
+from resource_manager.views.blobs import Views
+from tests.unit.resource_manager.synth import stack_views, view
 
 TRUE_A, TRUE_B = (3.0, 2.0, 1.75), (6.0, 4.0, 1.6)
 
 
-def _stack() -> ViewStack:
+def _stack() -> Views:
     targets = [(*TRUE_A, 0), (*TRUE_B, 1)]
-    views = [view("p1", (0.0, 0.0), targets), view("p2", (8.0, 0.0), targets[::-1]), view("p3", (0.0, 6.0), targets)]
-    return ViewStack.of(views, [Spread(0.0, 0.0)] * 3)
+    return stack_views(
+        [view("p1", (0.0, 0.0), targets), view("p2", (8.0, 0.0), targets[::-1]), view("p3", (0.0, 6.0), targets)]
+    )
 
 
-def test_slots_index_each_tracks_assigned_blobs_in_the_stack() -> None:
+def test_slots_index_each_tracks_assigned_blobs_in_the_views() -> None:
     stack = _stack()
     slots = Slots.of([[("p1", 0), ("p2", 1)], [("p3", 1)], []], stack)
     assert slots.shape == (3, 2)
     assert slots.track.tolist() == [0, 0, 1] and slots.slot.tolist() == [0, 1, 0]
     assert slots.view.tolist() == [0, 1, 2]
-    assert slots.blob.tolist() == [0, 3, 5]  # p2's blob 1 is the stack's entry 2 + 1
+    assert slots.blob.tolist() == [0, 3, 5]  # p2's blob 1 is the views' entry 2 + 1
     assert stack.bearing_rad[slots.blob[1]] == pytest.approx(math.atan2(TRUE_A[1], TRUE_A[0] - 8.0))
     assert slots.used().tolist() == [[True, True], [True, False], [False, False]]
     assert slots.per_slot(np.array([1.0, 2.0, 3.0]), fill=-1.0).tolist() == [[1.0, 2.0], [3.0, -1.0], [-1.0, -1.0]]
@@ -80,8 +81,7 @@ def test_heights_move_to_what_the_views_imply_and_cut_heads_are_left_out() -> No
     height, var = fuse_heights(xy, np.array([1.5, 1.9]), np.array([0.04, 0.04]), slots, stack)
     assert height == pytest.approx([TRUE_A[2], TRUE_B[2]], abs=0.02)
     assert (var < 0.04).all()
-    cut = ViewStack.of(stack.views, [Spread(0.0, 0.0)] * 3)
-    cut.top_cut[:] = True
+    cut = dataclasses.replace(stack, top_cut=np.ones(stack.n, dtype=bool))
     height, var = fuse_heights(xy, np.array([1.5, 1.9]), np.array([0.04, 0.04]), slots, cut)
     assert height.tolist() == [1.5, 1.9] and var.tolist() == [0.04, 0.04]
 
@@ -96,7 +96,7 @@ def test_a_distance_from_a_box_likely_cut_above_the_feet_does_not_drag_the_track
         view("ptz", (0.0, 0.0), [person], z=2.5), mono_range_m=np.array([4.5]), mono_sigma_m=np.array([0.05])
     )
     far = view("pano", (-2.0, 0.0), [person])
-    stack = ViewStack.of([near, far], [Spread(0.0, 0.0)] * 2)
+    stack = stack_views([near, far])
     slots = Slots.of([[("pano", 0), ("ptz", 0)]], stack)
     xs, ps = np.array([[4.0, 0.0, 0.0, 0.0]]), np.diag([0.04, 0.01, 0.25, 0.25])[None]
     x, _, weight = fuse(

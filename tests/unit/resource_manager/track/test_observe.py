@@ -1,18 +1,16 @@
-"""Visibility: who a camera can see past the people nearer to it."""
+"""Visibility: who a camera can see past the people nearer to it; a bearing's variance."""
 
 from __future__ import annotations
+
+import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from resource_manager.track.model import TrackModel
-from resource_manager.track.observe import Spread, TrackTable, ViewStack, feet_ln, visibility, visibility_many
-from resource_manager.views.blobs import ViewBlobs
-
-
-def _panorama(origin: tuple[float, float], z_m: float) -> ViewBlobs:
-    empty = np.zeros(0)
-    return ViewBlobs("c", np.array(origin), z_m, 0.0035, empty, empty, empty, None, np.zeros(0, np.int64))
+from resource_manager.track.observe import TrackTable, bearing_var, feet_ln, visibility_many
+from tests.unit.resource_manager.synth import ViewSpec, stack_views, view
 
 
 def _table(*xy: tuple[float, float], height: float = 1.7) -> TrackTable:
@@ -26,29 +24,20 @@ def test_someone_behind_a_nearer_person_is_hidden_from_a_low_camera_not_from_a_h
     """Angular silhouettes: at head height the far person's head is covered; from 6 m up it shows."""
     model = TrackModel()
     table = _table((3.0, 0.0), (6.0, 0.0), (3.0, 3.0))
-    low = visibility(_panorama((0.0, 0.0), 1.1), table, model, 100.0)
-    high = visibility(_panorama((0.0, 0.0), 6.0), table, model, 100.0)
+    low, high = visibility_many(
+        stack_views([_camera("c", (0.0, 0.0), 1.1), _camera("c", (0.0, 0.0), 6.0)]), table, model, 100.0
+    ).p_detect
     assert low[0] == pytest.approx(model.p_detect) and low[2] == pytest.approx(model.p_detect)
     assert low[1] < 0.5  # wholly behind the nearer one
     assert high[1] > 0.7  # mostly visible above the nearer one's head
     far = _table((200.0, 0.0))
-    assert visibility(_panorama((0.0, 0.0), 1.1), far, model, 100.0)[0] == 0.0  # out of range: no evidence either way
+    alone = stack_views([_camera("c", (0.0, 0.0), 1.1)])
+    assert visibility_many(alone, far, model, 100.0).p_detect[0, 0] == 0.0  # out of range: no evidence either way
 
 
-def _camera(sid: str, origin: tuple[float, float], z_m: float, body_radius_m: float = 0.0) -> ViewBlobs:
-    empty = np.zeros(0)
-    return ViewBlobs(
-        sid,
-        np.array(origin),
-        z_m,
-        0.0035,
-        empty,
-        empty,
-        empty,
-        None,
-        np.zeros(0, np.int64),
-        body_radius_m=body_radius_m,
-    )
+def _camera(sid: str, origin: tuple[float, float], z_m: float, body_radius_m: float = 0.0) -> ViewSpec:
+    """A camera that sees no blob."""
+    return dataclasses.replace(view(sid, origin, [], z=z_m), sigma_rad=0.0035, body_radius_m=body_radius_m)
 
 
 def test_a_robot_hides_the_feet_of_someone_behind_it_from_a_high_camera_but_not_the_head() -> None:
@@ -58,15 +47,14 @@ def test_a_robot_hides_the_feet_of_someone_behind_it_from_a_high_camera_but_not_
     model = TrackModel()
     high = _camera("ptz", (0.0, 0.0), 2.5)
     robot = _camera("robot", (3.0, 0.0), 1.1, body_radius_m=0.18)
-    stack = ViewStack.of([high, robot], [Spread(0.0, 0.0)] * 2)
     behind, beside = (4.5, 0.0), (4.5, 1.5)
-    vis = visibility_many(stack, _table(behind, beside), model, 100.0)
+    vis = visibility_many(stack_views([high, robot]), _table(behind, beside), model, 100.0)
     assert vis.feet_hidden[0, 0] > 0.5  # the box from the high camera ends at the robot's top
     assert model.p_detect_hidden < vis.p_detect[0, 0] < model.p_detect  # partly covered: still likely seen
     assert vis.feet_hidden[0, 1] == 0.0 and vis.p_detect[0, 1] == pytest.approx(model.p_detect)
     assert vis.feet_hidden[1].max() == 0.0  # a camera's own body hides nothing from it
-    alone = visibility_many(ViewStack.of([high], [Spread(0.0, 0.0)]), _table(behind), model, 100.0)
-    assert alone.feet_hidden[0, 0] == 0.0  # without the robot in the stack, nothing hides them
+    alone = visibility_many(stack_views([high]), _table(behind), model, 100.0)
+    assert alone.feet_hidden[0, 0] == 0.0  # without the robot among the views, nothing hides them
 
 
 def test_a_box_cut_by_a_robot_reads_no_farther_than_where_its_top_meets_the_floor() -> None:
@@ -75,8 +63,7 @@ def test_a_box_cut_by_a_robot_reads_no_farther_than_where_its_top_meets_the_floo
     model = TrackModel()
     high = _camera("ptz", (0.0, 0.0), 2.5)
     robot = _camera("robot", (3.0, 0.0), 1.1, body_radius_m=0.18)
-    stack = ViewStack.of([high, robot], [Spread(0.0, 0.0)] * 2)
-    vis = visibility_many(stack, _table((4.5, 0.0), (4.5, 1.5)), model, 100.0)
+    vis = visibility_many(stack_views([high, robot]), _table((4.5, 0.0), (4.5, 1.5)), model, 100.0)
     assert vis.cut_reach_m[0, 0] == pytest.approx(2.5 * 3.0 / 1.4, rel=1e-6)
     assert vis.cut_reach_m[0, 1] == 0.0  # nothing covers the feet of the one beside
 
@@ -93,3 +80,11 @@ def test_a_distance_beyond_what_the_cover_allows_is_not_explained_by_a_cut() -> 
     assert bounded[1] == -np.inf and np.isfinite(diffuse[1])
     _, none = feet_ln(nu, var, dist, cut, (0.05, 4.0), reach=np.array([0.0, np.inf]))
     np.testing.assert_allclose(none, diffuse)  # no cover bound: the diffuse model
+
+
+def test_bearing_variance_falls_to_the_sensors_own_with_distance() -> None:
+    views = stack_views([dataclasses.replace(view("a", (0.0, 0.0), []), point_var_m2=0.01)])
+    var = bearing_var(views, np.zeros(3, np.int64), np.array([1.0, 4.0, 1e6]))
+    assert var[0] > var[1] > var[2]
+    assert var[2] == pytest.approx(math.radians(0.2) ** 2)
+    assert var[0] == pytest.approx(math.radians(0.2) ** 2 + 0.01)  # the point's spread seen from 1 m

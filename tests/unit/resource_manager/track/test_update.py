@@ -11,20 +11,19 @@ import pytest
 from resource_manager.track.filter import TrackFilter
 from resource_manager.track.model import TrackModel
 from resource_manager.track.motion import MotionModel
-from resource_manager.track.stack import Spread, ViewStack
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
-from tests.unit.resource_manager.synth import view
+from tests.unit.resource_manager.synth import stack_views, view
 
 CAMS = {"p1": (0.0, 0.0), "p2": (8.0, 0.0), "p3": (8.0, 6.0)}
 
 
 def _tick(person: tuple[float, float]) -> Tick:
-    views = {sid: view(sid, o, [(person[0], person[1], 1.75, 1)]) for sid, o in CAMS.items()}
-    views = {sid: dataclasses.replace(v, hist_sqrt=np.sqrt(v.hist)) for sid, v in views.items() if v.hist is not None}
-    sids = sorted(views)
-    stack = ViewStack.of([views[s] for s in sids], [Spread(0.01, 0.01)] * len(sids))
-    return Tick(views, dict.fromkeys(sids, (1.0, 1.0)), {}, stack, np.ones(len(sids)))
+    sids = sorted(CAMS)
+    views = stack_views(
+        [dataclasses.replace(view(s, CAMS[s], [(person[0], person[1], 1.75, 1)]), point_var_m2=0.01) for s in sids]
+    )
+    return Tick(views, dict.fromkeys(sids, (1.0, 1.0)), {}, np.ones(len(sids)))
 
 
 @pytest.mark.parametrize("mode", ["model", "paper"])

@@ -10,11 +10,12 @@ import pytest
 from common.schema import Blob, Features, PinholeModel, Pose, SensorInfo
 from resource_manager.config import ManagerConfig, ManagerSection
 from resource_manager.fusion import Batch, Fusion
-from resource_manager.ingest.align import AlignedBlob, AlignedView, AlignParams, align_sensor
+from resource_manager.ingest.align import Aligned, AlignParams, align
 from resource_manager.ingest.buffers import Ingest
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.views.build import FeetModel, build_views
 from resource_manager.views.mono import mono_ranges
+from tests.unit.resource_manager.synth import aligned_of
 
 Z_M = 2.5
 FEET = FeetModel(math.radians(0.1), 0.1, 50.0)
@@ -33,25 +34,24 @@ def _pinhole_info(sid: str, x: float, y: float, yaw: float, kind: str = "pinhole
                       pose_source="surveyed", bearing_sigma_rad=0.0035)  # fmt: skip
 
 
-def _view_of(
-    xy_people: list[tuple[float, float]], cam_xy: tuple[float, float], bottom_px: float = 900.0
-) -> AlignedView:
+def _view_of(xy_people: list[tuple[float, float]], cam_xy: tuple[float, float], bottom_px: float = 900.0) -> Aligned:
     blobs = []
     for k, (x, y) in enumerate(xy_people):
         d = math.hypot(x - cam_xy[0], y - cam_xy[1])
         blobs.append(
-            AlignedBlob(
+            Blob(
                 local_id=k,
                 bearing_rad=math.atan2(y - cam_xy[1], x - cam_xy[0]),
                 width_rad=0.45 / d,
                 top_elev_rad=math.atan2(1.75 - Z_M, d),
                 bottom_elev_rad=math.atan2(-Z_M, d),
-                hist=[],
-                feet_visible=True,
-                bottom_px=bottom_px,
+                bbox_u_px=900.0,
+                bbox_v_px=600.0,
+                bbox_w_px=50.0,
+                bbox_h_px=bottom_px - 600.0,
             )
         )
-    return AlignedView("c", 0, blobs, [], "held")
+    return aligned_of([Features(sensor_id="c", seq=0, stamp_ns=1, frame_index=0, blobs=blobs)])
 
 
 @pytest.mark.parametrize(("dist_m", "ok"), [(3.0, True), (20.0, True), (80.0, False)])
@@ -70,16 +70,13 @@ def test_mono_ranges_invert_the_feet_elevation(dist_m: float, ok: bool) -> None:
 def test_views_ignore_feet_of_boxes_cut_by_the_lower_border() -> None:
     poses = {"c": PoseEstimate("c", 0.0, 0.0, Z_M, 0.0, "surveyed")}
     infos = {"c": _pinhole_info("c", 0.0, 0.0, 0.0)}
-    inside = build_views({"c": _view_of([(6.0, 1.0)], (0.0, 0.0))}, poses, infos, lambda _s: 0.0035, feet=FEET)
-    cut = build_views(
-        {"c": _view_of([(6.0, 1.0)], (0.0, 0.0), bottom_px=1079.0)}, poses, infos, lambda _s: 0.0035, feet=FEET
-    )
-    none = build_views({"c": _view_of([(6.0, 1.0)], (0.0, 0.0))}, poses, infos, lambda _s: 0.0035, feet=None)
-    assert inside["c"].mono_range_m is not None and cut["c"].mono_range_m is not None
-    assert inside["c"].mono_range_m[0] == pytest.approx(math.hypot(6.0, 1.0))
-    assert np.isnan(cut["c"].mono_range_m[0])
-    assert none["c"].mono_range_m is None  # feet_sigma_deg = 0: no distances
-    assert inside["c"].image is not None and inside["c"].fov is not None  # it knows what it can see
+    inside = build_views(_view_of([(6.0, 1.0)], (0.0, 0.0)), poses, infos, lambda _s: 0.0035, feet=FEET)
+    cut = build_views(_view_of([(6.0, 1.0)], (0.0, 0.0), bottom_px=1079.0), poses, infos, lambda _s: 0.0035, feet=FEET)
+    none = build_views(_view_of([(6.0, 1.0)], (0.0, 0.0)), poses, infos, lambda _s: 0.0035, feet=None)
+    assert inside.mono_range_m[0] == pytest.approx(math.hypot(6.0, 1.0))
+    assert np.isnan(cut.mono_range_m[0])
+    assert np.isnan(none.mono_range_m).all()  # feet_sigma_deg = 0: no distances
+    assert inside.image[0] is not None and inside.fov[0] is not None  # it knows what it can see
 
 
 def test_the_feet_tell_people_from_ghosts_of_crossing_rays() -> None:
@@ -144,9 +141,9 @@ def test_one_sided_blob_only_from_the_nearer_frame() -> None:
     ing.add(f(2, 500, 8, 0.12))  # same person, new id
     params = AlignParams(max_extrapolation_ns=300 * ms, stale_ns=1500 * ms, max_gap_ns=1250 * ms)
     for t_ms, want in ((0, 7), (100, 7), (400, 8), (500, 8)):
-        view = align_sensor(ing.buffers["c"], "c", (10_000 + t_ms) * ms, params)
-        assert view is not None
-        assert [b.local_id for b in view.blobs] == [want], t_ms
+        aligned = align([("c", ing.buffers["c"], params)], (10_000 + t_ms) * ms)
+        assert aligned.sensor_ids == ("c",)
+        assert aligned.local_id.tolist() == [want], t_ms
 
 
 def test_tracks_of_people_who_left_end_at_once_and_unknown_ids_are_bounded() -> None:
