@@ -35,6 +35,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="the site file: the manager fuses exactly its sensor nodes (replaces [manager] sensors) and knows its "
         "[area]",
     )
+    parser.add_argument(
+        "--zone",
+        default=None,
+        metavar="ZONE",
+        help="override [manager] zone: lead this zone, or stand by for it while another manager leads it",
+    )
     add_session_args(parser)
 
 
@@ -51,6 +57,10 @@ def run(args: argparse.Namespace) -> int:
         cfg = for_site(cfg, load_site(args.site))
     manager = cfg.manager
     env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
+    if args.zone is not None:
+        from common.keys import validate_id
+
+        manager = msgspec.structs.replace(manager, zone=validate_id(args.zone, "--zone") if args.zone else "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))
     elif env_dir:  # the launcher's per-run state (demo runs must not reload an earlier run's log)

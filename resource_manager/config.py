@@ -146,6 +146,11 @@ class ManagerSection(ConfigStruct, frozen=True):
     after, so are all its frames larger than 1/30 of it (large for a camera at 30 frames/s); its buffer never
     holds more than one second of it. A camera seeing 30 people at 30 frames/s sends ~0.8 MB/s (the
     demo's ~40 KB/s); a flood of 256-blob frames (~200 KB each, hundreds a second) is cut to this."""
+    zone: str = ""
+    """The zone this manager leads or stands by for: the managers sharing a zone (each its own ``id``) elect one
+    leader through zenoh liveliness (resource_manager/serve/election.py); the others fuse the same sensors' frames,
+    publish nothing but their status, and take over with the leader's track ids when its token goes. A manager
+    started while the zone has a leader stands by. "": no election, the manager always publishes."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes
@@ -331,6 +336,8 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     """Checks msgspec cannot express; raises ConfigError naming the key."""
     try:
         validate_id(cfg.manager.id, "manager.id")
+        if cfg.manager.zone:
+            validate_id(cfg.manager.zone, "manager.zone")
         Keys(cfg.manager.prefix)
         for i, sid in enumerate(cfg.manager.sensors):
             if sid != "*":

@@ -31,6 +31,7 @@ def test_example_config_loads() -> None:
         ),
         ("[zenoh]\n", "missing required key 'manager'"),
         ('[manager]\nid = "m1"\nrate_hz = 0\n', "rate_hz"),
+        ('[manager]\nid = "m1"\nzone = "Hall A"\n', r"manager.zone must match \[a-z0-9\]"),
     ],
 )
 def test_bad_configs(tmp_path: Path, text: str, message: str) -> None:
@@ -38,6 +39,14 @@ def test_bad_configs(tmp_path: Path, text: str, message: str) -> None:
     p.write_text(text)
     with pytest.raises(ConfigError, match=message):
         load_manager_config(p)
+
+
+def test_a_zone_is_optional(tmp_path: Path) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text('[manager]\nid = "m1"\n')
+    assert load_manager_config(p).manager.zone == ""  # no election: the manager always publishes
+    p.write_text('[manager]\nid = "m1"\nzone = "hall-2"\n')
+    assert load_manager_config(p).manager.zone == "hall-2"
 
 
 def test_config_is_frozen() -> None:
