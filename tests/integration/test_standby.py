@@ -30,6 +30,7 @@ from tests.integration.test_faults import (
     running,
 )
 from tests.support import ManagedProcess, free_port, wait_for
+from user_agent.client import AgentClient
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(120)]
 
@@ -143,6 +144,7 @@ def test_standby_takes_over_after_sigkill_with_the_same_ids(zone_site: FaultSite
         took_s, kept = _takeover(obs, a, LEADER, STANDBY)
         assert took_s < TAKEOVER_S, took_s
         assert kept >= KEPT_IDS, kept
+        _ptz_goes_to(site, STANDBY)
         # The killed leader, restarted, finds a leader and stands by; killed in turn, that one hands back.
         t_back = time.monotonic()
         a = _manager(site, LEADER)
@@ -151,6 +153,17 @@ def test_standby_takes_over_after_sigkill_with_the_same_ids(zone_site: FaultSite
         took_s, kept = _takeover(obs, b, STANDBY, LEADER)
         assert took_s < TAKEOVER_S, took_s
         assert kept >= KEPT_IDS, kept
+
+
+def _ptz_goes_to(site: FaultSite, mid: str) -> None:
+    """An agent's PTZ request for a track under the old leader's id reaches the manager publishing it now."""
+    with AgentClient(connect=[site.endpoint], prefix=site.prefix, agent_id="ptz-asker") as agent:
+        tracks = wait_for(lambda: agent.track_sets(timeout_s=1.0).get(mid), 10.0, f"{mid}'s TrackSets").tracks
+        adopted = [t.track_id for t in tracks if not t.track_id.startswith(f"{mid}-")]
+        assert adopted, [t.track_id for t in tracks]
+        reply = agent.request_view(adopted[0])
+        assert reply.manager_id == mid, reply  # no PTZ camera here: the answer says so, from the new leader
+        assert not reply.ok and reply.reason
 
 
 def _one_leader(obs: Observer, since: float) -> str | None:
