@@ -39,7 +39,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--zone",
         default=None,
         metavar="ZONE",
-        help="override [manager] zone: lead this zone, or stand by for it while another manager leads it",
+        help="override [manager] zone: lead this zone, or stand by for it while another manager leads it (with --site "
+        "and the site's [[zones]]: fuse only the cameras that see into it)",
     )
     add_session_args(parser)
 
@@ -50,6 +51,11 @@ def run(args: argparse.Namespace) -> int:
     from resource_manager.node import run as run_manager
 
     cfg = load_manager_config(args.config)
+    if args.zone is not None:  # before the site: a zone of the site narrows what the manager fuses
+        from common.keys import validate_id
+
+        zone = validate_id(args.zone, "--zone") if args.zone else ""
+        cfg = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone=zone))
     if args.site:
         from common.site import load_site
         from resource_manager.config import for_site
@@ -57,10 +63,6 @@ def run(args: argparse.Namespace) -> int:
         cfg = for_site(cfg, load_site(args.site))
     manager = cfg.manager
     env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
-    if args.zone is not None:
-        from common.keys import validate_id
-
-        manager = msgspec.structs.replace(manager, zone=validate_id(args.zone, "--zone") if args.zone else "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))
     elif env_dir:  # the launcher's per-run state (demo runs must not reload an earlier run's log)

@@ -40,7 +40,7 @@ from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings
-from common.site import SiteConfig, site_sensor_ids
+from common.site import SiteConfig, site_sensor_ids, zone_sensor_ids
 from resource_manager.track.model import TrackModel
 
 __all__ = [
@@ -386,14 +386,17 @@ def load_manager_config(path: str | Path) -> ManagerConfig:
 
 
 def for_site(cfg: ManagerConfig, site: SiteConfig) -> ManagerConfig:
-    """``cfg`` as the manager of ``site``: it fuses exactly the site's sensor nodes, and knows the site's area.
+    """``cfg`` as the manager of ``site``: it fuses exactly the site's sensor nodes (with ``[manager] zone`` on a
+    site with ``[[zones]]``: those whose cameras see into that zone), and knows the site's area.
 
     Raises:
-        ConfigError: the site runs no sensor node (its manager would fuse nothing), or a process config is
-            unreadable.
+        ConfigError: the site runs no sensor node (its manager would fuse nothing), the zone is none of the site's
+            or none of its cameras runs here, or a process config is unreadable.
     """
     sensors = site_sensor_ids(site)
     if not sensors:
         raise ConfigError(f"{site.path}: the site runs no sensor node, so its manager would fuse nothing")
+    if cfg.manager.zone and site.zones:  # a manager of one zone fuses the cameras that see into it
+        sensors = zone_sensor_ids(site, cfg.manager.zone)
     manager = msgspec.structs.replace(cfg.manager, sensors=sensors)
     return msgspec.structs.replace(cfg, manager=manager, area=site.area if site.area is not None else cfg.area)
