@@ -21,6 +21,12 @@ on ``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
 ``manager/{id}/ptz/{agent}``: queued, applied and answered in the tick. Agents'
 liveliness tokens end their PTZ holds when they go. The track history is
 logged to disk and reloaded at start (:mod:`resource_manager.serve.history`).
+
+With ``[manager] zone``, the manager holds a seat in its zone (:class:`ZoneSeat`,
+:mod:`resource_manager.serve.election`): while another manager leads the zone it stands by, fusing the same frames
+and publishing only its status, its tracks named after the leader's TrackSets
+(:mod:`resource_manager.serve.adopt`), whose states it keeps as history; it answers no track or PTZ query. When it
+leads, it publishes as above.
 """
 
 from __future__ import annotations
