@@ -320,7 +320,6 @@ class ManagerNode:
         self.agreement = Agreement()
         self.ticks = 0
         self.last_frame = 0.0  # when (monotonic) the latest Features reached the fusion
-        self.adopted = 0  # track ids a standby took from its leader so far
         self.leader_sets, self.seat = self._zone(session)
         # Last: the token says the manager is ready (its queryables answer).
         self.token = session.liveliness().declare_token(k.manager(self.mid))
@@ -704,7 +703,6 @@ class ManagerNode:
             return None
         names = self.fusion.adopt(newest.tracks)
         if names:
-            self.adopted += len(names)
             logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
         return newest
 
