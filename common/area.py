@@ -24,7 +24,7 @@ from common.arrays import BoolArray, FloatArray
 from common.config import ConfigStruct
 from common.errors import ConfigError
 
-__all__ = ["Area", "AreaSpec", "rectangle", "segments_intersect"]
+__all__ = ["Area", "AreaSpec", "overlap_m2", "rectangle", "segments_intersect"]
 
 XY = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
 POLYGON_CORNERS = 3
@@ -170,6 +170,67 @@ class Area:
             return np.zeros(0)
         a, b = _edges(self.polygon)
         return np.asarray(_segment_distance(xy, a, b).min(axis=1), dtype=np.float64)
+
+
+def _triangles(pts: FloatArray) -> list[FloatArray]:
+    """A simple polygon cut into triangles (ear clipping), each (3, 2) counter-clockwise."""
+    poly = np.asarray(pts if _signed_area(pts) > 0 else pts[::-1], dtype=np.float64)
+    out: list[FloatArray] = []
+    while len(poly) > POLYGON_CORNERS:
+        n = len(poly)
+        for i in range(n):
+            corners = [(i - 1) % n, i, (i + 1) % n]
+            tri = poly[corners]
+            if _signed_area(tri) <= 0:
+                continue  # a reflex (or flat) corner is no ear
+            others = np.delete(poly, corners, axis=0)
+            if len(others) and _inside_or_on(others, tri).any():
+                continue
+            out.append(tri)
+            poly = np.delete(poly, i, axis=0)
+            break
+        else:  # only flat corners left (collinear points): what remains encloses nothing
+            return out
+    out.append(poly)
+    return out
+
+
+def _inside_or_on(xy: FloatArray, tri: FloatArray) -> BoolArray:
+    """(n,) whether points lie in a counter-clockwise triangle, its edges included."""
+    a, b = _edges(tri)
+    cross = (b[None, :, 0] - a[None, :, 0]) * (xy[:, None, 1] - a[None, :, 1]) - (b[None, :, 1] - a[None, :, 1]) * (
+        xy[:, None, 0] - a[None, :, 0]
+    )
+    return np.asarray((cross >= 0).all(axis=1), dtype=bool)
+
+
+def _clip(subject: FloatArray, convex: FloatArray) -> FloatArray:
+    """The part of polygon ``subject`` inside the counter-clockwise convex polygon ``convex`` (Sutherland-Hodgman)."""
+    out = subject
+    for a, b in zip(*_edges(convex), strict=True):
+        if not len(out):
+            break
+        side = (b[0] - a[0]) * (out[:, 1] - a[1]) - (b[1] - a[1]) * (out[:, 0] - a[0])
+        kept: list[FloatArray] = []
+        for i in range(len(out)):
+            p, q, sp, sq = out[i], out[(i + 1) % len(out)], side[i], side[(i + 1) % len(out)]
+            if sp >= 0:
+                kept.append(p)
+            if (sp >= 0) != (sq >= 0):
+                kept.append(p + (q - p) * (sp / (sp - sq)))
+        out = np.array(kept).reshape(-1, 2)
+    return out
+
+
+def overlap_m2(a: Area, b: Area) -> float:
+    """The floor area (m²) two areas share: 0 for areas that only touch along a border or at a corner."""
+    total = 0.0
+    for ta in _triangles(a.polygon):
+        for tb in _triangles(b.polygon):
+            part = _clip(ta, tb)
+            if len(part) >= POLYGON_CORNERS:
+                total += abs(_signed_area(part))
+    return total
 
 
 def _signed_area(pts: FloatArray) -> float:

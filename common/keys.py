@@ -19,6 +19,8 @@ key                                    kind                         payload
 ``{root}/manager/{id}/ptz/{agent}``    queryable                    PtzRequest -> PtzReply
 ``{root}/manager/{id}/ptz``            queryable (superseded)       an error naming the key above
 ``{root}/manager/{id}/status``         put 1 Hz                     ManagerStatus
+``{root}/manager/{id}/zone/{z}/...``   liveliness token             its seat in zone z:
+                                                                    ``leader/{term}`` or ``standby``
 ``{root}/agent/{id}``                  liveliness token             presence
 =====================================  ===========================  ==============
 
@@ -29,6 +31,11 @@ reply per state, oldest first.
 A PTZ request names its agent twice, in the key and in ``PtzRequest.agent_id``:
 the manager refuses one where they differ, and a secure site's access rules
 let each agent's certificate query only its own ``ptz/{agent}`` key.
+
+The managers of one zone (``[manager] zone``) each hold one seat token under
+their own key: ``leader/{term}`` while publishing, ``standby`` while silent
+(resource_manager/serve/election.py). ``get`` or a liveliness subscriber on
+:meth:`Keys.zone_seats` sees every manager of the zone and its role.
 """
 
 from __future__ import annotations
@@ -47,6 +54,7 @@ VERSION: Final = "@v1"
 _ID_RE: Final = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 _PREFIX_RE: Final = re.compile(r"^[A-Za-z0-9_-]+(/[A-Za-z0-9_-]+)*$")
 _MAX_ID_LEN: Final = 48
+_MAX_TERM_DIGITS: Final = 18
 
 KeyKind = Literal[
     "sensor",
@@ -60,6 +68,8 @@ KeyKind = Literal[
     "manager_ptz",
     "ptz_request",
     "manager_status",
+    "zone_leader",
+    "zone_standby",
     "tracks",
     "track",
     "plan",
@@ -89,7 +99,10 @@ class ParsedKey:
     """The sensor, manager, agent or track id the key is about ("" for ``tracks``); for ``ptz_request``, the
     agent that speaks."""
     parent: str = ""
-    """The manager a ``ptz_request`` key is addressed to ("" for every other kind)."""
+    """The manager a ``ptz_request`` key is addressed to; the zone of a ``zone_leader`` or ``zone_standby`` seat
+    ("" for every other kind)."""
+    term: int = 0
+    """The leader's term of a ``zone_leader`` seat (0 for every other kind)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,6 +161,24 @@ class Keys:
 
     def manager_status(self, manager_id: str) -> str:
         return f"{self.manager(manager_id)}/status"
+
+    def zone_seat(self, manager_id: str, zone: str) -> str:
+        """Where manager ``manager_id`` holds its seat in ``zone`` (the prefix of its leader or standby token)."""
+        return f"{self.manager(manager_id)}/zone/{validate_id(zone, 'zone')}"
+
+    def zone_leader(self, manager_id: str, zone: str, term: int) -> str:
+        """Liveliness token of the zone's leader in its ``term`` (a positive integer)."""
+        if not isinstance(term, int) or isinstance(term, bool) or term < 1:
+            raise ConfigError(f"a leader's term is a positive integer, got {term!r}")
+        return f"{self.zone_seat(manager_id, zone)}/leader/{term}"
+
+    def zone_standby(self, manager_id: str, zone: str) -> str:
+        """Liveliness token of a standby manager of the zone."""
+        return f"{self.zone_seat(manager_id, zone)}/standby"
+
+    def zone_seats(self, zone: str) -> str:
+        """Every seat token of one zone (all its managers, leader and standbys)."""
+        return f"{self.root}/manager/*/zone/{validate_id(zone, 'zone')}/**"
 
     def tracks(self) -> str:
         return f"{self.root}/tracks"
@@ -239,6 +270,8 @@ class Keys:
             mid, aid = parts[1], parts[3]
             validate_id(mid, f"manager id in key {key!r}")
             return ParsedKey(kind="ptz_request", ident=validate_id(aid, f"id in key {key!r}"), parent=mid)
+        if kind in ("zone_leader", "zone_standby"):
+            return _seat(key, kind, parts)
         ident = parts[1] if len(parts) > 1 else ""
         if kind is None:
             raise ConfigError(f"key {key!r} is not a documented panostereo key")
@@ -263,9 +296,23 @@ _KEY_SHAPES: tuple[tuple[tuple[str, ...], KeyKind], ...] = (
     (("manager", "*", "ptz"), "manager_ptz"),
     (("manager", "*", "status"), "manager_status"),
     (("manager", "*", "ptz", "*"), "ptz_request"),
+    (("manager", "*", "zone", "*", "leader", "*"), "zone_leader"),
+    (("manager", "*", "zone", "*", "standby"), "zone_standby"),
 )
 """The documented keys below the root, ``*`` for an id (the second part: the sensor's, manager's, ...)."""
 
 
 def _fits(shape: tuple[str, ...], parts: list[str]) -> bool:
     return len(shape) == len(parts) and all(s in ("*", p) for s, p in zip(shape, parts, strict=True))
+
+
+def _seat(key: str, kind: KeyKind, parts: list[str]) -> ParsedKey:
+    """A zone seat key taken apart: the manager, its zone and (a leader's) term."""
+    mid = validate_id(parts[1], f"manager id in key {key!r}")
+    zone = validate_id(parts[3], f"zone in key {key!r}")
+    if kind == "zone_standby":
+        return ParsedKey(kind=kind, ident=mid, parent=zone)
+    term = parts[5]
+    if not term.isdigit() or int(term) < 1 or len(term) > _MAX_TERM_DIGITS:
+        raise ConfigError(f"key {key!r}: a leader's term is a positive integer, got {term!r}")
+    return ParsedKey(kind=kind, ident=mid, parent=zone, term=int(term))

@@ -540,6 +540,12 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     agreement: Annotated[list[SensorAgreement], msgspec.Meta(max_length=MAX_SENSORS)] = []
     """Per camera: how well its blobs agree with the other cameras' people, the worst first
     (:mod:`resource_manager.poses.agreement`)."""
+    zone: OptId = ""
+    """The zone whose leadership it shares (``[manager] zone``; "": none, it always publishes)."""
+    role: Literal["leader", "standby"] = "leader"
+    """``standby``: it fuses, silent, ready to take over from its zone's leader."""
+    leader_id: OptId = ""
+    """The manager leading its zone as this one sees it ("": none, or no zone)."""
 
 
 # ---------------------------------------------------------------------------

@@ -26,6 +26,11 @@ Example (abridged)::
     [area]                      # optional: where people can be (a polygon), and its exits
     polygon = [[0.0, 0.0], [8.0, 0.0], [8.0, 6.0], [0.0, 6.0]]
 
+    [[zones]]                   # optional: the floor cut into zones, one manager (and its standbys) each
+    name = "west"
+    polygon = [[0.0, 0.0], [4.0, 0.0], [4.0, 6.0], [0.0, 6.0]]
+    cameras = []                # the cameras that see into it; [] = those of [[camera]] within reach_m of it
+
     [[camera]]
     id = "pano1"
     kind = "panoramic"
@@ -42,14 +47,16 @@ Example (abridged)::
 
 from __future__ import annotations
 
+import itertools
 import math
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
 import msgspec
+import numpy as np
 
-from common.area import Area, AreaSpec
+from common.area import Area, AreaSpec, overlap_m2
 from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, validate_id
@@ -62,11 +69,15 @@ __all__ = [
     "SiteConfig",
     "SiteSection",
     "WorldSpec",
+    "ZoneSpec",
     "load_site",
     "process_ids",
     "site_sensor_ids",
+    "zone_sensor_ids",
 ]
 
+OVERLAP_M2 = 1e-6
+"""Two zones sharing more floor than this overlap (less: rounding along a shared border)."""
 PERSON_HEIGHT_RANGE_M = (0.5, 2.5)
 """People's heights a site may declare (``world.person_height_m``) lie within this range."""
 
@@ -205,6 +216,19 @@ class DatasetSpec(ConfigStruct, frozen=True):
     nothing about anyone elsewhere), or ``everywhere``."""
 
 
+class ZoneSpec(ConfigStruct, frozen=True):
+    """``[[zones]]``: one part of the floor, fused by the managers of that zone (``[manager] zone`` names it)."""
+
+    name: str
+    polygon: list[XY]
+    """Corners of a simple polygon (metres, world frame); zones may touch along their borders, never overlap."""
+    cameras: list[str] = []
+    """The sensor ids whose cameras see into the zone (a camera may serve several zones). Empty: the site's
+    ``[[camera]]`` placements within ``reach_m`` of the polygon (inside it, or that close to its border)."""
+    reach_m: Pos = 12.0
+    """How far a camera sees people well enough to serve the zone."""
+
+
 class SiteConfig(ConfigStruct, frozen=True):
     """A whole site file."""
 
@@ -215,6 +239,8 @@ class SiteConfig(ConfigStruct, frozen=True):
     dataset: DatasetSpec | None = None
     area: AreaSpec | None = None
     """``[area]``: the floor where people can be and its exits (:mod:`common.area`); None: not declared."""
+    zones: list[ZoneSpec] = []
+    """``[[zones]]``: the floor cut into zones (none: one manager, or several sharing the whole site)."""
     path: str = ""
     """Where the file was read from (set by :func:`load_site`; not written in the file)."""
 
@@ -281,6 +307,7 @@ def load_site(path: str | Path) -> SiteConfig:
         names.add(proc.name)
     if site.area is not None:
         Area.of(site.area, f"{path}: area")
+    _check_zones(site, str(path))
     lo, hi = site.world.person_height_m
     if not PERSON_HEIGHT_RANGE_M[0] <= lo <= hi <= PERSON_HEIGHT_RANGE_M[1]:
         raise ConfigError(f"{path}: world.person_height_m must be [low, high] within 0.5-2.5 m, got {[lo, hi]}")
@@ -311,3 +338,75 @@ def site_sensor_ids(site: SiteConfig) -> list[str]:
     These are the sensors a site's manager fuses; whatever else publishes under the site's prefix is refused.
     """
     return sorted({ident for command, ident in process_ids(site).values() if command == "node"})
+
+
+def _zone_areas(site: SiteConfig, path: str) -> list[Area]:
+    """Each zone's polygon as an area; a polygon that is not simple is refused, naming the zone."""
+    names: set[str] = set()
+    areas = []
+    for i, zone in enumerate(site.zones):
+        validate_id(zone.name, f"{path}: zones[{i}].name")
+        if zone.name in names:
+            raise ConfigError(f"{path}: zone name {zone.name!r} appears twice")
+        names.add(zone.name)
+        areas.append(Area.of(AreaSpec(polygon=zone.polygon), f"{path}: zone {zone.name!r}"))
+    return areas
+
+
+def _seers(site: SiteConfig, zone: ZoneSpec, area: Area) -> list[str]:
+    """The ``[[camera]]`` placements within the zone's reach (inside it, or ``reach_m`` from its border)."""
+    out = []
+    for cam in site.camera:
+        xy = np.array([[cam.x_m, cam.y_m]])
+        if bool(area.contains(xy)[0]) or float(area.boundary_distance(xy)[0]) <= zone.reach_m:
+            out.append(cam.id)
+    return out
+
+
+def _check_zones(site: SiteConfig, path: str) -> None:
+    """One clear error for a bad zone definition: a polygon that is not simple, two zones that overlap (one floor,
+    one owner), a listed camera that is not one, or a zone no camera sees into."""
+    areas = _zone_areas(site, path)
+    for i, j in itertools.combinations(range(len(areas)), 2):
+        shared = overlap_m2(areas[i], areas[j])
+        if shared > OVERLAP_M2:
+            raise ConfigError(
+                f"{path}: zones {site.zones[i].name!r} and {site.zones[j].name!r} overlap ({shared:.2f} m² of floor "
+                "would have two owners): zones may share a border, not floor"
+            )
+    placed = {cam.id: cam for cam in site.camera}
+    for zone, area in zip(site.zones, areas, strict=True):
+        for k, sid in enumerate(zone.cameras):
+            validate_id(sid, f"{path}: zone {zone.name!r} cameras[{k}]")
+            if sid in placed and sid not in _seers(site, zone, area):
+                cam = placed[sid]
+                raise ConfigError(
+                    f"{path}: zone {zone.name!r} lists camera {sid!r}, which does not see into it (at "
+                    f"({cam.x_m:g}, {cam.y_m:g}), farther than reach_m = {zone.reach_m:g} m from the zone)"
+                )
+        if not (zone.cameras or _seers(site, zone, area)):
+            raise ConfigError(
+                f"{path}: zone {zone.name!r}: no camera sees into it (no [[camera]] within reach_m = "
+                f"{zone.reach_m:g} m of it, and its cameras = [] lists none)"
+            )
+
+
+def zone_sensor_ids(site: SiteConfig, name: str) -> list[str]:
+    """The sensor ids a manager of zone ``name`` fuses: the zone's cameras that the site runs as sensor nodes.
+
+    Raises:
+        ConfigError: the site has no such zone (naming those it has), or none of the zone's cameras runs here.
+    """
+    zone = next((z for z in site.zones if z.name == name), None)
+    if zone is None:
+        known = ", ".join(z.name for z in site.zones) or "none"
+        raise ConfigError(f"{site.path or 'site'}: no zone {name!r} (zones: {known})")
+    cameras = zone.cameras or _seers(site, zone, Area.of(AreaSpec(polygon=zone.polygon)))
+    running = set(site_sensor_ids(site))
+    out = sorted(set(cameras) & running)
+    if not out:
+        raise ConfigError(
+            f"{site.path or 'site'}: zone {name!r}: none of its cameras ({', '.join(cameras)}) runs as a sensor node "
+            "of the site"
+        )
+    return out

@@ -35,6 +35,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="the site file: the manager fuses exactly its sensor nodes (replaces [manager] sensors) and knows its "
         "[area]",
     )
+    parser.add_argument(
+        "--zone",
+        default=None,
+        metavar="ZONE",
+        help="override [manager] zone: lead this zone, or stand by for it while another manager leads it (with --site "
+        "and the site's [[zones]]: fuse only the cameras that see into it)",
+    )
     add_session_args(parser)
 
 
@@ -44,6 +51,11 @@ def run(args: argparse.Namespace) -> int:
     from resource_manager.node import run as run_manager
 
     cfg = load_manager_config(args.config)
+    if args.zone is not None:  # before the site: a zone of the site narrows what the manager fuses
+        from common.keys import validate_id
+
+        zone = validate_id(args.zone, "--zone") if args.zone else ""
+        cfg = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone=zone))
     if args.site:
         from common.site import load_site
         from resource_manager.config import for_site

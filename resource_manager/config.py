@@ -40,7 +40,7 @@ from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings
-from common.site import SiteConfig, site_sensor_ids
+from common.site import SiteConfig, site_sensor_ids, zone_sensor_ids
 from resource_manager.track.model import TrackModel
 
 __all__ = [
@@ -146,6 +146,11 @@ class ManagerSection(ConfigStruct, frozen=True):
     after, so are all its frames larger than 1/30 of it (large for a camera at 30 frames/s); its buffer never
     holds more than one second of it. A camera seeing 30 people at 30 frames/s sends ~0.8 MB/s (the
     demo's ~40 KB/s); a flood of 256-blob frames (~200 KB each, hundreds a second) is cut to this."""
+    zone: str = ""
+    """The zone this manager leads or stands by for: the managers sharing a zone (each its own ``id``) elect one
+    leader through zenoh liveliness (resource_manager/serve/election.py); the others fuse the same sensors' frames,
+    publish nothing but their status, and take over with the leader's track ids when its token goes. A manager
+    started while the zone has a leader stands by. "": no election, the manager always publishes."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes
@@ -331,6 +336,8 @@ def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     """Checks msgspec cannot express; raises ConfigError naming the key."""
     try:
         validate_id(cfg.manager.id, "manager.id")
+        if cfg.manager.zone:
+            validate_id(cfg.manager.zone, "manager.zone")
         Keys(cfg.manager.prefix)
         for i, sid in enumerate(cfg.manager.sensors):
             if sid != "*":
@@ -379,14 +386,17 @@ def load_manager_config(path: str | Path) -> ManagerConfig:
 
 
 def for_site(cfg: ManagerConfig, site: SiteConfig) -> ManagerConfig:
-    """``cfg`` as the manager of ``site``: it fuses exactly the site's sensor nodes, and knows the site's area.
+    """``cfg`` as the manager of ``site``: it fuses exactly the site's sensor nodes (with ``[manager] zone`` on a
+    site with ``[[zones]]``: those whose cameras see into that zone), and knows the site's area.
 
     Raises:
-        ConfigError: the site runs no sensor node (its manager would fuse nothing), or a process config is
-            unreadable.
+        ConfigError: the site runs no sensor node (its manager would fuse nothing), the zone is none of the site's
+            or none of its cameras runs here, or a process config is unreadable.
     """
     sensors = site_sensor_ids(site)
     if not sensors:
         raise ConfigError(f"{site.path}: the site runs no sensor node, so its manager would fuse nothing")
+    if cfg.manager.zone and site.zones:  # a manager of one zone fuses the cameras that see into it
+        sensors = zone_sensor_ids(site, cfg.manager.zone)
     manager = msgspec.structs.replace(cfg.manager, sensors=sensors)
     return msgspec.structs.replace(cfg, manager=manager, area=site.area if site.area is not None else cfg.area)

@@ -44,6 +44,7 @@ from resource_manager.ingest.schedule import TickLatency
 from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve import messages
+from resource_manager.serve.adopt import adopt_ids
 from resource_manager.serve.lag import LaggedTracks
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
@@ -301,6 +302,14 @@ class Fusion:
                 if f is not None and f.state != "ok" and out.get(sid) != "moving":
                     out[sid] = f.state
         return out
+
+    def adopt(self, theirs: Sequence[Track]) -> dict[int, str]:
+        """Name the tracks after another manager's tracks of the same people (a standby after its leader's,
+        :mod:`~resource_manager.serve.adopt`); returns the renames, serial -> id."""
+        names = adopt_ids(self.tracker.snapshots(), theirs)
+        if names:
+            self.tracker.adopt(names)
+        return names
 
     # -- outputs --------------------------------------------------------------
     def published_tracks(self) -> list[TrackSnapshot]:

@@ -21,6 +21,12 @@ on ``sensor/{id}/ptz``; ManagerStatus at 1 Hz. Queryables answer ``track/*``
 ``manager/{id}/ptz/{agent}``: queued, applied and answered in the tick. Agents'
 liveliness tokens end their PTZ holds when they go. The track history is
 logged to disk and reloaded at start (:mod:`resource_manager.serve.history`).
+
+With ``[manager] zone``, the manager holds a seat in its zone (:class:`ZoneSeat`,
+:mod:`resource_manager.serve.election`): while another manager leads the zone it stands by, fusing the same frames
+and publishing only its status, its tracks named after the leader's TrackSets
+(:mod:`resource_manager.serve.adopt`), whose states it keeps as history; it answers no track or PTZ query. When it
+leads, it publishes as above.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import queue
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -52,14 +59,16 @@ from common.schema import (
     PtzState,
     SensorInfo,
     Track,
+    TrackSet,
 )
 from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
-from common.transport import KeyCensus, KeyedInbox, TypedPublisher
+from common.transport import Inbox, KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
 from resource_manager.fusion import Batch, Fusion, TickResult
 from resource_manager.ingest.gate import SenderGate, sender_in_key
 from resource_manager.ingest.infos import InfoGate
 from resource_manager.poses.agreement import Agreement
+from resource_manager.serve.election import Election, Seat
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk
 from resource_manager.serve.status import InboxCounts, manager_status
@@ -86,6 +95,176 @@ MAX_PENDING_PTZ = 256
 
 MAX_HISTORY_QUERY_S = 1e7
 """The longest ``?history=SECONDS`` a track query may ask for (~116 days: anything longer is a typo)."""
+
+SEAT_RESYNC_S = 2.0
+"""A zone's seats are read whole (liveliness ``get``) this often, besides the subscriber's changes: a view that
+missed a change (a reconnection) is right again within this long."""
+FRESH_FRAMES_S = 1.0
+"""A standby may claim its zone only while its sensors' frames reach it: one arrived within this long."""
+LEADER_SETS = 32
+"""The leader's TrackSets waiting for a standby's next tick."""
+
+
+class ZoneSeat:
+    """This manager's seat in its zone: the token its role names, kept from the zone's seats by
+    :class:`~resource_manager.serve.election.Election` on a thread of its own.
+
+    The seats come from a liveliness ``get`` on a second thread, every :data:`SEAT_RESYNC_S` and at once when the
+    liveliness subscriber hears a seat go (the whole view: a change missed across a reconnection is righted too),
+    and from the subscriber's new seats, all queued in arrival order: a slow ``get`` never delays the decisions.
+
+    Args:
+        can_lead: whether the manager's sensors reach it now (a standby cut off from them never claims).
+    """
+
+    def __init__(
+        self, session: Any, keys: Keys, *, mid: str, zone: str, can_lead: Callable[[], bool], shutdown: Shutdown
+    ) -> None:
+        import zenoh
+
+        self.put_kind = zenoh.SampleKind.PUT
+        self.session, self.keys, self.mid, self.zone = session, keys, mid, zone
+        self.can_lead = can_lead
+        self.shutdown = shutdown
+        self.election = Election(mid)
+        self.lock = threading.Lock()
+        self.events: deque[tuple[Seat, bool, int] | tuple[list[Seat], int, int]] = deque(maxlen=4 * MAX_SENSORS)
+        """Seat changes (seat, alive, number) and whole views (seats, the number of the read, the number of the last
+        change before it began) in arrival order."""
+        self.heard = itertools.count(1)
+        self.last_heard = 0
+        self.wake = threading.Event()
+        self.read_now = threading.Event()
+        self.read_now.set()  # the first whole view at once: no claim is made before it
+        self.reads_asked = 0
+        self.held_until = 1
+        """The leader holds its tracks back until a whole view read after this request number has been taken
+        (none yet at start; and again after its frames stopped: when they come back from a healed link, it hears
+        the newer leader before it publishes)."""
+        self.token = session.liveliness().declare_token(keys.zone_standby(mid, zone))
+        self.sub = session.liveliness().declare_subscriber(keys.zone_seats(zone), self._on_seat)
+        self.threads = [
+            threading.Thread(target=self._loop, name="zone-seat", daemon=True),
+            threading.Thread(target=self._read_loop, name="zone-seats-read", daemon=True),
+        ]
+        for t in self.threads:
+            t.start()
+
+    @property
+    def role(self) -> str:
+        return self.election.role
+
+    @property
+    def leading(self) -> bool:
+        """Whether the manager publishes now: it leads, and has read the zone's seats since its frames came."""
+        return self.election.role == "leader" and self.held_until == 0
+
+    def leader(self) -> str:
+        with self.lock:
+            return self.election.leader() or ""
+
+    def _seat(self, key: str) -> Seat | None:
+        try:
+            p = self.keys.parse(key)
+        except ConfigError:
+            return None
+        if p.parent != self.zone or p.kind not in ("zone_leader", "zone_standby"):
+            return None
+        return Seat(p.ident, "leader" if p.kind == "zone_leader" else "standby", p.term)
+
+    def _on_seat(self, sample: Any) -> None:
+        if sample.kind != self.put_kind:
+            # A token gone: read the seats whole before believing it. zenoh 1.10 sometimes names another token in
+            # the DELETE it sends when a client dies (seen here: the standby's own seat, for its killed leader's),
+            # so what went is asked of the router, which answers at once.
+            self.read_now.set()
+            return
+        seat = self._seat(str(sample.key_expr))
+        if seat is not None:
+            with self.lock:
+                self.last_heard = next(self.heard)
+                self.events.append((seat, True, self.last_heard))
+            self.wake.set()
+
+    def _read_loop(self) -> None:
+        """Read the zone's seats whole every :data:`SEAT_RESYNC_S`, or at once when asked."""
+        while not self.shutdown.is_set():
+            self.read_now.wait(SEAT_RESYNC_S)
+            self.read_now.clear()
+            number = self.reads_asked
+            with self.lock:
+                before = self.last_heard
+            try:
+                replies = list(self.session.liveliness().get(self.keys.zone_seats(self.zone), timeout=1.0))
+            except Exception as err:  # session closing
+                logger.debug("zone seats query: %s", err)
+                continue
+            seats = [s for r in replies if r.ok is not None and (s := self._seat(str(r.ok.key_expr))) is not None]
+            self.events.append((seats, number, before))
+            self.wake.set()
+
+    def _loop(self) -> None:
+        while not self.shutdown.is_set():
+            self.wake.wait(0.1)
+            self.wake.clear()
+            can = self.can_lead()
+            if not can and self.held_until == 0:
+                self.held_until = self.reads_asked + 1  # frames stopped: hold until a read after they are back
+            if can and self.held_until > self.reads_asked:
+                self.reads_asked += 1
+                self.read_now.set()
+            read = self._take_events()
+            with self.lock:
+                changed = self.election.decide(can)
+                role, term = self.election.role, self.election.term
+            if changed:
+                self._take_seat(role, term)
+            if can and 0 < self.held_until <= read:
+                self.held_until = 0
+
+    def _take_events(self) -> int:
+        """Apply what arrived; returns the number of the newest whole view taken (0: none)."""
+        read = 0
+        with self.lock:
+            while self.events:
+                what, flag, number = self.events.popleft()
+                if isinstance(what, Seat):
+                    self.election.saw(what, bool(flag), number)
+                else:
+                    self.election.resync(what, number)
+                    read = max(read, int(flag))
+        return read
+
+    def _take_seat(self, role: str, term: int) -> None:
+        """Declare the new role's token before the old one goes: the zone never sees this manager seatless."""
+        key = (
+            self.keys.zone_leader(self.mid, self.zone, term)
+            if role == "leader"
+            else self.keys.zone_standby(self.mid, self.zone)
+        )
+        old, self.token = self.token, self.session.liveliness().declare_token(key)
+        logger.warning(
+            "manager %s is now the %s of zone %s%s",
+            self.mid,
+            role,
+            self.zone,
+            f" (term {term})" if role == "leader" else f" (leader: {self.leader() or 'none'})",
+        )
+        try:
+            old.undeclare()
+        except Exception as err:
+            logger.debug("undeclare seat: %s", err)
+
+    def close(self) -> None:
+        self.wake.set()
+        self.read_now.set()
+        for t in self.threads:
+            t.join(timeout=2.0)
+        for ent in (self.sub, self.token):
+            try:
+                ent.undeclare()
+            except Exception as err:  # already closed with the session
+                logger.debug("undeclare: %s", err)
 
 
 class ManagerNode:
@@ -140,6 +319,8 @@ class ManagerNode:
         self.status_seq = 0
         self.agreement = Agreement()
         self.ticks = 0
+        self.last_frame = 0.0  # when (monotonic) the latest Features reached the fusion
+        self.leader_sets, self.seat = self._zone(session)
         # Last: the token says the manager is ready (its queryables answer).
         self.token = session.liveliness().declare_token(k.manager(self.mid))
 
@@ -154,6 +335,24 @@ class ManagerNode:
         self.q_tracks = session.declare_queryable(k.all_tracks, self._on_track_query)
         self.q_ptz = session.declare_queryable(k.ptz_requests(self.mid), self._on_ptz_query)
         self.q_ptz_old = session.declare_queryable(k.manager_ptz(self.mid), self._on_old_ptz_query)
+
+    def _zone(self, session: Any) -> tuple[Inbox[TrackSet] | None, ZoneSeat | None]:
+        """With ``[manager] zone``: its seat in the zone, and the leader's TrackSets a standby hears (the ids to
+        adopt, the history to serve once it leads)."""
+        zone = self.cfg.manager.zone
+        if not zone:
+            return None, None
+        sets = Inbox(session, self.keys.tracks(), TrackSet, capacity=LEADER_SETS)
+        seat = ZoneSeat(session, self.keys, mid=self.mid, zone=zone, can_lead=self._can_lead, shutdown=self.shutdown)
+        return sets, seat
+
+    @property
+    def leading(self) -> bool:
+        """Whether this manager publishes: always without a zone, else while it leads its zone."""
+        return self.seat is None or self.seat.leading
+
+    def _can_lead(self) -> bool:
+        return time.monotonic() - self.last_frame < FRESH_FRAMES_S
 
     def _reload(self, state: Path) -> TrackStore:
         """The in-memory track history, reloaded from the log on disk."""
@@ -256,6 +455,8 @@ class ManagerNode:
 
     def _on_track_query(self, query: Any) -> None:
         with query:
+            if not self.leading:
+                return  # the zone's leader answers; a standby's answers would be the same ones twice
             params = dict(query.parameters)
             hist = params.get("history")
             since_ns: int | None = None
@@ -296,6 +497,9 @@ class ManagerNode:
             req = decode(payload.to_bytes(), PtzRequest)
         except (SchemaError, ConfigError) as err:
             self._reject(query, f"expected a PtzRequest on {self.keys.ptz_requests(self.mid)}: {err}")
+            return
+        if self.seat is not None and not self.seat.leading:
+            self._reject(query, f"manager {self.mid} stands by for zone {self.seat.zone}: ask {self.seat.leader()}")
             return
         if not self.gate.same_agent(parsed.ident, req.agent_id):
             self._reject(query, f"the request speaks for agent {req.agent_id!r} on agent {parsed.ident!r}'s key")
@@ -378,6 +582,8 @@ class ManagerNode:
             f = self.features.decode(key, data)
             if f is not None and self.gate.features(sid, f, now):
                 features.append(f)
+        if features:
+            self.last_frame = time.monotonic()
         states = []
         for key, data in self.ptz_states.drain_raw():
             st = self.ptz_states.decode(key, data)
@@ -428,11 +634,12 @@ class ManagerNode:
         if t_ns is None:
             return None
         t0 = time.perf_counter()
+        leading = self.leading
         with self.lock:
             result = self.fusion.step(t_ns)
             fused_s = time.perf_counter() - t0
             self.tick_ms.append(fused_s * 1e3)
-            published_set = result.trackset
+            published_set = result.trackset if leading else self._follow()
             kept = [tr for tr in published_set.tracks if self.store.add(tr)] if published_set is not None else []
             if published_set is not None:
                 self.live_ids = {tr.track_id for tr in published_set.tracks}
@@ -445,11 +652,9 @@ class ManagerNode:
         self.ticks += 1
         if result.skipped or published_set is None:
             return result
-        if kept:
-            try:
-                self.log.append(kept, t_ns)
-            except OSError as err:
-                self.sender_log.log(logging.ERROR, "track-log", "cannot write the track log: %s", err.strerror)
+        self._log_kept(kept, t_ns)
+        if not leading:
+            return result
         t1 = time.perf_counter()
         published = self.clock.now_ns()
         self.pub_tracks.put(msgspec.structs.replace(published_set, published_ns=published))
@@ -476,6 +681,30 @@ class ManagerNode:
         for tid in result.ended:
             logger.info("track %s ended", tid)
         return result
+
+    def _log_kept(self, kept: list[Track], t_ns: int) -> None:
+        if kept:
+            try:
+                self.log.append(kept, t_ns)
+            except OSError as err:
+                self.sender_log.log(logging.ERROR, "track-log", "cannot write the track log: %s", err.strerror)
+
+    def _follow(self) -> TrackSet | None:
+        """A standby's tick (the lock held): its tracks take the ids of the leader's newest TrackSet
+        (resource_manager/serve/adopt.py), which is what it keeps as history. None: nothing new from the leader."""
+        if self.leader_sets is None or self.seat is None:
+            return None
+        leader = self.seat.leader()
+        newest = None
+        for r in self.leader_sets.drain():
+            if r.msg.manager_id == leader and r.key == self.keys.tracks():
+                newest = r.msg
+        if newest is None:
+            return None
+        names = self.fusion.adopt(newest.tracks)
+        if names:
+            logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
+        return newest
 
     def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:
         for a, why in ended:
@@ -515,6 +744,9 @@ class ManagerNode:
         )
         with self.lock:
             msg = msgspec.structs.replace(msg, agreement=self.agreement.report()[:MAX_SENSORS])
+        if self.seat is not None:
+            role = "leader" if self.seat.role == "leader" else "standby"
+            msg = msgspec.structs.replace(msg, zone=self.seat.zone, role=role, leader_id=self.seat.leader())
         self.pub_status.put(msg)
         self.sender_log.flush()
         self.tick_ms.clear()
@@ -548,6 +780,10 @@ class ManagerNode:
 
     def close(self) -> None:
         self.fetch_queue.put(None)
+        if self.seat is not None:
+            self.seat.close()
+        if self.leader_sets is not None:
+            self.leader_sets.close()
         for ent in (self.q_tracks, self.q_ptz, self.q_ptz_old, self.live_sub, self.agent_sub, self.token):
             try:
                 ent.undeclare()

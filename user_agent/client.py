@@ -325,6 +325,14 @@ class AgentClient:
         sets = self.track_sets(timeout_s, stale_s)
         return sorted((t for ts in sets.values() for t in ts.tracks), key=lambda t: t.track_id)
 
+    def _publisher_of(self, track_id: str) -> str:
+        """The manager publishing ``track_id`` now (a zone's standby that took over publishes its leader's ids),
+        else the one its id names (``{manager_id}-{n}``)."""
+        for mid, ts in self.track_sets().items():
+            if any(t.track_id == track_id for t in ts.tracks):
+                return mid
+        return track_id.rsplit("-", 1)[0]
+
     def subscribe(self, callback: Callable[[TrackSet], None]) -> Subscription:
         """Call ``callback(trackset)`` for every TrackSet (on the client's pump thread; keep it short)."""
         sub = Subscription(self, callback)
@@ -394,7 +402,7 @@ class AgentClient:
         self, action: str, track_id: str, priority: int, manager_id: str | None, timeout_s: float, *, lease_s: float
     ) -> PtzReply:
         validate_id(track_id, "track id")
-        mid = manager_id or track_id.rsplit("-", 1)[0]
+        mid = manager_id or self._publisher_of(track_id)
         req = PtzRequest(
             agent_id=self.agent_id,
             seq=next(self._seq),
@@ -423,7 +431,7 @@ class AgentClient:
     ) -> PtzReply:
         """Ask the manager for a PTZ camera to look at a track.
 
-        The manager is the one named in the track id (``{manager_id}-{n}``)
+        The manager is the one publishing the track now, or the one named in the track id (``{manager_id}-{n}``),
         unless ``manager_id`` is given. The reply names the camera, or why none.
         The hold lasts ``reply.lease_s`` (``lease_s`` if shorter than the manager's)
         unless renewed by asking again (:meth:`keep_views` does), and ends at once

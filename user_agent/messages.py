@@ -24,6 +24,8 @@ TYPE_BY_KIND: Final[dict[KeyKind, type[Any] | None]] = {
     "manager_pairs": schema.PairChoice,
     "manager_ptz": schema.PtzRequest,
     "manager_status": schema.ManagerStatus,
+    "zone_leader": None,
+    "zone_standby": None,
     "tracks": schema.TrackSet,
     "track": schema.Track,
     "plan": schema.ViewPlan,

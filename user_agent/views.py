@@ -127,6 +127,7 @@ def _managers_table(managers: Sequence[ManagerView]) -> str:
             (
                 m.manager_id,
                 "up" if m.alive else "DOWN",
+                f"{st.role}:{st.zone}" if st and st.zone else "-",
                 f"{st.tick_ms:6.2f}" if st else "-",
                 f"{st.tick_p99_ms:6.2f}" if st else "-",
                 f"{st.tick_rate_hz:5.1f}" if st else "-",
@@ -141,6 +142,7 @@ def _managers_table(managers: Sequence[ManagerView]) -> str:
     heads = (
         "manager",
         "live",
+        "role",
         "tick_ms",
         "p99_ms",
         "hz",

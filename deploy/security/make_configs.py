@@ -41,10 +41,11 @@ sensor ``<id>``
     subscribe to its own PTZ commands and the view plans (``R/plan/*``: a simulated node needs
     every robot's goal); see managers' presence.
 manager ``<id>``
-    put ``R/tracks``, ``R/track/*``, ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands
-    ``R/sensor/*/ptz``; serve ``R/track/**`` and ``R/manager/<id>/**`` queryables (PTZ requests
-    arrive on ``R/manager/<id>/ptz/<agent>``); read every sensor key, query sensor info and the
-    SensorInfo publishers' caches; its liveliness token.
+    declare its presence ``R/manager/<id>`` and its zone seat ``R/manager/<id>/zone/**`` (a standby's
+    or a leader's token, resource_manager/serve/election.py); put ``R/tracks``, ``R/track/*``,
+    ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands ``R/sensor/*/ptz``; serve ``R/track/**``
+    and ``R/manager/<id>/**`` queryables (PTZ requests arrive on ``R/manager/<id>/ptz/<agent>``);
+    read every sensor key, query sensor info and the SensorInfo publishers' caches.
 agent ``<id>``
     no put at all; subscribe to tracks, plans, pairs, statuses and PTZ states (not raw
     features); query tracks, sensor info (and its publishers' caches) and PTZ views on its own
@@ -141,7 +142,8 @@ def manager_rules(root: str, mid: str) -> list[Rule]:
             ["declare_subscriber"],
             [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/**", f"{root}/manager/**", f"{root}/sensor/*/ptz"],
         ),
-        _rule(f"{n}-token", "ingress", ["liveliness_token"], [own]),
+        # Its presence, and its seat in its zone (leader or standby): under its own key only.
+        _rule(f"{n}-token", "ingress", ["liveliness_token"], [own, f"{own}/zone/**"]),
         _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], served),
         _rule(f"{n}-queryables", "egress", ["declare_queryable"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),

@@ -196,6 +196,18 @@ class Tracker:
         return out
 
     # -- the tick -------------------------------------------------------------------------------------
+    def adopt(self, names: dict[int, str]) -> None:
+        """Rename confirmed tracks: serial -> the id to publish them under from now on (a standby following its
+        leader, resource_manager/serve/adopt.py). A lost track kept under one of those ids is forgotten: one id,
+        one person."""
+        taken = set()
+        for tr in self.tracks:
+            new = names.get(tr.serial)
+            if new and tr.confirmed:
+                tr.track_id = new
+                taken.add(new)
+        self.graveyard.take(taken)
+
     def step(
         self,
         views: Views,

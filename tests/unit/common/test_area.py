@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.area import Area, AreaSpec, rectangle
+from common.area import Area, AreaSpec, overlap_m2, rectangle
 from common.errors import ConfigError
 
 L_SHAPE = [[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [2.0, 2.0], [2.0, 4.0], [0.0, 4.0]]
@@ -53,3 +53,27 @@ def test_rectangle_checks_its_corners() -> None:
     assert Area.of(rectangle(0.0, 0.0, 2.0, 1.0)).area_m2 == pytest.approx(2.0)
     with pytest.raises(ConfigError, match="X0 < X1"):
         rectangle(2.0, 0.0, 0.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("b", "shared"),
+    [
+        (rectangle(10.0, 0.0, 20.0, 10.0), 0.0),  # a shared border is no shared floor
+        (rectangle(10.0, 10.0, 20.0, 20.0), 0.0),  # nor a shared corner
+        (rectangle(5.0, 5.0, 15.0, 15.0), 25.0),
+        (rectangle(0.0, 0.0, 10.0, 10.0), 100.0),
+        (rectangle(2.0, 2.0, 3.0, 3.0), 1.0),  # inside, touching no edge
+    ],
+)
+def test_overlap_of_two_squares(b: AreaSpec, shared: float) -> None:
+    a = Area.of(rectangle(0.0, 0.0, 10.0, 10.0))
+    assert overlap_m2(a, Area.of(b)) == pytest.approx(shared, abs=1e-9)
+    assert overlap_m2(Area.of(b), a) == pytest.approx(shared, abs=1e-9)
+
+
+def test_overlap_of_a_concave_polygon_counts_only_its_floor() -> None:
+    """An L (36 m², clockwise) and a square over its notch: only the L's arms are shared."""
+    ell = Area.of(AreaSpec(polygon=[[0, 10], [2, 10], [2, 2], [10, 2], [10, 0], [0, 0]]))
+    assert overlap_m2(ell, ell) == pytest.approx(36.0)
+    assert overlap_m2(ell, Area.of(rectangle(3.0, 3.0, 9.0, 9.0))) == pytest.approx(0.0, abs=1e-9)
+    assert overlap_m2(ell, Area.of(rectangle(1.0, 1.0, 9.0, 9.0))) == pytest.approx(8.0 + 7.0)

@@ -162,3 +162,35 @@ def test_invalid_prefixes(bad: str) -> None:
 def test_parse_rejects_undocumented_keys(key: str) -> None:
     with pytest.raises(ConfigError):
         K.parse(key)
+
+
+def test_zone_seat_keys_parse_back_and_sit_under_their_managers_key() -> None:
+    """A zone's seats: each under its manager's own key (what its certificate may declare), one wildcard per zone."""
+    lead, stand = K.zone_leader("mgr-a", "hall", 3), K.zone_standby("mgr-b", "hall")
+    assert lead == "pano/@v1/manager/mgr-a/zone/hall/leader/3"
+    assert stand == "pano/@v1/manager/mgr-b/zone/hall/standby"
+    assert K.parse(lead) == ParsedKey("zone_leader", "mgr-a", "hall", 3)
+    assert K.parse(stand) == ParsedKey("zone_standby", "mgr-b", "hall")
+    seats = zenoh.KeyExpr(K.zone_seats("hall"))
+    assert seats.includes(zenoh.KeyExpr(lead)) and seats.includes(zenoh.KeyExpr(stand))
+    assert not seats.intersects(zenoh.KeyExpr(K.zone_standby("mgr-b", "yard")))
+    for wild in WILDCARDS:  # no other wildcard hears a seat: agents listing managers see no seat as a manager
+        if wild != "all":
+            assert not zenoh.KeyExpr(getattr(K, wild)).intersects(zenoh.KeyExpr(lead)), wild
+
+
+@pytest.mark.parametrize("term", [0, -1, True, 1.5])
+def test_a_leader_term_is_a_positive_integer(term: object) -> None:
+    with pytest.raises(ConfigError, match="term is a positive integer"):
+        K.zone_leader("m", "z", term)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("tail", ["leader/0", "leader/x", "leader/-1", "leader/" + "9" * 19])
+def test_a_seat_key_with_a_bad_term_is_refused(tail: str) -> None:
+    with pytest.raises(ConfigError, match="term is a positive integer"):
+        K.parse(f"pano/@v1/manager/m/zone/z/{tail}")
+
+
+def test_a_bad_zone_is_refused() -> None:
+    with pytest.raises(ConfigError, match="zone must match"):
+        K.zone_seats("Hall")

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from common.errors import ConfigError
-from common.site import BUNDLED_SITES, load_site, process_ids, site_file, site_sensor_ids
+from common.site import BUNDLED_SITES, load_site, process_ids, site_file, site_sensor_ids, zone_sensor_ids
 
 HEAD = '[site]\nname = "lab"\nseed = 3\n'
 CAM = '[[camera]]\nid = "{id}"\nkind = "{kind}"\nmobile = {mobile}\n'
@@ -91,3 +91,58 @@ def test_a_bundled_site_is_found_by_name_from_a_config_copied_anywhere(tmp_path:
     assert site_file("/abs/y.toml", copied) == Path("/abs/y.toml")
     with pytest.raises(ConfigError, match=r"'nowhere' is no bundled site \(.*demo.*\)"):
         site_file("nowhere", copied)
+
+
+def _hall(tmp_path: Path, zones: str, cams: str = "") -> Path:
+    """A 20 x 10 m hall with four cameras, two nodes per half (their configs written), and the given zones."""
+    (tmp_path / "nodes").mkdir(exist_ok=True)
+    procs = ""
+    for i, (x, y) in enumerate([(2.0, 5.0), (8.0, 5.0), (12.0, 5.0), (18.0, 5.0)]):
+        _write(tmp_path / "nodes", f'[node]\nid = "c{i}"\n', f"c{i}.toml")
+        cams += f'[[camera]]\nid = "c{i}"\nx_m = {x}\ny_m = {y}\n'
+        procs += f'[[process]]\nname = "c{i}"\ncommand = "node"\nconfig = "nodes/c{i}.toml"\n'
+    return _write(tmp_path, HEAD + cams + procs + zones)
+
+
+WEST = '[[zones]]\nname = "west"\npolygon = [[0, 0], [10, 0], [10, 10], [0, 10]]\nreach_m = 3.0\n'
+EAST = '[[zones]]\nname = "east"\npolygon = [[10, 0], [20, 0], [20, 10], [10, 10]]\nreach_m = 3.0\n'
+
+
+def test_zones_sharing_a_border_each_fuse_the_cameras_that_see_into_them(tmp_path: Path) -> None:
+    site = load_site(_hall(tmp_path, WEST + EAST))
+    assert [z.name for z in site.zones] == ["west", "east"]
+    # c1 (8 m) and c2 (12 m) are within 3 m of the border: each serves both zones.
+    assert zone_sensor_ids(site, "west") == ["c0", "c1", "c2"]
+    assert zone_sensor_ids(site, "east") == ["c1", "c2", "c3"]
+    listed = load_site(_hall(tmp_path, WEST.replace("reach_m", 'cameras = ["c0"]\nreach_m'), ""))
+    assert zone_sensor_ids(listed, "west") == ["c0"]
+    with pytest.raises(ConfigError, match=r"no zone 'north' \(zones: west\)"):
+        zone_sensor_ids(listed, "north")
+
+
+@pytest.mark.parametrize(
+    ("zones", "message"),
+    [
+        (
+            WEST + EAST.replace("[[10, 0]", "[[9, 0]").replace("[10, 10]]", "[9, 10]]"),
+            r"zones 'west' and 'east' overlap \(10.00 m² of floor would have two owners\)",
+        ),
+        (WEST + WEST.replace('"west"', '"copy"'), r"zones 'west' and 'copy' overlap \(100.00 m²"),
+        (
+            WEST.replace("[[0, 0], [10, 0], [10, 10], [0, 10]]", "[[0, 0], [10, 10], [10, 0], [0, 10]]"),
+            r"zone 'west'.polygon is not simple: its edges 0 and 2 cross",
+        ),
+        (
+            '[[zones]]\nname = "yard"\npolygon = [[40, 40], [50, 40], [50, 50]]\nreach_m = 3.0\n',
+            r"zone 'yard': no camera sees into it \(no \[\[camera\]\] within reach_m = 3 m of it",
+        ),
+        (
+            EAST.replace("reach_m", 'cameras = ["c0"]\nreach_m'),
+            r"zone 'east' lists camera 'c0', which does not see into it \(at \(2, 5\), farther than reach_m = 3 m",
+        ),
+        (WEST + WEST, "zone name 'west' appears twice"),
+    ],
+)
+def test_a_bad_zone_definition_gives_one_clear_error(tmp_path: Path, zones: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        load_site(_hall(tmp_path, zones))

@@ -31,6 +31,7 @@ def test_example_config_loads() -> None:
         ),
         ("[zenoh]\n", "missing required key 'manager'"),
         ('[manager]\nid = "m1"\nrate_hz = 0\n', "rate_hz"),
+        ('[manager]\nid = "m1"\nzone = "Hall A"\n', r"manager.zone must match \[a-z0-9\]"),
     ],
 )
 def test_bad_configs(tmp_path: Path, text: str, message: str) -> None:
@@ -40,8 +41,42 @@ def test_bad_configs(tmp_path: Path, text: str, message: str) -> None:
         load_manager_config(p)
 
 
+def test_a_zone_is_optional(tmp_path: Path) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text('[manager]\nid = "m1"\n')
+    assert load_manager_config(p).manager.zone == ""  # no election: the manager always publishes
+    p.write_text('[manager]\nid = "m1"\nzone = "hall-2"\n')
+    assert load_manager_config(p).manager.zone == "hall-2"
+
+
 def test_config_is_frozen() -> None:
     cfg = load_manager_config(REPO / "deploy/nodes/examples/manager.toml")
     with pytest.raises(AttributeError):
         cfg.manager.id = "x"  # type: ignore[misc]
     assert msgspec.structs.replace(cfg.manager, rate_hz=5.0).rate_hz == 5.0
+
+
+def test_a_zone_manager_of_a_site_with_zones_fuses_the_cameras_that_see_into_it(tmp_path: Path) -> None:
+    from common.site import load_site
+    from resource_manager.config import for_site
+
+    for sid in ("c0", "c1"):
+        (tmp_path / f"{sid}.toml").write_text(f'[node]\nid = "{sid}"\n')
+    zone = '[[zones]]\nname = "{n}"\npolygon = [[{x0}, 0], [{x1}, 0], [{x1}, 10], [{x0}, 10]]\nreach_m = 2.0\n'
+    (tmp_path / "site.toml").write_text(
+        '[site]\nname = "hall"\n'
+        '[[camera]]\nid = "c0"\nx_m = 2.0\ny_m = 5.0\n[[camera]]\nid = "c1"\nx_m = 18.0\ny_m = 5.0\n'
+        '[[process]]\nname = "c0"\ncommand = "node"\nconfig = "c0.toml"\n'
+        '[[process]]\nname = "c1"\ncommand = "node"\nconfig = "c1.toml"\n'
+        + zone.format(n="west", x0=0, x1=10)
+        + zone.format(n="east", x0=10, x1=20)
+    )
+    site = load_site(tmp_path / "site.toml")
+    (tmp_path / "m.toml").write_text('[manager]\nid = "m1"\n')
+    cfg = load_manager_config(tmp_path / "m.toml")
+    assert for_site(cfg, site).manager.sensors == ["c0", "c1"]  # no zone: the whole site
+    east = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone="east"))
+    assert for_site(east, site).manager.sensors == ["c1"]
+    north = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone="north"))
+    with pytest.raises(ConfigError, match=r"no zone 'north' \(zones: west, east\)"):
+        for_site(north, site)

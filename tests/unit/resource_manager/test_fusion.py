@@ -213,3 +213,34 @@ def test_absorb_files_and_step_fuses_and_a_sensor_that_goes_is_forgotten_once() 
     late = fusion.absorb(Batch(features=[features_for(cams[1], one_person(0.1), cams, t0 + 10**8, 2, rng)]))
     assert late.ptz_answers == [] and "p2" not in fusion.sensors.buffers  # a gone sensor's late frame is dropped
     assert fusion.step(t0 + 10**8).counters.sensors_absent == ["p2"]
+
+
+def test_a_standby_started_later_publishes_its_people_under_the_leaders_ids() -> None:
+    """Two fusions on the same frames, the second (a standby) started 4 s later and naming its tracks after the
+    first's TrackSets (Fusion.adopt): once both follow everyone, the people have the same ids in both, but for
+    the odd instant where their trackers differ (one holds a person the other has just ended)."""
+    from tests.unit.resource_manager.scenario import T0_NS
+
+    cams = [Cam("p1", 0.5, 0.5), Cam("p2", 5.5, 0.5, yaw=1.2), Cam("p3", 3.0, 6.0, yaw=-1.5)]
+    walk = RandomWalk(3, (0.0, 0.0, 6.0, 6.0), seed=3)
+    lead, stand = Fusion(make_config("lead")), Fusion(make_config("stand"))
+    rng = np.random.default_rng(2)
+    infos = [info_for(c) for c in cams]
+    same, renamed = [], 0
+    for tick in range(1, 200):
+        t = tick / 10.0
+        frames = [features_for(c, walk.at(t), cams, T0_NS + int(t * 1e9), tick, rng) for c in cams]
+        t_ns = T0_NS + int((t - 0.1) * 1e9)
+        lead.absorb(Batch(features=frames, infos=infos if tick == 1 else []))
+        theirs = lead.step(t_ns).trackset
+        if t < 4.0:
+            continue
+        stand.absorb(Batch(features=frames, infos=infos))
+        mine = stand.step(t_ns).trackset
+        assert theirs is not None and mine is not None
+        renamed += len(stand.adopt(theirs.tracks))
+        if t > 8.0:  # what the standby would publish next: the leader's ids
+            same.append({x.track_id for x in stand.published_tracks()} == {x.track_id for x in theirs.tracks})
+    assert renamed >= 3
+    assert len(theirs.tracks) == 3 and all(x.track_id.startswith("lead-") for x in theirs.tracks)
+    assert same.count(True) >= 0.95 * len(same), f"{same.count(False)} of {len(same)} instants with different ids"

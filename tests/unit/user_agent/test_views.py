@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import msgspec
+
 from common.schema import ManagerStatus, NodeStatus, Track
 from user_agent.client import ManagerView, SensorView
 from user_agent.views import format_table, history_table, tracks_table, watch_screen
@@ -44,8 +46,17 @@ def test_watch_screen_has_sensor_fps_drops_clock_and_manager_tick() -> None:
     sensor_row = next(ln for ln in text.splitlines() if ln.startswith("pano1"))
     assert sensor_row.split()[4:9] == ["14.9", "300", "7", "9.5", "-1.25"]
     mgr_row = next(ln for ln in text.splitlines() if ln.startswith("mgr1 "))
-    assert mgr_row.split()[:5] == ["mgr1", "up", "2.50", "4.00", "10.0"]
+    assert mgr_row.split()[:6] == ["mgr1", "up", "-", "2.50", "4.00", "10.0"]
     assert text.startswith("hdr\nTRACKS (1)")
+
+
+def test_watch_screen_shows_each_zone_managers_role() -> None:
+    lead = ManagerStatus(manager_id="hall-a", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0,
+                         zone="hall", role="leader", leader_id="hall-a")  # fmt: skip
+    stand = msgspec.structs.replace(lead, manager_id="hall-b", role="standby")
+    text = watch_screen([], [], [ManagerView("hall-a", True, lead), ManagerView("hall-b", True, stand)])
+    rows = {ln.split()[0]: ln.split()[:3] for ln in text.splitlines() if ln.startswith("hall-")}
+    assert rows == {"hall-a": ["hall-a", "up", "leader:hall"], "hall-b": ["hall-b", "up", "standby:hall"]}
 
 
 def test_watch_screen_lists_the_camera_poses_the_manager_knows() -> None:

@@ -1,0 +1,57 @@
+"""A standby's tracks named after the leader's: the ids a warm standby publishes under when it takes over.
+
+A standby manager fuses the same frames as its zone's leader (resource_manager/serve/election.py), so it follows the
+same people, but its tracks were born under its own ids (``{manager_id}-{n}``: no two managers ever mint the same
+id). While it stands by it also hears the leader's TrackSets, and names each of its confirmed tracks after the
+leader's track of the same person: the nearest one, at the standby's instant (the leader's position carried there
+by its velocity), one to one (Hungarian) and within ``gate_m``. When the leader goes, the standby publishes the
+people under the ids the agents already know.
+
+Pure: the tracker's snapshots and the leader's tracks in, the renames out; the tracker applies them
+(:meth:`resource_manager.track.tracker.Tracker.adopt`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from common.schema import Track
+from resource_manager.track.tracker import TrackSnapshot
+
+__all__ = ["GATE_M", "adopt_ids"]
+
+GATE_M = 0.75
+"""Farthest a standby's track may be from the leader's to be named after it (a person's width and a half: the two
+managers' estimates of one person differ by their alignment instants, centimetres)."""
+
+
+def adopt_ids(mine: Sequence[TrackSnapshot], theirs: Sequence[Track], gate_m: float = GATE_M) -> dict[int, str]:
+    """Serial of each of ``mine`` (confirmed ones) -> the id of the leader's track it follows, where that differs
+    from its own and no other of ``mine`` keeps it (two of mine may swap ids)."""
+    own = [tr for tr in mine if tr.track_id]
+    if not own or not theirs:
+        return {}
+    a = np.array([tr.xy for tr in own], dtype=np.float64)
+    b = np.array([[t.x_m, t.y_m] for t in theirs], dtype=np.float64)
+    v = np.array([[t.vx_mps, t.vy_mps] for t in theirs], dtype=np.float64)
+    dt = (np.array([tr.t_ns for tr in own], dtype=np.float64)[:, None] - np.array([t.stamp_ns for t in theirs])) / 1e9
+    # Each leader track carried to each standby track's instant (clipped: a stale set is not extrapolated far).
+    dt = np.clip(dt, -1.0, 1.0)
+    carried = b[None, :, :] + v[None, :, :] * dt[:, :, None]
+    dist = np.linalg.norm(a[:, None, :] - carried, axis=2)
+    cost = np.where(dist <= gate_m, dist, 1e6)
+    rows, cols = linear_sum_assignment(cost)
+    wanted = {
+        own[r].serial: theirs[c].track_id
+        for r, c in zip(rows.tolist(), cols.tolist(), strict=True)
+        if dist[r, c] <= gate_m and theirs[c].track_id != own[r].track_id
+    }
+    # An id stays with a track that keeps its own; one that another of mine gives up this time may be taken (a swap).
+    kept = {tr.track_id for tr in own if tr.serial not in wanted}
+    out = {serial: want for serial, want in wanted.items() if want not in kept}
+    if len(set(out.values())) != len(out):  # the leader's set itself names one id twice: take none of it
+        return {}
+    return out

@@ -1,0 +1,81 @@
+"""A standby names its tracks after the leader's tracks of the same people."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from common.schema import Track
+from resource_manager.serve.adopt import GATE_M, adopt_ids
+from resource_manager.track.tracker import TrackSnapshot
+
+T0 = 1_700_000_000_000_000_000
+
+
+def _mine(serial: int, track_id: str, x: float, y: float, t_ns: int = T0) -> TrackSnapshot:
+    return TrackSnapshot(
+        serial=serial,
+        track_id=track_id,
+        x=np.array([x, y, 0.0, 0.0]),
+        p_xy=np.eye(2) * 0.01,
+        height_m=1.7,
+        existence=0.99,
+        state="confirmed" if track_id else "tentative",
+        method="paper",
+        sensors=(),
+        predicted_error_m=0.1,
+        born_ns=T0,
+        t_ns=t_ns,
+        hits=10,
+        misses=0,
+        confirmed=bool(track_id),
+        detected=True,
+        placed=True,
+        reported=bool(track_id),
+    )
+
+
+def _theirs(track_id: str, x: float, y: float, vx: float = 0.0, t_ns: int = T0) -> Track:
+    return Track(
+        manager_id="lead",
+        seq=1,
+        stamp_ns=t_ns,
+        track_id=track_id,
+        x_m=x,
+        y_m=y,
+        height_m=1.7,
+        vx_mps=vx,
+        vy_mps=0.0,
+        cov_xx_m2=0.01,
+        cov_xy_m2=0.0,
+        cov_yy_m2=0.01,
+        state="confirmed",
+        method="paper",
+    )
+
+
+def test_each_track_takes_the_id_of_the_leaders_nearest_one_to_one() -> None:
+    mine = [_mine(1, "b-1", 0.0, 0.0), _mine(2, "b-2", 0.5, 0.0), _mine(3, "b-3", 5.0, 5.0)]
+    theirs = [_theirs("a-7", 0.55, 0.05), _theirs("a-3", 0.05, 0.0), _theirs("a-9", 9.0, 9.0)]
+    assert adopt_ids(mine, theirs) == {1: "a-3", 2: "a-7"}  # b-3 has no leader track within the gate
+
+
+def test_the_leaders_track_is_carried_to_the_standbys_instant() -> None:
+    """The leader fused 0.2 s earlier; its person walks at 2 m/s: 0.4 m on, right onto the standby's track."""
+    mine = [_mine(1, "b-1", 0.4, 0.0), _mine(2, "b-2", -0.3, 0.0)]
+    theirs = [_theirs("a-1", 0.0, 0.0, vx=2.0, t_ns=T0 - 200_000_000)]
+    assert adopt_ids(mine, theirs) == {1: "a-1"}
+
+
+def test_tentative_tracks_ids_already_held_and_far_tracks_are_left_alone() -> None:
+    mine = [_mine(1, "", 0.0, 0.0), _mine(2, "a-4", 3.0, 0.0), _mine(3, "b-3", 3.1, 0.0), _mine(4, "b-4", 7.0, 0.0)]
+    theirs = [_theirs("a-1", 0.0, 0.0), _theirs("a-4", 3.1, 0.0), _theirs("a-5", 7.0 + GATE_M + 0.01, 0.0)]
+    # 1 is tentative; a-4 already named (2 keeps it whichever is nearest); 4 is out of the gate.
+    assert adopt_ids(mine, theirs) == {}
+    assert adopt_ids([], theirs) == {} and adopt_ids(mine, []) == {}
+
+
+def test_two_tracks_may_swap_ids() -> None:
+    """The leader's ids went the other way round (its own tracker swapped them): the standby's follow at once."""
+    mine = [_mine(1, "a-1", 0.0, 0.0), _mine(2, "a-2", 2.0, 0.0)]
+    theirs = [_theirs("a-2", 0.0, 0.0), _theirs("a-1", 2.0, 0.0)]
+    assert adopt_ids(mine, theirs) == {1: "a-2", 2: "a-1"}
