@@ -166,13 +166,15 @@ def _wrap(a: float) -> float:
     return math.remainder(a, 2 * math.pi)
 
 
-def observe(cam: Cam, walkers: list[Walker], t_s: float, rng: random.Random, sigma_rad: float) -> list[Blob]:
-    """The blobs a panoramic node at ``cam`` would report at world time ``t_s``."""
+def observe(
+    cam: Cam, walkers: list[Walker], t_s: float, rng: random.Random, sigma_rad: float, max_range_m: float = MAX_RANGE_M
+) -> list[Blob]:
+    """The blobs a panoramic node at ``cam`` would report at world time ``t_s`` (people within ``max_range_m``)."""
     blobs = []
     for w in walkers:
         x, y = w.at(t_s)
         d = math.hypot(x - cam.x_m, y - cam.y_m)
-        if d < 0.5 or d > MAX_RANGE_M:
+        if d < 0.5 or d > max_range_m:
             continue
         bearing = _wrap(math.atan2(y - cam.y_m, x - cam.x_m) - cam.yaw_rad + rng.gauss(0.0, sigma_rad))
         width = 2 * math.atan(BODY_RADIUS_M / d)
@@ -306,15 +308,20 @@ def sensor_info(cam: Cam, seq: int, fps: float, sigma_rad: float) -> SensorInfo:
     )
 
 
-def run_fleet(args: argparse.Namespace) -> FleetStats:
+def run_fleet(
+    args: argparse.Namespace, world: tuple[list[Cam], list[Walker]] | None = None, max_range_m: float = MAX_RANGE_M
+) -> FleetStats:
     """Publish ``args.sensors`` sensors at ``args.fps`` for ``args.duration`` s (forever if 0) or until SIGTERM.
+
+    ``world``: the cameras and people to play (default: :func:`make_room`'s); ``max_range_m``: how far a camera
+    sees people.
 
     Timing faults for the fault tests: ``--clock-offset-ms`` shifts every capture stamp (a node
     whose clock is off), ``--reorder`` holds back every k-th frame and sends it after the next
     one (out of order), ``--late-ms`` sends one frame in 30 that much late.
     """
     keys = Keys(args.prefix)
-    cams, walkers = make_room(args.sensors, args.people, args.seed)
+    cams, walkers = world or make_room(args.sensors, args.people, args.seed)
     if args.only:
         cams = [c for c in cams if c.sensor_id in set(args.only.split(","))]
     sigma = math.radians(0.2)
@@ -367,7 +374,7 @@ def run_fleet(args: argparse.Namespace) -> FleetStats:
                 seq=k,
                 stamp_ns=due_ns + int(args.clock_offset_ms * 1e6),
                 frame_index=k,
-                blobs=observe(cam, walkers, t_world_s, rng, sigma),
+                blobs=observe(cam, walkers, t_world_s, rng, sigma, max_range_m),
                 processing_ms=(now_ns - due_ns) / 1e6,
             )
             data = encode(msg)
