@@ -87,6 +87,8 @@ THRESHOLD_M = 0.5
 CROSSING_WINDOW_S = 2.0
 """A crossing is judged by the person's matched track within this long before and after it."""
 PREFIX = "zones"
+ESTIMATE_SITE = {"cameras": 1000, "people": 1000, "fps": 30.0}
+"""The site the host estimate is for (the issue's: 1,000 cameras at 30 Hz, 1,000 people)."""
 QUICK = {"sensors": 8, "people": 8, "duration": 8.0, "kills": 2, "warmup": 3.0}
 """``--quick``: a smoke run's sizes."""
 CLK_TCK = os.sysconf("SC_CLK_TCK")
@@ -574,11 +576,11 @@ def hosts_estimate(args: argparse.Namespace, single: dict[str, Any], zones: dict
     rate = statistics.fmean(f["tick_rate_hz"] or args.rate_hz for f in zm)
     delivered = sum((f["cameras"] or 0) for f in zm) * args.fps
     router_per_frame = (zones["router_cpu_cores"] or 0.0) / delivered if delivered else 0.0
-    n_cam = n_people = 1000
+    n_cam, n_people, fps = int(ESTIMATE_SITE["cameras"]), int(ESTIMATE_SITE["people"]), ESTIMATE_SITE["fps"]
     zones_needed = math.ceil(len(zm) * n_cam / args.sensors)
-    own = a * n_cam * args.fps * cam_share + b * n_people * person_share * rate
-    refused = c * zones_needed * n_cam * args.fps * (1 - cam_share / zones_needed)
-    router = router_per_frame * n_cam * args.fps * cam_share
+    own = a * n_cam * fps * cam_share + b * n_people * person_share * rate
+    refused = c * zones_needed * n_cam * fps * (1 - cam_share / zones_needed)
+    router = router_per_frame * n_cam * fps * cam_share
     cores = os.cpu_count() or 1
 
     def hosts(x: float) -> int:
@@ -595,7 +597,7 @@ def hosts_estimate(args: argparse.Namespace, single: dict[str, Any], zones: dict
         "camera_share": round(cam_share, 3),
         "person_share": round(person_share, 3),
         "tick_hz": round(rate, 2),
-        "site": {"cameras": n_cam, "people": n_people, "fps": args.fps, "zones": zones_needed},
+        "site": {**ESTIMATE_SITE, "zones": zones_needed, "cameras_per_zone": args.sensors / len(zm)},
         "cores_per_host": cores,
         "host_load": 0.7,
         "as_measured": {"cores": round(own + refused + router, 2), "hosts": hosts(own + refused + router)},
