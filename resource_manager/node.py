@@ -27,6 +27,11 @@ With ``[manager] zone``, the manager holds a seat in its zone (:class:`ZoneSeat`
 and publishing only its status, its tracks named after the leader's TrackSets
 (:mod:`resource_manager.serve.adopt`), whose states it keeps as history; it answers no track or PTZ query. When it
 leads, it publishes as above.
+
+With a zone floor (``[manager] zone_polygon``, which ``--site`` sets from the site's ``[[zones]]``) a leader publishes
+only the tracks it owns (:mod:`resource_manager.serve.zones`): it hears the other managers' TrackSets on ``tracks``,
+and names the tracks it does not publish after its neighbours' tracks of the same people, so that a person walking
+in from a neighbouring zone keeps the id.
 """
 
 from __future__ import annotations
