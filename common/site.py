@@ -100,6 +100,10 @@ class SiteSection(ConfigStruct, frozen=True):
     seed: int = 1
     router: str = "tcp/127.0.0.1:7447"
     """Endpoint the router listens on and every process connects to."""
+    zone_band_m: Annotated[float, msgspec.Meta(gt=0.0, le=100.0)] = 1.0
+    """With ``[[zones]]``: half-width of the overlap band along the zones' borders. A person in it is tracked by
+    both neighbours and published by the one that had it until they are this far past the border
+    (resource_manager/serve/zones.py)."""
 
 
 class LightingSpec(ConfigStruct, frozen=True):
@@ -376,6 +380,11 @@ def _check_zones(site: SiteConfig, path: str) -> None:
             )
     placed = {cam.id: cam for cam in site.camera}
     for zone, area in zip(site.zones, areas, strict=True):
+        if zone.reach_m < site.site.zone_band_m:
+            raise ConfigError(
+                f"{path}: zone {zone.name!r}: reach_m = {zone.reach_m:g} m is less than [site] zone_band_m = "
+                f"{site.site.zone_band_m:g} m: its cameras must see the whole overlap band beyond its border"
+            )
         for k, sid in enumerate(zone.cameras):
             validate_id(sid, f"{path}: zone {zone.name!r} cameras[{k}]")
             if sid in placed and sid not in _seers(site, zone, area):

@@ -40,7 +40,7 @@ from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
 from common.session import SessionSettings
-from common.site import SiteConfig, site_sensor_ids, zone_sensor_ids
+from common.site import XY, SiteConfig, site_sensor_ids, zone_sensor_ids
 from resource_manager.track.model import TrackModel
 
 __all__ = [
@@ -151,6 +151,13 @@ class ManagerSection(ConfigStruct, frozen=True):
     leader through zenoh liveliness (resource_manager/serve/election.py); the others fuse the same sensors' frames,
     publish nothing but their status, and take over with the leader's track ids when its token goes. A manager
     started while the zone has a leader stands by. "": no election, the manager always publishes."""
+    zone_polygon: list[XY] = []
+    """The zone's floor (a simple polygon, metres; ``--site`` with the site's ``[[zones]]`` sets it): the manager
+    publishes only the tracks it owns, those inside it, and near its border those it held until they are
+    ``zone_band_m`` past it (resource_manager/serve/zones.py). Empty: every track (one manager for the floor)."""
+    zone_band_m: Annotated[float, msgspec.Meta(gt=0.0, le=100.0)] = 1.0
+    """Half-width of the overlap band along a zone's border where a track keeps the owner it had (the site's
+    ``[site] zone_band_m`` with ``--site``: neighbours must agree on it)."""
     info_refresh_s: Annotated[float, msgspec.Meta(ge=0.2, le=3600.0)] = 2.0
     """Each sensor's SensorInfo is re-read from its own queryable this often (and when its liveliness token
     comes back): anything put under its id by another client is replaced within this long. A put that changes
@@ -332,12 +339,21 @@ def default_of(section: type[msgspec.Struct], name: str) -> Any:
     raise KeyError(f"{section.__name__}.{name} has no default")
 
 
+def _check_zone_polygon(m: ManagerSection) -> None:
+    """A zone's floor needs the zone's name, and must be a simple polygon."""
+    if m.zone_polygon:
+        if not m.zone:
+            raise ConfigError("manager.zone_polygon is set but manager.zone is not: name the zone it is")
+        Area.of(AreaSpec(polygon=m.zone_polygon), "manager.zone_polygon")
+
+
 def validate_manager_config(cfg: ManagerConfig, source: str) -> ManagerConfig:
     """Checks msgspec cannot express; raises ConfigError naming the key."""
     try:
         validate_id(cfg.manager.id, "manager.id")
         if cfg.manager.zone:
             validate_id(cfg.manager.zone, "manager.zone")
+        _check_zone_polygon(cfg.manager)
         Keys(cfg.manager.prefix)
         for i, sid in enumerate(cfg.manager.sensors):
             if sid != "*":
@@ -396,7 +412,10 @@ def for_site(cfg: ManagerConfig, site: SiteConfig) -> ManagerConfig:
     sensors = site_sensor_ids(site)
     if not sensors:
         raise ConfigError(f"{site.path}: the site runs no sensor node, so its manager would fuse nothing")
-    if cfg.manager.zone and site.zones:  # a manager of one zone fuses the cameras that see into it
+    manager = cfg.manager
+    if cfg.manager.zone and site.zones:  # a manager of one zone fuses the cameras that see into it, owns its floor
         sensors = zone_sensor_ids(site, cfg.manager.zone)
-    manager = msgspec.structs.replace(cfg.manager, sensors=sensors)
+        zone = next(z for z in site.zones if z.name == cfg.manager.zone)
+        manager = msgspec.structs.replace(manager, zone_polygon=zone.polygon, zone_band_m=site.site.zone_band_m)
+    manager = msgspec.structs.replace(manager, sensors=sensors)
     return msgspec.structs.replace(cfg, manager=manager, area=site.area if site.area is not None else cfg.area)

@@ -303,10 +303,13 @@ class Fusion:
                     out[sid] = f.state
         return out
 
-    def adopt(self, theirs: Sequence[Track]) -> dict[int, str]:
-        """Name the tracks after another manager's tracks of the same people (a standby after its leader's,
-        :mod:`~resource_manager.serve.adopt`); returns the renames, serial -> id."""
-        names = adopt_ids(self.tracker.snapshots(), theirs)
+    def adopt(self, theirs: Sequence[Track], keep: frozenset[str] = frozenset()) -> dict[int, str]:
+        """Name the tracks after another manager's tracks of the same people (a standby after its leader's, a zone
+        manager after its neighbours', :mod:`~resource_manager.serve.adopt`); returns the renames, serial -> id.
+
+        ``keep``: ids this manager publishes itself: those tracks keep their ids, and no other takes them."""
+        mine = [tr for tr in self.tracker.snapshots() if tr.track_id not in keep]
+        names = adopt_ids(mine, theirs, taken=keep)
         if names:
             self.tracker.adopt(names)
         return names

@@ -27,6 +27,11 @@ With ``[manager] zone``, the manager holds a seat in its zone (:class:`ZoneSeat`
 and publishing only its status, its tracks named after the leader's TrackSets
 (:mod:`resource_manager.serve.adopt`), whose states it keeps as history; it answers no track or PTZ query. When it
 leads, it publishes as above.
+
+With a zone floor (``[manager] zone_polygon``, which ``--site`` sets from the site's ``[[zones]]``) a leader publishes
+only the tracks it owns (:mod:`resource_manager.serve.zones`): it hears the other managers' TrackSets on ``tracks``,
+and names the tracks it does not publish after its neighbours' tracks of the same people, so that a person walking
+in from a neighbouring zone keeps the id.
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ from typing import Any
 
 import msgspec
 
+from common.area import Area, AreaSpec
 from common.clock import NtpClock
 from common.codec import MAX_PAYLOAD_BYTES, decode, encode
 from common.errors import ConfigError, SchemaError
@@ -72,6 +78,7 @@ from resource_manager.serve.election import Election, Seat
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk
 from resource_manager.serve.status import InboxCounts, manager_status
+from resource_manager.serve.zones import ZoneOwnership
 
 __all__ = ["ManagerNode", "run"]
 
@@ -101,8 +108,8 @@ SEAT_RESYNC_S = 2.0
 missed a change (a reconnection) is right again within this long."""
 FRESH_FRAMES_S = 1.0
 """A standby may claim its zone only while its sensors' frames reach it: one arrived within this long."""
-LEADER_SETS = 32
-"""The leader's TrackSets waiting for a standby's next tick."""
+LEADER_SETS = 64
+"""Other managers' TrackSets waiting for the next tick (a standby's leader's, a zone manager's neighbours')."""
 
 
 class ZoneSeat:
@@ -320,6 +327,7 @@ class ManagerNode:
         self.agreement = Agreement()
         self.ticks = 0
         self.last_frame = 0.0  # when (monotonic) the latest Features reached the fusion
+        self.ownership: ZoneOwnership | None = None
         self.leader_sets, self.seat = self._zone(session)
         # Last: the token says the manager is ready (its queryables answer).
         self.token = session.liveliness().declare_token(k.manager(self.mid))
@@ -342,6 +350,9 @@ class ManagerNode:
         zone = self.cfg.manager.zone
         if not zone:
             return None, None
+        if self.cfg.manager.zone_polygon:
+            area = Area.of(AreaSpec(polygon=self.cfg.manager.zone_polygon), "manager.zone_polygon")
+            self.ownership = ZoneOwnership(area, self.cfg.manager.zone_band_m)
         sets = Inbox(session, self.keys.tracks(), TrackSet, capacity=LEADER_SETS)
         seat = ZoneSeat(session, self.keys, mid=self.mid, zone=zone, can_lead=self._can_lead, shutdown=self.shutdown)
         return sets, seat
@@ -639,7 +650,7 @@ class ManagerNode:
             result = self.fusion.step(t_ns)
             fused_s = time.perf_counter() - t0
             self.tick_ms.append(fused_s * 1e3)
-            published_set = result.trackset if leading else self._follow()
+            published_set = self._own(result.trackset) if leading else self._follow()
             kept = [tr for tr in published_set.tracks if self.store.add(tr)] if published_set is not None else []
             if published_set is not None:
                 self.live_ids = {tr.track_id for tr in published_set.tracks}
@@ -689,21 +700,53 @@ class ManagerNode:
             except OSError as err:
                 self.sender_log.log(logging.ERROR, "track-log", "cannot write the track log: %s", err.strerror)
 
+    def _others(self, leader: str) -> TrackSet | None:
+        """Take the TrackSets heard from other managers (the lock held): the neighbours' go to the zone ownership;
+        returns the newest of ``leader``'s ("": none wanted)."""
+        if self.leader_sets is None:
+            return None
+        newest = None
+        now = self.clock.now_ns()
+        for r in self.leader_sets.drain():
+            mid = r.msg.manager_id
+            if mid == self.mid or r.key != self.keys.tracks():
+                continue
+            if mid == leader:
+                newest = r.msg
+            elif self.ownership is not None:
+                self.ownership.heard(r.msg, now)
+        return newest
+
+    def _own(self, trackset: TrackSet | None) -> TrackSet | None:
+        """A leader's tick in a zone with a floor (the lock held): the tracks it owns of ``trackset``
+        (resource_manager/serve/zones.py), the others named after the neighbours' tracks of the same people (the id
+        a person keeps across a handoff). Without a zone floor, ``trackset`` as it is."""
+        own = self.ownership
+        if own is None:
+            return trackset
+        self._others("")
+        names = self.fusion.adopt(own.theirs(self.clock.now_ns()), keep=frozenset(own.owned))
+        if names:
+            logger.info("zone manager %s: %d tracks named after its neighbours'", self.mid, len(names))
+        if trackset is None:
+            return None
+        return msgspec.structs.replace(trackset, tracks=own.select(trackset.tracks, self.clock.now_ns()))
+
     def _follow(self) -> TrackSet | None:
         """A standby's tick (the lock held): its tracks take the ids of the leader's newest TrackSet
-        (resource_manager/serve/adopt.py), which is what it keeps as history. None: nothing new from the leader."""
+        (resource_manager/serve/adopt.py), which is what it keeps as history (and, in a zone with a floor, what it
+        owns when it takes over). None: nothing new from the leader."""
         if self.leader_sets is None or self.seat is None:
             return None
         leader = self.seat.leader()
-        newest = None
-        for r in self.leader_sets.drain():
-            if r.msg.manager_id == leader and r.key == self.keys.tracks():
-                newest = r.msg
+        newest = self._others(leader)
         if newest is None:
             return None
         names = self.fusion.adopt(newest.tracks)
         if names:
             logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
+        if self.ownership is not None:
+            self.ownership.owned = {t.track_id for t in newest.tracks}
         return newest
 
     def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:

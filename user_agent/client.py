@@ -31,7 +31,7 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -52,7 +52,7 @@ from common.schema import (
 from common.session import MSGPACK, SessionSettings, open_session
 from common.transport import Inbox, KeyedInbox
 
-__all__ = ["AgentClient", "ManagerView", "SensorView", "Subscription"]
+__all__ = ["AgentClient", "ManagerView", "SensorView", "Subscription", "merge_history", "merge_tracks"]
 
 logger = logging.getLogger(__name__)
 
@@ -89,6 +89,26 @@ ACCEPTED_REPLIES = 2
 MAX_KEPT = 256
 """Most senders an agent keeps the latest message of, per kind: a flood of fresh ids cannot grow its memory (the
 least recently heard one goes)."""
+
+
+def merge_tracks(sets: Iterable[TrackSet]) -> list[Track]:
+    """The tracks of several managers' TrackSets, one per id (the newest state), by id."""
+    out: dict[str, Track] = {}
+    for ts in sets:
+        for t in ts.tracks:
+            old = out.get(t.track_id)
+            if old is None or t.stamp_ns > old.stamp_ns:
+                out[t.track_id] = t
+    return sorted(out.values(), key=lambda t: t.track_id)
+
+
+def merge_history(replies: Iterable[Track]) -> list[Track]:
+    """A track's path from every manager that answered (each its own part: the zones it crossed, a standby's copy
+    of its leader's), oldest first, one state per instant."""
+    by_stamp: dict[int, Track] = {}
+    for t in replies:
+        by_stamp.setdefault(t.stamp_ns, t)
+    return [by_stamp[k] for k in sorted(by_stamp)]
 
 
 def _keep(table: dict[str, Any], key: str, value: Any) -> None:
@@ -321,9 +341,9 @@ class AgentClient:
             return {m: ts for m, ts in self._tracksets.items() if now - self._heard.get(m, 0.0) <= stale_s}
 
     def tracks(self, timeout_s: float = 2.0, stale_s: float = 2.0) -> list[Track]:
-        """Every current track of every live manager, by track id."""
-        sets = self.track_sets(timeout_s, stale_s)
-        return sorted((t for ts in sets.values() for t in ts.tracks), key=lambda t: t.track_id)
+        """Every current track of every live manager, by track id: one per person site-wide (zone managers each
+        publish the people they own; an id two of them published at a handover is shown once, its newest state)."""
+        return merge_tracks(self.track_sets(timeout_s, stale_s).values())
 
     def _publisher_of(self, track_id: str) -> str:
         """The manager publishing ``track_id`` now (a zone's standby that took over publishes its leader's ids),
@@ -352,8 +372,7 @@ class AgentClient:
         if not seconds > 0:
             raise SessionError(f"history seconds must be > 0, got {seconds}")
         sel = zenoh.Selector(self.keys.track(track_id), {"history": f"{seconds:g}"})
-        replies = self._query(sel, Track, timeout_s)
-        return sorted(replies, key=lambda t: t.stamp_ns)
+        return merge_history(self._query(sel, Track, timeout_s))
 
     # -- sensors, managers, plans --------------------------------------------
     def _alive(self, key_expr: str, timeout_s: float) -> set[str]:

@@ -38,7 +38,7 @@ import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from common.errors import ConfigError
-from common.schema import TrackSet
+from common.schema import Track, TrackSet
 from user_agent.groundtruth import GroundTruth, GtPoint
 
 __all__ = [
@@ -381,7 +381,9 @@ def hypotheses_from_tracksets(
     first one included, has no hypotheses (all its people count as misses).
     Frames after the last TrackSet (the run had ended), and those inside the
     (start, end) ns spans of ``skip`` (:func:`unseen_spans`: what the recording
-    did not see), are not scored.
+    did not see), are not scored. An id in several managers' sets (zone managers
+    at a handover: each published the person at its own instants) is one
+    hypothesis, from the set nearest the frame.
 
     Returns:
         (hypotheses by frame, the frames to score).
@@ -406,7 +408,7 @@ def hypotheses_from_tracksets(
         if any(a < t_ns < b for a, b in skip):
             continue
         scored.append(k)
-        pts: list[HypPoint] = []
+        pts: dict[str, tuple[int, HypPoint]] = {}
         for m, s in stamps.items():
             i = int(np.searchsorted(s, t_ns))
             best = min((j for j in (i - 1, i) if 0 <= j < len(s)), key=lambda j: abs(int(s[j]) - t_ns))
@@ -414,13 +416,17 @@ def hypotheses_from_tracksets(
                 continue
             ts = ordered[m][best]
             dt = (t_ns - ts.stamp_ns) / 1e9
-            pts.extend(
-                HypPoint(tr.track_id, tr.x_m + tr.vx_mps * dt, tr.y_m + tr.vy_mps * dt)
-                for tr in ts.tracks
-                if tr.state in states
-            )
-        out[k] = pts
+            for tr in ts.tracks:
+                old = pts.get(tr.track_id)
+                if tr.state in states and (old is None or abs(ts.stamp_ns - t_ns) < old[0]):
+                    pts[tr.track_id] = (abs(ts.stamp_ns - t_ns), HypPoint(tr.track_id, *_moved(tr, dt)))
+        out[k] = [p for _, p in pts.values()]
     return out, scored
+
+
+def _moved(tr: Track, dt: float) -> tuple[float, float]:
+    """A track's position carried ``dt`` seconds by its velocity."""
+    return tr.x_m + tr.vx_mps * dt, tr.y_m + tr.vy_mps * dt
 
 
 def unseen_spans(tracksets: Iterable[TrackSet], max_gap_s: float = 0.25) -> list[tuple[int, int]]:

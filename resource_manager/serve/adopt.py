@@ -18,40 +18,54 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from common.arrays import FloatArray, IntArray
 from common.schema import Track
 from resource_manager.track.tracker import TrackSnapshot
 
-__all__ = ["GATE_M", "adopt_ids"]
+__all__ = ["GATE_M", "adopt_ids", "match_tracks"]
 
 GATE_M = 0.75
 """Farthest a standby's track may be from the leader's to be named after it (a person's width and a half: the two
 managers' estimates of one person differ by their alignment instants, centimetres)."""
 
 
-def adopt_ids(mine: Sequence[TrackSnapshot], theirs: Sequence[Track], gate_m: float = GATE_M) -> dict[int, str]:
-    """Serial of each of ``mine`` (confirmed ones) -> the id of the leader's track it follows, where that differs
-    from its own and no other of ``mine`` keeps it (two of mine may swap ids)."""
-    own = [tr for tr in mine if tr.track_id]
-    if not own or not theirs:
+def match_tracks(xy: FloatArray, t_ns: IntArray, theirs: Sequence[Track], gate_m: float = GATE_M) -> dict[int, int]:
+    """Index of each of ``n`` positions ``xy`` (n, 2) at instants ``t_ns`` (n,) -> the index of the track of
+    ``theirs`` of the same person: the nearest, each of theirs carried to the instant by its velocity, one to one
+    (Hungarian) and within ``gate_m``."""
+    if not len(xy) or not theirs:
         return {}
-    a = np.array([tr.xy for tr in own], dtype=np.float64)
+    a = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     b = np.array([[t.x_m, t.y_m] for t in theirs], dtype=np.float64)
     v = np.array([[t.vx_mps, t.vy_mps] for t in theirs], dtype=np.float64)
-    dt = (np.array([tr.t_ns for tr in own], dtype=np.float64)[:, None] - np.array([t.stamp_ns for t in theirs])) / 1e9
-    # Each leader track carried to each standby track's instant (clipped: a stale set is not extrapolated far).
+    dt = (np.asarray(t_ns, dtype=np.float64)[:, None] - np.array([t.stamp_ns for t in theirs])) / 1e9
+    # Each of theirs carried to each instant (clipped: a stale set is not extrapolated far).
     dt = np.clip(dt, -1.0, 1.0)
     carried = b[None, :, :] + v[None, :, :] * dt[:, :, None]
     dist = np.linalg.norm(a[:, None, :] - carried, axis=2)
     cost = np.where(dist <= gate_m, dist, 1e6)
     rows, cols = linear_sum_assignment(cost)
-    wanted = {
-        own[r].serial: theirs[c].track_id
-        for r, c in zip(rows.tolist(), cols.tolist(), strict=True)
-        if dist[r, c] <= gate_m and theirs[c].track_id != own[r].track_id
-    }
+    return {r: c for r, c in zip(rows.tolist(), cols.tolist(), strict=True) if dist[r, c] <= gate_m}
+
+
+def adopt_ids(
+    mine: Sequence[TrackSnapshot],
+    theirs: Sequence[Track],
+    gate_m: float = GATE_M,
+    taken: frozenset[str] = frozenset(),
+) -> dict[int, str]:
+    """Serial of each of ``mine`` (confirmed ones) -> the id of the other manager's track it follows, where that
+    differs from its own and no other of ``mine`` keeps it (two of mine may swap ids), nor is it one of ``taken``
+    (ids this manager publishes for tracks not among ``mine``)."""
+    own = [tr for tr in mine if tr.track_id]
+    if not own or not theirs:
+        return {}
+    xy = np.array([tr.xy for tr in own], dtype=np.float64)
+    pairs = match_tracks(xy, np.array([tr.t_ns for tr in own], dtype=np.int64), theirs, gate_m)
+    wanted = {own[r].serial: theirs[c].track_id for r, c in pairs.items() if theirs[c].track_id != own[r].track_id}
     # An id stays with a track that keeps its own; one that another of mine gives up this time may be taken (a swap).
-    kept = {tr.track_id for tr in own if tr.serial not in wanted}
+    kept = {tr.track_id for tr in own if tr.serial not in wanted} | taken
     out = {serial: want for serial, want in wanted.items() if want not in kept}
-    if len(set(out.values())) != len(out):  # the leader's set itself names one id twice: take none of it
+    if len(set(out.values())) != len(out):  # the other set itself names one id twice: take none of it
         return {}
     return out

@@ -141,6 +141,10 @@ def test_zones_sharing_a_border_each_fuse_the_cameras_that_see_into_them(tmp_pat
             r"zone 'east' lists camera 'c0', which does not see into it \(at \(2, 5\), farther than reach_m = 3 m",
         ),
         (WEST + WEST, "zone name 'west' appears twice"),
+        (
+            WEST.replace("reach_m = 3.0", "reach_m = 0.5"),
+            r"zone 'west': reach_m = 0.5 m is less than \[site\] zone_band_m = 1 m",
+        ),
     ],
 )
 def test_a_bad_zone_definition_gives_one_clear_error(tmp_path: Path, zones: str, message: str) -> None:

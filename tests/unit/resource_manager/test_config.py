@@ -49,6 +49,18 @@ def test_a_zone_is_optional(tmp_path: Path) -> None:
     assert load_manager_config(p).manager.zone == "hall-2"
 
 
+def test_a_zone_floor_needs_its_zone_and_a_simple_polygon(tmp_path: Path) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text('[manager]\nid = "m1"\nzone_polygon = [[0, 0], [5, 0], [5, 5]]\n')
+    with pytest.raises(ConfigError, match=r"manager\.zone_polygon is set but manager\.zone is not"):
+        load_manager_config(p)
+    p.write_text('[manager]\nid = "m1"\nzone = "w"\nzone_polygon = [[0, 0], [5, 5], [5, 0], [0, 5]]\n')
+    with pytest.raises(ConfigError, match=r"manager.zone_polygon.polygon is not simple"):
+        load_manager_config(p)
+    p.write_text('[manager]\nid = "m1"\nzone = "w"\nzone_polygon = [[0, 0], [5, 0], [5, 5]]\nzone_band_m = 0.5\n')
+    assert load_manager_config(p).manager.zone_band_m == 0.5
+
+
 def test_config_is_frozen() -> None:
     cfg = load_manager_config(REPO / "deploy/nodes/examples/manager.toml")
     with pytest.raises(AttributeError):
@@ -75,8 +87,12 @@ def test_a_zone_manager_of_a_site_with_zones_fuses_the_cameras_that_see_into_it(
     (tmp_path / "m.toml").write_text('[manager]\nid = "m1"\n')
     cfg = load_manager_config(tmp_path / "m.toml")
     assert for_site(cfg, site).manager.sensors == ["c0", "c1"]  # no zone: the whole site
+    assert for_site(cfg, site).manager.zone_polygon == []  # and publishes every track
     east = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone="east"))
     assert for_site(east, site).manager.sensors == ["c1"]
+    # ...and owns the zone's floor, with the site's band
+    assert for_site(east, site).manager.zone_polygon == [[10, 0], [20, 0], [20, 10], [10, 10]]
+    assert for_site(east, site).manager.zone_band_m == 1.0
     north = msgspec.structs.replace(cfg, manager=msgspec.structs.replace(cfg.manager, zone="north"))
     with pytest.raises(ConfigError, match=r"no zone 'north' \(zones: west, east\)"):
         for_site(north, site)

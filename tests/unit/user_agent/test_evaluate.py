@@ -139,6 +139,22 @@ def test_tracksets_are_aligned_to_frames_with_velocity_and_span() -> None:
     assert late == list(range(8, 13))  # a warm-up end at 0.7 s drops frames 1..7
 
 
+def test_an_id_two_zone_managers_published_near_one_frame_is_one_hypothesis() -> None:
+    epoch = 1_000_000_000_000
+    # The west manager's last set with w-1 at 0.46 s; the east's first at 0.52 s (its own instants): frame 6 (0.5 s)
+    # is nearest to both, and scores one w-1, the east's (nearer in time).
+    sets = [
+        TrackSet(manager_id="west", seq=1, stamp_ns=epoch + int(0.46e9), tracks=[_track("w-1", 5.9, 1.0)]),
+        TrackSet(manager_id="east", seq=1, stamp_ns=epoch + int(0.52e9), tracks=[_track("w-1", 6.0, 1.0)]),
+        TrackSet(manager_id="east", seq=2, stamp_ns=epoch + int(0.52e9), tracks=[_track("e-1", 8.0, 0.0)]),
+    ]
+    hyps, _ = hypotheses_from_tracksets(sets[:2], epoch, 10.0, [6], max_gap_s=0.25)
+    (p,) = hyps[6]
+    assert p.track_id == "w-1" and p.x_m == pytest.approx(5.98)
+    hyps, _ = hypotheses_from_tracksets([sets[0], sets[2]], epoch, 10.0, [6], max_gap_s=0.25)
+    assert sorted(h.track_id for h in hyps[6]) == ["e-1", "w-1"]  # different people: both
+
+
 def test_fragmentations_and_ids_per_person_count_interruptions_and_the_ids_each_person_had() -> None:
     acc = MotAccumulator()
     near, far = [[0.1]], [[math.nan]]
