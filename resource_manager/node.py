@@ -3,7 +3,8 @@
 Subscriptions are made per listed sensor (``[manager] sensors``, or its
 site's): the router forwards nothing else, so a flood under other ids costs
 this process nothing but a count (a census on ``sensor/**`` that pauses itself
-when flooded). Each listed sensor's Features, SensorInfo (an AdvancedSubscriber:
+when flooded; a manager of one zone among several keeps none: the other zones'
+cameras are not strangers). Each listed sensor's Features, SensorInfo (an AdvancedSubscriber:
 the publisher's cache for late joiners) and PTZ state wait in a bounded buffer
 of their own and are decoded on the tick thread, never on zenoh's; a payload that names
 another sensor than its key, and Features stamped off the clock by more than
@@ -317,7 +318,10 @@ class ManagerNode:
         self.latencies: deque[Latency] = deque(maxlen=4096)
         """Capture -> publish split of each TrackSet published since the last status."""
         self.features, self.infos, self.ptz_states = self._inboxes(session, listed)
-        if not self.gate.any_sensor:
+        # The census of unlisted senders hears every sample on ``sensor/**``. A manager of one zone among several
+        # shares the router with the other zones' cameras: they are no strangers (counted, they would be reported as
+        # impostors), and hearing their every frame is work for nothing, so it counts none.
+        if not self.gate.any_sensor and not self.cfg.manager.zone_polygon:
             self.census = KeyCensus(session, f"{k.root}/sensor/**", self.sensor_head, frozenset(listed))
         self._declare(session)
         self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
