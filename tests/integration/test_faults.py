@@ -208,9 +208,12 @@ class FaultSite:
         return "".join(p.log() for p in self.procs)
 
 
-def make_fault_site(tmp_path: Path, prefix: str = "faults") -> FaultSite:
-    """The room, its detection files and an unused router port (nothing started yet)."""
-    cams, walkers = make_room(SENSORS, PEOPLE, SEED)
+def make_fault_site(
+    tmp_path: Path, prefix: str = "faults", room: tuple[list[Cam], list[Walker]] | None = None
+) -> FaultSite:
+    """The room (default: :func:`make_room`'s), its detection files and an unused router port (nothing started
+    yet)."""
+    cams, walkers = room if room is not None else make_room(SENSORS, PEOPLE, SEED)
     files = write_detection_cameras(tmp_path / "cams", cams, walkers, FPS, LOOP_S)
     return FaultSite(
         tmp=tmp_path,

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.bench_load import Cam, Walker, make_room, write_detection_cameras
+from benchmarks.bench_load import Cam, Walker, make_room
 from common.schema import TrackSet
-from tests.integration.test_faults import FPS, LOOP_S, FaultSite, Observer, observing, running
-from tests.support import ManagedProcess, free_port, wait_for
+from tests.integration.test_faults import FPS, LOOP_S, FaultSite, Observer, make_fault_site, observing, running
+from tests.support import ManagedProcess, wait_for
 from user_agent.client import AgentClient
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(120)]
@@ -60,19 +60,7 @@ def _walkers() -> tuple[list[Cam], list[Walker]]:
 
 @pytest.fixture
 def zone_site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
-    cams, walkers = _walkers()
-    files = write_detection_cameras(tmp_path / "cams", cams, walkers, FPS, LOOP_S)
-    site = FaultSite(
-        tmp=tmp_path,
-        prefix="handoff",
-        port=free_port(),
-        epoch_ns=time.time_ns(),
-        cams=cams,
-        walkers=walkers,
-        files=files,
-        log_dir=tmp_path / "logs",
-    )
-    with running(site, request) as s:
+    with running(make_fault_site(tmp_path, "handoff", room=_walkers()), request) as s:
         yield s
 
 

@@ -17,19 +17,18 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.bench_load import make_room, write_detection_cameras
+from benchmarks.bench_load import make_room
 from common.schema import ManagerStatus, TrackSet
 from tests.integration.test_faults import (
-    FPS,
-    LOOP_S,
     CameraHost,
     FaultSite,
     Observer,
     camera_host,
+    make_fault_site,
     observing,
     running,
 )
-from tests.support import ManagedProcess, free_port, wait_for
+from tests.support import ManagedProcess, wait_for
 from user_agent.client import AgentClient
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(120)]
@@ -49,19 +48,7 @@ KEPT_IDS = 0.95
 
 @pytest.fixture
 def zone_site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultSite]:
-    cams, walkers = make_room(SENSORS, PEOPLE, SEED)
-    files = write_detection_cameras(tmp_path / "cams", cams, walkers, FPS, LOOP_S)
-    site = FaultSite(
-        tmp=tmp_path,
-        prefix="standby",
-        port=free_port(),
-        epoch_ns=time.time_ns(),
-        cams=cams,
-        walkers=walkers,
-        files=files,
-        log_dir=tmp_path / "logs",
-    )
-    with running(site, request) as s:
+    with running(make_fault_site(tmp_path, "standby", room=make_room(SENSORS, PEOPLE, SEED)), request) as s:
         yield s
 
 

@@ -7,8 +7,7 @@ import numpy as np
 from common.schema import Track
 from resource_manager.serve.adopt import GATE_M, adopt_ids
 from resource_manager.track.tracker import TrackSnapshot
-
-T0 = 1_700_000_000_000_000_000
+from tests.unit.resource_manager.serve.published import T0, published
 
 
 def _mine(serial: int, track_id: str, x: float, y: float, t_ns: int = T0) -> TrackSnapshot:
@@ -35,22 +34,7 @@ def _mine(serial: int, track_id: str, x: float, y: float, t_ns: int = T0) -> Tra
 
 
 def _theirs(track_id: str, x: float, y: float, vx: float = 0.0, t_ns: int = T0) -> Track:
-    return Track(
-        manager_id="lead",
-        seq=1,
-        stamp_ns=t_ns,
-        track_id=track_id,
-        x_m=x,
-        y_m=y,
-        height_m=1.7,
-        vx_mps=vx,
-        vy_mps=0.0,
-        cov_xx_m2=0.01,
-        cov_xy_m2=0.0,
-        cov_yy_m2=0.01,
-        state="confirmed",
-        method="paper",
-    )
+    return published(track_id, x, y, vx, t_ns, mid="lead")
 
 
 def test_each_track_takes_the_id_of_the_leaders_nearest_one_to_one() -> None:

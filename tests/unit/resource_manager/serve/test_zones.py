@@ -9,30 +9,15 @@ import pytest
 from common.area import Area, rectangle
 from common.schema import Track, TrackSet
 from resource_manager.serve.zones import NEIGHBOUR_STALE_S, ZoneOwnership, owns, signed_depth
+from tests.unit.resource_manager.serve.published import T0, published
 
-T0 = 1_700_000_000_000_000_000
 BAND = 1.0
 WEST = Area.of(rectangle(0.0, 0.0, 5.0, 10.0))
 EAST = Area.of(rectangle(5.0, 0.0, 10.0, 10.0))
 
 
 def _track(tid: str, x: float, y: float = 5.0, vx: float = 0.0, t_ns: int = T0, mid: str = "m") -> Track:
-    return Track(
-        manager_id=mid,
-        seq=1,
-        stamp_ns=t_ns,
-        track_id=tid,
-        x_m=x,
-        y_m=y,
-        height_m=1.7,
-        vx_mps=vx,
-        vy_mps=0.0,
-        cov_xx_m2=0.01,
-        cov_xy_m2=0.0,
-        cov_yy_m2=0.01,
-        state="confirmed",
-        method="paper",
-    )
+    return published(tid, x, y, vx, t_ns, mid)
 
 
 def _set(mid: str, tracks: list[Track], t_ns: int = T0) -> TrackSet:

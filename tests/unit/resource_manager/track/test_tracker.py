@@ -293,7 +293,7 @@ def test_no_track_is_born_outside_the_area() -> None:
     assert len(run.ids) == 1, run.ids
 
 
-def _walkers_whose_detections_land_on_one(apart_time_s: float):  # type: ignore[no-untyped-def]
+def _walkers_whose_detections_land_on_one(**tracker: float):  # type: ignore[no-untyped-def]
     """A and B walk side by side, 0.6 m apart; for 1.5 s every camera's box of B lands on A (a detector's moment of
     boxing the nearer person twice), pulling B's track onto A's spot; then B is seen where B is again. Returns the
     ids near B before and after, and B's path."""
@@ -316,7 +316,7 @@ def _walkers_whose_detections_land_on_one(apart_time_s: float):  # type: ignore[
         return out
 
     run = run_scenario(SQUARE, people, duration_s=11.0, seed=17, deliver=onto_a, keep_results=True,
-                       config=_with_area(ROOM, apart_time_s=apart_time_s))  # fmt: skip
+                       config=_with_area(ROOM, **tracker))  # fmt: skip
     return _near(run, b_at, 2.0, 4.0, radius_m=0.3), _near(run, b_at, 7.5, 11.0, radius_m=0.3)
 
 
@@ -324,7 +324,7 @@ def test_two_people_pulled_onto_one_spot_for_a_moment_keep_their_ids() -> None:
     """Two people the views have told apart stay two when their tracks stand on one spot for less than
     ``apart_time_s``: B keeps the id; were they merged within ``evidence_time_s`` (the rule for tracks never told
     apart), B would lose it."""
-    before, after = _walkers_whose_detections_land_on_one(apart_time_s=4.0)
+    before, after = _walkers_whose_detections_land_on_one(apart_time_s=2.0)
     assert len(before) == 1 and set(after) == set(before), (before, after)
     before, after = _walkers_whose_detections_land_on_one(apart_time_s=0.5)
     assert len(before) == 1 and set(after) != set(before), (before, after)

@@ -1,0 +1,27 @@
+"""A published Track as another manager's TrackSet carries it (the standby's leader, a zone's neighbour)."""
+
+from __future__ import annotations
+
+from common.schema import Track
+
+T0 = 1_700_000_000_000_000_000
+
+
+def published(track_id: str, x: float, y: float = 5.0, vx: float = 0.0, t_ns: int = T0, mid: str = "m") -> Track:
+    """A confirmed track of manager ``mid`` at (``x``, ``y``) moving at ``vx`` along x, placed to 0.1 m."""
+    return Track(
+        manager_id=mid,
+        seq=1,
+        stamp_ns=t_ns,
+        track_id=track_id,
+        x_m=x,
+        y_m=y,
+        height_m=1.7,
+        vx_mps=vx,
+        vy_mps=0.0,
+        cov_xx_m2=0.01,
+        cov_xy_m2=0.0,
+        cov_yy_m2=0.01,
+        state="confirmed",
+        method="paper",
+    )
