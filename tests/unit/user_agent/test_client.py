@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from common.schema import Track, TrackSet
+from tests.unit.common.tracks import published
 from user_agent.client import MAX_KEPT, _keep, merge_history, merge_tracks
 
 
@@ -18,22 +19,7 @@ def test_keep_bounds_the_table_and_keeps_the_recently_heard() -> None:
 
 
 def _track(mid: str, tid: str, stamp_ns: int) -> Track:
-    return Track(
-        manager_id=mid,
-        seq=1,
-        stamp_ns=stamp_ns,
-        track_id=tid,
-        x_m=0.0,
-        y_m=0.0,
-        height_m=1.7,
-        vx_mps=0.0,
-        vy_mps=0.0,
-        cov_xx_m2=0.01,
-        cov_xy_m2=0.0,
-        cov_yy_m2=0.01,
-        state="confirmed",
-        method="paper",
-    )
+    return published(tid, 0.0, 0.0, t_ns=stamp_ns, mid=mid)
 
 
 def test_zone_managers_sets_merge_into_one_row_per_person() -> None:

@@ -7,7 +7,7 @@ import numpy as np
 from common.schema import Track
 from resource_manager.serve.adopt import GATE_M, adopt_ids
 from resource_manager.track.tracker import TrackSnapshot
-from tests.unit.resource_manager.serve.published import T0, published
+from tests.unit.common.tracks import T0, published
 
 
 def _mine(serial: int, track_id: str, x: float, y: float, t_ns: int = T0) -> TrackSnapshot:

@@ -9,7 +9,7 @@ import pytest
 from common.area import Area, rectangle
 from common.schema import Track, TrackSet
 from resource_manager.serve.zones import NEIGHBOUR_STALE_S, ZoneOwnership, owns, signed_depth
-from tests.unit.resource_manager.serve.published import T0, published
+from tests.unit.common.tracks import T0, published
 
 BAND = 1.0
 WEST = Area.of(rectangle(0.0, 0.0, 5.0, 10.0))

@@ -1,4 +1,4 @@
-"""A published Track as another manager's TrackSet carries it (the standby's leader, a zone's neighbour)."""
+"""A published Track as a TrackSet carries it (a standby's leader, a zone's neighbour, a set an agent merges)."""
 
 from __future__ import annotations
 
