@@ -22,27 +22,34 @@ from common.arrays import FloatArray, IntArray
 from common.schema import Track
 from resource_manager.track.tracker import TrackSnapshot
 
-__all__ = ["GATE_M", "adopt_ids", "match_tracks"]
+__all__ = ["GATE_M", "adopt_ids", "carried", "match_tracks"]
 
 GATE_M = 0.75
 """Farthest a standby's track may be from the leader's to be named after it (a person's width and a half: the two
 managers' estimates of one person differ by their alignment instants, centimetres)."""
 
 
+MAX_CARRY_S = 1.0
+"""Another manager's track is carried by its velocity over at most this long: a stale set is not extrapolated far."""
+
+
+def carried(theirs: Sequence[Track], t_ns: IntArray) -> FloatArray:
+    """(n, m, 2) each of the ``m`` tracks ``theirs`` carried by its velocity to each of the ``n`` instants ``t_ns``."""
+    b = np.array([[t.x_m, t.y_m] for t in theirs], dtype=np.float64).reshape(-1, 2)
+    v = np.array([[t.vx_mps, t.vy_mps] for t in theirs], dtype=np.float64).reshape(-1, 2)
+    dt = (np.asarray(t_ns, dtype=np.float64)[:, None] - np.array([t.stamp_ns for t in theirs])) / 1e9
+    dt = np.clip(dt, -MAX_CARRY_S, MAX_CARRY_S)
+    return np.asarray(b[None, :, :] + v[None, :, :] * dt[:, :, None], dtype=np.float64)
+
+
 def match_tracks(xy: FloatArray, t_ns: IntArray, theirs: Sequence[Track], gate_m: float = GATE_M) -> dict[int, int]:
     """Index of each of ``n`` positions ``xy`` (n, 2) at instants ``t_ns`` (n,) -> the index of the track of
-    ``theirs`` of the same person: the nearest, each of theirs carried to the instant by its velocity, one to one
-    (Hungarian) and within ``gate_m``."""
+    ``theirs`` of the same person: the nearest, each of theirs carried to the instant by its velocity
+    (:func:`carried`), one to one (Hungarian) and within ``gate_m``."""
     if not len(xy) or not theirs:
         return {}
     a = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    b = np.array([[t.x_m, t.y_m] for t in theirs], dtype=np.float64)
-    v = np.array([[t.vx_mps, t.vy_mps] for t in theirs], dtype=np.float64)
-    dt = (np.asarray(t_ns, dtype=np.float64)[:, None] - np.array([t.stamp_ns for t in theirs])) / 1e9
-    # Each of theirs carried to each instant (clipped: a stale set is not extrapolated far).
-    dt = np.clip(dt, -1.0, 1.0)
-    carried = b[None, :, :] + v[None, :, :] * dt[:, :, None]
-    dist = np.linalg.norm(a[:, None, :] - carried, axis=2)
+    dist = np.linalg.norm(a[:, None, :] - carried(theirs, t_ns), axis=2)
     cost = np.where(dist <= gate_m, dist, 1e6)
     rows, cols = linear_sum_assignment(cost)
     return {r: c for r, c in zip(rows.tolist(), cols.tolist(), strict=True) if dist[r, c] <= gate_m}

@@ -35,7 +35,7 @@ import numpy as np
 from common.area import Area
 from common.arrays import FloatArray
 from common.schema import Track, TrackSet
-from resource_manager.serve.adopt import GATE_M, match_tracks
+from resource_manager.serve.adopt import GATE_M, carried, match_tracks
 
 __all__ = ["ZoneOwnership", "owns", "signed_depth"]
 
@@ -120,9 +120,7 @@ class ZoneOwnership:
             j = pairs.get(i)
             shared = None
             if j is not None:
-                other = theirs[j]
-                dt = float(np.clip((tr.stamp_ns - other.stamp_ns) / 1e9, -1.0, 1.0))
-                mid = (xy[i] + np.array([other.x_m + other.vx_mps * dt, other.y_m + other.vy_mps * dt])) / 2.0
+                mid = (xy[i] + carried([theirs[j]], np.array([tr.stamp_ns]))[0, 0]) / 2.0
                 shared = float(signed_depth(self.area, mid)[0])
             had = tr.track_id in self.owned
             if owns(float(depth[i]), self.band_m, had=had, claimed=j is not None, shared_depth=shared):
