@@ -44,7 +44,7 @@ from resource_manager.ingest.schedule import TickLatency
 from resource_manager.plan.scene import PlanTarget, plan_camera
 from resource_manager.poses.solver import PoseEstimate
 from resource_manager.serve import messages
-from resource_manager.serve.adopt import adopt_ids
+from resource_manager.serve.adopt import adopt_ids, follows
 from resource_manager.serve.lag import LaggedTracks
 from resource_manager.serve.ptz import Assignment, PtzAnswer, PtzAsk, PtzTarget
 from resource_manager.track.tracker import TrackSnapshot
@@ -309,9 +309,9 @@ class Fusion:
 
         ``keep``: ids this manager publishes itself: those tracks keep their ids, and no other takes them."""
         mine = [tr for tr in self.tracker.snapshots() if tr.track_id not in keep]
-        names = adopt_ids(mine, theirs, taken=keep)
-        if names:
-            self.tracker.adopt(names)
+        followed = follows(mine, theirs)
+        names = adopt_ids(mine, followed, taken=keep)
+        self.tracker.adopt(names, followed)
         return names
 
     # -- outputs --------------------------------------------------------------

@@ -7,6 +7,15 @@ leader's track of the same person: the nearest one, at the standby's instant (th
 by its velocity), one to one (Hungarian) and within ``gate_m``. When the leader goes, the standby publishes the
 people under the ids the agents already know.
 
+The leader's tracks also carry what it knows of who is who: two of them are two people. Two of the standby's
+tracks that follow two different tracks of the leader are held apart as if a view had shown them so (a standby
+that came up while two people stood together has never seen them apart, and would take them for one person
+followed twice; the leader, watching longer, has).
+
+A track still tentative here that follows one of the leader's is confirmed under that id (the standby has
+seen the person for less time than the leader, which confirmed them already; a takeover in that moment keeps
+the id).
+
 Pure: the tracker's snapshots and the leader's tracks in, the renames out; the tracker applies them
 (:meth:`resource_manager.track.tracker.Tracker.adopt`).
 """
@@ -22,7 +31,7 @@ from common.arrays import FloatArray, IntArray
 from common.schema import Track
 from resource_manager.track.tracker import TrackSnapshot
 
-__all__ = ["GATE_M", "adopt_ids", "carried", "match_tracks"]
+__all__ = ["GATE_M", "adopt_ids", "carried", "follows", "match_tracks"]
 
 GATE_M = 0.75
 """Farthest a standby's track may be from the leader's to be named after it (a person's width and a half: the two
@@ -55,24 +64,34 @@ def match_tracks(xy: FloatArray, t_ns: IntArray, theirs: Sequence[Track], gate_m
     return {r: c for r, c in zip(rows.tolist(), cols.tolist(), strict=True) if dist[r, c] <= gate_m}
 
 
+def follows(mine: Sequence[TrackSnapshot], theirs: Sequence[Track], gate_m: float = GATE_M) -> dict[int, str]:
+    """Serial of each of ``mine`` -> the id of the other manager's track of the same person
+    (:func:`match_tracks`): the confirmed ones first, then the tentative ones among the tracks left; empty if the
+    other set names one id twice."""
+    if len({t.track_id for t in theirs}) != len(theirs):
+        return {}
+    out: dict[int, str] = {}
+    left = list(theirs)
+    for own in ([tr for tr in mine if tr.track_id], [tr for tr in mine if not tr.confirmed]):
+        if not own or not left:
+            continue
+        xy = np.array([tr.xy for tr in own], dtype=np.float64)
+        pairs = match_tracks(xy, np.array([tr.t_ns for tr in own], dtype=np.int64), left, gate_m)
+        out.update({own[r].serial: left[c].track_id for r, c in pairs.items()})
+        left = [t for c, t in enumerate(left) if c not in set(pairs.values())]
+    return out
+
+
 def adopt_ids(
     mine: Sequence[TrackSnapshot],
-    theirs: Sequence[Track],
-    gate_m: float = GATE_M,
+    followed: dict[int, str],
     taken: frozenset[str] = frozenset(),
 ) -> dict[int, str]:
-    """Serial of each of ``mine`` (confirmed ones) -> the id of the other manager's track it follows, where that
-    differs from its own and no other of ``mine`` keeps it (two of mine may swap ids), nor is it one of ``taken``
-    (ids this manager publishes for tracks not among ``mine``)."""
-    own = [tr for tr in mine if tr.track_id]
-    if not own or not theirs:
-        return {}
-    xy = np.array([tr.xy for tr in own], dtype=np.float64)
-    pairs = match_tracks(xy, np.array([tr.t_ns for tr in own], dtype=np.int64), theirs, gate_m)
-    wanted = {own[r].serial: theirs[c].track_id for r, c in pairs.items() if theirs[c].track_id != own[r].track_id}
+    """Serial of each of ``mine`` -> the id of the other manager's track it follows (``followed``, from
+    :func:`follows`), where that differs from its own and no other of ``mine`` keeps it (two of mine may swap ids),
+    nor is it one of ``taken`` (ids this manager publishes for tracks not among ``mine``)."""
+    own = {tr.serial: tr.track_id for tr in mine if tr.track_id}
+    wanted = {serial: want for serial, want in followed.items() if serial in own and own[serial] != want}
     # An id stays with a track that keeps its own; one that another of mine gives up this time may be taken (a swap).
-    kept = {tr.track_id for tr in own if tr.serial not in wanted} | taken
-    out = {serial: want for serial, want in wanted.items() if want not in kept}
-    if len(set(out.values())) != len(out):  # the other set itself names one id twice: take none of it
-        return {}
-    return out
+    kept = {tid for serial, tid in own.items() if serial not in wanted} | taken
+    return {serial: want for serial, want in wanted.items() if want not in kept}

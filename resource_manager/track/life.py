@@ -21,7 +21,7 @@ What the strong multi-view trackers do to keep one id per person, as pure functi
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -166,6 +166,13 @@ class Separation:
                     together[key] = self.since.get(key, t_ns)
         self.last = keep
         self.since = together
+
+    def told_apart(self, serials: Collection[int], t_ns: int) -> None:
+        """Every two of ``serials`` that stand close are known to be two people at ``t_ns`` (another manager
+        that follows them publishes them as two)."""
+        for key in self.since.keys() | self.last.keys():
+            if key[0] in serials and key[1] in serials:
+                self.last[key] = max(t_ns, self.last.get(key, t_ns))
 
     def together_s(self, a: int, b: int, t_ns: int) -> float:
         """Seconds serials ``a`` and ``b`` have stood within ``CLOSE_M`` of each other (0 if they do not)."""

@@ -32,6 +32,9 @@ class TrackRecord:
     """``{manager}-{n}`` once confirmed; "" before."""
     confirmed: bool = False
     """Existence reached ``p_confirm`` once: the track is published."""
+    adopted: str = ""
+    """While tentative: the id of another manager's track of the same person (a standby's leader's), taken at
+    confirmation if no other track has it (resource_manager/serve/adopt.py)."""
     detected: bool = False
     """Some view detected the person at the latest tick."""
     seen_ns: int = 0

@@ -196,17 +196,26 @@ class Tracker:
         return out
 
     # -- the tick -------------------------------------------------------------------------------------
-    def adopt(self, names: dict[int, str]) -> None:
+    def adopt(self, names: dict[int, str], followed: dict[int, str] | None = None) -> None:
         """Rename confirmed tracks: serial -> the id to publish them under from now on (a standby following its
         leader, resource_manager/serve/adopt.py). A lost track kept under one of those ids is forgotten: one id,
-        one person."""
+        one person.
+
+        ``followed``: serial -> the other manager's track each of these follows, one to one (each a different
+        person of its set): any two of them are as told apart now, as if a view had shown them as two people, and
+        a tentative one is confirmed under that id (if it is free then)."""
+        followed = followed or {}
         taken = set()
         for tr in self.tracks:
             new = names.get(tr.serial)
             if new and tr.confirmed:
                 tr.track_id = new
                 taken.add(new)
+            elif not tr.confirmed:
+                tr.adopted = followed.get(tr.serial, "")
         self.graveyard.take(taken)
+        if len(followed) >= PAIR_OF_TRACKS:
+            self.separation.told_apart(followed.keys(), self._t_ns)
 
     def step(
         self,
@@ -565,8 +574,9 @@ class Tracker:
         return abs(float(f.height[i]) - m.height_prior_m) > HEIGHT_SIGMAS * spread
 
     def _confirm(self, t_ns: int) -> list[str]:
-        """Publish the tracks whose existence reached ``p_confirm``: a lost one's id when it is that person back
-        (:meth:`~.life.Graveyard.match`), else a new id. Returns the ids given back."""
+        """Publish the tracks whose existence reached ``p_confirm``: the id another manager publishes the person
+        under (:meth:`adopt`), else a lost one's id when it is that person back (:meth:`~.life.Graveyard.match`),
+        else a new id. Returns the ids given back."""
         m, f = self.model, self.filter
         rows = [i for i, tr in enumerate(self.tracks) if not tr.confirmed and float(f.logodds[i]) >= logit(m.p_confirm)]
         if not rows:
@@ -593,10 +603,17 @@ class Tracker:
         back = dict(
             self.graveyard.match(new, f.x[others, :2], model=m, motion=self.motion, colour_ln=colour, area_m2=area_m2)
         )
+        # An id another manager's track of the person has (a standby's leader's) before one given back.
+        in_use = {tr.track_id for tr in self.tracks if tr.track_id}
+        pending = [self.tracks[i].adopted for i in rows]
+        adopted = {k: tid for k, tid in enumerate(pending) if tid and tid not in in_use and pending.count(tid) == 1}
+        back = {k: g for k, g in back.items() if k not in adopted and g.track_id not in adopted.values()}
         for k, i in enumerate(rows):
             tr = self.tracks[i]
             tr.confirmed = True
-            if k in back:
+            if k in adopted:
+                tr.track_id = adopted[k]
+            elif k in back:
                 tr.track_id = back[k].track_id
                 for sid, look in back[k].looks.items():
                     if sid not in tr.looks:
@@ -604,7 +621,7 @@ class Tracker:
             else:
                 tr.track_id = self.new_id()
         ids = [g.track_id for g in back.values()]
-        self.graveyard.take(set(ids))
+        self.graveyard.take(set(ids) | set(adopted.values()))
         return ids
 
 

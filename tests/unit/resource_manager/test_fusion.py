@@ -244,3 +244,36 @@ def test_a_standby_started_later_publishes_its_people_under_the_leaders_ids() ->
     assert renamed >= 3
     assert len(theirs.tracks) == 3 and all(x.track_id.startswith("lead-") for x in theirs.tracks)
     assert same.count(True) >= 0.95 * len(same), f"{same.count(False)} of {len(same)} instants with different ids"
+
+
+def test_a_standby_that_takes_over_before_confirming_its_people_confirms_them_under_the_leaders_ids() -> None:
+    """Three people walk in at 4 s. The standby has one camera's frames only until 4.3 s (the others reach it
+    late), so it confirms them a tick after the leader; the leader is gone at that tick. The standby's tracks,
+    tentative when it last heard the leader, are confirmed under the leader's ids, not new ones."""
+    from tests.unit.resource_manager.scenario import T0_NS
+
+    cams = [Cam("p1", 0.5, 0.5), Cam("p2", 5.5, 0.5, yaw=1.2), Cam("p3", 3.0, 6.0, yaw=-1.5)]
+    walk = RandomWalk(3, (0.0, 0.0, 6.0, 6.0), seed=3)
+    lead, stand = Fusion(make_config("lead")), Fusion(make_config("stand"))
+    rng = np.random.default_rng(2)
+    infos = [info_for(c) for c in cams]
+    theirs, published, tentative = [], set(), 0
+    for tick in range(1, 80):
+        t = tick / 10.0
+        people = walk.at(t) if t >= 4.0 else []
+        frames = [features_for(c, people, cams, T0_NS + int(t * 1e9), tick, rng) for c in cams]
+        t_ns = T0_NS + int((t - 0.1) * 1e9)
+        heard = t <= 4.3
+        if heard:
+            lead.absorb(Batch(features=frames, infos=infos if tick == 1 else []))
+            res = lead.step(t_ns).trackset
+            assert res is not None
+            theirs = res.tracks
+        stand.absorb(Batch(features=frames if t >= 4.3 else frames[:1], infos=infos))
+        stand.step(t_ns)
+        if heard:
+            tentative = sum(not tr.confirmed for tr in stand.tracker.tracks)
+            stand.adopt(theirs)
+        published |= {x.track_id for x in stand.published_tracks()}
+    assert tentative == 3 and len(theirs) == 3 and all(x.track_id.startswith("lead-") for x in theirs)
+    assert published == {x.track_id for x in theirs}

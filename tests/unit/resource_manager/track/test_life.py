@@ -62,6 +62,17 @@ def test_two_close_tracks_are_apart_once_a_view_shows_them_apart_and_forgotten_o
     assert sep.since_apart_s(1, 2, 3_000_000_000) == math.inf and sep.together_s(1, 2, 3_000_000_000) == 0.0
 
 
+def test_close_tracks_another_manager_publishes_as_two_people_are_told_apart() -> None:
+    sep = Separation()
+    xy = np.array([[0.0, 0.0], [0.3, 0.0], [0.1, 0.2]])
+    sep.note([1, 2, 3], xy, [[]], 1_000_000_000)
+    sep.told_apart({1, 2}, 2_000_000_000)
+    assert sep.since_apart_s(2, 1, 2_500_000_000) == pytest.approx(0.5)
+    assert sep.since_apart_s(1, 3, 2_500_000_000) == math.inf  # 3 follows none of the other's tracks
+    sep.note([1, 2, 3], xy, [[]], 2_100_000_000)  # no view shows them apart: what the other manager said holds
+    assert sep.since_apart_s(1, 2, 2_500_000_000) == pytest.approx(0.5)
+
+
 def _lost(xy: tuple[float, float], looks: dict[str, np.ndarray] | None = None) -> Lost:
     return Lost(
         track_id="m-1",
