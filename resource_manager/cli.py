@@ -42,6 +42,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="override [manager] zone: lead this zone, or stand by for it while another manager leads it (with --site "
         "and the site's [[zones]]: fuse only the cameras that see into it)",
     )
+    parser.add_argument(
+        "--print-sensors",
+        action="store_true",
+        help="print the sensor ids this manager would fuse (after --site and --zone), space separated, and exit "
+        "(e.g. for deploy/security/make_configs.py --managers ID=CAMS)",
+    )
     add_session_args(parser)
 
 
@@ -62,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
 
         cfg = for_site(cfg, load_site(args.site))
     manager = cfg.manager
+    if args.print_sensors:
+        print(" ".join(manager.sensors))
+        return 0
     env_dir = os.environ.get("PANOSTEREO_STATE_DIR", "")
     if args.state_dir:
         manager = msgspec.structs.replace(manager, state_dir=str(args.state_dir))

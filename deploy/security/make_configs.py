@@ -4,7 +4,7 @@
 Usage::
 
     python3 deploy/security/make_configs.py --certs DIR --out DIR [--prefix pano] \
-        [--sensors "c1 c2"] [--managers m1] [--agents "a1 ops:10"] [--listen tls/0.0.0.0:7447] \
+        [--sensors "c1 c2"] [--managers "m1 mgr-nw=c1,c2"] [--agents "a1 ops:10"] [--listen tls/0.0.0.0:7447] \
         [--router-host localhost] [--users-only]
 
 Reads nothing but the command line (the certificates come from ``make-certs.sh``; only
@@ -46,6 +46,9 @@ manager ``<id>``
     ``R/plan/*``, ``R/manager/<id>/**`` and PTZ commands ``R/sensor/*/ptz``; serve ``R/track/**``
     and ``R/manager/<id>/**`` queryables (PTZ requests arrive on ``R/manager/<id>/ptz/<agent>``);
     read every sensor key, query sensor info and the SensorInfo publishers' caches.
+    A manager written ``<id>=c1,c2`` (a zone's manager, and its standby) reads, queries, plans for and
+    commands the sensors ``c1``, ``c2`` only: a zone manager taken over cannot see or move the
+    other zones' cameras. The TrackSets of every manager share one key, ``R/tracks``.
 agent ``<id>``
     no put at all; subscribe to tracks, plans, pairs, statuses and PTZ states (not raw
     features); query tracks, sensor info (and its publishers' caches) and PTZ views on its own
@@ -84,9 +87,10 @@ def info_caches(root: str) -> str:
     return f"{root}/sensor/*/info/@adv/**"
 
 
-def cache_reader_rules(root: str, n: str) -> list[Rule]:
-    """What an AdvancedSubscriber of SensorInfo needs: query the caches, see their publishers come and go."""
-    caches = [info_caches(root)]
+def cache_reader_rules(root: str, n: str, cameras: list[str] | None = None) -> list[Rule]:
+    """What an AdvancedSubscriber of SensorInfo needs: query the caches, see their publishers come and go (of
+    ``cameras`` only, if given)."""
+    caches = [f"{root}/sensor/{c}/info/@adv/**" for c in cameras] if cameras is not None else [info_caches(root)]
     return [
         _rule(f"{n}-cache-query", "ingress", ["query", "declare_liveliness_subscriber", "liveliness_query"], caches),
         _rule(f"{n}-cache-replies", "egress", ["reply", "declare_queryable", "liveliness_token"], caches),
@@ -127,33 +131,38 @@ def sensor_rules(root: str, sid: str) -> list[Rule]:
     ]
 
 
-def manager_rules(root: str, mid: str) -> list[Rule]:
-    """What manager ``mid`` may do."""
+def manager_rules(root: str, mid: str, cameras: list[str] | None = None) -> list[Rule]:
+    """What manager ``mid`` may do; with ``cameras`` (a zone manager's), read, query and command those sensors only."""
     own = f"{root}/manager/{mid}"
     n = f"manager-{mid}"
-    outputs = [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/*", f"{own}/**", f"{root}/sensor/*/ptz"]
+    sensors = [f"{root}/sensor/{c}" for c in cameras] if cameras is not None else [f"{root}/sensor/*"]
+    plans = [f"{root}/plan/{c}" for c in cameras] if cameras is not None else [f"{root}/plan/*"]
+    commands = [f"{s}/ptz" for s in sensors]
+    infos = [f"{s}/info" for s in sensors]
+    outputs = [f"{root}/tracks", f"{root}/track/**", *plans, f"{own}/**", *commands]
     served = [f"{root}/tracks", f"{root}/track/**", f"{own}/**"]
-    read = [f"{root}/sensor/**", f"{root}/manager/**", f"{root}/plan/*", f"{root}/tracks", f"{root}/track/**"]
+    sensor_keys = [f"{s}/**" for s in sensors] if cameras is not None else [f"{root}/sensor/**"]
+    read = [*sensor_keys, f"{root}/manager/**", f"{root}/plan/*", f"{root}/tracks", f"{root}/track/**"]
     return [
         _rule(f"{n}-put", "ingress", ["put", "delete"], outputs),
         _rule(
             f"{n}-subscribers",
             "egress",
             ["declare_subscriber"],
-            [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/**", f"{root}/manager/**", f"{root}/sensor/*/ptz"],
+            [f"{root}/tracks", f"{root}/track/**", f"{root}/plan/**", f"{root}/manager/**", *commands],
         ),
         # Its presence, and its seat in its zone (leader or standby): under its own key only.
         _rule(f"{n}-token", "ingress", ["liveliness_token"], [own, f"{own}/zone/**"]),
         _rule(f"{n}-serve", "ingress", ["declare_queryable", "reply"], served),
-        _rule(f"{n}-queryables", "egress", ["declare_queryable"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
+        _rule(f"{n}-queryables", "egress", ["declare_queryable"], [*infos, f"{root}/track/**"]),
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], read),
-        _rule(f"{n}-query", "ingress", ["query"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
+        _rule(f"{n}-query", "ingress", ["query"], [*infos, f"{root}/track/**"]),
         _rule(f"{n}-watch", "ingress", ["declare_liveliness_subscriber", "liveliness_query"], [f"{root}/**"]),
         _rule(f"{n}-recv", "egress", ["put", "delete"], read),
         _rule(f"{n}-queried", "egress", ["query"], served),
-        _rule(f"{n}-replies", "egress", ["reply"], [f"{root}/sensor/*/info", f"{root}/track/**"]),
+        _rule(f"{n}-replies", "egress", ["reply"], [*infos, f"{root}/track/**"]),
         _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/**"]),
-        *cache_reader_rules(root, n),
+        *cache_reader_rules(root, n, cameras),
     ]
 
 
@@ -201,10 +210,14 @@ def access_control(root: str, identities: list[tuple[str, list[Rule]]], by: str)
     }
 
 
-def identities(root: str, sensors: list[str], managers: list[str], agents: list[str]) -> list[tuple[str, list[Rule]]]:
+def identities(
+    root: str, sensors: list[str], managers: list[str], agents: list[str], cameras: dict[str, list[str]] | None = None
+) -> list[tuple[str, list[Rule]]]:
+    """Every identity's rules; ``cameras``: manager id -> the only sensors it may read and command (a zone's)."""
+    cameras = cameras or {}
     out: list[tuple[str, list[Rule]]] = []
     out += [(f"sensor-{s}", sensor_rules(root, s)) for s in sensors]
-    out += [(f"manager-{m}", manager_rules(root, m)) for m in managers]
+    out += [(f"manager-{m}", manager_rules(root, m, cameras.get(m))) for m in managers]
     out += [(f"agent-{a}", agent_rules(root, a)) for a in agents]
     return out
 
@@ -265,6 +278,23 @@ def client_usrpwd(name: str, password: str, connect: str) -> dict[str, Any]:
     c = _base("client", [], [connect])
     c["transport"] = {"auth": {"usrpwd": {"user": name, "password": password}}}
     return c
+
+
+def _manager_cameras(text: str) -> tuple[list[str], dict[str, list[str]]]:
+    """``"m1 mgr-nw=c1,c2"`` -> (["m1", "mgr-nw"], {"mgr-nw": ["c1", "c2"]}): manager ids, each with an optional
+    list of the only cameras it may read and command (a zone manager's: ``panostereo manager ... --zone Z
+    --print-sensors``)."""
+    ids: list[str] = []
+    cameras: dict[str, list[str]] = {}
+    for item in text.split():
+        mid, sep, cams = item.partition("=")
+        ids.append(mid)
+        if sep:
+            listed = _ids(cams.replace(",", " "), "camera")
+            if not listed:
+                raise SystemExit(f"make_configs.py: error: manager {mid!r}: no camera after '=' (id=cam1,cam2)")
+            cameras[mid] = listed
+    return _ids(" ".join(ids), "manager"), cameras
 
 
 def _agent_caps(text: str) -> tuple[list[str], dict[str, int]]:
@@ -338,7 +368,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, help="directory to write the configs to")
     p.add_argument("--prefix", default="pano", help="site key prefix (default pano)")
     p.add_argument("--sensors", default="", help='sensor ids, space separated ("c1 c2")')
-    p.add_argument("--managers", default="", help="manager ids")
+    p.add_argument(
+        "--managers",
+        default="",
+        help='manager ids, each with the only cameras it may read and command if it fuses a zone ("m1 mgr-nw=c1,c2")',
+    )
     p.add_argument("--agents", default="", help='agent ids, each with an optional PTZ priority cap ("a1 ops:10")')
     p.add_argument("--listen", default="tls/127.0.0.1:7447", help="router TLS endpoint")
     p.add_argument(
@@ -353,7 +387,10 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"make_configs.py: error: --prefix must be chunks of [A-Za-z0-9_-], got {args.prefix!r}")
     root = f"{args.prefix}/@v1"
     sensors = _ids(args.sensors, "sensor")
-    managers = _ids(args.managers, "manager")
+    managers, cameras = _manager_cameras(args.managers)
+    unknown = sorted({c for cams in cameras.values() for c in cams} - set(sensors)) if sensors else []
+    if unknown:
+        raise SystemExit(f"make_configs.py: error: --managers names cameras not in --sensors: {', '.join(unknown)}")
     agents, caps = _agent_caps(args.agents)
     certs = args.certs.rstrip("/") or "/"
     out = Path(args.out)
@@ -361,7 +398,7 @@ def main(argv: list[str] | None = None) -> int:
     port = args.listen.rsplit(":", 1)[-1]
     listen_tcp = args.listen_tcp or _tcp_listen(args.listen)
     tcp_port = listen_tcp.rsplit(":", 1)[-1]
-    who = identities(root, sensors, managers, agents)
+    who = identities(root, sensors, managers, agents, cameras)
     (out / "ptz-priorities.toml").write_text(ptz_priorities(caps))
 
     _write(

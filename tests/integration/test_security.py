@@ -83,12 +83,14 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureSite]:
     root = tmp_path_factory.mktemp("secure-site")
     certs, foreign, cfg = root / "certs", root / "foreign", root / "cfg"
     ids = " ".join(SENSORS)
-    who = ("--sensors", ids, "--managers", "m1", "--agents", "a1")
+    who = ("--sensors", ids, "--managers", "m1 mz", "--agents", "a1")
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(certs), *who])
     # Another CA issuing certificates with the very same names: must not be trusted.
     _run(["bash", str(SECURITY / "make-certs.sh"), "--out", str(foreign), *who, "--ca-name", "evil-ca"])
     tls_port, tcp_port = free_port(), free_port()
-    _make_configs(certs, cfg, "--prefix", KEYS.prefix, *who, "--listen", f"tls/127.0.0.1:{tls_port}",
+    # mz: a zone's manager, whose zone's only camera is c1.
+    rules = ("--sensors", ids, "--managers", "m1 mz=c1", "--agents", "a1")
+    _make_configs(certs, cfg, "--prefix", KEYS.prefix, *rules, "--listen", f"tls/127.0.0.1:{tls_port}",
                   "--listen-tcp", f"tcp/127.0.0.1:{tcp_port}")  # fmt: skip
     # As deployed: the router's dictionary goes where its other files are (the folder --certs names).
     shutil.copy(cfg / "users.txt", certs / "users.txt")
@@ -471,6 +473,43 @@ def test_agents_cannot_read_raw_features_or_command_cameras(site: SecureSite) ->
         assert not wait_for_any(lambda: seen_by_agent.items or ptz_at_c1.where(lambda k, m: m.seq == 666), SETTLE_S), (
             seen_by_agent.items,
             ptz_at_c1.items,
+        )
+
+
+def test_a_zone_manager_reads_and_commands_its_zones_cameras_only(site: SecureSite) -> None:
+    """mz is written ``mz=c1``: it gets c1's frames and moves c1, never c2; m1, written without cameras, does both."""
+    with (
+        _tls_client(site, "manager-mz") as mz,
+        _tls_client(site, "manager-m1") as m1,
+        _tls_client(site, "sensor-c1") as c1,
+        _tls_client(site, "sensor-c2") as c2,
+    ):
+        frames_at_mz = Collector(mz, KEYS.sensor_features("c1"), Features)
+        stolen_at_mz = Collector(mz, KEYS.sensor_features("c2"), Features)
+        frames_at_m1 = Collector(m1, KEYS.all_features, Features)
+        ptz_at = {sid: Collector(s, KEYS.sensor_ptz(sid), PtzCommand) for sid, s in (("c1", c1), ("c2", c2))}
+        _deliver_until(
+            lambda: c1.put(KEYS.sensor_features("c1"), encode(_features("c1", 1))),
+            lambda: frames_at_mz.where(lambda k, m: True),
+            "c1's features at the zone manager",
+        )
+        _deliver_until(
+            lambda: c2.put(KEYS.sensor_features("c2"), encode(_features("c2", 1))),
+            lambda: frames_at_m1.where(lambda k, m: m.sensor_id == "c2"),
+            "c2's features at the site manager",
+        )
+        cmd = PtzCommand(manager_id="mz", seq=1, stamp_ns=1, sensor_id="c1", pan_rad=0.5, tilt_rad=0.0)
+        mz.put(KEYS.sensor_ptz("c2"), encode(msg_replace(cmd, sensor_id="c2", seq=666)))
+        _deliver_until(
+            lambda: mz.put(KEYS.sensor_ptz("c1"), encode(cmd)),
+            lambda: ptz_at["c1"].where(lambda k, m: m.seq == 1),
+            "the zone manager's PTZ command at c1",
+        )
+        c2.put(KEYS.sensor_features("c2"), encode(_features("c2", 2)))
+        wait_for(lambda: frames_at_m1.where(lambda k, m: m.sensor_id == "c2" and m.seq == 2), 10.0, "c2's 2nd frame")
+        assert not wait_for_any(lambda: stolen_at_mz.items or ptz_at["c2"].items, SETTLE_S), (
+            stolen_at_mz.items,
+            ptz_at["c2"].items,
         )
 
 
