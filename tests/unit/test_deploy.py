@@ -51,3 +51,15 @@ def test_systemd_units_run_real_subcommands(unit: Path) -> None:
     (cmd,) = re.findall(r"^ExecStart=\S+/panostereo (\w+)", text, flags=re.M)
     assert cmd in COMMANDS
     assert "Restart=always" in text and "KillSignal=SIGTERM" in text
+
+
+def test_a_zone_manager_prints_its_zones_cameras(capsys: pytest.CaptureFixture[str]) -> None:
+    """``manager --print-sensors`` (for make_configs.py --managers ID=CAMS): the cameras that see into the zone."""
+    from common.site import zone_sensor_ids
+    from resource_manager.cli import main
+
+    hall = REPO / "deploy" / "sites" / "hall.toml"
+    config = REPO / "deploy" / "nodes" / "hall" / "mgr-se.toml"
+    assert main(["--config", str(config), "--site", str(hall), "--zone", "se", "--print-sensors"]) == 0
+    printed = capsys.readouterr().out.split()
+    assert printed == zone_sensor_ids(load_site(hall), "se") and "w" not in printed, printed
