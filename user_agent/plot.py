@@ -265,6 +265,21 @@ def _track_paths(inp: PlotInput) -> dict[str, list[tuple[float, float]]]:
     return paths
 
 
+def bar_names(track_ids: Sequence[str]) -> dict[str, str]:
+    """What a timeline bar writes for each track id: its number (``{manager}-{n}``) when one manager minted them all,
+    else the id without the managers' common leading part (``mgr-nw-7``, ``mgr-ne-7`` -> ``nw-7``, ``ne-7``)."""
+    ids = sorted(set(track_ids))
+    minted = {tid.rsplit("-", 1)[0] for tid in ids}
+    if len(minted) <= 1:
+        return {tid: tid.rsplit("-", 1)[-1] for tid in ids}
+    common = 0
+    for parts in zip(*(tid.split("-") for tid in ids), strict=False):
+        if len(set(parts)) > 1:
+            break
+        common += 1
+    return {tid: "-".join(tid.split("-")[common:]) for tid in ids}
+
+
 def _draw_timeline(
     ax: Axes, tl: Timeline, rows_col: dict[str, str], tracks_col: dict[str, str], inp: PlotInput
 ) -> None:
@@ -272,6 +287,7 @@ def _draw_timeline(
     index = {r: i for i, r in enumerate(tl.rows)}
     width_s = max((s.t1_s for s in tl.spans), default=1.0) - min((s.t0_s for s in tl.spans), default=0.0)
     px_per_s = ax.get_window_extent().width / max(width_s, 1e-9)
+    names = bar_names([s.track_id for s in tl.spans if s.track_id])
     for s in tl.spans:
         y = index[s.row]
         if not s.track_id:
@@ -284,7 +300,7 @@ def _draw_timeline(
         ax.broken_barh([(s.t0_s, s.t1_s - s.t0_s)], (y - 0.35, 0.7), facecolors=colour,
                        edgecolor="white" if other_id else "none", hatch="////" if other_id else None,
                        linewidth=0)  # fmt: skip
-        short = s.track_id.rsplit("-", 1)[-1]
+        short = names[s.track_id]
         if (s.t1_s - s.t0_s) * px_per_s > 8 * len(short) + 8 and len(tl.rows) <= MAX_TICK_ROWS:
             box = {"boxstyle": "round,pad=0.15", "facecolor": "white", "alpha": 0.75, "linewidth": 0}
             ax.text((s.t0_s + s.t1_s) / 2, y, short, ha="center", va="center", fontsize=7, color="#222222", bbox=box)

@@ -14,7 +14,16 @@ from common.errors import ConfigError
 from common.schema import TrackSet
 from tests.unit.user_agent.recorded_run import EPOCH, sensor_info, track
 from user_agent.groundtruth import GroundTruth, GtPoint
-from user_agent.plot import PALETTE, PlotInput, _extent, colours_of, render_top_view, save_top_view, timeline_head
+from user_agent.plot import (
+    PALETTE,
+    PlotInput,
+    _extent,
+    bar_names,
+    colours_of,
+    render_top_view,
+    save_top_view,
+    timeline_head,
+)
 from user_agent.timeline import timeline_with_truth
 
 FPS = 10.0
@@ -117,3 +126,10 @@ def test_save_writes_a_png_and_refuses_what_cannot_be_written(tmp_path: Path) ->
     empty = PlotInput(tracksets=[], sensor_infos=[], pairs=[], room_m=(1.0, 1.0, 1.0, 4.0))
     with pytest.raises(ConfigError, match="extent"):
         render_top_view(empty)
+
+
+def test_timeline_bars_name_tracks_so_that_two_managers_ids_differ() -> None:
+    assert bar_names(["mgr1-3", "mgr1-12"]) == {"mgr1-3": "3", "mgr1-12": "12"}
+    names = bar_names(["mgr-nw-7", "mgr-ne-7", "mgr-nw-12"])
+    assert names == {"mgr-nw-7": "nw-7", "mgr-ne-7": "ne-7", "mgr-nw-12": "nw-12"}
+    assert bar_names(["west1-2", "east1-2"]) == {"west1-2": "west1-2", "east1-2": "east1-2"}
