@@ -287,7 +287,7 @@ def _draw_timeline(
     index = {r: i for i, r in enumerate(tl.rows)}
     width_s = max((s.t1_s for s in tl.spans), default=1.0) - min((s.t0_s for s in tl.spans), default=0.0)
     px_per_s = ax.get_window_extent().width / max(width_s, 1e-9)
-    names = bar_names([s.track_id for s in tl.spans if s.track_id])
+    bars = bar_names([s.track_id for s in tl.spans if s.track_id])
     for s in tl.spans:
         y = index[s.row]
         if not s.track_id:
@@ -300,7 +300,7 @@ def _draw_timeline(
         ax.broken_barh([(s.t0_s, s.t1_s - s.t0_s)], (y - 0.35, 0.7), facecolors=colour,
                        edgecolor="white" if other_id else "none", hatch="////" if other_id else None,
                        linewidth=0)  # fmt: skip
-        short = names[s.track_id]
+        short = bars[s.track_id]
         if (s.t1_s - s.t0_s) * px_per_s > 8 * len(short) + 8 and len(tl.rows) <= MAX_TICK_ROWS:
             box = {"boxstyle": "round,pad=0.15", "facecolor": "white", "alpha": 0.75, "linewidth": 0}
             ax.text((s.t0_s + s.t1_s) / 2, y, short, ha="center", va="center", fontsize=7, color="#222222", bbox=box)
