@@ -223,7 +223,7 @@ class ZoneSeat:
                 self.read_now.set()
             read = self._take_events()
             with self.lock:
-                changed = self.election.decide(can)
+                changed = self.election.decide(can, time.monotonic())
                 role, term = self.election.role, self.election.term
             if changed:
                 self._take_seat(role, term)

@@ -8,7 +8,10 @@ transport goes), and this module turns the seats it sees into a role with two ru
 
 * **A standby claims** when it sees no leader, is the lowest id among the standbys it sees, and can lead (its
   sensors' frames reach it: a manager cut off from the site's router sees nobody either, and must not claim
-  there). Its term is one above the highest term it has seen, so the newest claim outranks the older ones.
+  there). Its term is one above the highest term it has seen, so the newest claim outranks the older ones. A
+  standby with lower ids before it claims too once the zone has been without a leader for ``CLAIM_WAIT_S`` per
+  lower id: one that cannot lead (its sensors cut off) does not keep the zone leaderless. Should a lower one claim
+  at the same moment after all, the second rule leaves one of them.
 * **A leader yields** to any other leader that outranks it: the higher term, then the lower id. When a partition
   heals, both sides' leaders see each other again and exactly one keeps leading: the one that took over while
   the other was cut off (it has the sensors' frames of that time), or, between equals, the lower id.
@@ -24,7 +27,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Literal
 
-__all__ = ["Election", "Role", "Seat"]
+__all__ = ["CLAIM_WAIT_S", "Election", "Role", "Seat"]
 
 Role = Literal["leader", "standby"]
 
@@ -37,6 +40,10 @@ class Seat:
     role: Role
     term: int = 0
 
+
+CLAIM_WAIT_S = 3.0
+"""A standby waits this long per lower-id standby of its zone, after the leader has gone, before it claims in
+their place: longer than a takeover (a fraction of a second) and than a re-read of the zone's seats (2 s)."""
 
 MAX_HEARD = 256
 """Seats remembered (gone ones are forgotten first beyond it): a zone has a few managers, each a seat or two."""
@@ -64,6 +71,8 @@ class Election:
     """Every other manager's seat heard of: whether it is there, and the number of that news."""
     synced: bool = False
     """A first whole view has been read (no claim before: a leader may be there that has not been heard yet)."""
+    leaderless_since_s: float | None = None
+    """When (the caller's clock, s) this manager last saw its zone without a leader; None while there is one."""
 
     @property
     def leaders(self) -> dict[str, int]:
@@ -114,10 +123,11 @@ class Election:
             ranked = sorted([*ranked, (-self.term, self.manager_id)])
         return ranked[0][1] if ranked else None
 
-    def decide(self, can_lead: bool) -> bool:
+    def decide(self, can_lead: bool, now_s: float = 0.0) -> bool:
         """Apply the two rules (see the module); True when this manager's role changed.
 
-        ``can_lead``: the manager's sensors reach it now (a standby that cannot lead never claims)."""
+        ``can_lead``: the manager's sensors reach it now (a standby that cannot lead never claims). ``now_s``: a
+        monotonic clock (s), for how long the zone has been without a leader."""
         if not self.synced:
             return False
         if self.role == "leader":
@@ -125,7 +135,13 @@ class Election:
                 self.role = "standby"
                 return True
             return False
-        if self.leaders or not can_lead or min(self.standbys | {self.manager_id}) != self.manager_id:
+        if self.leaders:
+            self.leaderless_since_s = None
+            return False
+        if self.leaderless_since_s is None:
+            self.leaderless_since_s = now_s
+        ahead = sum(1 for mid in self.standbys if mid < self.manager_id)
+        if not can_lead or now_s - self.leaderless_since_s < ahead * CLAIM_WAIT_S:
             return False
         self.term = self.top_term + 1
         self.top_term = self.term

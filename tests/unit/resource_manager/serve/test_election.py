@@ -6,7 +6,7 @@ import itertools
 
 import pytest
 
-from resource_manager.serve.election import Election, Seat
+from resource_manager.serve.election import CLAIM_WAIT_S, Election, Seat
 
 
 def _synced(mid: str, *seats: Seat) -> Election:
@@ -49,6 +49,39 @@ def test_a_standby_cut_off_from_its_sensors_never_claims() -> None:
     e.saw(Seat("a", "leader", 1), alive=False)
     assert not e.decide(can_lead=False)
     assert e.role == "standby"
+
+
+def test_a_standby_that_cannot_lead_does_not_keep_the_zone_leaderless() -> None:
+    """The leader goes; a, the lowest standby, has lost its sensors. b claims after waiting one CLAIM_WAIT_S (a's
+    turn), c after two; a back after b claimed stays a standby."""
+    a = _synced("a", Seat("l", "leader", 1), Seat("b", "standby"), Seat("c", "standby"))
+    b = _synced("b", Seat("l", "leader", 1), Seat("a", "standby"), Seat("c", "standby"))
+    c = _synced("c", Seat("l", "leader", 1), Seat("a", "standby"), Seat("b", "standby"))
+    for e in (a, b, c):
+        assert not e.decide(can_lead=True, now_s=0.0)
+        e.saw(Seat("l", "leader", 1), alive=False)
+    assert not a.decide(can_lead=False, now_s=1.0)
+    assert not b.decide(can_lead=True, now_s=1.0) and not c.decide(can_lead=True, now_s=1.0)
+    assert not b.decide(can_lead=True, now_s=1.0 + 0.9 * CLAIM_WAIT_S)
+    assert b.decide(can_lead=True, now_s=1.0 + CLAIM_WAIT_S) and (b.role, b.term) == ("leader", 2)
+    for e in (a, c):
+        e.saw(Seat("b", "leader", 2), alive=True)
+    assert not c.decide(can_lead=True, now_s=1.0 + 2 * CLAIM_WAIT_S) and c.role == "standby"
+    assert not a.decide(can_lead=True, now_s=1.0 + 2 * CLAIM_WAIT_S) and a.leader() == "b"
+
+
+def test_two_standbys_claiming_at_once_leave_one_leader() -> None:
+    """a claims; b, which has not heard a's leader seat yet, claims after its wait: both hold term 1. On hearing
+    each other the higher id yields."""
+    a = _synced("a", Seat("b", "standby"))
+    b = _synced("b", Seat("a", "standby"))
+    assert a.decide(can_lead=True, now_s=0.0)
+    assert not b.decide(can_lead=True, now_s=0.0)
+    assert b.decide(can_lead=True, now_s=CLAIM_WAIT_S) and a.term == b.term == 1
+    a.saw(Seat("b", "leader", 1), alive=True)
+    b.saw(Seat("a", "leader", 1), alive=True)
+    assert not a.decide(can_lead=True, now_s=CLAIM_WAIT_S) and a.role == "leader"
+    assert b.decide(can_lead=True, now_s=CLAIM_WAIT_S) and b.role == "standby" and b.leader() == "a"
 
 
 def _lead(mid: str, term: int) -> Election:
