@@ -44,6 +44,7 @@ __all__ = [
     "connect_hint",
     "install_signal_handlers",
     "open_session",
+    "refuse_second",
     "settings_from_args",
     "wait_until",
     "zenoh_config",
@@ -274,6 +275,35 @@ def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None)
             session.close()
         except Exception as err:  # close can time out on lossy links (zenoh#2675)
             logger.warning("zenoh session close failed: %s", err)
+
+
+SECOND_POLL_S = 0.25
+"""How often :func:`refuse_second` looks again for the other process's token."""
+
+
+def refuse_second(session: Any, key: str, what: str, wait_s: float) -> None:
+    """Refuse to run a second process under one id: ``key`` is the liveliness token the process is about to
+    declare (its presence, e.g. ``R/sensor/{id}``). While another process holds it, wait up to ``wait_s`` (a
+    process that just died: its token goes when the router notices, within a lease), then refuse.
+
+    Raises:
+        ConfigError: ``what`` already runs in the site under this id.
+    """
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            held = any(r.ok is not None for r in session.liveliness().get(key, timeout=1.0))
+        except Exception as err:  # a query the router's access rules deny, a closing session: nothing to see
+            logger.debug("liveliness get %s: %s", key, err)
+            return
+        if not held:
+            return
+        if time.monotonic() >= deadline:
+            raise ConfigError(
+                f"{what} already runs in this site: another process holds {key}; give each process its own id "
+                "(or stop the other one)"
+            )
+        time.sleep(SECOND_POLL_S)
 
 
 class Shutdown:

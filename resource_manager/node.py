@@ -68,7 +68,7 @@ from common.schema import (
     Track,
     TrackSet,
 )
-from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
+from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session, refuse_second
 from common.transport import Inbox, KeyCensus, KeyedInbox, TypedPublisher
 from resource_manager.config import ManagerConfig
 from resource_manager.fusion import Batch, Fusion, TickResult
@@ -871,6 +871,10 @@ def run(cfg: ManagerConfig) -> int:
     clock.start()
     try:
         with open_session(cfg.zenoh) as session:
+            mid = cfg.manager.id
+            refuse_second(
+                session, Keys(cfg.manager.prefix).manager(mid), f"manager {mid}", cfg.zenoh.lease_ms / 1e3 + 1.0
+            )
             node = ManagerNode(session, cfg, clock, shutdown)
             try:
                 node.loop()

@@ -33,7 +33,7 @@ from common.codec import encode
 from common.frames import Frame
 from common.memory import Trimmer
 from common.schema import NodeStatus, PtzCommand, PtzState, SensorInfo, SourceState, ViewPlan
-from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session
+from common.session import MSGPACK, Shutdown, install_signal_handlers, open_session, refuse_second
 from common.transport import Inbox, TypedPublisher
 from sensor_node.build import NodeParts, build_node, sensor_info
 from sensor_node.config import NodeConfig
@@ -335,6 +335,8 @@ def run_node(cfg: NodeConfig, max_frames: int = 0) -> int:
         parts = build_node(cfg, clock.now_ns)
         # Timestamps: what the SensorInfo publisher's cache (zenoh.ext) orders its samples by.
         with open_session(cfg.zenoh, extra={"timestamping/enabled": True}) as session:
+            sid = cfg.node.id
+            refuse_second(session, cfg.keys.sensor(sid), f"sensor node {sid}", cfg.zenoh.lease_ms / 1e3 + 1.0)
             node = SensorNode(cfg, session, clock, parts, shutdown)
             logger.info(
                 "sensor node %s up: %s source, %s camera, features on %s",

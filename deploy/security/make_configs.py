@@ -39,7 +39,7 @@ sensor ``<id>``
     ``R/sensor/<id>`` and its info queryable (and reply on it), and the cache of its SensorInfo
     publisher (``R/sensor/<id>/info/@adv/**``: a queryable and a liveliness token, zenoh.ext);
     subscribe to its own PTZ commands and the view plans (``R/plan/*``: a simulated node needs
-    every robot's goal); see managers' presence.
+    every robot's goal); see managers' presence, and its own (a second process under its id is refused).
 manager ``<id>``
     declare its presence ``R/manager/<id>`` and its zone seat ``R/manager/<id>/zone/**`` (a standby's
     or a leader's token, resource_manager/serve/election.py); put ``R/tracks``, ``R/track/*``,
@@ -118,16 +118,17 @@ def sensor_rules(root: str, sid: str) -> list[Rule]:
         _rule(f"{n}-cache-queried", "egress", ["query"], [info_caches(root)]),
         # Plans of every camera: a simulated node replays every robot's goals to render the same world.
         _rule(f"{n}-sub", "ingress", ["declare_subscriber"], [f"{own}/ptz", f"{root}/plan/*"]),
+        # Managers' presence; and its own, which it asks for before it starts (one process per id).
         _rule(
             f"{n}-watch",
             "ingress",
             ["declare_liveliness_subscriber", "liveliness_query"],
-            [f"{root}/manager/*"],
+            [f"{root}/manager/*", own],
         ),
         _rule(f"{n}-recv", "egress", ["put"], [f"{own}/ptz", f"{root}/plan/*"]),
         # A query for every sensor's info (``R/sensor/*/info``) must reach this sensor too.
         _rule(f"{n}-queried", "egress", ["query"], [f"{root}/sensor/*/info"]),
-        _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/manager/*"]),
+        _rule(f"{n}-seen", "egress", ["liveliness_token"], [f"{root}/manager/*", own]),
     ]
 
 

@@ -617,3 +617,22 @@ def test_kill9_manager_under_up_restarts_ids_continue_history_served(site: Fault
     assert up.alive, up.log()
     up.signal(signal.SIGTERM)
     assert up.wait(30.0) == 0, up.log()
+
+
+def test_a_second_process_under_a_running_ones_id_is_refused(site: FaultSite) -> None:
+    """A manager and a sensor node started again under the ids of running ones (a config copied, a unit started
+    twice) exit with one clear line; the running ones go on, and tracking with them."""
+    site.start_router()
+    with observing(site) as obs:
+        site.start_manager()
+        for sid in site.ids:
+            site.start_node(sid)
+        _up_to_speed(site, obs)
+        twins = [site.start_manager(), site.start_node(site.ids[0])]
+        for twin in twins:
+            assert twin.wait(20.0) == 1, twin.log()
+            lines = [ln for ln in twin.stderr_text().splitlines() if "error:" in ln]
+            assert len(lines) == 1 and "already runs in this site" in lines[0], twin.log()
+        t_after = time.monotonic()
+        wait_for(lambda: obs.tracking_with(t_after, set(site.ids)), 20.0, "tracking with every camera after")
+        assert all(p.alive for p in site.procs if p not in twins), site.logs()
