@@ -153,7 +153,7 @@ def run(
 ) -> dict[str, Any]:
     """Run the schedule against a fresh site; return the figures (see the module docstring)."""
     import tests.integration.test_faults as tf
-    from tests.integration.test_faults import LOOP_S, _up_to_speed, observing
+    from tests.integration.test_faults import LOOP_S, observing, start_tracking
     from user_agent.evaluate import unseen_spans
     from user_agent.recording import load_recording, read_metadata
 
@@ -170,10 +170,7 @@ def run(
     with _site(tmp, seed) as site:
         site.start_router()
         with observing(site) as obs:
-            site.start_manager()
-            for sid in site.ids:
-                site.start_node(sid)
-            _up_to_speed(site, obs)
+            start_tracking(site, obs)
             rec_path = tmp / "flood.mcap"
             recorder = None
             if record:

@@ -272,6 +272,15 @@ def _up_to_speed(site: FaultSite, obs: Observer, need: set[str] | None = None, t
     wait_for(lambda: obs.tracking_with(t0, want), timeout_s, f"confirmed tracks using {sorted(want)}", poll_s=0.1)
 
 
+def start_tracking(site: FaultSite, obs: Observer) -> dict[str, ManagedProcess]:
+    """The site's manager and every sensor node started, once the manager tracks with every camera: the nodes by
+    id."""
+    site.start_manager()
+    nodes = {sid: site.start_node(sid) for sid in site.ids}
+    _up_to_speed(site, obs)
+    return nodes
+
+
 # ---------------------------------------------------------------------------
 # kill -9 a sensor node
 # ---------------------------------------------------------------------------
@@ -280,9 +289,7 @@ def _up_to_speed(site: FaultSite, obs: Observer, need: set[str] | None = None, t
 def test_kill9_sensor_node_tracking_continues_and_it_rejoins(site: FaultSite) -> None:
     site.start_router()
     with observing(site) as obs:
-        site.start_manager()
-        nodes = {sid: site.start_node(sid) for sid in site.ids}
-        _up_to_speed(site, obs)
+        nodes = start_tracking(site, obs)
         victim = site.ids[1]
         rest = set(site.ids) - {victim}
         t_kill = time.monotonic()
@@ -329,10 +336,7 @@ def test_kill9_sensor_node_tracking_continues_and_it_rejoins(site: FaultSite) ->
 def test_router_restart_clients_reconnect_and_data_flows(site: FaultSite) -> None:
     router = site.start_router()
     with observing(site) as obs:
-        site.start_manager()
-        for sid in site.ids:
-            site.start_node(sid)
-        _up_to_speed(site, obs)
+        start_tracking(site, obs)
         router.signal(signal.SIGKILL)
         router.wait(5.0)
         t_down = time.monotonic()
@@ -624,10 +628,7 @@ def test_a_second_process_under_a_running_ones_id_is_refused(site: FaultSite) ->
     twice) exit with one clear line; the running ones go on, and tracking with them."""
     site.start_router()
     with observing(site) as obs:
-        site.start_manager()
-        for sid in site.ids:
-            site.start_node(sid)
-        _up_to_speed(site, obs)
+        start_tracking(site, obs)
         twins = [site.start_manager(), site.start_node(site.ids[0])]
         for twin in twins:
             assert twin.wait(20.0) == 1, twin.log()
