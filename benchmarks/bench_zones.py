@@ -72,6 +72,7 @@ from benchmarks.bench_load import (
     _wait_port,
     make_room,
     run_fleet,
+    stop_processes,
 )
 from common.codec import decode
 from common.keys import Keys
@@ -259,14 +260,7 @@ class Run:
                 self.cpu.setdefault(name, []).append((time.monotonic(), c, p.pid))
 
     def stop(self) -> None:
-        for p in reversed(list(self.procs.values())):
-            if p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-                try:
-                    p.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+        stop_processes(list(self.procs.values()))
 
 
 def fleet_argv(run: Run, duration_s: float) -> list[str]:

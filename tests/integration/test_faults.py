@@ -200,6 +200,24 @@ class FaultSite:
         cfg = config or self.manager_config()
         return self._spawn([sys.executable, "-m", "panostereo", "manager", "--config", str(cfg), *extra], "manager")
 
+    def zoned_site_file(
+        self, name: str, zones: dict[str, tuple[float, float]], reach_m: float, band_m: float | None = None
+    ) -> Path:
+        """A site file of this room's cameras and nodes, cut into ``zones`` (name -> its x span, the room's whole
+        depth), each zone's cameras those within ``reach_m`` of it."""
+        band = f"zone_band_m = {band_m}\n" if band_m is not None else ""
+        text = f'[site]\nname = "{name}"\nprefix = "{self.prefix}"\nrouter = "{self.endpoint}"\n{band}'
+        for cam in self.cams:
+            sid = cam.sensor_id
+            text += f'[[camera]]\nid = "{sid}"\nx_m = {cam.x_m}\ny_m = {cam.y_m}\n'
+            text += f'[[process]]\nname = "{sid}"\ncommand = "node"\nconfig = "{self.node_config(sid)}"\n'
+        for zone, (x0, x1) in zones.items():
+            polygon = f"[[{x0}, 0], [{x1}, 0], [{x1}, 10], [{x0}, 10]]"
+            text += f'[[zones]]\nname = "{zone}"\npolygon = {polygon}\nreach_m = {reach_m}\n'
+        path = self.tmp / "site.toml"
+        path.write_text(text)
+        return path
+
     def stop_all(self) -> None:
         for p in reversed(self.procs):
             p.stop()

@@ -64,20 +64,6 @@ def zone_site(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[FaultS
         yield s
 
 
-def _site_file(site: FaultSite) -> Path:
-    text = f'[site]\nname = "handoff"\nprefix = "{site.prefix}"\nrouter = "{site.endpoint}"\nzone_band_m = {BAND_M}\n'
-    for cam in site.cams:
-        text += f'[[camera]]\nid = "{cam.sensor_id}"\nx_m = {cam.x_m}\ny_m = {cam.y_m}\n'
-        text += (
-            f'[[process]]\nname = "{cam.sensor_id}"\ncommand = "node"\nconfig = "{site.node_config(cam.sensor_id)}"\n'
-        )
-    for name, (x0, x1) in ZONES.items():
-        text += f'[[zones]]\nname = "{name}"\npolygon = [[{x0}, 0], [{x1}, 0], [{x1}, 10], [{x0}, 10]]\nreach_m = 12\n'
-    path = site.tmp / "site.toml"
-    path.write_text(text)
-    return path
-
-
 def _manager(site: FaultSite, zone: str, site_file: Path, mid: str = "") -> ManagedProcess:
     """Manager ``mid`` (default: named like its zone) of ``zone``, run from the site file."""
     mid = mid or zone
@@ -162,6 +148,18 @@ def _sets_of(obs: Observer, since: float, managers: set[str]) -> list[TrackSet]:
         return [m for a, m in obs.sets if a >= since and m.manager_id in managers]
 
 
+def _judged(got: Handoffs, what: str) -> Handoffs:
+    """Print the run's figures and hold it to the goals: crossings happened, kept their ids, nobody twice."""
+    print(
+        f"{what}: {got.instants} person-instants, {got.twice} published twice, {got.gaps} gaps, "
+        f"{got.kept}/{got.crossings} crossings kept the id"
+    )
+    assert got.crossings >= 3, got
+    assert got.kept / got.crossings >= MIN_KEPT, got
+    assert got.twice / got.instants <= MAX_TWICE, got
+    return got
+
+
 def _everyone(site: FaultSite, obs: Observer) -> bool:
     """Every person was published at each of the last ten instants (the tracks confirmed and settled)."""
     seen = _matched(site, _sets_of(obs, time.monotonic() - 2.0, set(ZONES)))
@@ -173,7 +171,7 @@ def _everyone(site: FaultSite, obs: Observer) -> bool:
 
 def test_a_person_crossing_zones_keeps_the_id_and_is_published_once(zone_site: FaultSite) -> None:
     site = zone_site
-    site_file = _site_file(site)
+    site_file = site.zoned_site_file("handoff", ZONES, reach_m=12, band_m=BAND_M)
     site.start_router()
     with observing(site) as obs:
         for sid in site.ids:
@@ -186,14 +184,7 @@ def test_a_person_crossing_zones_keeps_the_id_and_is_published_once(zone_site: F
         t1 = time.monotonic()
         wait_for(lambda: time.monotonic() - t1 >= WATCH_S, WATCH_S + 5.0, "the crossings")
         seen = _matched(site, _sets_of(obs, t1, set(ZONES)))
-        got = _score(seen)
-        print(
-            f"handoff: {got.instants} person-instants, {got.twice} published twice, {got.gaps} gaps, "
-            f"{got.kept}/{got.crossings} crossings kept the id"
-        )
-        assert got.crossings >= 3, got
-        assert got.kept / got.crossings >= MIN_KEPT, got
-        assert got.twice / got.instants <= MAX_TWICE, got
+        got = _judged(_score(seen), "handoff")
         assert got.across, "no id was published by both managers: no handoff happened"
         _agent_sees_one_site(site, got.across)
 
@@ -224,7 +215,7 @@ def test_a_zones_standby_takes_over_its_people_with_their_ids(zone_site: FaultSi
     """The west zone has a leader and a standby; the leader is killed with SIGKILL while people cross: the standby
     publishes the west's people under the same ids, and the crossings go on, each person published once."""
     site = zone_site
-    site_file = _site_file(site)
+    site_file = site.zoned_site_file("handoff", ZONES, reach_m=12, band_m=BAND_M)
     site.start_router()
     with observing(site) as obs:
         for sid in site.ids:
@@ -244,11 +235,4 @@ def test_a_zones_standby_takes_over_its_people_with_their_ids(zone_site: FaultSi
         wait_for(lambda: _sets_of(obs, t_kill, {"west-b"}), 10.0, "the standby to publish")
         wait_for(lambda: time.monotonic() - t_kill >= WATCH_S / 2, WATCH_S, "crossings after the kill")
         managers = {*ZONES, "west-b"}
-        got = _score(_matched(site, _sets_of(obs, t1, managers)))
-        print(
-            f"handoff with a takeover: {got.instants} person-instants, {got.twice} published twice, {got.gaps} gaps, "
-            f"{got.kept}/{got.crossings} crossings kept the id"
-        )
-        assert got.crossings >= 3, got
-        assert got.kept / got.crossings >= MIN_KEPT, got
-        assert got.twice / got.instants <= MAX_TWICE, got
+        _judged(_score(_matched(site, _sets_of(obs, t1, managers))), "handoff with a takeover")

@@ -9,30 +9,15 @@ from pathlib import Path
 import pytest
 
 from common.site import load_site, zone_sensor_ids
-from tests.integration.test_faults import FaultSite, make_fault_site, observing, running
+from tests.integration.test_faults import make_fault_site, observing, running
 from tests.support import wait_for
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(120)]
 
 
-def _site_file(site: FaultSite) -> Path:
-    """The room cut in two along x = 5 m, its cameras placed where the detection files put them."""
-    text = f'[site]\nname = "zones"\nprefix = "{site.prefix}"\nrouter = "{site.endpoint}"\n'
-    for cam in site.cams:
-        text += f'[[camera]]\nid = "{cam.sensor_id}"\nx_m = {cam.x_m}\ny_m = {cam.y_m}\n'
-        text += (
-            f'[[process]]\nname = "{cam.sensor_id}"\ncommand = "node"\nconfig = "{site.node_config(cam.sensor_id)}"\n'
-        )
-    for name, (x0, x1) in (("west", (0.0, 5.0)), ("east", (5.0, 10.0))):
-        text += f'[[zones]]\nname = "{name}"\npolygon = [[{x0}, 0], [{x1}, 0], [{x1}, 10], [{x0}, 10]]\nreach_m = 1.0\n'
-    path = site.tmp / "site.toml"
-    path.write_text(text)
-    return path
-
-
 def test_a_zone_manager_fuses_only_the_cameras_that_see_into_its_zone(tmp_path: Path, request: pytest.FixtureRequest):  # type: ignore[no-untyped-def]
     with running(make_fault_site(tmp_path, prefix="zones"), request) as site:
-        site_file = _site_file(site)
+        site_file = site.zoned_site_file("zones", {"west": (0.0, 5.0), "east": (5.0, 10.0)}, reach_m=1.0)
         west = zone_sensor_ids(load_site(site_file), "west")
         assert 0 < len(west) < len(site.ids), west  # the room's east camera is no west camera
         site.start_router()
