@@ -78,7 +78,8 @@ def follows(mine: Sequence[TrackSnapshot], theirs: Sequence[Track], gate_m: floa
         xy = np.array([tr.xy for tr in own], dtype=np.float64)
         pairs = match_tracks(xy, np.array([tr.t_ns for tr in own], dtype=np.int64), left, gate_m)
         out.update({own[r].serial: left[c].track_id for r, c in pairs.items()})
-        left = [t for c, t in enumerate(left) if c not in set(pairs.values())]
+        used = set(pairs.values())
+        left = [t for c, t in enumerate(left) if c not in used]
     return out
 
 
