@@ -505,7 +505,7 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     seq: Seq
     stamp_ns: StampNs
     tick_ms: Millis
-    """Mean fusion tick time over the last interval."""
+    """Mean fusion tick time over the last interval (wall clock: what the tracks wait for)."""
     tick_p99_ms: Millis
     tick_rate_hz: Rate
     sensors_in_use: IdList = []
@@ -546,6 +546,9 @@ class ManagerStatus(_Msg, frozen=True, tag="pano.ManagerStatus"):
     """``standby``: it fuses, silent, ready to take over from its zone's leader."""
     leader_id: OptId = ""
     """The manager leading its zone as this one sees it ("": none, or no zone)."""
+    tick_cpu_ms: Millis = 0.0
+    """Mean CPU time of the fusing thread per tick over the interval: the fusion's own work, without the time it
+    waited for a core (``tick_ms`` includes that wait on a busy host)."""
 
 
 # ---------------------------------------------------------------------------

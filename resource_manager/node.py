@@ -326,7 +326,7 @@ class ManagerNode:
         self._declare(session)
         self.fetcher = threading.Thread(target=self._fetch_loop, name="sensor-info-fetch", daemon=True)
         self.fetcher.start()
-        self.tick_ms: list[float] = []
+        self.tick_times: list[tuple[float, float]] = []  # (wall clock, fusing thread's CPU) ms per tick
         self.status_seq = 0
         self.agreement = Agreement()
         self.ticks = 0
@@ -648,12 +648,12 @@ class ManagerNode:
         self._log_ended(absorbed.ptz_ended)
         if t_ns is None:
             return None
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         leading = self.leading
         with self.lock:
             result = self.fusion.step(t_ns)
             fused_s = time.perf_counter() - t0
-            self.tick_ms.append(fused_s * 1e3)
+            self.tick_times.append((fused_s * 1e3, (time.thread_time() - cpu0) * 1e3))
             published_set = self._own(result.trackset) if leading else self._follow()
             kept = [tr for tr in published_set.tracks if self.store.add(tr)] if published_set is not None else []
             if published_set is not None:
@@ -778,7 +778,8 @@ class ManagerNode:
             self.mid,
             self.status_seq,
             self.clock.now_ns(),
-            tick_ms=self.tick_ms,
+            tick_ms=[wall for wall, _ in self.tick_times],
+            tick_cpu_ms=[cpu for _, cpu in self.tick_times],
             period_s=period_s,
             result=result,
             known=known,
@@ -796,7 +797,7 @@ class ManagerNode:
             msg = msgspec.structs.replace(msg, zone=self.seat.zone, role=role, leader_id=self.seat.leader())
         self.pub_status.put(msg)
         self.sender_log.flush()
-        self.tick_ms.clear()
+        self.tick_times.clear()
         self.latencies.clear()
 
     def loop(self) -> None:

@@ -41,6 +41,8 @@ def test_bench_zones_quick_reports_every_figure(tmp_path: Path) -> None:
         assert "share" in run["border_crossings"], (name, run["border_crossings"])
         assert run["fleet"]["sent"] > 0 and _number(run["fleet"]["behind_ms_max"]), (name, run["fleet"])
         assert all(_number(m["tick_ms"]) for m in run["managers"].values()), (name, run["managers"])
+        # the fusing thread's CPU per tick: positive, and not more than the wall clock it took
+        assert all(0 < m["tick_cpu_ms"] <= m["tick_ms"] * 1.05 + 0.5 for m in run["managers"].values()), run
     assert list(result["single"]["managers"]) == ["mgr-site"]
     assert sorted(m["zone"] for m in result["zones"]["managers"].values()) == ["ne", "nw", "se", "sw"]
     assert result["single"]["accuracy"]["idf1"] > 0.2  # the single manager tracks the small hall at all
@@ -50,6 +52,7 @@ def test_bench_zones_quick_reports_every_figure(tmp_path: Path) -> None:
     assert "disturbed" in kill["other_zones"], kill
     cmp = result["zone_vs_single"]
     assert _number(cmp["mota_zones_minus_single"]) and _number(cmp["tick_ratio_max"]), cmp
+    assert _number(cmp["tick_cpu_ratio_max"]) and _number(cmp["tick_cpu_ratio_mean"]), cmp
     est = result["hosts_estimate"]
     assert est["as_measured"]["hosts"] >= 1 and est["own_frames_only"]["hosts"] >= 1, est
     assert set(result["targets"]) >= {"takeover_le_2s", "published_twice_le_0_5pct", "crossings_kept_ge_99pct"}

@@ -32,6 +32,7 @@ def _status(tick_ms: list[float], latencies: list[Latency]) -> ManagerStatus:
         7,
         123,
         tick_ms=tick_ms,
+        tick_cpu_ms=[0.5 * ms for ms in tick_ms],
         period_s=2.0,
         result=None,
         known=["p1"],
@@ -48,6 +49,7 @@ def test_status_of_a_period_with_ticks_and_published_tracksets() -> None:
     st = _status([10.0, 20.0, 30.0, 40.0], [_latency(100.0, 10.0), _latency(50.0, 30.0), _latency(80.0, 20.0)])
     assert (st.manager_id, st.seq, st.stamp_ns) == ("mgr1", 7, 123)
     assert st.tick_ms == pytest.approx(25.0) and st.tick_rate_hz == pytest.approx(2.0)
+    assert st.tick_cpu_ms == pytest.approx(12.5)  # the fusing thread's own CPU time, apart from the wall clock's
     assert 39.0 < st.tick_p99_ms <= 40.0
     assert st.decode_errors == 4 and st.dropped_msgs == 5 and st.tracks == 0
     assert st.sensors_expected == ["p1", "p2"] and st.refused_msgs == 3
@@ -61,5 +63,5 @@ def test_status_of_a_period_with_ticks_and_published_tracksets() -> None:
 
 def test_status_of_an_idle_period() -> None:
     st = _status([], [])
-    assert st.tick_ms == 0.0 and st.tick_rate_hz == 0.0 and st.latency is None
+    assert st.tick_ms == 0.0 and st.tick_cpu_ms == 0.0 and st.tick_rate_hz == 0.0 and st.latency is None
     assert st.sensors_in_use == [] and st.poses == []
