@@ -234,8 +234,11 @@ class Graveyard:
         how they look, and taken when above ``REID_MIN_LN_ODDS``.
 
         Where the two cannot be compared by colour (a node that sends none, or views neither was seen in), motion
-        and height alone decide only when nobody else (``others_xy``: the tracks already there) stands where the
-        lost person could be: in a crowd, where someone lost was last seen says little about who the new one is.
+        and height alone decide only when no one else (``others_xy``: the tracks already there) is as likely to be
+        the lost person. Within the motion model's ``turn_time_s`` of the last sighting, where the lost person
+        should be is still known: the new track must stand nearer to it than anyone tracked does (someone nearer is
+        where the lost track's person went, or whom it was following twice). Later, in a crowd, where someone lost
+        was last seen says little about who the new one is: nobody tracked may stand where they could be.
         """
         if not new or not self.lost:
             return []
@@ -253,8 +256,10 @@ class Graveyard:
                 if d2 > REID_GATE**2:
                     continue
                 colour = colour_ln(nt.looks, nt.look_s, g.looks, g.look_s)
-                if colour is None and bool((_mahalanobis2(others_xy, mean, cov) <= REID_GATE**2).any()):
-                    continue
+                if colour is None:
+                    rival = float(d2) if gap_s <= model.turn_time_s else REID_GATE**2
+                    if bool((_mahalanobis2(others_xy, mean, cov) <= rival).any()):
+                        continue
                 ln_same = -0.5 * (d2 + math.log(float(np.linalg.det(cov)))) - math.log(2.0 * math.pi)
                 ln_other = -math.log(area_m2 if area_m2 else math.pi * reach * reach)
                 score[i, j] = ln_same - ln_other + _height_ln(nt, g, model) + (colour or 0.0)

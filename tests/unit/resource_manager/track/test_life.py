@@ -88,8 +88,10 @@ def _lost(xy: tuple[float, float], looks: dict[str, np.ndarray] | None = None) -
     )
 
 
-def _new(xy: tuple[float, float], height: float = 1.8, looks: dict[str, np.ndarray] | None = None) -> NewTrack:
-    return NewTrack(3_000_000_000, np.array(xy), height, 0.001, looks or {}, dict.fromkeys(looks or {}, 5.0))
+def _new(
+    xy: tuple[float, float], height: float = 1.8, looks: dict[str, np.ndarray] | None = None, born_s: float = 3.0
+) -> NewTrack:
+    return NewTrack(int(born_s * 1e9), np.array(xy), height, 0.001, looks or {}, dict.fromkeys(looks or {}, 5.0))
 
 
 def _match(new: list[NewTrack], lost: Lost, others: np.ndarray | None = None) -> list[tuple[int, Lost]]:
@@ -117,3 +119,14 @@ def test_without_colour_a_crowd_where_the_lost_one_could_be_decides_nothing_colo
     assert _match([_new((2.3, 2.0), looks={"c": red})], _lost((2.0, 2.0), looks={"c": red}), others=someone)
     blue = np.array([0.0, 1.0])
     assert _match([_new((2.3, 2.0), looks={"c": blue})], _lost((2.0, 2.0), looks={"c": red})) == []
+
+
+def test_without_colour_the_nearest_to_where_the_lost_one_should_be_is_them_within_the_turn_time() -> None:
+    """Seen 2 s ago (the motion model's turn time), standing at (2, 2): a new track 0.1 m from there, with someone
+    tracked 1 m away, is that person back; if the one tracked stands nearer, or after longer, it is nobody's."""
+    someone = np.array([[3.0, 2.0]])
+    (hit,) = _match([_new((2.1, 2.0))], _lost((2.0, 2.0)), others=someone)
+    assert hit[1].track_id == "m-1"
+    assert _match([_new((2.1, 2.0))], _lost((2.0, 2.0)), others=np.array([[2.0, 2.05]])) == []  # someone nearer
+    assert _match([_new((2.1, 2.0), born_s=4.0)], _lost((2.0, 2.0)), others=someone) == []  # 3 s: anyone's
+    assert _match([_new((2.1, 2.0), born_s=4.0)], _lost((2.0, 2.0)))  # 3 s, nobody about: still them
