@@ -25,8 +25,9 @@ Figures (one JSON object on stdout, and in ``--out``):
 
 * per run: site-wide MOTA and IDF1 (``user_agent.evaluate`` against the fleet's ground truth, every manager's
   tracks together, match distance 0.5 m, scored at 10 Hz after ``--warmup``), each manager's median fusion tick,
-  wall clock and the fusing thread's CPU time (``ManagerStatus.tick_ms``, ``tick_cpu_ms``), and CPU use,
-  capture -> agent latency p50/p99, frames lost (the fleet's frames of a manager's cameras it did not receive),
+  wall clock and the fusing thread's CPU time (``ManagerStatus.tick_ms``, ``tick_cpu_ms``), CPU use, and where
+  its capture -> publish time went (``ManagerStatus.latency``: node, transport, wait, fusion, publish), capture ->
+  agent latency p50/p99, frames lost (the fleet's frames of a manager's cameras it did not receive),
   the share of person-instants published by more than one manager (a person matched to one manager's track with
   another manager's track, matched to nobody, beside them), and the border crossings that kept their track id
   (the person's matched track just before and just after);
@@ -550,7 +551,20 @@ def manager_figures(run: Run, mid: str, sent: dict[str, int], warm_ns: int) -> d
         "refused_msgs": last.refused_msgs if last else None,
         "refused_per_s": round(last.refused_msgs / run.span_s, 1) if last and run.span_s else None,
         "cpu_cores": _cpu_util(run, mid),
+        "latency_split_ms": _latency_split(warm),
     }
+
+
+LATENCY_PARTS = ("age_p50_ms", "node_ms", "transport_ms", "wait_ms", "fusion_ms", "publish_ms")
+"""Where a manager's capture -> publish time went (``ManagerStatus.latency``)."""
+
+
+def _latency_split(statuses: list[ManagerStatus]) -> dict[str, float] | None:
+    """Medians over the run's status periods of each part of a manager's capture -> publish time."""
+    parts = [st.latency for st in statuses if st.latency is not None]
+    if not parts:
+        return None
+    return {k: round(statistics.median(getattr(lat, k) for lat in parts), 2) for k in LATENCY_PARTS}
 
 
 def score_run(run: Run, cams: list[Cam], walkers: list[Walker], managers: dict[str, str]) -> dict[str, Any]:

@@ -43,6 +43,8 @@ def test_bench_zones_quick_reports_every_figure(tmp_path: Path) -> None:
         assert all(_number(m["tick_ms"]) for m in run["managers"].values()), (name, run["managers"])
         # the fusing thread's CPU per tick: positive, and not more than the wall clock it took
         assert all(0 < m["tick_cpu_ms"] <= m["tick_ms"] * 1.05 + 0.5 for m in run["managers"].values()), run
+        if name != "failover":  # every manager published (a standby's split is None)
+            assert all(m["latency_split_ms"]["wait_ms"] >= 0 for m in run["managers"].values()), run["managers"]
     assert list(result["single"]["managers"]) == ["mgr-site"]
     assert sorted(m["zone"] for m in result["zones"]["managers"].values()) == ["ne", "nw", "se", "sw"]
     assert result["single"]["accuracy"]["idf1"] > 0.2  # the single manager tracks the small hall at all
