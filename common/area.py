@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Protocol
 
 import msgspec
 import numpy as np
@@ -24,7 +24,7 @@ from common.arrays import BoolArray, FloatArray
 from common.config import ConfigStruct
 from common.errors import ConfigError
 
-__all__ = ["Area", "AreaSpec", "overlap_m2", "rectangle", "segments_intersect"]
+__all__ = ["Area", "AreaSpec", "Floor", "NearZone", "overlap_m2", "rectangle", "segments_intersect", "signed_depth"]
 
 XY = Annotated[list[float], msgspec.Meta(min_length=2, max_length=2)]
 POLYGON_CORNERS = 3
@@ -33,6 +33,8 @@ SEGMENT_POINTS = 2
 """An exit of two points is a segment; of more, a polygon."""
 MIN_AREA_M2 = 1e-6
 """A polygon enclosing less than this has no inside."""
+GRID_M = 0.25
+"""The grid step at which the extent of a :class:`NearZone` is measured."""
 
 
 class AreaSpec(ConfigStruct, frozen=True):
@@ -170,6 +172,116 @@ class Area:
             return np.zeros(0)
         a, b = _edges(self.polygon)
         return np.asarray(_segment_distance(xy, a, b).min(axis=1), dtype=np.float64)
+
+
+class Floor(Protocol):
+    """Where a tracker follows people, as its geometry is asked about: an :class:`Area`, or a :class:`NearZone`."""
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]: ...
+
+    @property
+    def area_m2(self) -> float: ...
+
+    def contains(self, xy: FloatArray) -> BoolArray: ...
+
+    def exit_distance(self, xy: FloatArray) -> FloatArray: ...
+
+    def boundary_distance(self, xy: FloatArray) -> FloatArray: ...
+
+
+def signed_depth(area: Area, xy: FloatArray) -> FloatArray:
+    """(n,) signed distance (m) of floor points ``xy`` (n, 2) to the area's border: positive inside, negative
+    outside."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if not len(xy):
+        return np.zeros(0)
+    d = area.boundary_distance(xy)
+    return np.asarray(np.where(area.contains(xy), d, -d), dtype=np.float64)
+
+
+class NearZone:
+    """The part of a site's area (anywhere, when the site declares none) within ``margin_m`` of a zone: the floor a
+    zone manager follows people on. Its border ``margin_m`` outside the zone is an exit (people walk out of what
+    this manager follows there, into a neighbour's); the site's exits stay exits.
+
+    Args:
+        zone: the zone's polygon.
+        margin_m: how far outside the zone people are still followed.
+        site: the site's area (None: it declares none).
+    """
+
+    def __init__(self, zone: Area, margin_m: float, site: Area | None = None) -> None:
+        self.zone, self.margin_m, self.site = zone, margin_m, site
+        x0, y0, x1, y1 = zone.bounds
+        x0, y0, x1, y1 = x0 - margin_m, y0 - margin_m, x1 + margin_m, y1 + margin_m
+        if site is not None:
+            sx0, sy0, sx1, sy1 = site.bounds
+            x0, y0, x1, y1 = max(x0, sx0), max(y0, sy0), min(x1, sx1), min(y1, sy1)
+        self._bounds = (x0, y0, x1, y1)
+        gx = np.arange(x0 + GRID_M / 2, x1, GRID_M)
+        gy = np.arange(y0 + GRID_M / 2, y1, GRID_M)
+        grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
+        self._area_m2 = float(self.contains(grid).sum()) * GRID_M * GRID_M if len(grid) else 0.0
+        self._edge_points = _offset_contour(zone, margin_m, site)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        return self._bounds
+
+    @property
+    def area_m2(self) -> float:
+        """Its extent, counted on a ``GRID_M`` grid."""
+        return self._area_m2
+
+    def _to_edge(self, xy: FloatArray) -> FloatArray:
+        """(n,) signed distance (m) to the contour ``margin_m`` outside the zone: positive within it."""
+        return signed_depth(self.zone, xy) + self.margin_m
+
+    def contains(self, xy: FloatArray) -> BoolArray:
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        near = self._to_edge(xy) >= 0.0
+        return np.asarray(near if self.site is None else near & self.site.contains(xy), dtype=bool)
+
+    def exit_distance(self, xy: FloatArray) -> FloatArray:
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if self.site is None:  # people come and go anywhere
+            return np.zeros(len(xy))
+        out = self.site.exit_distance(xy)
+        if len(self._edge_points) and len(xy):
+            d = np.hypot(xy[:, None, 0] - self._edge_points[None, :, 0], xy[:, None, 1] - self._edge_points[None, :, 1])
+            out = np.minimum(out, d.min(axis=1))
+        return np.asarray(out, dtype=np.float64)
+
+    def boundary_distance(self, xy: FloatArray) -> FloatArray:
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        edge = np.abs(self._to_edge(xy))
+        return np.asarray(edge if self.site is None else np.minimum(edge, self.site.boundary_distance(xy)))
+
+
+def _offset_contour(zone: Area, margin_m: float, site: Area | None) -> FloatArray:
+    """(k, 2) points every ``GRID_M`` / 2 or so along the contour ``margin_m`` outside ``zone`` (its edges moved
+    out, its corners rounded), those inside ``site`` only: where people walk out of a :class:`NearZone`."""
+    pts = zone.polygon if _signed_area(zone.polygon) > 0 else zone.polygon[::-1]  # counter-clockwise: out is right
+    a, b = _edges(pts)
+    step = GRID_M / 2
+    out = []
+    for p, q in zip(a, b, strict=True):
+        edge = q - p
+        length = float(np.hypot(*edge))
+        if length <= 0.0:
+            continue
+        normal = np.array([edge[1], -edge[0]]) / length
+        t = np.linspace(0.0, 1.0, max(2, math.ceil(length / step) + 1))
+        out.append(p + t[:, None] * edge + margin_m * normal)
+        angles = np.linspace(0.0, 2.0 * math.pi, max(8, math.ceil(2.0 * math.pi * margin_m / step)), endpoint=False)
+        out.append(p + margin_m * np.stack([np.cos(angles), np.sin(angles)], axis=1))
+    cand = np.concatenate(out) if out else np.zeros((0, 2))
+    # Of the moved edges and corner circles, the contour is what lies the margin from the zone, not nearer.
+    keep = np.abs(-signed_depth(zone, cand) - margin_m) <= step
+    if site is not None:
+        keep &= site.contains(cand)
+    return np.asarray(cand[keep], dtype=np.float64)
 
 
 def _triangles(pts: FloatArray) -> list[FloatArray]:

@@ -8,7 +8,7 @@ import math
 from collections.abc import Callable
 
 from common.angles import wrap_angle
-from common.area import Area
+from common.area import Area, AreaSpec, NearZone
 from resource_manager.config import ROOM_FIELDS, ManagerConfig
 from resource_manager.ingest.align import AlignParams
 from resource_manager.ingest.schedule import ScheduleParams, Scheduler
@@ -24,6 +24,7 @@ from resource_manager.views.build import FeetModel
 from resource_manager.views.settling import SettleParams, ViewTrust
 
 __all__ = [
+    "ZONE_REACH_BANDS",
     "align_params",
     "area",
     "feet_model",
@@ -37,6 +38,9 @@ __all__ = [
     "view_planner",
     "view_trust",
 ]
+
+ZONE_REACH_BANDS = 2.0
+"""A zone manager follows people up to this many of its bands (``zone_band_m``) outside its zone."""
 
 
 def align_params(config: ManagerConfig) -> AlignParams:
@@ -91,8 +95,20 @@ def pose_solver(config: ManagerConfig, sensors: SensorRegistry) -> PoseSolver:
 
 
 def scene(config: ManagerConfig) -> Scene:
-    """What the tracker knows of the site: its area, and how far its cameras see anyone (``[match]``)."""
-    return Scene(area=area(config), max_range_m=config.match.max_range_m)
+    """What the tracker knows of the site: its area, and how far its cameras see anyone (``[match]``).
+
+    A zone manager (``[manager] zone_polygon``) follows people within two bands of its zone only: in the first a
+    neighbour publishes them (resource_manager/serve/zones.py), the second leaves the time to start and name a
+    track before they reach it. Its cameras see farther; the people there are its neighbours' to follow.
+    """
+    m = config.manager
+    site_area = area(config)
+    if m.zone_polygon:
+        zone = Area.of(AreaSpec(polygon=m.zone_polygon), "manager.zone_polygon")
+        return Scene(
+            area=NearZone(zone, ZONE_REACH_BANDS * m.zone_band_m, site_area), max_range_m=config.match.max_range_m
+        )
+    return Scene(area=site_area, max_range_m=config.match.max_range_m)
 
 
 def match_params(config: ManagerConfig) -> MatchParams:

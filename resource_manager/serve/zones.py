@@ -32,8 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.area import Area
-from common.arrays import FloatArray
+from common.area import Area, signed_depth
 from common.schema import Track, TrackSet
 from resource_manager.serve.adopt import GATE_M, carried, match_tracks
 
@@ -41,16 +40,6 @@ __all__ = ["ZoneOwnership", "owns", "signed_depth"]
 
 NEIGHBOUR_STALE_S = 1.0
 """A neighbour's newest TrackSet older than this (its manager gone, or cut off) claims nobody."""
-
-
-def signed_depth(area: Area, xy: FloatArray) -> FloatArray:
-    """(n,) signed distance (m) of floor points ``xy`` (n, 2) to the area's border: positive inside, negative
-    outside."""
-    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-    if not len(xy):
-        return np.zeros(0)
-    d = area.boundary_distance(xy)
-    return np.where(area.contains(xy), d, -d)
 
 
 def owns(depth: float, band_m: float, *, had: bool, claimed: bool, shared_depth: float | None = None) -> bool:

@@ -14,7 +14,7 @@ from typing import Annotated, Literal
 
 import msgspec
 
-from common.area import Area
+from common.area import Floor
 from common.config import ConfigStruct
 
 __all__ = ["HEAD_HEIGHT_M", "HEAD_HEIGHT_SIGMA_M", "PERSON_RADIUS_M", "Scene", "TrackModel", "logit"]
@@ -140,7 +140,8 @@ class TrackModel(ConfigStruct, frozen=True):
 class Scene:
     """What the tracker knows of the site: where people can be, and how far its cameras see anyone."""
 
-    area: Area | None = None
-    """The floor people can be in and its exits (None: unbounded, people come and go anywhere)."""
+    area: Floor | None = None
+    """The floor people can be in and its exits (None: unbounded, people come and go anywhere); a zone manager's:
+    the part of it near its zone (:class:`common.area.NearZone`)."""
     max_range_m: float = 100.0
     """Cameras see nobody farther than this."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.area import Area, AreaSpec, overlap_m2, rectangle
+from common.area import Area, AreaSpec, NearZone, overlap_m2, rectangle, signed_depth
 from common.errors import ConfigError
 
 L_SHAPE = [[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [2.0, 2.0], [2.0, 4.0], [0.0, 4.0]]
@@ -77,3 +77,25 @@ def test_overlap_of_a_concave_polygon_counts_only_its_floor() -> None:
     assert overlap_m2(ell, ell) == pytest.approx(36.0)
     assert overlap_m2(ell, Area.of(rectangle(3.0, 3.0, 9.0, 9.0))) == pytest.approx(0.0, abs=1e-9)
     assert overlap_m2(ell, Area.of(rectangle(1.0, 1.0, 9.0, 9.0))) == pytest.approx(8.0 + 7.0)
+
+
+def test_near_zone_is_the_site_within_a_margin_of_the_zone_and_its_far_edge_an_exit() -> None:
+    """A 10 x 10 m site with one door on its west wall, a zone in its east half, followed 2 m beyond."""
+    site = Area.of(AreaSpec(polygon=[[0, 0], [10, 0], [10, 10], [0, 10]], exits=[[[0.0, 4.0], [0.0, 6.0]]]))
+    zone = Area.of(rectangle(5.0, 0.0, 10.0, 10.0))
+    near = NearZone(zone, 2.0, site)
+    xy = np.array([[7.0, 5.0], [3.5, 5.0], [2.5, 5.0], [11.0, 5.0]])
+    assert near.contains(xy).tolist() == [True, True, False, False]  # in, in the margin, beyond it, off the site
+    np.testing.assert_allclose(signed_depth(zone, xy[:3]), [2.0, -1.5, -2.5])
+    # the margin's far edge (x = 3) is an exit, the site's walls are not (only its door)
+    np.testing.assert_allclose(near.exit_distance(np.array([[3.5, 5.0], [9.5, 5.0]])), [0.5, 6.5])
+    np.testing.assert_allclose(near.boundary_distance(np.array([[3.5, 5.0], [9.5, 5.0]])), [0.5, 0.5])
+    assert near.bounds == (3.0, 0.0, 10.0, 10.0)
+    assert near.area_m2 == pytest.approx(70.0, rel=0.02)
+
+
+def test_near_zone_without_a_site_area_lets_people_come_and_go_anywhere() -> None:
+    near = NearZone(Area.of(rectangle(0.0, 0.0, 4.0, 4.0)), 1.0)
+    assert near.contains(np.array([[4.9, 2.0], [5.1, 2.0]])).tolist() == [True, False]
+    np.testing.assert_allclose(near.exit_distance(np.array([[2.0, 2.0]])), [0.0])
+    assert near.bounds == (-1.0, -1.0, 5.0, 5.0)
