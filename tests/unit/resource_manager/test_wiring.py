@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import msgspec
+import numpy as np
 import pytest
 
 from common.area import rectangle
@@ -88,6 +89,22 @@ def test_the_sites_area_reaches_the_tracker_and_bounds_the_planners_goals(tmp_pa
     scene = wiring.scene(cfg)
     assert scene.area is not None and scene.area.bounds == (-1.0, 0.0, 7.0, 5.0)
     assert wiring.view_planner(cfg).params.room == (-1.0, 0.0, 7.0, 5.0)
+
+
+def test_a_zone_manager_follows_people_within_two_bands_of_its_zone(tmp_path: Path) -> None:
+    """The zone x in [3, 7] of the site's area x in [-1, 7], band 0.5 m: people are followed from x = 2 on."""
+    manager = msgspec.structs.replace(
+        _config(tmp_path).manager,
+        zone="east",
+        zone_polygon=[[3.0, 0.0], [7.0, 0.0], [7.0, 5.0], [3.0, 5.0]],
+        zone_band_m=0.5,
+    )
+    cfg = msgspec.structs.replace(_config(tmp_path), manager=manager, area=rectangle(-1.0, 0.0, 7.0, 5.0))
+    area = wiring.scene(cfg).area
+    assert area is not None
+    assert area.contains(np.array([[2.1, 2.0], [1.9, 2.0], [7.5, 2.0]])).tolist() == [True, False, False]
+    assert area.bounds == (2.0, 0.0, 7.0, 5.0)
+    assert wiring.view_planner(cfg).params.room == (-1.0, 0.0, 7.0, 5.0)  # the planner still has the whole site
 
 
 def test_no_feet_model_without_a_feet_sigma(tmp_path: Path) -> None:
