@@ -36,7 +36,7 @@ from common.area import Area, signed_depth
 from common.schema import Track, TrackSet
 from resource_manager.serve.adopt import GATE_M, carried, match_tracks
 
-__all__ = ["ZoneOwnership", "owns", "signed_depth"]
+__all__ = ["ZoneOwnership", "owns"]
 
 NEIGHBOUR_STALE_S = 1.0
 """A neighbour's newest TrackSet older than this (its manager gone, or cut off) claims nobody."""

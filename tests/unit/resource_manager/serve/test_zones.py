@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.area import Area, rectangle
+from common.area import Area, rectangle, signed_depth
 from common.schema import Track, TrackSet
-from resource_manager.serve.zones import NEIGHBOUR_STALE_S, ZoneOwnership, owns, signed_depth
+from resource_manager.serve.zones import NEIGHBOUR_STALE_S, ZoneOwnership, owns
 from tests.unit.common.tracks import T0, published
 
 BAND = 1.0
