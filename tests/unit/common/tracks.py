@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
-from common.schema import Track
+from common.schema import Track, TrackState
 
 T0 = 1_700_000_000_000_000_000
 
 
-def published(track_id: str, x: float, y: float = 5.0, vx: float = 0.0, t_ns: int = T0, mid: str = "m") -> Track:
-    """A confirmed track of manager ``mid`` at (``x``, ``y``) moving at ``vx`` along x, placed to 0.1 m."""
+def published(
+    track_id: str,
+    x: float,
+    y: float = 5.0,
+    vx: float = 0.0,
+    t_ns: int = T0,
+    mid: str = "m",
+    state: TrackState = "confirmed",
+) -> Track:
+    """A track of manager ``mid`` (confirmed unless ``state`` says) at (``x``, ``y``) moving at ``vx`` along x,
+    placed to 0.1 m."""
     return Track(
         manager_id=mid,
         seq=1,
@@ -22,6 +31,6 @@ def published(track_id: str, x: float, y: float = 5.0, vx: float = 0.0, t_ns: in
         cov_xx_m2=0.01,
         cov_xy_m2=0.0,
         cov_yy_m2=0.01,
-        state="confirmed",
-        method="paper",
+        state=state,
+        method="triangulation",
     )

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from common.schema import Track, TrackSet
+from common.schema import Track, TrackSet, TrackState
+from tests.unit.common.tracks import published
 from user_agent.evaluate import HypPoint, MotAccumulator, evaluate_positions, hypotheses_from_tracksets
 from user_agent.groundtruth import GroundTruth, GtPoint
 
@@ -100,23 +101,8 @@ def test_swapped_identities_count_one_switch_each_and_lower_idf1() -> None:
     assert m.idf1 == pytest.approx(0.5)
 
 
-def _track(tid: str, x: float, vx: float, state: str = "confirmed") -> Track:
-    return Track(
-        manager_id="m",
-        seq=0,
-        stamp_ns=0,
-        track_id=tid,
-        x_m=x,
-        y_m=0.0,
-        height_m=1.7,
-        vx_mps=vx,
-        vy_mps=0.0,
-        cov_xx_m2=0.01,
-        cov_xy_m2=0.0,
-        cov_yy_m2=0.01,
-        state=state,  # type: ignore[arg-type]
-        method="triangulation",
-    )
+def _track(tid: str, x: float, vx: float, state: TrackState = "confirmed") -> Track:
+    return published(tid, x, y=0.0, vx=vx, t_ns=0, state=state)
 
 
 def test_tracksets_are_aligned_to_frames_with_velocity_and_span() -> None:

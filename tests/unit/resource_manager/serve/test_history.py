@@ -9,25 +9,11 @@ import pytest
 from common.errors import ConfigError
 from common.schema import Track
 from resource_manager.serve.history import IdAllocator, TrackLog, TrackStore, read_segments
+from tests.unit.common.tracks import published
 
 
 def _track(tid: str, t_ns: int, x: float = 0.0) -> Track:
-    return Track(
-        manager_id="m",
-        seq=1,
-        stamp_ns=t_ns,
-        track_id=tid,
-        x_m=x,
-        y_m=0.0,
-        height_m=1.7,
-        vx_mps=0.0,
-        vy_mps=0.0,
-        cov_xx_m2=0.01,
-        cov_xy_m2=0.0,
-        cov_yy_m2=0.01,
-        state="confirmed",
-        method="triangulation",
-    )
+    return published(tid, x, y=0.0, t_ns=t_ns)
 
 
 def test_id_allocator_never_repeats_across_crashes(tmp_path: Path) -> None:
