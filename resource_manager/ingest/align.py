@@ -35,7 +35,7 @@ from resource_manager.ingest.buffers import SensorBuffer
 
 __all__ = ["ALIGNED_COLUMNS", "AlignParams", "Aligned", "AlignedSighting", "align"]
 
-ALIGNED_COLUMNS = 7
+ALIGNED_COLUMNS = 9
 """Columns of :attr:`Aligned.values`: bearing, width, top and bottom elevations (rad), bottom and top rows of the
 box (px), confidence."""
 
@@ -74,8 +74,9 @@ class Aligned:
     """(m, :data:`ALIGNED_COLUMNS`) per blob: bearing (sensor-frame azimuth), angular width, top and bottom
     elevations (rad; the bottom NaN where the feet are not visible), the rows of its box's bottom and top edges (px;
     -1: unknown; a box cut by the image's lower border does not show the feet, whatever the node says, and one
-    whose top is row 0 has its head cut), and the node's confidence (a detector's score; the lower of the two
-    frames')."""
+    whose top is row 0 has its head cut), the node's confidence (a detector's score; the lower of the two
+    frames'), and the columns of its box's left and right edges (px; over two frames the outermost: a box cut by
+    the picture's side in either is not the person's whole width)."""
     local_id: IntArray
     """(m,) the nodes' 2D track ids."""
     hist: list[list[float]]
@@ -129,6 +130,8 @@ class _Columns:
                     max(v0 + b0.bbox_h_px, v1 + b1.bbox_h_px),
                     min(v0, v1),
                     min(b0.confidence, b1.confidence),
+                    min(b0.bbox_u_px, b1.bbox_u_px),
+                    max(b0.bbox_u_px + b0.bbox_w_px, b1.bbox_u_px + b1.bbox_w_px),
                 )
             )
             self.local_id.append(b1.local_id)
@@ -145,6 +148,8 @@ class _Columns:
                 b.bbox_v_px + b.bbox_h_px,
                 b.bbox_v_px,
                 b.confidence,
+                b.bbox_u_px,
+                b.bbox_u_px + b.bbox_w_px,
             )
         )
         self.local_id.append(b.local_id)

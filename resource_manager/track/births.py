@@ -169,8 +169,10 @@ def find_births(
     hypothesis; any unexplained blob may support one. ``min_evidence``: the log likelihood ratio a hypothesis
     needs (the prior and the deletion threshold).
     """
-    sure = views.subset(unexplained & (views.confidence >= model.birth_confidence))
-    found = _hypotheses(views, sure, params, tick) + _singles(views, sure, model.publish_sigma_m)
+    sure = unexplained & (views.confidence >= model.birth_confidence)
+    # A box the picture's side cuts does not say where its person's centre is: alone, it starts nobody.
+    whole = views.subset(sure & (views.side_cut == 0))
+    found = _hypotheses(views, views.subset(sure), params, tick) + _singles(views, whole, model.publish_sigma_m)
     # Nobody is started outside the area, nor within two person radii of a track: those go before they are scored.
     found = [f for f in found if _in_area(f.fix.xy, scene) and not _near(f.fix.xy, blockers.xy)]
     if not found:

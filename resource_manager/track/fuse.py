@@ -25,7 +25,7 @@ import numpy.typing as npt
 from common.arrays import FloatArray, IntArray
 from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.motion import MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
-from resource_manager.track.observe import bearing_var, feet_ln
+from resource_manager.track.observe import bearing_var, cut_bearing, feet_ln
 from resource_manager.views.blobs import Views
 
 __all__ = ["Slots", "fuse", "fuse_heights"]
@@ -104,10 +104,11 @@ def fuse(
     # floor distance (motion.ObservationBatch.padded's rows).
     obs = np.full((len(view), 6), math.nan)
     obs[:, :2] = origin = views.origin[view]
-    obs[:, 2] = views.bearing_rad[blob]
     weight = position_weight[view]
     dist = np.hypot(xs[slots.track, 0] - origin[:, 0], xs[slots.track, 1] - origin[:, 1])
-    obs[:, 3] = bearing_var(views, view, dist) / weight
+    bearing, cut_var = cut_bearing(views.bearing_rad[blob], views.width_rad[blob], views.side_cut[blob], dist)
+    obs[:, 2] = bearing
+    obs[:, 3] = (bearing_var(views, view, dist) + cut_var) / weight
     has = np.isfinite(views.mono_range_m[blob])
     obs[has, 4] = views.mono_range_m[blob[has]]
     feet_var = views.mono_sigma_m[blob[has]] ** 2 + views.sigma_xy_m[view[has]] ** 2 + views.point_var_m2[view[has]]
@@ -130,9 +131,11 @@ def fuse(
     line_rows, line_valid = np.zeros((k, 0, 4)), np.zeros((k, 0), dtype=bool)
     if line_views > 0:
         first = slice(0, line_views)
+        # A box the picture's side cuts has no whole width to use (0: no line).
+        width = np.where(views.side_cut[blob] != 0, 0.0, views.width_rad[blob])
         line_rows, line_valid = size_ratio_lines(
             slots.per_slot(origin)[:, first],
-            slots.per_slot(np.column_stack([views.bearing_rad[blob], views.width_rad[blob]]))[:, first],
+            slots.per_slot(np.column_stack([bearing, width]))[:, first],
             slots.used()[:, first],
             width_rel_sigma,
         )

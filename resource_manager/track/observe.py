@@ -7,7 +7,8 @@ view missed that person". The ratio multiplies independent terms:
 * **position**: the blob's bearing and, where a perspective camera sees the feet, its floor distance, against
   the track's predicted bearing and distance; the innovation covariance is the track's position covariance
   seen from the camera plus the measurement's own (the sensor's bearing error, the pose's error, the spread of
-  the point seen around the person's floor position). The density is a Gaussian with a wider outlier
+  the point seen around the person's floor position; a box the picture's side cuts is read as part of the
+  person: :func:`cut_bearing`). The density is a Gaussian with a wider outlier
   component (a badly drawn box still belongs to someone). A false detection is uniform over the camera's field
   of view and range, ``clutter_per_view`` of them per frame;
 * **head height**: the head-top height the blob's top implies at the track's distance, against the track's
@@ -46,6 +47,7 @@ __all__ = [
     "ViewScores",
     "Visibility",
     "bearing_var",
+    "cut_bearing",
     "feet_cut_prob",
     "feet_ln",
     "in_any_view",
@@ -123,6 +125,23 @@ def bearing_var(views: Views, rows: IntArray, dist: FloatArray) -> FloatArray:
     d = np.maximum(dist, MIN_RANGE_M)
     spread = views.point_var_m2[rows] + views.sigma_xy_m[rows] ** 2
     return np.asarray(views.sigma_rad[rows] ** 2 + spread / (d * d), dtype=np.float64)
+
+
+def cut_bearing(
+    bearing_rad: FloatArray, width_rad: FloatArray, side_cut: FloatArray, dist: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Blob bearings as bearings of a person at ``dist`` from the camera, and the variance that adds (all four
+    broadcast together).
+
+    A box the picture's side cuts (``side_cut``: :attr:`~resource_manager.views.blobs.Views.side_cut`) shows only
+    part of the person, its inner edge theirs: their centre lies beyond the box's by half the part of one person's
+    width (at that distance) the box lacks, give or take that much and a quarter of the width (people are not all
+    one width)."""
+    one = 2.0 * np.arctan(PERSON_RADIUS_M / np.maximum(dist, MIN_RANGE_M))
+    cut = np.abs(side_cut)
+    half_lack = 0.5 * np.maximum(one - width_rad, 0.0) * cut
+    bearing = np.asarray(bearing_rad + side_cut * half_lack, dtype=np.float64)
+    return bearing, np.asarray(half_lack * half_lack + cut * (0.25 * one) ** 2, dtype=np.float64)
 
 
 def visibility_many(
@@ -293,8 +312,9 @@ def score_views(
     pc = table.pos_cov
     s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, rows[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
-    blob_s_tt = s_tt[col].T
-    nu_t = wrap_angle(blobs.take(views.bearing_rad)[None, :] - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
+    bearing, cut_var = _blob_bearings(views, blobs, dist[col].T)
+    blob_s_tt = s_tt[col].T + cut_var
+    nu_t = wrap_angle(bearing - np.arctan2(d[:, :, 1], d[:, :, 0])[col].T)
     d2 = nu_t**2 / blob_s_tt
     gate = d2 <= model.gate_sigmas**2
     ln_clutter = np.log(np.maximum(model.clutter_per_view, blobs.counts) / blobs.pick(views.fov_width_rad))[col]
@@ -340,6 +360,16 @@ def score_views(
     ln_lr = np.full((n, m), -np.inf)
     ln_lr[track, blob] = entry
     return [ViewScores(lr, ln_miss[i], p_detect[i]) for i, lr in enumerate(blobs.split(ln_lr))]
+
+
+def _blob_bearings(views: Views, blobs: Subset, dist: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The bearings of ``blobs`` as of a person at ``dist`` ((n, m): each track's) from their cameras, and the
+    variance that adds (:func:`cut_bearing`; blobs the picture's side does not cut as they are)."""
+    bearing = blobs.take(views.bearing_rad)[None, :]
+    side_cut = blobs.take(views.side_cut)
+    if not side_cut.any():
+        return bearing, np.zeros_like(bearing)
+    return cut_bearing(bearing, blobs.take(views.width_rad)[None, :], side_cut[None, :], dist)
 
 
 def _feet_gates(

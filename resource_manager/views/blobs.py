@@ -138,6 +138,10 @@ class Views:
     top_cut: BoolArray
     """(m,) blobs whose top touches the image's upper border (a person close to the camera): their head-top height
     is only a lower bound."""
+    side_cut: FloatArray
+    """(m,) +1 or -1 for a blob whose box the picture's side cuts (a perspective camera's left or right border):
+    the way (the sign of a world-bearing change) in which the person goes on beyond the picture, so that the box's
+    centre is not theirs and its width is only part of theirs; 0: whole."""
     mono_range_m: FloatArray
     """(m,) floor distance of each blob from its feet elevation (:mod:`~resource_manager.views.mono`), NaN where
     the camera gives none."""
@@ -229,6 +233,7 @@ class Views:
             top_elev_rad=none,
             bottom_elev_rad=none,
             top_cut=np.zeros(0, dtype=bool),
+            side_cut=none,
             mono_range_m=none,
             mono_sigma_m=none,
             local_id=np.zeros(0, dtype=np.int64),

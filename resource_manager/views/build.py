@@ -39,6 +39,8 @@ BODY_TOP_MARGIN_M = 0.2
 """A blob on a robot body's bearing whose top is below the robot's camera + this is the body, not a person."""
 FEET_CUT_PX = 2.0
 """A box whose bottom is this close to the image's lower border does not show the feet."""
+SIDE_CUT_PX = 2.0
+"""A box whose left or right edge is this close to the picture's side is cut by it: not the person's whole width."""
 
 DOWNWARD_AXIS_Z = 0.9
 """A perspective camera whose optical axis has a vertical component above this (cos 26 deg) looks nearly
@@ -125,12 +127,32 @@ def build_views(
         top_elev_rad=tab[:, 2],
         bottom_elev_rad=tab[:, 3],
         top_cut=(tab[:, 5] >= 0.0) & (tab[:, 5] <= TOP_CUT_PX),
+        side_cut=_side_cut(tab, view_of, cams.models),
         mono_range_m=mono_range,
         mono_sigma_m=mono_sigma,
         local_id=aligned.local_id if take is None else aligned.local_id[take],
         confidence=tab[:, 6],
         hist_sqrt=hist_sqrt,
     )
+
+
+def _side_cut(tab: FloatArray, view_of: IntArray, models: list[PinholeModel | None]) -> FloatArray:
+    """(m,) :attr:`Views.side_cut` of the blobs (rows of ``tab``, in views ``view_of``) of each perspective camera
+    ``models`` (None: panoramic, never cut)."""
+    out = np.zeros(len(tab))
+    for i, model in enumerate(models):
+        if model is None:
+            continue
+        r = np.asarray(model.r, dtype=np.float64).reshape(3, 3)
+        # The world-bearing way of the picture's right: the z of (optical axis x image right), both in the world.
+        right = float(np.sign(r[2, 0] * r[0, 1] - r[2, 1] * r[0, 0]))
+        mine = view_of == i
+        left_cut = tab[:, 7] <= SIDE_CUT_PX
+        right_cut = tab[:, 8] >= model.width_px - SIDE_CUT_PX
+        # A box cut on both sides (a person filling the picture) keeps its centre: nothing says which way.
+        out[mine & left_cut & ~right_cut] = -right
+        out[mine & right_cut & ~left_cut] = right
+    return out
 
 
 def _gather(aligned: Aligned, rows: list[int]) -> IntArray | None:

@@ -273,6 +273,7 @@ class ViewSpec:
     mono_range_m: FloatArray | None = None
     mono_sigma_m: FloatArray | None = None
     top_cut: BoolArray | None = None
+    side_cut: FloatArray | None = None
     sigma_xy_m: float = 0.0
     point_var_m2: float = 0.0
     period_s: float = 0.0
@@ -314,6 +315,7 @@ def stack_views(specs: Sequence[ViewSpec]) -> Views:
         top_elev_rad=cat("top_elev_rad", 0.0),
         bottom_elev_rad=cat("bottom_elev_rad", math.nan),
         top_cut=cat("top_cut", 0.0) > 0,
+        side_cut=cat("side_cut", 0.0),
         mono_range_m=cat("mono_range_m", math.nan),
         mono_sigma_m=cat("mono_sigma_m", math.nan),
         local_id=np.concatenate([np.asarray(v.local_id, np.int64) for v in specs]) if specs else np.zeros(0, np.int64),

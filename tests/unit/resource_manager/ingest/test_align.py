@@ -7,7 +7,7 @@ import math
 import pytest
 
 from common.schema import Blob, Features, Sighting
-from resource_manager.ingest.align import Aligned, AlignParams, align
+from resource_manager.ingest.align import ALIGNED_COLUMNS, Aligned, AlignParams, align
 from resource_manager.ingest.buffers import Ingest
 
 MS = 1_000_000
@@ -106,7 +106,7 @@ def test_extrapolation_limits(t_ms: int, mode: str | None, bearing: float | None
     ing.add(frame(1, 100, [blob(1, 0.2)]))
     view = align_one(ing, t_ms)
     if mode is None:
-        assert view.sensor_ids == () and view.values.shape == (0, 7)  # it sits the tick out
+        assert view.sensor_ids == () and view.values.shape == (0, ALIGNED_COLUMNS)  # it sits the tick out
         return
     assert view.modes == (mode,)
     assert view.bearing_rad[0] == pytest.approx(bearing)

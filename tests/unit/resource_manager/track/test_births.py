@@ -83,3 +83,18 @@ def test_where_one_camera_alone_sees_its_feet_on_the_floor_start_a_person() -> N
 def test_one_camera_alone_starts_nobody_where_another_has_a_clear_view_or_the_feet_are_vague() -> None:
     assert _one_camera(p2_fov=None) == []  # p2 sees the spot and has nothing there: stereo's to start
     assert _one_camera(p2_fov=(0.0, 0.5), mono_sigma_m=2.0 * MODEL.publish_sigma_m) == []
+
+
+def test_a_box_the_pictures_side_cuts_starts_nobody_alone() -> None:
+    """Its centre is not its person's: it may support a birth, never define one."""
+    seen = view("p1", (0.0, 0.0), [(3.0, 2.0, 1.75, 1)])
+    p1 = dataclasses.replace(
+        seen, mono_range_m=np.array([math.hypot(3.0, 2.0)]), mono_sigma_m=np.array([0.05]), side_cut=np.array([1.0])
+    )
+    views = stack_views([dataclasses.replace(p1, point_var_m2=SIGMA_M**2)])
+    unexplained = np.ones(views.n, dtype=bool)
+    kw = {"scene": Scene(), "params": PARAMS, "tick": 0, "min_evidence": 0.0}
+    assert find_births(views, unexplained, NOBODY, MODEL, **kw) == []  # type: ignore[arg-type]
+    whole = stack_views([dataclasses.replace(seen, mono_range_m=p1.mono_range_m, mono_sigma_m=p1.mono_sigma_m,
+                                             point_var_m2=SIGMA_M**2)])  # fmt: skip
+    assert len(find_births(whole, unexplained, NOBODY, MODEL, **kw)) == 1  # type: ignore[arg-type]

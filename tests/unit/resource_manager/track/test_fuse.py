@@ -105,3 +105,29 @@ def test_a_distance_from_a_box_likely_cut_above_the_feet_does_not_drag_the_track
     )  # fmt: skip
     assert bool(x[0, 0] - 4.0 > 0.3) == pulled, x[0, 0]
     assert weight[0].min() > 0.5  # the bearings stay either way
+
+
+@pytest.mark.parametrize("flagged", [True, False])
+def test_a_box_the_pictures_side_cuts_is_read_as_part_of_its_person(flagged: bool) -> None:
+    """p1's picture ends across the person: its box shows a third of them, on the side of smaller bearings, so its
+    centre is off by a third of their width (0.15 m across at 3.6 m). Told so (``side_cut``), the update places
+    the person beyond the box's centre, near where p2's ray crosses theirs; not told, it believes the centre (and
+    the cut width's size-ratio line)."""
+    person = (3.0, 2.0, 1.75, 0)
+    p1 = view("p1", (0.0, 0.0), [person])
+    whole = float(p1.width_rad[0])
+    p1 = dataclasses.replace(
+        p1,
+        bearing_rad=p1.bearing_rad - whole / 3.0,
+        width_rad=np.array([whole / 3.0]),
+        side_cut=np.array([1.0 if flagged else 0.0]),
+    )
+    stack = stack_views([dataclasses.replace(v, point_var_m2=0.01) for v in (p1, view("p2", (8.0, 0.0), [person]))])
+    slots = Slots.of([[("p1", 0), ("p2", 0)]], stack)
+    xs, ps = np.array([[3.3, 1.7, 0.0, 0.0]]), np.diag([0.25, 0.25, 0.5, 0.5])[None]
+    x, _, weight = fuse(
+        xs, ps, slots, stack, position_weight=np.ones(2), outlier=(0.05, 10.0), width_rel_sigma=0.15, line_views=4
+    )
+    err = math.hypot(x[0, 0] - person[0], x[0, 1] - person[1])
+    assert (err < 0.1) if flagged else (err > 0.15), err
+    assert weight[0].min() > 0.5

@@ -205,3 +205,17 @@ def test_one_blank_frame_of_every_camera_does_not_end_the_tracks(kind: str) -> N
         res = fusion.step(t_ns + 1)
         ids.append([tr.track_id for tr in res.trackset.tracks if tr.state != "tentative"])
     assert ids[8] == ids[9] == ids[10] == ids[-1] == ["m1-1"]
+
+
+@pytest.mark.parametrize(("left_px", "width_px", "cut"), [(0.0, 40.0, 1.0), (900.0, 50.0, 0.0), (1880.0, 40.0, -1.0)])
+def test_a_box_the_pictures_side_cuts_says_which_way_its_person_goes_on(
+    left_px: float, width_px: float, cut: float
+) -> None:
+    """A camera at the origin looks along +x: the picture's left is the +y side (bearings grow), its right the -y
+    side. A box at the left border is of a person who goes on to larger bearings, one at the right to smaller."""
+    poses = {"c": PoseEstimate("c", 0.0, 0.0, Z_M, 0.0, "surveyed")}
+    infos = {"c": _pinhole_info("c", 0.0, 0.0, 0.0)}
+    aligned = _view_of([(6.0, 1.0)], (0.0, 0.0))
+    aligned.values[:, 7], aligned.values[:, 8] = left_px, left_px + width_px
+    views = build_views(aligned, poses, infos, lambda _s: 0.0035, feet=FEET)
+    assert views.side_cut.tolist() == [cut]
