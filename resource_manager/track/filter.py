@@ -141,7 +141,36 @@ class TrackFilter:
         if not len(rows):
             return []
         rows = np.asarray(rows, dtype=np.int64)
-        x, p, resp = fuse(
+        x, p, resp = self.fused(
+            rows,
+            assigned,
+            views,
+            position_weight=position_weight,
+            outlier=outlier,
+            width_rel_sigma=width_rel_sigma,
+            line_views=line_views,
+            feet_cut=feet_cut,
+            cut_reach_m=cut_reach_m,
+        )
+        self.x[rows], self.p[rows] = x, p
+        return [resp[k, : len(got)] for k, got in enumerate(assigned)]
+
+    def fused(
+        self,
+        rows: IntArray,
+        assigned: Sequence[Sequence[tuple[str, int]]],
+        views: Views,
+        *,
+        position_weight: FloatArray,
+        outlier: tuple[float, float],
+        width_rel_sigma: float,
+        line_views: int,
+        feet_cut: FloatArray | None = None,
+        cut_reach_m: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """What :meth:`fuse` would make of ``rows`` (a row may come more than once, with other blobs), without
+        keeping it: (states (k, 4), covariances (k, 4, 4), the weight (k, w) of each one's blobs)."""
+        return fuse(
             self.x[rows],
             self.p[rows],
             Slots.of(assigned, views),
@@ -153,8 +182,6 @@ class TrackFilter:
             feet_cut=feet_cut,
             cut_reach_m=cut_reach_m,
         )
-        self.x[rows], self.p[rows] = x, p
-        return [resp[k, : len(got)] for k, got in enumerate(assigned)]
 
     def fix(self, row: int, xy: FloatArray, cov: FloatArray) -> None:
         """Linear Kalman update of ``row`` with a floor position (the paper mode's pair fix)."""

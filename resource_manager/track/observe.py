@@ -60,21 +60,26 @@ HALF = 0.5
 """A distance farther than the gate is weighed only for a person whose feet are more than half hidden."""
 
 
+PER_VIEW_NDIM = 3
+"""A :class:`TrackTable` whose positions have this many dimensions gives each view its own (s, n, 2)."""
+
+
 @dataclass(frozen=True, slots=True)
 class TrackTable:
-    """The predicted tracks as arrays (built once per tick, shared by every view)."""
+    """The predicted tracks as arrays (built once per tick, shared by every view), or where each view should
+    look for them (:func:`score_views` only: one row per view)."""
 
     xy: FloatArray
-    """(n, 2) positions."""
+    """(n, 2) positions, or (s, n, 2): each view's."""
     pos_cov: FloatArray
-    """(n, 2, 2) position covariances."""
+    """(n, 2, 2) position covariances, or (s, n, 2, 2): each view's."""
     height: FloatArray
     """(n,) head-top heights."""
     height_var: FloatArray
 
     @property
     def n(self) -> int:
-        return int(self.xy.shape[0])
+        return int(self.xy.shape[-2])
 
 
 @dataclass(frozen=True, slots=True)
@@ -304,12 +309,13 @@ def score_views(
             ViewScores(np.full((n, k), -np.inf), ln_miss[i], p_detect[i]) for i, k in enumerate(blobs.counts.tolist())
         ]
     col = blobs.row_of  # each blob's view: (s, n) per-view quantities become (n, m) per-blob ones by [col].T
-    d = table.xy[None, :, :] - blobs.pick(views.origin)[:, None, :]
+    per_view = table.xy.ndim == PER_VIEW_NDIM  # each view's own place of each track
+    d = (blobs.pick(table.xy) if per_view else table.xy[None, :, :]) - blobs.pick(views.origin)[:, None, :]
     r2 = np.maximum(d[:, :, 0] ** 2 + d[:, :, 1] ** 2, MIN_RANGE_M**2)
     dist = np.sqrt(r2)
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
     unit = d / dist[:, :, None]  # d distance / d position
-    pc = table.pos_cov
+    pc = blobs.pick(table.pos_cov) if per_view else table.pos_cov
     s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, rows[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
     bearing, cut_var = _blob_bearings(views, blobs, dist[col].T)

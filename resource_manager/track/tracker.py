@@ -8,6 +8,8 @@ re-identified and ended.
    behind someone nearer (:func:`~.observe.visibility_many`).
 3. **Assign, per view**: how well each blob fits each track (:mod:`.observe`) gives one cost; the blobs are
    assigned one to one to tracks, or left to clutter and new people (Hungarian, scipy's ``linear_sum_assignment``).
+   Then again, each view against where the other views' assignments put each track
+   (:meth:`~.update.Updater.leave_one_out`): among people close together, the choice the other views agree with.
 4. **Update** each track with every view assigned to it (:mod:`.update`), its head height, looks and links.
 5. **Births and returns** from the blobs no track explains (:mod:`.births`): a new person next to a track no
    view detected is that track found again; the others start tentative (:mod:`.life`).
@@ -55,7 +57,7 @@ from resource_manager.track.life import (
 from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
-from resource_manager.track.observe import ViewScores, in_any_view, score_views, visibility_many
+from resource_manager.track.observe import TrackTable, ViewScores, in_any_view, score_views, visibility_many
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
 from resource_manager.views.blobs import Views
@@ -250,10 +252,20 @@ class Tracker:
             views, views.every(), self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m
         )
         scored = dict(zip(sids, scores, strict=True))
-        assigned: list[list[Assigned]] = [[] for _ in self.tracks]
-        for sid, sc in scored.items():
-            for i, j in _assign(sc):
-                assigned[i].append(Assigned(sid, j))
+        assigned = _assign_views(sids, scores, len(self.tracks))
+        # ...and again, each view against where the others put each track: a view's choice among people close
+        # together is the one that agrees with the other views (their first choices), not only with the motion.
+        xy, cov = self.updater.leave_one_out(self.filter, assigned, tick)
+        again = score_views(
+            views,
+            views.every(),
+            self.tracks,
+            TrackTable(xy, cov, table.height, table.height_var),
+            vis,
+            model=self.model,
+            max_range_m=self.scene.max_range_m,
+        )
+        assigned = _assign_views(sids, again, len(self.tracks))
         # 4. Update.
         predicted = self.filter.x.copy(), self.filter.p.copy()
         updated = self.updater.update(self.filter, self.tracks, assigned, tick, t_ns)
@@ -628,6 +640,15 @@ class Tracker:
 def _arc(a: float, b: float) -> float:
     """The angle between two bearings (rad, in [0, pi])."""
     return abs(angle_diff(a, b))
+
+
+def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], n: int) -> list[list[Assigned]]:
+    """Each of ``n`` tracks' blobs, one view at a time (:func:`_assign`)."""
+    out: list[list[Assigned]] = [[] for _ in range(n)]
+    for sid, sc in zip(sids, scores, strict=True):
+        for i, j in _assign(sc):
+            out[i].append(Assigned(sid, j))
+    return out
 
 
 def _assign(scores: ViewScores) -> list[tuple[int, int]]:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -137,6 +137,15 @@ class Updater:
         """Update filter ``rows`` with every view assigned to each (``gots``), all at once, with (``lines``) the
         size-ratio lines among each one's first ``2 * MAX_PAIR_CAMERAS`` views; returns each one's weight of each
         of its blobs (low: an outlier)."""
+        return filt.fuse(
+            rows,
+            [[(a.sensor_id, a.blob) for a in got] for got in gots],
+            tick.views,
+            **self._fuse_args(rows, tick, lines=lines),
+        )
+
+    def _fuse_args(self, rows: IntArray, tick: Tick, *, lines: bool) -> dict[str, Any]:
+        """The arguments of :meth:`TrackFilter.fuse` for filter ``rows`` at this tick."""
         m = self.model
         # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
         hidden = np.zeros((tick.views.n_views, len(rows)))
@@ -145,17 +154,50 @@ class Updater:
             known = rows < tick.visibility.feet_hidden.shape[1]
             hidden[:, known] = tick.visibility.feet_hidden[:, rows[known]]
             reach[:, known] = tick.visibility.cut_reach_m[:, rows[known]]
-        return filt.fuse(
-            rows,
-            [[(a.sensor_id, a.blob) for a in got] for got in gots],
-            tick.views,
-            feet_cut=feet_cut_prob(hidden, m),
-            cut_reach_m=reach,
-            position_weight=tick.position_weight,
-            outlier=(m.outlier_prob, m.outlier_scale),
-            width_rel_sigma=self.width_rel_sigma,
-            line_views=2 * MAX_PAIR_CAMERAS if lines else 0,
-        )
+        return {
+            "feet_cut": feet_cut_prob(hidden, m),
+            "cut_reach_m": reach,
+            "position_weight": tick.position_weight,
+            "outlier": (m.outlier_prob, m.outlier_scale),
+            "width_rel_sigma": self.width_rel_sigma,
+            "line_views": 2 * MAX_PAIR_CAMERAS if lines else 0,
+        }
+
+    def leave_one_out(
+        self, filt: TrackFilter, assigned: list[list[Assigned]], tick: Tick
+    ) -> tuple[FloatArray, FloatArray]:
+        """Where each view should look for each track (row for row with ``filt``), given what the other views
+        assigned to it: (s, n, 2) positions and (s, n, 2, 2) covariances, from the track's prediction updated with
+        the blobs ``assigned`` to it by every view but that one. Nothing is kept."""
+        views = tick.views
+        xy = np.repeat(filt.x[None, :, :2], views.n_views, axis=0)
+        cov = np.repeat(filt.p[None, :, :2, :2], views.n_views, axis=0)
+        # One batch: each track with all its blobs (for the views that gave it none), and without each view's.
+        rows: list[int] = []
+        gots: list[list[tuple[str, int]]] = []
+        left_out: list[int] = []
+        for i, got in enumerate(assigned):
+            for k in range(-1, len(got) if len(got) > 1 else 0):
+                rest = [(a.sensor_id, a.blob) for q, a in enumerate(got) if q != k]
+                if not rest:
+                    continue
+                rows.append(i)
+                gots.append(rest)
+                left_out.append(views.rows[got[k].sensor_id] if k >= 0 else -1)
+        if not rows:
+            return xy, cov
+        r, out = np.array(rows, dtype=np.int64), np.array(left_out, dtype=np.int64)
+        # Where to look needs the bearings and feet only: Eq. 2's size-ratio lines are left out (they cost a third).
+        x, p, _ = filt.fused(r, gots, views, **self._fuse_args(r, tick, lines=False))
+        every = out < 0
+        xy[:, r[every]], cov[:, r[every]] = x[every, :2], p[every, :2, :2]
+        # The view a track's only blob came from looks for it where it was predicted; the others, without their own.
+        for i, got in enumerate(assigned):
+            if len(got) == 1:
+                v = views.rows[got[0].sensor_id]
+                xy[v, i], cov[v, i] = filt.x[i, :2], filt.p[i, :2, :2]
+        xy[out[~every], r[~every]], cov[out[~every], r[~every]] = x[~every, :2], p[~every, :2, :2]
+        return xy, cov
 
     def _paper_update(
         self, filt: TrackFilter, row: int, got: list[Assigned], tick: Tick

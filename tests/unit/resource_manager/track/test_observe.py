@@ -88,3 +88,27 @@ def test_bearing_variance_falls_to_the_sensors_own_with_distance() -> None:
     assert var[0] > var[1] > var[2]
     assert var[2] == pytest.approx(math.radians(0.2) ** 2)
     assert var[0] == pytest.approx(math.radians(0.2) ** 2 + 0.01)  # the point's spread seen from 1 m
+
+
+def test_each_view_scores_its_blobs_against_its_own_place_of_a_track() -> None:
+    """A table with a place per view: p1 looks for the track at its person, p2 one metre off. p1's blob scores as
+    against a table of that one place; p2's, as against a table of the other."""
+    from resource_manager.track.observe import score_views
+    from resource_manager.track.state import TrackRecord
+
+    person = (3.0, 2.0, 1.7, 0)
+    views = stack_views([dataclasses.replace(view(s, o, [person]), point_var_m2=0.01)
+                         for s, o in (("p1", (0.0, 0.0)), ("p2", (8.0, 0.0)))])  # fmt: skip
+    at, off = _table((3.0, 2.0)), _table((3.0, 3.0))
+    per_view = TrackTable(np.stack([at.xy, off.xy]), np.stack([at.pos_cov, off.pos_cov]), at.height, at.height_var)
+    model, tracks = TrackModel(), [TrackRecord(serial=1, born_ns=0)]
+
+    def scored(table: TrackTable) -> list[float]:
+        vis = visibility_many(views, at, model, 50.0)
+        return [float(sc.ln_lr[0, 0]) for sc in score_views(views, views.every(), tracks, table, vis, model=model,
+                                                             max_range_m=50.0)]  # fmt: skip
+
+    (p1, p2), (p1_at, _), (_, p2_off) = scored(per_view), scored(at), scored(off)
+    assert per_view.n == 1
+    assert p1 == pytest.approx(p1_at) and p2 == pytest.approx(p2_off)
+    assert p1 > p2

@@ -49,3 +49,27 @@ def test_a_track_no_view_detects_coasts() -> None:
     tr = TrackRecord(serial=1, born_ns=0, confirmed=True, detected=True)
     out = Updater(TrackModel(), 0.1, "error_model").update(f, [tr], [[]], _tick((3.0, 2.0)), t_ns=5)
     assert not tr.detected and tr.misses == 1 and tr.state() == "coasting" and out.pair_entries == []
+
+
+def test_each_view_looks_for_a_track_where_the_other_views_put_it() -> None:
+    """Track 0 has a blob from every view: each view looks for it where the other two put it (on its person, from
+    0.36 m off). Track 1 has one blob, from p2: p2 looks for it where it was predicted, the others where p2's blob
+    puts it. Track 2 has none: every view looks where it was predicted. The filter keeps its prediction."""
+    f = TrackFilter(MotionModel(0.8, 2.0), 0.05)
+    x0 = np.array([[5.3, 1.7, 0.0, 0.0], [5.2, 1.2, 0.0, 0.0], [6.0, 4.0, 0.0, 0.0]])
+    f.add(x0, np.repeat(np.eye(4)[None] * 0.09, 3, axis=0), height=np.full(3, 1.7), height_var=np.full(3, 0.02),
+          logodds=np.full(3, 3.0), t_ns=0)  # fmt: skip
+    tick = _tick((5.0, 1.5))  # any two of the views cross there at 39 deg or more
+    rows = tick.views.rows
+    updater = Updater(TrackModel(), width_rel_sigma=0.1, pair_choice="error_model")
+    xy, cov = updater.leave_one_out(f, [[Assigned(s, 0) for s in sorted(CAMS)], [Assigned("p2", 0)], []], tick)
+    assert xy.shape == (3, 3, 2) and cov.shape == (3, 3, 2, 2)
+    for sid in CAMS:
+        assert math.hypot(xy[rows[sid], 0, 0] - 5.0, xy[rows[sid], 0, 1] - 1.5) < 0.15
+        assert np.trace(cov[rows[sid], 0]) < 0.2 * np.trace(f.p[0, :2, :2])
+    assert len({tuple(np.round(xy[v, 0], 9)) for v in range(3)}) == 3  # each without its own blob
+    assert xy[rows["p2"], 1] == pytest.approx(x0[1, :2]) and cov[rows["p2"], 1] == pytest.approx(f.p[1, :2, :2])
+    assert xy[rows["p1"], 1] == pytest.approx(xy[rows["p3"], 1])
+    assert not np.allclose(xy[rows["p1"], 1], x0[1, :2])  # p2's bearing moved it
+    assert xy[:, 2] == pytest.approx(np.repeat(x0[None, 2, :2], 3, axis=0))
+    assert f.x == pytest.approx(x0)  # nothing kept
