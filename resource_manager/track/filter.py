@@ -18,6 +18,7 @@ Arrays in, arrays out: every operation works on all the tracks it is given at on
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -123,65 +124,25 @@ class TrackFilter:
 
     # -- updates ---------------------------------------------------------------------------------------
     def fuse(
-        self,
-        rows: IntArray,
-        assigned: Sequence[Sequence[tuple[str, int]]],
-        views: Views,
-        *,
-        position_weight: FloatArray,
-        outlier: tuple[float, float],
-        width_rel_sigma: float,
-        line_views: int,
-        feet_cut: FloatArray | None = None,
-        cut_reach_m: FloatArray | None = None,
+        self, rows: IntArray, assigned: Sequence[Sequence[tuple[str, int]]], views: Views, **options: Any
     ) -> list[FloatArray]:
-        """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob) (:func:`.fuse.fuse`; ``feet_cut``
-        (s, len(rows)): the chance that a view's box of each is cut above the feet, ``cut_reach_m`` how far such a box
-        can read); returns each one's weight of each of its blobs (low: an outlier)."""
+        """Update ``rows`` with the blobs ``assigned`` to each (sensor id, blob), by :func:`.fuse.fuse` and its
+        ``options`` (``feet_cut`` (s, len(rows)): the chance that a view's box of each is cut above the feet,
+        ``cut_reach_m`` how far such a box can read, ...); returns each one's weight of each of its blobs (low: an
+        outlier)."""
         if not len(rows):
             return []
         rows = np.asarray(rows, dtype=np.int64)
-        x, p, resp = self.fused(
-            rows,
-            assigned,
-            views,
-            position_weight=position_weight,
-            outlier=outlier,
-            width_rel_sigma=width_rel_sigma,
-            line_views=line_views,
-            feet_cut=feet_cut,
-            cut_reach_m=cut_reach_m,
-        )
+        x, p, resp = self.fused(rows, assigned, views, **options)
         self.x[rows], self.p[rows] = x, p
         return [resp[k, : len(got)] for k, got in enumerate(assigned)]
 
     def fused(
-        self,
-        rows: IntArray,
-        assigned: Sequence[Sequence[tuple[str, int]]],
-        views: Views,
-        *,
-        position_weight: FloatArray,
-        outlier: tuple[float, float],
-        width_rel_sigma: float,
-        line_views: int,
-        feet_cut: FloatArray | None = None,
-        cut_reach_m: FloatArray | None = None,
+        self, rows: IntArray, assigned: Sequence[Sequence[tuple[str, int]]], views: Views, **options: Any
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """What :meth:`fuse` would make of ``rows`` (a row may come more than once, with other blobs), without
         keeping it: (states (k, 4), covariances (k, 4, 4), the weight (k, w) of each one's blobs)."""
-        return fuse(
-            self.x[rows],
-            self.p[rows],
-            Slots.of(assigned, views),
-            views,
-            position_weight=position_weight,
-            outlier=outlier,
-            width_rel_sigma=width_rel_sigma,
-            line_views=line_views,
-            feet_cut=feet_cut,
-            cut_reach_m=cut_reach_m,
-        )
+        return fuse(self.x[rows], self.p[rows], Slots.of(assigned, views), views, **options)
 
     def fix(self, row: int, xy: FloatArray, cov: FloatArray) -> None:
         """Linear Kalman update of ``row`` with a floor position (the paper mode's pair fix)."""
