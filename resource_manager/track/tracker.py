@@ -255,6 +255,8 @@ class Tracker:
         assigned = _assign_views(sids, scores, len(self.tracks))
         # ...and again, each view against where the others put each track: a view's choice among people close
         # together is the one that agrees with the other views (their first choices), not only with the motion.
+        # Existence (step 6) reads the first scoring: against the others' place, a view's fit would count their
+        # evidence again.
         xy, cov = self.updater.leave_one_out(self.filter, assigned, tick)
         again = score_views(
             views,
