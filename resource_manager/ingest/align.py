@@ -37,7 +37,7 @@ __all__ = ["ALIGNED_COLUMNS", "AlignParams", "Aligned", "AlignedSighting", "alig
 
 ALIGNED_COLUMNS = 9
 """Columns of :attr:`Aligned.values`: bearing, width, top and bottom elevations (rad), bottom and top rows of the
-box (px), confidence."""
+box (px), confidence, left and right columns of the box (px)."""
 
 
 @dataclass(frozen=True, slots=True)

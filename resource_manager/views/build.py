@@ -140,6 +140,7 @@ def _side_cut(tab: FloatArray, view_of: IntArray, models: list[PinholeModel | No
     """(m,) :attr:`Views.side_cut` of the blobs (rows of ``tab``, in views ``view_of``) of each perspective camera
     ``models`` (None: panoramic, never cut)."""
     out = np.zeros(len(tab))
+    left_cut = tab[:, 7] <= SIDE_CUT_PX
     for i, model in enumerate(models):
         if model is None:
             continue
@@ -147,7 +148,6 @@ def _side_cut(tab: FloatArray, view_of: IntArray, models: list[PinholeModel | No
         # The world-bearing way of the picture's right: the z of (optical axis x image right), both in the world.
         right = float(np.sign(r[2, 0] * r[0, 1] - r[2, 1] * r[0, 0]))
         mine = view_of == i
-        left_cut = tab[:, 7] <= SIDE_CUT_PX
         right_cut = tab[:, 8] >= model.width_px - SIDE_CUT_PX
         # A box cut on both sides (a person filling the picture) keeps its centre: nothing says which way.
         out[mine & left_cut & ~right_cut] = -right
