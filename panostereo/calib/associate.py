@@ -21,11 +21,22 @@ from common.arrays import BoolArray, FloatArray, IntArray
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose
 
-__all__ = ["Association", "HeightPrior", "WorldRays", "associate", "head_projectors", "triangulate", "world_rays"]
+__all__ = [
+    "Association",
+    "HeightPrior",
+    "WorldRays",
+    "associate",
+    "off_ray",
+    "triangulate",
+    "world_rays",
+]
 
 
 MIN_VIEWS = 2
 """A person needs two cameras' blobs (one camera alone places nobody here)."""
+RIDGE = 1e-9
+"""Added to a person's normal equations: blobs that fix no point (neither feet nor head in the picture) leave
+it finite."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,12 +121,22 @@ def head_projectors(head: FloatArray, plane: FloatArray) -> FloatArray:
     return np.where(on_plane, plane[:, :, None] * plane[:, None, :], across)
 
 
+def off_ray(ray: FloatArray, plane: FloatArray, v: FloatArray) -> FloatArray:
+    """Per blob, how far a point at ``v`` from the camera is from what the blob says of it (the norm of
+    :func:`head_projectors` times ``v``, without building the matrices): across the ray, or off the plane where
+    the blob has one (a zero ``plane``: none)."""
+    on_plane = np.any(plane != 0.0, axis=1)
+    across = np.linalg.norm(v - np.einsum("ni,ni->n", v, ray)[:, None] * ray, axis=1)
+    return np.where(on_plane, np.abs(np.einsum("ni,ni->n", v, plane)), across)
+
+
 def _solve(m: FloatArray, b: FloatArray, prior: HeightPrior) -> FloatArray:
     lam = 1.0 / prior.sigma_m**2
     m = m.copy()
     b = b.copy()
     m[..., 2, 2] += lam
     b[..., 2] += lam * prior.mean_m
+    m += RIDGE * np.eye(3)
     return np.asarray(np.linalg.solve(m, b[..., None])[..., 0], dtype=np.float64)
 
 
@@ -129,7 +150,7 @@ def _distances(r: WorldRays, rows: IntArray, person: FloatArray) -> tuple[FloatA
     af = np.einsum("ni,ni->n", vf, r.foot[rows])
     ah = np.einsum("ni,ni->n", vh, r.head[rows])
     df = np.linalg.norm(vf - af[:, None] * r.foot[rows], axis=1)
-    dh = np.linalg.norm(np.einsum("nij,nj->ni", head_projectors(r.head[rows], r.head_plane[rows]), vh), axis=1)
+    dh = off_ray(r.head[rows], r.head_plane[rows], vh)
     d = np.maximum(np.where(r.feet_ok[rows], df, 0.0), np.where(r.head_ok[rows], dh, 0.0))
     front = (af > 0) & (ah > 0)
     return d, front

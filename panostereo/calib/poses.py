@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial.transform import Rotation
 
 from common.arrays import FloatArray
 from common.pinhole import rotation_from_rvec
 
-__all__ = ["CameraPose", "pose_change", "rotation_z"]
+__all__ = ["CameraPose", "pose_change", "pose_offset", "rotation_z"]
 
 PINHOLE_PARAMS = 6
 LEVEL_PARAMS = 4
@@ -83,3 +84,15 @@ def pose_change(a: CameraPose, b: CameraPose) -> tuple[float, float]:
     rel = b.rotation @ a.rotation.T
     cos = (float(np.trace(rel)) - 1.0) / 2.0
     return dist, math.acos(max(-1.0, min(1.0, cos)))
+
+
+def pose_offset(guess: CameraPose, rotation: FloatArray, centre_m: FloatArray) -> FloatArray:
+    """The parameters that move ``guess`` to the pose (``rotation``, ``centre_m``): the inverse of
+    :meth:`CameraPose.moved` (a level camera's yaw change wrapped to +-pi)."""
+    shift = np.asarray(centre_m, dtype=np.float64) - guess.centre_m
+    if guess.level:
+        yaw = math.atan2(float(rotation[0, 1]), float(rotation[0, 0]))
+        turn = math.remainder(yaw - guess.yaw_rad, math.tau)
+        return np.concatenate([[turn], shift])
+    rvec = Rotation.from_matrix(np.asarray(rotation) @ guess.rotation.T).as_rotvec()
+    return np.concatenate([rvec, shift])

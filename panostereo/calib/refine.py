@@ -8,8 +8,10 @@
    the cameras placed so far.
 3. **Association and adjustment**, repeated (:mod:`.associate`, :mod:`.adjust`): with the current poses the
    blobs of each instant are grouped into people within a gate, then the free cameras and the people are
-   adjusted to fit; the gate narrows from ``start_gate_m`` to ``final_gate_m`` as the poses improve, and the
-   rounds stop when no camera moves any more.
+   adjusted to fit; the gate narrows from ``start_gate_m`` to ``final_gate_m`` as the poses improve, and on to
+   what the data calls for (a few sigmas of how well the rays meet), so that people closer together than a rough
+   gate are told apart and their wrong pairings stop pulling the poses; the rounds stop when no camera moves any
+   more at the narrowest gate.
 4. A camera that shares fewer than ``min_people`` person-instants with the others cannot be determined: it is
    reported and left as it was (and its blobs are left out, so a wrong pose does not pull the others).
 
@@ -20,20 +22,25 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
 from panostereo.calib.adjust import Tolerance, adjust, ray_distances
 from panostereo.calib.associate import Association, HeightPrior, associate, triangulate, world_rays
 from panostereo.calib.observe import CameraRays
-from panostereo.calib.poses import CameraPose, pose_change
+from panostereo.calib.poses import CameraPose, pose_change, rotation_z
 from panostereo.calib.search import anchor_people, find_pose
 
 __all__ = ["CameraReport", "RefineSettings", "Refined", "refine"]
 
 logger = logging.getLogger(__name__)
+
+SCHEDULED_ROUNDS = 3
+"""The gate narrows from ``start_gate_m`` to ``final_gate_m`` over this many rounds, and on at that pace to what
+the data calls for."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,13 +57,19 @@ class RefineSettings:
     start_gate_m: float = 0.6
     """The first association's gate (m at the person): what the search leaves of a camera's error."""
     final_gate_m: float = 0.3
-    """The last association's gate: a few sigmas of where a box's rays put a person."""
+    """A few sigmas of where a rough box's rays put a person; the gate at which the data's spread is measured."""
+    gate_per_residual: float = 3.0
+    """Below ``final_gate_m`` the gate narrows on to what the data calls for: this many times the median distance
+    of the rays from their people (about 3.5 sigmas), so that two people closer than ``final_gate_m`` are no
+    longer taken for one and their wrong pairings stop pulling the poses."""
+    min_gate_m: float = 0.02
+    """...but not below this (people sway; boxes are whole pixels)."""
     min_people: int = 30
     """A camera sharing fewer person-instants with the others is left as it was (undetermined)."""
     max_people: int = 5000
     """The adjustment uses at most this many person-instants, spread over the data: more cost time and move a
     camera by less than the people's own noise."""
-    max_rounds: int = 6
+    max_rounds: int = 10
     settled_m: float = 0.005
     settled_rad: float = math.radians(0.02)
     """Rounds stop once no camera moves more than this between two."""
@@ -173,15 +186,18 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
     placed = anchors + [i for i in others if i not in weak]
     if weak and len(placed) > len(anchors):
         support.update(_search(cams, poses, placed, weak, s))
+    # With none fixed every camera is adjusted, the people's mean height keeping the site from shrinking (the
+    # residuals are metres at the people); the whole is then put where the guesses are (:func:`_as_a_whole`).
     free = [i for i in range(n) if i not in fixed_idx]
     use = [True] * n
     rounds = 0
     assoc = None
     counts = np.zeros(n, dtype=np.int64)
     height = s.height
+    narrowing = _Narrowing(s)
+    settled = False
     for rounds in range(1, s.max_rounds + 1):
-        frac = min(1.0, (rounds - 1) / 3.0)
-        gate = s.start_gate_m * (s.final_gate_m / s.start_gate_m) ** frac
+        gate = narrowing.gate(rounds, settled, partial(_data_gate, cams, poses, use, height, s))
         assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
         counts = _person_counts(assoc, n)
         dropped = [i for i in free if use[i] and counts[i] < s.min_people]
@@ -195,10 +211,21 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         if not moving or assoc.member_camera.size == 0:
             break
         sub = _spread_people(assoc, s.max_people)
-        res = adjust(cams, poses, moving, sub, prior=height, tolerance=s.tolerance, scale_m=gate / 2.0)
+        res = adjust(
+            cams,
+            poses,
+            moving,
+            sub,
+            prior=height,
+            tolerance=s.tolerance,
+            scale_m=gate / 2.0,
+            guess=start,
+            scale_from_heights=not fixed_idx,
+        )
         change = [pose_change(poses[i], res.poses[i]) for i in moving]
         poses = res.poses
-        height = replace(height, mean_m=res.mean_height_m)
+        if fixed_idx:  # else the prior's mean holds the scale, and stays the prior's
+            height = replace(height, mean_m=res.mean_height_m)
         logger.info(
             "round %d: gate %.2f m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg",
             rounds,
@@ -209,10 +236,77 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
             max(c[0] for c in change),
             math.degrees(max(c[1] for c in change)),
         )
-        if frac >= 1.0 and all(d <= s.settled_m and a <= s.settled_rad for d, a in change):
+        settled = all(d <= s.settled_m and a <= s.settled_rad for d, a in change)
+        if settled and narrowing.narrowest:
             break
+    if not fixed_idx:
+        poses = _as_a_whole(start, poses, [i for i in range(n) if use[i]])
     reports = _report(cams, start, poses, fixed_idx, use, assoc, counts, s)
     return Refined(poses, reports, rounds)
+
+
+def _as_a_whole(start: list[CameraPose], poses: list[CameraPose], placed: list[int]) -> list[CameraPose]:
+    """The ``placed`` cameras' poses as one body, scaled about the floor, turned about the vertical and shifted on
+    it so that their centres are as near their starting guesses as they can be (least squares: the guesses as a
+    whole say where the site is, which way it faces and how big it is when no camera is surveyed). Every ray keeps
+    its direction, so the fit to the people is the same; the others are left as they are."""
+    if len(placed) < 2:  # noqa: PLR2004 - one camera: its own guess, nothing to fit
+        return poses
+    p = np.array([poses[i].centre_m for i in placed])
+    q = np.array([start[i].centre_m for i in placed])
+    pc, qc = p[:, :2].mean(axis=0), q[:, :2].mean(axis=0)
+    dp, dq = p[:, :2] - pc, q[:, :2] - qc
+    h = dp.T @ dq
+    turn = rotation_z(math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
+    turned = dp @ turn[:2, :2].T
+    size = float((np.sum(turned * dq) + p[:, 2] @ q[:, 2]) / (np.sum(dp * dp) + p[:, 2] @ p[:, 2]))
+    out = list(poses)
+    for i in placed:
+        c = poses[i].centre_m
+        xy = size * (turn[:2, :2] @ (c[:2] - pc)) + qc
+        out[i] = CameraPose(poses[i].rotation @ turn.T, np.array([*xy, size * c[2]]), poses[i].level)
+    return out
+
+
+class _Narrowing:
+    """The association's gate round by round: from ``start_gate_m`` to ``final_gate_m`` over ``SCHEDULED_ROUNDS``
+    rounds, then on at that pace down to what the data calls for (:func:`_data_gate`), and straight there once the
+    poses settle (the gradual narrowing is for cameras that still move)."""
+
+    def __init__(self, s: RefineSettings) -> None:
+        self.s = s
+        self.pace = (s.final_gate_m / s.start_gate_m) ** (1.0 / SCHEDULED_ROUNDS)
+        self.floor: float | None = None
+        self.narrowest = False
+        """The gate has reached what the data calls for."""
+
+    def gate(self, rounds: int, settled: bool, measure: Callable[[], float]) -> float:
+        s = self.s
+        gate = s.start_gate_m * self.pace ** (rounds - 1)
+        self.narrowest = self.narrowest or settled
+        if gate >= s.final_gate_m and not self.narrowest:
+            return gate
+        # Measured when the narrowing first goes below the rough gate, and again once it gets there (the poses
+        # have improved since).
+        if self.floor is None or self.narrowest or gate <= self.floor:
+            self.floor = measure()
+        self.narrowest = self.narrowest or gate <= self.floor
+        return self.floor if self.narrowest else gate
+
+
+def _data_gate(
+    cams: list[CameraRays], poses: list[CameraPose], use: list[bool], height: HeightPrior, s: RefineSettings
+) -> float:
+    """The gate the data calls for with the current poses: ``gate_per_residual`` times the median distance of the
+    blobs (the farther of their two rays) from the people they are put with at ``final_gate_m`` (measured there
+    every time, so that the gate does not shrink on its own narrower choices), between ``min_gate_m`` and
+    ``final_gate_m``."""
+    wide = associate(world_rays(cams, poses, use), s.final_gate_m, height, s.max_range_m)
+    dist = np.fmax(*ray_distances(cams, poses, wide, wide.person))  # a blob's distance, as the association's
+    dist = dist[np.isfinite(dist)]
+    if dist.size == 0:
+        return s.final_gate_m
+    return min(s.final_gate_m, max(s.min_gate_m, s.gate_per_residual * float(np.median(dist))))
 
 
 def _spread_people(assoc: Association, most: int) -> Association:

@@ -26,7 +26,7 @@ import numpy as np
 
 from common.arrays import FloatArray, IntArray
 from panostereo.calib.adjust import Tolerance
-from panostereo.calib.associate import HeightPrior, head_projectors
+from panostereo.calib.associate import HeightPrior, off_ray
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose, pose_change, rotation_z
 
@@ -128,7 +128,7 @@ class _Scorer:
             r = rays[self.blob]
             a = np.einsum("ni,ni->n", v, r)
             plane = self.plane if rays is c.head else np.zeros_like(r)
-            dist = np.linalg.norm(np.einsum("nij,nj->ni", head_projectors(r, plane), v), axis=1)
+            dist = off_ray(r, plane, v)
             d = np.maximum(d, np.where(ok[self.blob], dist, 0.0))
             front &= a > 0
         d = np.where(front, d, np.inf)

@@ -102,14 +102,25 @@ def write_site_dir(
     fps: float = 2.0,
     noise_px: float = 1.0,
     clutter_per_frame: int = 0,
+    companion_m: float = 0.0,
     seed: int = 0,
 ) -> Path:
     """A dataset site under ``root``: boxes from the ``truth`` cameras, calibrations from ``start``; ``clutter``:
-    random boxes where nobody is, in every camera. Returns the site file."""
+    random boxes where nobody is, in every camera; ``companion_m`` > 0: everyone walks with a companion this far
+    beside them (on their left), 0.2 m taller or shorter (twice the people). Returns the site file."""
     rng = np.random.default_rng(seed)
     (root / "calib").mkdir(parents=True, exist_ok=True)
     (root / "detections").mkdir(parents=True, exist_ok=True)
     paths = walkers(people, frames, fps, rng)
+    if companion_m > 0:  # side by side: to the left of where each is heading
+        heading = np.diff(paths[:, :, :2], axis=0, append=paths[-1:, :, :2] + (paths[-1:, :, :2] - paths[-2:-1, :, :2]))
+        left = np.stack([-heading[..., 1], heading[..., 0]], axis=-1)
+        left /= np.maximum(np.linalg.norm(left, axis=-1, keepdims=True), 1e-9)
+        beside = paths.copy()
+        beside[:, :, :2] += companion_m * left
+        beside[:, :, 2] += np.where(paths[0, :, 2] > 1.75, -0.2, 0.2)
+        paths = np.concatenate([paths, beside], axis=1)
+        people *= 2
     gt = ["frame,id,x_m,y_m"]
     for k in range(frames):
         gt += [f"{k + 1},{p + 1},{paths[k, p, 0]:.3f},{paths[k, p, 1]:.3f}" for p in range(people)]
