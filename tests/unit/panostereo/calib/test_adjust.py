@@ -8,7 +8,8 @@ import numpy as np
 
 from panostereo.calib.adjust import Tolerance, adjust, ray_distances
 from panostereo.calib.associate import HeightPrior, associate, world_rays
-from panostereo.calib.poses import pose_change
+from panostereo.calib.observe import CameraRays
+from panostereo.calib.poses import CameraPose, pose_change
 from tests.unit.panostereo.calib.test_associate import _rays
 
 
@@ -17,14 +18,20 @@ def _walk() -> np.ndarray:
     return np.column_stack([rng.uniform(2, 10, 40), rng.uniform(2, 10, 40), rng.uniform(1.6, 1.9, 40)])
 
 
+def _three(people: np.ndarray) -> tuple[list[CameraRays], list[CameraPose]]:
+    """Three true cameras' rays of ``people``, one person per instant (the association is unambiguous)."""
+    parts = [_rays(cid, people) for cid in ("cam-a", "cam-b", "cam-c")]
+    cams = [
+        type(c)(**{**{f: getattr(c, f) for f in c.__slots__}, "instant": np.arange(c.n, dtype=np.int64)})
+        for c, _ in parts
+    ]
+    return cams, [p[1] for p in parts]
+
+
 def test_a_turned_camera_is_adjusted_back_and_its_residual_drops() -> None:
     people = _walk()
-    parts = [_rays(cid, people) for cid in ("cam-a", "cam-b", "cam-c")]
-    cams, truth = [p[0] for p in parts], [p[1] for p in parts]
-    # One person per instant, so the association is unambiguous; cam-c starts 0.2 m and 1 deg off.
-    cams = [
-        type(c)(**{**{f: getattr(c, f) for f in c.__slots__}, "instant": np.arange(c.n, dtype=np.int64)}) for c in cams
-    ]
+    cams, truth = _three(people)
+    # cam-c starts 0.2 m and 1 deg off.
     start = list(truth)
     start[2] = truth[2].moved([0.0, math.radians(1.0), 0.0, 0.2, 0.0, 0.0])
     assoc = associate(world_rays(cams, start), 1.0, HeightPrior(), 100.0)
@@ -46,12 +53,7 @@ def test_people_of_unusual_heights_do_not_tilt_the_cameras() -> None:
     rng = np.random.default_rng(1)
     places = np.column_stack([rng.uniform(2, 10, 60), rng.uniform(2, 10, 60)])
     people = np.column_stack([places, np.where(np.arange(60) % 2 == 0, 1.5, 2.0)])
-    parts = [_rays(cid, people) for cid in ("cam-a", "cam-b", "cam-c")]
-    cams = [
-        type(c)(**{**{f: getattr(c, f) for f in c.__slots__}, "instant": np.arange(c.n, dtype=np.int64)})
-        for c, _ in parts
-    ]
-    truth = [p[1] for p in parts]
+    cams, truth = _three(people)
     assoc = associate(world_rays(cams, truth), 0.3, HeightPrior(), 100.0)
     res = adjust(cams, truth, [1, 2], assoc, prior=HeightPrior(), tolerance=Tolerance(), scale_m=0.15)
     for ci in (1, 2):
@@ -67,13 +69,7 @@ def test_the_jacobian_gives_the_costs_gradient() -> None:
 
     from panostereo.calib import adjust as adj
 
-    people = _walk()
-    parts = [_rays(cid, people) for cid in ("cam-a", "cam-b", "cam-c")]
-    cams = [
-        type(c)(**{**{f: getattr(c, f) for f in c.__slots__}, "instant": np.arange(c.n, dtype=np.int64)})
-        for c, _ in parts
-    ]
-    truth = [p[1] for p in parts]
+    cams, truth = _three(_walk())
     assoc = associate(world_rays(cams, truth), 1.0, HeightPrior(), 100.0)
     order = np.argsort(assoc.member_camera, kind="stable")
     mc, mp = assoc.member_camera[order], assoc.member_person[order]
