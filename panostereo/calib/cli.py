@@ -10,6 +10,7 @@ from typing import Any
 
 from common.errors import ConfigError
 from common.site import load_site
+from panostereo.calib import DEFAULT_INSTANTS
 from panostereo.calib.observe import from_recording, from_site
 from panostereo.calib.refine import RefineSettings, refine
 from panostereo.calib.site_out import write_refined_site
@@ -22,7 +23,7 @@ def refine_site(
     out: str | Path,
     *,
     fix: Sequence[str] = (),
-    frames: int = 0,
+    frames: int = DEFAULT_INSTANTS,
     recording: str | Path | None = None,
     settings: RefineSettings | None = None,
 ) -> dict[str, Any]:

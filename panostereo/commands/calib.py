@@ -25,6 +25,7 @@ from pathlib import Path
 
 from common.calib_formats import from_opencv_file, from_p_matrix, from_tsai_xml
 from common.errors import ConfigError
+from panostereo.calib import DEFAULT_INSTANTS
 
 __all__ = ["configure", "run"]
 
@@ -80,7 +81,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="a camera whose pose is surveyed: kept as it is, it holds the world frame (repeat for more)",
     )
     ref.add_argument(
-        "--frames", type=int, default=0, metavar="N", help="use at most N instants, evenly spread (0: all)"
+        "--frames",
+        type=int,
+        default=DEFAULT_INSTANTS,
+        metavar="N",
+        help=f"use at most N instants, evenly spread over the data (default {DEFAULT_INSTANTS}; 0: all)",
     )
     ref.add_argument(
         "--recording", default=None, metavar="REC.mcap", help="an MCAP recording of the live site (agent record)"
