@@ -170,32 +170,13 @@ def adjust(
     n_people = assoc.person.shape[0]
     by_cam = np.argsort(assoc.member_camera, kind="stable")  # each camera's memberships one slice
     mc, mi, mp = assoc.member_camera[by_cam], assoc.member_index[by_cam], assoc.member_person[by_cam]
-    m = mc.size
-    starts = np.cumsum([0] + [c.n for c in cams])
-    rows = starts[mc] + mi
-    foot = np.concatenate([c.foot for c in cams])[rows]
-    head = np.concatenate([c.head for c in cams])[rows]
-    feet_ok = np.concatenate([c.feet_ok for c in cams])[rows]
-    head_ok = np.concatenate([c.head_ok for c in cams])[rows]
-    plane = np.concatenate([np.zeros((c.n, 3)) if c.head_plane is None else c.head_plane for c in cams])[rows]
-    on_plane = np.any(plane != 0.0, axis=1)
-    f1, f2 = _basis(foot)
-    h1, h2 = _basis(head)
-    h1[on_plane] = plane[on_plane]  # a box's top row: only the distance off its plane counts
-    inv_sigma = np.array([1.0 / c.point_sigma_m for c in cams])[mc]
-    wf = inv_sigma * feet_ok
-    wh = inv_sigma * head_ok
-    wh2 = wh * ~on_plane
+    basis_f, basis_h, inv_sigma = _residual_rows(cams, mc, mi)
     _, _, inv_prior = _layout(poses, free, tolerance)
-    f_scale = max(1.0, scale_m * float(np.median(inv_sigma))) if m else 1.0
+    f_scale = max(1.0, scale_m * float(np.median(inv_sigma))) if mc.size else 1.0
     # Only the range of people's heights: the prior keeps a person whose rays do not fix a height finite, while a
     # tall person's rays are not pulled off them (the same tall person, seen at every instant, would tilt the
     # cameras).
     height_sigma = (prior.high_m - prior.low_m) / 2.0
-    # Each residual's rows in the camera's frame: a person's point v = R (X - C) is off its ray by B v.
-    basis_f = np.stack([f1 * wf[:, None], f2 * wf[:, None]], axis=1)  # (m, 2, 3)
-    basis_h = np.stack([h1 * wh[:, None], h2 * wh2[:, None]], axis=1)
-
     fit = _Projected(
         poses,
         free,
@@ -227,6 +208,30 @@ def adjust(
     pts = fit.state(sol.x).person
     mean_h = float(np.median(pts[:, 2])) if n_people else prior.mean_m
     return Adjusted(new, pts, mean_h, float(sol.cost), int(sol.nfev))
+
+
+def _residual_rows(cams: list[CameraRays], mc: IntArray, mi: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per membership (camera ``mc``, blob ``mi``), the rows B of its residuals in the camera's frame, whitened: a
+    person's point v = R (X - C) is off the blob's rays by B v, (m, 2, 3) for the feet and for the head (a box's
+    top row: one row, the distance off its plane); and each membership's 1 / point_sigma_m."""
+    starts = np.cumsum([0] + [c.n for c in cams])
+    rows = starts[mc] + mi
+    foot = np.concatenate([c.foot for c in cams])[rows]
+    head = np.concatenate([c.head for c in cams])[rows]
+    feet_ok = np.concatenate([c.feet_ok for c in cams])[rows]
+    head_ok = np.concatenate([c.head_ok for c in cams])[rows]
+    plane = np.concatenate([np.zeros((c.n, 3)) if c.head_plane is None else c.head_plane for c in cams])[rows]
+    on_plane = np.any(plane != 0.0, axis=1)
+    f1, f2 = _basis(foot)
+    h1, h2 = _basis(head)
+    h1[on_plane] = plane[on_plane]
+    inv_sigma = np.array([1.0 / c.point_sigma_m for c in cams])[mc]
+    wf = inv_sigma * feet_ok
+    wh = inv_sigma * head_ok
+    wh2 = wh * ~on_plane
+    basis_f = np.stack([f1 * wf[:, None], f2 * wf[:, None]], axis=1)
+    basis_h = np.stack([h1 * wh[:, None], h2 * wh2[:, None]], axis=1)
+    return basis_f, basis_h, inv_sigma
 
 
 def _times(q: FloatArray, r: FloatArray) -> FloatArray:
