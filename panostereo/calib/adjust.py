@@ -32,7 +32,7 @@ from scipy.sparse import csr_matrix
 
 from common.arrays import FloatArray, IntArray
 from common.pinhole import rotation_from_rvec
-from panostereo.calib.associate import Association, HeightPrior, off_ray
+from panostereo.calib.associate import RIDGE, Association, HeightPrior, off_ray
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose, pose_offset, rotation_z
 
@@ -50,8 +50,6 @@ STEP_TOLERANCE = 1e-6
 this fraction of their parameters' scale."""
 INNER_ROUNDS = 2
 """Reweighting rounds of each person's fit (the robust loss's weights from the last round's residuals)."""
-RIDGE = 1e-9
-"""Added to each person's normal equations: a person seen along one line only stays finite."""
 PARAM_STEP = 0.1
 """The optimiser's scale of each camera parameter, as a fraction of its install tolerance."""
 DIFF_STEP = 1e-6

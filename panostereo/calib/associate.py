@@ -22,6 +22,7 @@ from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose
 
 __all__ = [
+    "RIDGE",
     "Association",
     "HeightPrior",
     "WorldRays",
