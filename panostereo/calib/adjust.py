@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
-from common.arrays import FloatArray, IntArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.pinhole import rotation_from_rvec
 from panostereo.calib.associate import RIDGE, Association, HeightPrior, off_ray
 from panostereo.calib.observe import CameraRays
@@ -105,14 +105,8 @@ def ray_distances(
     """Per membership, the foot and head rays' distances from the person's points (m; NaN where not seen)."""
     rot = np.stack([p.rotation for p in poses])
     cen = np.stack([p.centre_m for p in poses])
-    mc, mi = assoc.member_camera, assoc.member_index
-    foot = np.concatenate([cams[c].foot[i][None] for c, i in zip(mc, mi, strict=True)]) if mc.size else np.zeros((0, 3))
-    head = np.concatenate([cams[c].head[i][None] for c, i in zip(mc, mi, strict=True)]) if mc.size else np.zeros((0, 3))
-    ok_f = np.array([cams[c].feet_ok[i] for c, i in zip(mc, mi, strict=True)], dtype=bool)
-    ok_h = np.array([cams[c].head_ok[i] for c, i in zip(mc, mi, strict=True)], dtype=bool)
-    plane = np.array(
-        [[0.0, 0.0, 0.0] if cams[c].head_plane is None else cams[c].head_plane[i] for c, i in zip(mc, mi, strict=True)]
-    ).reshape(-1, 3)
+    mc = assoc.member_camera
+    foot, head, ok_f, ok_h, plane = _members(cams, mc, assoc.member_index)
     p = person[assoc.member_person]
     feet = p.copy()
     feet[:, 2] = 0.0
@@ -169,7 +163,8 @@ def adjust(
     by_cam = np.argsort(assoc.member_camera, kind="stable")  # each camera's memberships one slice
     mc, mi, mp = assoc.member_camera[by_cam], assoc.member_index[by_cam], assoc.member_person[by_cam]
     basis_f, basis_h, inv_sigma = _residual_rows(cams, mc, mi)
-    _, _, inv_prior = _layout(poses, free, tolerance)
+    layout = _layout(poses, free, tolerance)
+    inv_prior = layout[2]
     f_scale = max(1.0, scale_m * float(np.median(inv_sigma))) if mc.size else 1.0
     # Only the range of people's heights: the prior keeps a person whose rays do not fix a height finite, while a
     # tall person's rays are not pulled off them (the same tall person, seen at every instant, would tilt the
@@ -183,7 +178,7 @@ def adjust(
         n_people,
         (basis_f, basis_h),
         held=guess if guess is not None else poses,
-        inv_prior=inv_prior,
+        layout=layout,
         f_scale=f_scale,
         height=(prior.mean_m, height_sigma),
         mean_height=(prior.mean_m, prior.sigma_m) if scale_from_heights else None,
@@ -208,17 +203,27 @@ def adjust(
     return Adjusted(new, pts, mean_h, float(sol.cost), int(sol.nfev))
 
 
+def _members(
+    cams: list[CameraRays], mc: IntArray, mi: IntArray
+) -> tuple[FloatArray, FloatArray, BoolArray, BoolArray, FloatArray]:
+    """Per membership (camera ``mc``, blob ``mi``): its foot and head rays (own frame), whether each is seen, and
+    its head's plane (zero where the head ray is a point's)."""
+    starts = np.cumsum([0] + [c.n for c in cams])
+    rows = starts[mc] + mi
+    return (
+        np.concatenate([c.foot for c in cams])[rows],
+        np.concatenate([c.head for c in cams])[rows],
+        np.concatenate([c.feet_ok for c in cams])[rows],
+        np.concatenate([c.head_ok for c in cams])[rows],
+        np.concatenate([np.zeros((c.n, 3)) if c.head_plane is None else c.head_plane for c in cams])[rows],
+    )
+
+
 def _residual_rows(cams: list[CameraRays], mc: IntArray, mi: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Per membership (camera ``mc``, blob ``mi``), the rows B of its residuals in the camera's frame, whitened: a
     person's point v = R (X - C) is off the blob's rays by B v, (m, 2, 3) for the feet and for the head (a box's
     top row: one row, the distance off its plane); and each membership's 1 / point_sigma_m."""
-    starts = np.cumsum([0] + [c.n for c in cams])
-    rows = starts[mc] + mi
-    foot = np.concatenate([c.foot for c in cams])[rows]
-    head = np.concatenate([c.head for c in cams])[rows]
-    feet_ok = np.concatenate([c.feet_ok for c in cams])[rows]
-    head_ok = np.concatenate([c.head_ok for c in cams])[rows]
-    plane = np.concatenate([np.zeros((c.n, 3)) if c.head_plane is None else c.head_plane for c in cams])[rows]
+    foot, head, feet_ok, head_ok, plane = _members(cams, mc, mi)
     on_plane = np.any(plane != 0.0, axis=1)
     f1, f2 = _basis(foot)
     h1, h2 = _basis(head)
@@ -275,14 +280,15 @@ class _Projected:
         basis: tuple[FloatArray, FloatArray],
         *,
         held: list[CameraPose],
-        inv_prior: FloatArray,
+        layout: tuple[IntArray, IntArray, FloatArray],
         f_scale: float,
         height: tuple[float, float],
         mean_height: tuple[float, float] | None = None,
     ) -> None:
         self.poses, self.free, self.mc, self.mp, self.n_people = poses, free, mc, mp, n_people
         self.basis_f, self.basis_h = basis
-        self.held, self.inv_prior, self.f_scale = held, inv_prior, f_scale
+        self.held, self.f_scale = held, f_scale
+        self.offset, self.width, self.inv_prior = layout
         self.height_mean, self.height_sigma = height
         self.mean_height = mean_height
         """(mean, spread) the people's mean height is held at (one residual, as firm as n people measure it)."""
@@ -296,7 +302,6 @@ class _Projected:
         ]
         # Sums over each person's memberships, as one sparse product.
         self.summing = csr_matrix((np.ones(m), (mp, np.arange(m))), shape=(n_people, m))
-        self.offset, self.width, _ = _layout(poses, free, Tolerance())
         self.n_params = int(self.width.sum())
         self._last: tuple[bytes, _State] | None = None
 

@@ -80,9 +80,10 @@ def test_the_jacobian_gives_the_costs_gradient() -> None:
         )
         e1, e2 = adj._basis(d)
         basis.append(np.stack([e1, e2], axis=1) * 10.0)  # 1 / point_sigma_m
+    offset, width, _ = adj._layout(truth, [1, 2], Tolerance())
     fit = adj._Projected(
         truth, [1, 2], mc, mp, assoc.person.shape[0], (basis[0], basis[1]), held=truth,
-        inv_prior=np.ones(12), f_scale=1e6, height=(1.75, 0.5),
+        layout=(offset, width, np.ones(12)), f_scale=1e6, height=(1.75, 0.5),
     )  # fmt: skip
     x = np.random.default_rng(2).normal(scale=0.01, size=12)
     cost = lambda z: 0.5 * float(np.sum(fit.residuals(z) ** 2))  # noqa: E731 - the cost scipy minimises
