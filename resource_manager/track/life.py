@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from common.area import Floor
 from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
@@ -36,6 +37,7 @@ __all__ = [
     "Graveyard",
     "Lost",
     "Separation",
+    "entry_velocity",
     "existence_caps",
     "exit_reach_m",
     "left_area",
@@ -87,6 +89,55 @@ def at_exit(xy: FloatArray, sigma_m: FloatArray, model: TrackModel, scene: Scene
     inside = scene.area.contains(ring.reshape(-1, 2)).reshape(n, EDGE_DIRECTIONS)
     unseen = ~coverage(ring.reshape(-1, 2)).reshape(n, EDGE_DIRECTIONS)
     return np.asarray(near | (inside & unseen).any(axis=1) | ~coverage(xy), dtype=bool)
+
+
+def entry_velocity(
+    xy: FloatArray, sigma_m: FloatArray, model: TrackModel, scene: Scene
+) -> tuple[FloatArray, FloatArray]:
+    """(n, 2) mean and (n, 2, 2) covariance of the velocity of people first seen at ``xy`` (position sigma
+    ``sigma_m``), whom nobody saw there before.
+
+    Away from exits nothing says which way a new person walks: zero mean, ``speed_sigma_mps`` on each axis.
+    Within reach of an exit (:func:`exit_reach_m`) they came in through it: their velocity across it points
+    inward, so that component is the walking speed's normal law cut to its inward half (mean σ_v √(2/π), variance
+    σ_v² (1 - 2/π)); the component along the exit is unchanged. Of two people coming in one behind the other, a
+    stride apart, the first one's track is then predicted on into the area rather than on the spot where the
+    second one appears.
+    """
+    n = len(xy)
+    sv = model.speed_sigma_mps
+    mean = np.zeros((n, 2))
+    cov = np.repeat((sv * sv * np.eye(2))[None], n, axis=0)
+    if scene.area is None or n == 0:
+        return mean, cov
+    inward = _away_from_exits(xy, scene.area)
+    entering = (np.hypot(*inward.T) > 0.0) & (scene.area.exit_distance(xy) <= exit_reach_m(sigma_m, model))
+    u = inward[entering]
+    mean[entering] = sv * math.sqrt(2.0 / math.pi) * u
+    cov[entering] -= (sv * sv * 2.0 / math.pi) * np.einsum("ni,nj->nij", u, u)
+    return mean, cov
+
+
+ENTRY_PROBE_M = 0.05
+"""Step of the finite differences that find which way is away from the nearest exit."""
+CLEAR_SLOPE = 0.5
+"""A distance's slope is 1 where one exit is nearest; where it is less than this, no way is clearly away."""
+
+
+def _away_from_exits(xy: FloatArray, area: Floor) -> FloatArray:
+    """(n, 2) unit directions in which the distance to the nearest exit grows: the way into the area from the exit
+    a person stands by. Zero where it does not grow at the distance's slope of 1 (no exits; on an exit; two
+    exits as near): no way is the way in."""
+    h = ENTRY_PROBE_M
+    steps = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+    d = area.exit_distance((xy[:, None, :] + steps[None]).reshape(-1, 2)).reshape(len(xy), 4)
+    d[~np.isfinite(d).all(axis=1)] = 0.0  # no exit anywhere: no way in
+    grad = np.stack([d[:, 0] - d[:, 1], d[:, 2] - d[:, 3]], axis=1) / (2.0 * h)
+    norm = np.hypot(*grad.T)
+    ok = norm > CLEAR_SLOPE
+    out = np.zeros_like(grad)
+    out[ok] = grad[ok] / norm[ok, None]
+    return out
 
 
 def existence_caps(exits: BoolArray, model: TrackModel, scene: Scene) -> FloatArray:

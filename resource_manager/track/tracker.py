@@ -50,6 +50,7 @@ from resource_manager.track.life import (
     NewTrack,
     Separation,
     at_exit,
+    entry_velocity,
     existence_caps,
     left_area,
     match_returns,
@@ -419,13 +420,17 @@ class Tracker:
         w = min((we for _, we in tick.weights.values()), default=1.0)
         logodds = [min(logit(m.p_birth) + w * h.evidence, logit(m.p_max)) for h in hyps]
         gots = [[Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
-        prior = np.diag([PRIOR_SIGMA_M**2, PRIOR_SIGMA_M**2, m.speed_sigma_mps**2, m.speed_sigma_mps**2])
         xs = np.array([[h.fix.xy[0], h.fix.xy[1], 0.0, 0.0] for h in hyps])
+        priors = np.repeat(np.diag([PRIOR_SIGMA_M**2, PRIOR_SIGMA_M**2, 0.0, 0.0])[None], len(hyps), axis=0)
+        sigma = np.array([math.sqrt(max(float(np.linalg.eigvalsh(h.fix.cov)[-1]), 0.0)) for h in hyps])
+        # At the first tick nobody was looked for before: who stands by an exit may as well be leaving.
+        v_mean, v_cov = entry_velocity(xs[:, :2], sigma, m, self.scene if self._tick > 1 else Scene())
+        xs[:, 2:], priors[:, 2:, 2:] = v_mean, v_cov
         bests = [r.best for r in self.updater.rank_many(xs[:, :2], [sorted(h.blobs) for h in hyps], tick)]
         first = self.filter.n
         self.filter.add(
             xs,
-            np.repeat(prior[None, :, :], len(hyps), axis=0),
+            priors,
             height=np.full(len(hyps), m.height_prior_m),
             height_var=np.full(len(hyps), m.height_sigma_m**2),
             logodds=np.array(logodds),

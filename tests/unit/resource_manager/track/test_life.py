@@ -14,6 +14,7 @@ from resource_manager.track.life import (
     NewTrack,
     Separation,
     at_exit,
+    entry_velocity,
     existence_caps,
     left_area,
     match_returns,
@@ -37,6 +38,24 @@ def test_people_may_leave_at_a_door_outside_the_area_or_out_of_the_cameras_sight
     caps = existence_caps(near, MODEL, Scene(area=ROOM))
     out, inside = logit(MODEL.p_max), logit(MODEL.p_max_inside)
     assert caps.tolist() == pytest.approx([out, inside, inside, out])
+
+
+def test_a_person_first_seen_by_the_door_is_taken_to_walk_in_one_elsewhere_to_walk_anywhere() -> None:
+    xy = np.array([[4.0, 0.2], [1.0, 0.2], [4.0, 3.0]])  # the door (on y = 0); a wall; the middle
+    sigma = np.full(3, 0.1)
+    sv = MODEL.speed_sigma_mps
+    mean, cov = entry_velocity(xy, sigma, MODEL, Scene(area=ROOM))
+    assert mean[0] == pytest.approx([0.0, sv * math.sqrt(2.0 / math.pi)])  # inward: the half of the law that comes in
+    assert cov[0] == pytest.approx(np.diag([sv**2, sv**2 * (1.0 - 2.0 / math.pi)]))  # across the door only
+    assert mean[1:] == pytest.approx(np.zeros((2, 2)))  # nobody comes in through a wall, or in the middle
+    assert cov[1:] == pytest.approx(np.repeat(np.eye(2)[None] * sv**2, 2, axis=0))
+    corner = Area.of(AreaSpec(polygon=ROOM.polygon))  # no exits declared: the whole boundary is one
+    mean, _ = entry_velocity(np.array([[7.8, 3.0], [4.0, 5.8]]), np.full(2, 0.1), MODEL, Scene(area=corner))
+    assert mean[0, 0] < 0.0 and mean[1, 1] < 0.0  # in from the east wall, and from the north wall
+    assert mean[0, 1] == pytest.approx(0.0) and mean[1, 0] == pytest.approx(0.0)
+    closed = Area.of(AreaSpec(polygon=ROOM.polygon, exits=[]))
+    for scene in (Scene(), Scene(area=closed)):  # no area, so no exits known; a room nobody enters
+        assert not entry_velocity(xy, sigma, MODEL, scene)[0].any()
 
 
 def test_a_track_surely_outside_the_area_has_left_one_at_its_edge_has_not() -> None:

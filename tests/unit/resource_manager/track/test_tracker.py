@@ -328,3 +328,26 @@ def test_two_people_pulled_onto_one_spot_for_a_moment_keep_their_ids() -> None:
     assert len(before) == 1 and set(after) == set(before), (before, after)
     before, after = _walkers_whose_detections_land_on_one(apart_time_s=0.5)
     assert len(before) == 1 and set(after) != set(before), (before, after)
+
+
+def test_a_person_first_seen_at_the_door_is_predicted_to_walk_in_one_first_seen_mid_room_to_stand() -> None:
+    """At 2 fps the first frame of a new person says nothing of how they walk. Someone who appears by the door
+    came in through it: their track is predicted on into the room (a second person coming in behind them, where
+    they stood a frame ago, is not taken for them). Someone who appears mid-room may walk any way."""
+    from resource_manager.fusion import Batch, Fusion
+    from tests.unit.resource_manager.synth import features_for, info_for
+
+    fusion = Fusion(_with_area(AreaSpec(polygon=ROOM.polygon, exits=[[[3.0, 0.0], [5.0, 0.0]]])))
+    rng = np.random.default_rng(4)
+    infos = [info_for(c) for c in SQUARE]
+    velocity = {}
+    for tick in range(1, 4):
+        t_ns = T0 + tick * 500_000_000
+        people = [Person(1.0, 4.5, 1.65)] + ([Person(4.0, 0.3, 1.75), Person(6.0, 3.0, 1.7)] if tick == 3 else [])
+        fusion.absorb(Batch(features=[features_for(c, people, SQUARE, t_ns, tick, rng) for c in SQUARE], infos=infos))
+        fusion.step(t_ns)
+    for tr in fusion.tracker.snapshots():
+        velocity[round(float(tr.x[0]))] = tr.x[2:]
+    assert set(velocity) == {1, 4, 6}, velocity  # the one there from the start, the one at the door, the one mid-room
+    assert velocity[4][1] > 0.5 and abs(velocity[4][0]) < 0.1  # walking in, across the door
+    assert np.hypot(*velocity[6]) < 0.1 and np.hypot(*velocity[1]) < 0.1
