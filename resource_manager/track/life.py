@@ -11,7 +11,7 @@ What the strong multi-view trackers do to keep one id per person, as pure functi
   that track found again (it lagged, or its views were hidden), not a new person.
 * **One person, two tracks** (:class:`Separation`): two tracks closer than two people can stand are one person
   followed twice only if no view has given each its own blob for ``evidence_time_s`` (both published: for
-  ``apart_time_s`` once some view has shown them as two people); the older keeps its id.
+  ``apart_time_s`` once some view has shown them as two people); the one reported now keeps its id (else the older).
 * **Re-identification** (:class:`Graveyard`): a confirmed track that ended inside the area, not through an exit,
   is remembered for ``reid_window_s``; a newly confirmed track that appeared where that person could have walked
   since (``max_speed_mps``) and whose height and colour looks agree takes the old id (one assignment over all

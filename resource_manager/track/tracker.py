@@ -501,8 +501,9 @@ class Tracker:
     # -- ends and ids ---------------------------------------------------------------------------------
     def _prune(self, t_ns: int, coverage: Coverage, merged: list[tuple[int, int]]) -> list[str]:
         """End the tracks whose existence is gone, whose position is lost, whose height is no person's, whose
-        person left the area, or that follow another track's person (the older keeps its id). Confirmed tracks
-        that ended inside the area, not at an exit, are remembered for re-identification."""
+        person left the area, or that follow another track's person (the one reported now keeps its id, else the
+        older). Confirmed tracks that ended inside the area, not at an exit, are remembered for
+        re-identification."""
         m, f = self.model, self.filter
         if not self.tracks:
             return []
@@ -512,8 +513,13 @@ class Tracker:
         exits = at_exit(f.x[:, :2], sigma, m, self.scene, coverage)
         keep: list[int] = []
         ended: list[str] = []
-        # Surest first: a confirmed track before a tentative one, then the oldest.
-        for i in sorted(range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, self.tracks[r].serial)):
+        # Surest first: a confirmed track before a tentative one, one reported now (there and placed) before one
+        # that is not (its person lost: it may not take the id of the track that follows them now), then the oldest.
+        shown = (f.logodds >= 0.0) & (sigma <= m.publish_sigma_m)
+        surest = sorted(
+            range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, not shown[r], self.tracks[r].serial)
+        )
+        for i in surest:
             tr = self.tracks[i]
             lost = float(f.logodds[i]) < delete or float(sigma[i]) > m.lost_sigma_m
             twice = next((k for k in keep if self._same_person(i, k, t_ns)), None)

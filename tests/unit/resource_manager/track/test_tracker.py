@@ -14,6 +14,7 @@ from common.angles import wrap_angle
 from common.area import AreaSpec, rectangle
 from common.schema import Blob, Features
 from resource_manager.config import ManagerConfig
+from resource_manager.track.model import TrackModel
 from tests.unit.resource_manager.scenario import T0_NS as T0
 from tests.unit.resource_manager.scenario import make_config, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person
@@ -351,3 +352,33 @@ def test_a_person_first_seen_at_the_door_is_predicted_to_walk_in_one_first_seen_
     assert set(velocity) == {1, 4, 6}, velocity  # the one there from the start, the one at the door, the one mid-room
     assert velocity[4][1] > 0.5 and abs(velocity[4][0]) < 0.1  # walking in, across the door
     assert np.hypot(*velocity[6]) < 0.1 and np.hypot(*velocity[1]) < 0.1
+
+
+def test_of_one_person_followed_twice_the_track_shown_now_stays_not_an_older_one_that_lost_them() -> None:
+    """Two confirmed tracks on one spot for a second, moving alike, never told apart: one person followed twice.
+    The older one lost its person a while ago (1.5 m vague, less likely there than not: not reported); the younger
+    has followed them since, and is what is published on them. The younger stays: ending it would hand the
+    person's published id to a track that no longer knew where they were."""
+    from resource_manager.stereo.match import MatchParams
+    from resource_manager.stereo.matchers import get_matcher
+    from resource_manager.track.births import BirthParams
+    from resource_manager.track.state import TrackRecord
+    from resource_manager.track.tracker import Tracker
+
+    births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
+    tracker = Tracker(TrackModel(), births, new_id=lambda: "unused")
+    t_ns = 10**10
+    x = np.array([[4.0, 3.0, 0.5, 0.0], [4.1, 3.0, 0.5, 0.0]])
+    p = np.array([np.diag([1.5**2, 1.5**2, 0.3, 0.3]), np.diag([0.1**2, 0.1**2, 0.1, 0.1])])
+    tracker.filter.add(
+        x, p, height=np.full(2, 1.7), height_var=np.full(2, 0.01), logodds=np.array([-1.0, 9.0]), t_ns=t_ns
+    )
+    tracker.tracks = [
+        TrackRecord(serial=1, born_ns=0, track_id="m-1", confirmed=True),
+        TrackRecord(serial=2, born_ns=t_ns // 2, track_id="m-2", confirmed=True, detected=True),
+    ]
+    tracker.separation.since[(1, 2)] = t_ns - 10**9  # together for a second
+    merged: list[tuple[int, int]] = []
+    ended = tracker._prune(t_ns, lambda xy: np.ones(len(xy), dtype=bool), merged)
+    assert ended == ["m-1"] and merged == [(1, 2)]
+    assert [tr.track_id for tr in tracker.tracks] == ["m-2"]
