@@ -183,9 +183,34 @@ class Association:
         return np.bincount(self.member_camera, minlength=n_cameras).astype(np.int64)
 
 
-def associate(r: WorldRays, gate_m: float, prior: HeightPrior, max_range_m: float) -> Association:
-    """Group the blobs of each instant into people (see the module docstring)."""
+def _grown(
+    r: WorldRays, rows: IntArray, free: IntArray, *, pair: tuple[int, int], person: FloatArray, gate: FloatArray
+) -> list[int]:
+    """The blobs (of ``rows``, among ``free``) that join the pair's person: each other camera's nearest blob whose
+    rays pass within its camera's gate of the person, nearest first."""
+    if not free.size:
+        return []
+    d, front = _distances(r, rows[free], np.broadcast_to(person, (free.size, 3)).copy())
+    d = d / gate[r.camera[rows[free]]]
+    fit = front & (d <= 1.0)
+    taken = {int(r.camera[rows[pair[0]]]), int(r.camera[rows[pair[1]]])}
+    out = []
+    for j in free[fit][np.argsort(d[fit], kind="stable")]:
+        cam = int(r.camera[rows[j]])
+        if cam not in taken:
+            taken.add(cam)
+            out.append(int(j))
+    return out
+
+
+def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_range_m: float) -> Association:
+    """Group the blobs of each instant into people (see the module docstring). ``gate_m``: one gate, or one per
+    camera (indexed like ``r.camera``): a blob passes when its rays pass within its own camera's gate, and pairs
+    are taken best first by their distances in gates."""
     m_all, b_all = _normals(r, np.arange(r.camera.size, dtype=np.int64))
+    gate = np.asarray(gate_m, dtype=np.float64)
+    if gate.ndim == 0:
+        gate = np.full(int(r.camera.max()) + 1 if r.camera.size else 0, float(gate))
     order = np.argsort(r.instant, kind="stable")
     bounds = np.flatnonzero(np.diff(r.instant[order])) + 1
     persons: list[FloatArray] = []
@@ -203,9 +228,9 @@ def associate(r: WorldRays, gate_m: float, prior: HeightPrior, max_range_m: floa
         x = _solve(m_all[pa] + m_all[pb], b_all[pa] + b_all[pb], prior)
         da, fa = _distances(r, pa, x)
         db, fb = _distances(r, pb, x)
-        cost = np.maximum(da, db)
+        cost = np.maximum(da / gate[r.camera[pa]], db / gate[r.camera[pb]])
         reach = np.maximum(np.hypot(*(x[:, :2] - r.centre[pa, :2]).T), np.hypot(*(x[:, :2] - r.centre[pb, :2]).T))
-        ok = (cost <= gate_m) & fa & fb & (x[:, 2] >= prior.low_m) & (x[:, 2] <= prior.high_m) & (reach <= max_range_m)
+        ok = (cost <= 1.0) & fa & fb & (x[:, 2] >= prior.low_m) & (x[:, 2] <= prior.high_m) & (reach <= max_range_m)
         cand = np.flatnonzero(ok)
         if cand.size == 0:
             continue
@@ -215,22 +240,12 @@ def associate(r: WorldRays, gate_m: float, prior: HeightPrior, max_range_m: floa
             a, b = ia[c], ib[c]
             if used[a] or used[b]:
                 continue
-            group = [a, b]
-            person = x[c]
             free = np.flatnonzero(~used)
-            free = free[(free != a) & (free != b)]
-            if free.size:
-                d, front = _distances(r, rows[free], np.broadcast_to(person, (free.size, 3)).copy())
-                fit = front & (d <= gate_m)
-                taken = {int(r.camera[rows[a]]), int(r.camera[rows[b]])}
-                for j in free[fit][np.argsort(d[fit], kind="stable")]:
-                    cam = int(r.camera[rows[j]])
-                    if cam not in taken:
-                        taken.add(cam)
-                        group.append(int(j))
-                if len(group) > MIN_VIEWS:
-                    g = rows[np.array(group)]
-                    person = _solve(m_all[g].sum(axis=0), b_all[g].sum(axis=0), prior)
+            group = [a, b, *_grown(r, rows, free[(free != a) & (free != b)], pair=(a, b), person=x[c], gate=gate)]
+            person = x[c]
+            if len(group) > MIN_VIEWS:
+                g = rows[np.array(group)]
+                person = _solve(m_all[g].sum(axis=0), b_all[g].sum(axis=0), prior)
             used[group] = True
             pid = len(persons)
             persons.append(person)

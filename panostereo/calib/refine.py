@@ -9,9 +9,10 @@
 3. **Association and adjustment**, repeated (:mod:`.associate`, :mod:`.adjust`): with the current poses the
    blobs of each instant are grouped into people within a gate, then the free cameras and the people are
    adjusted to fit; the gate narrows from ``start_gate_m`` to ``final_gate_m`` as the poses improve, and on to
-   what the data calls for (a few sigmas of how well the rays meet), so that people closer together than a rough
-   gate are told apart and their wrong pairings stop pulling the poses; the rounds stop when no camera moves any
-   more at the narrowest gate.
+   what each camera's data calls for (a few sigmas of how well its rays meet), so that people closer together
+   than a rough gate are told apart and their wrong pairings stop pulling the poses; a camera whose rounds creep
+   one way is taken the rest of the way (:func:`_extrapolated`); the rounds stop when no camera moves any more at
+   the narrowest gates.
 4. A camera that shares fewer than ``min_people`` person-instants with the others cannot be determined: it is
    reported and left as it was (and its blobs are left out, so a wrong pose does not pull the others).
 
@@ -28,10 +29,11 @@ from functools import partial
 
 import numpy as np
 
+from common.arrays import FloatArray
 from panostereo.calib.adjust import Tolerance, adjust, ray_distances
 from panostereo.calib.associate import Association, HeightPrior, associate, triangulate, world_rays
 from panostereo.calib.observe import CameraRays
-from panostereo.calib.poses import CameraPose, pose_change, rotation_z
+from panostereo.calib.poses import CameraPose, pose_change, pose_offset, rotation_z
 from panostereo.calib.search import anchor_people, find_pose
 
 __all__ = ["CameraReport", "RefineSettings", "Refined", "refine"]
@@ -196,6 +198,7 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
     height = s.height
     narrowing = _Narrowing(s)
     settled = False
+    steps: dict[int, FloatArray] = {}
     for rounds in range(1, s.max_rounds + 1):
         gate = narrowing.gate(rounds, settled, partial(_data_gate, cams, poses, use, height, s))
         assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
@@ -218,23 +221,24 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
             sub,
             prior=height,
             tolerance=s.tolerance,
-            scale_m=gate / 2.0,
+            scale_m=float(np.median(gate)) / 2.0,
             guess=start,
             scale_from_heights=not fixed_idx,
         )
         change = [pose_change(poses[i], res.poses[i]) for i in moving]
-        poses = res.poses
+        steps, poses, further = _extrapolated(poses, res.poses, moving, steps, s.tolerance)
         if fixed_idx:  # else the prior's mean holds the scale, and stays the prior's
             height = replace(height, mean_m=res.mean_height_m)
         logger.info(
-            "round %d: gate %.2f m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg",
+            "round %d: gate %s m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg%s",
             rounds,
-            gate,
+            _gates(gate),
             assoc.person.shape[0],
             height.mean_m,
             assoc.member_camera.size,
             max(c[0] for c in change),
             math.degrees(max(c[1] for c in change)),
+            f", taken further: {', '.join(cams[i].sensor_id for i in further)}" if further else "",
         )
         settled = all(d <= s.settled_m and a <= s.settled_rad for d, a in change)
         if settled and narrowing.narrowest:
@@ -243,6 +247,48 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         poses = _as_a_whole(start, poses, [i for i in range(n) if use[i]])
     reports = _report(cams, start, poses, fixed_idx, use, assoc, counts, s)
     return Refined(poses, reports, rounds)
+
+
+ALIGNED_RAD = math.radians(10.0)
+"""Two successive steps of a camera within this angle of each other go one way: the rounds creep (Besl and
+McKay's accelerated ICP, IEEE PAMI 14(2), 1992)."""
+MAX_EXTRAPOLATION = 10.0
+"""An extrapolation goes at most this many of the last step further."""
+
+
+def _extrapolated(
+    before: list[CameraPose], after: list[CameraPose], moving: list[int], last: dict[int, FloatArray], tol: Tolerance
+) -> tuple[dict[int, FloatArray], list[CameraPose], list[int]]:
+    """Each moving camera's step this round, the poses after it, taken further where the rounds creep, and the
+    cameras taken further.
+
+    Each round associates with the poses it starts from, so a camera far off its pose keeps people whose rays meet
+    its wrong pose, and the adjustment moves it part of the way only: round after round it steps the same way,
+    by steps that shrink by a ratio r. Where two successive steps are aligned (``ALIGNED_RAD``, in units of the
+    install tolerance) and shrink, the rest of the way is the geometric series' remainder, r / (1 - r) of the
+    last step (Aitken's extrapolation; at most ``MAX_EXTRAPOLATION`` of it): the next association then starts
+    there, and its adjustment takes back whatever went too far."""
+    out = list(after)
+    steps: dict[int, FloatArray] = {}
+    further: list[int] = []
+    for i in moving:
+        step = pose_offset(before[i], after[i].rotation, after[i].centre_m)
+        steps[i] = step
+        prev = last.get(i)
+        if prev is None or prev.shape != step.shape:
+            continue
+        turns = 1 if before[i].level else 3
+        unit = np.concatenate([np.full(turns, tol.turn_rad), np.full(3, tol.centre_m)])
+        a, b = prev / unit, step / unit
+        na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+        if na <= 0.0 or nb <= 0.0 or nb >= na:
+            continue
+        if math.acos(max(-1.0, min(1.0, float(a @ b) / (na * nb)))) > ALIGNED_RAD:
+            continue
+        ratio = nb / na
+        out[i] = after[i].moved(min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION) * step)
+        further.append(i)
+    return steps, out, further
 
 
 def _as_a_whole(start: list[CameraPose], poses: list[CameraPose], placed: list[int]) -> list[CameraPose]:
@@ -276,37 +322,49 @@ class _Narrowing:
     def __init__(self, s: RefineSettings) -> None:
         self.s = s
         self.pace = (s.final_gate_m / s.start_gate_m) ** (1.0 / SCHEDULED_ROUNDS)
-        self.floor: float | None = None
+        self.floor: FloatArray | None = None
         self.narrowest = False
         """The gate has reached what the data calls for."""
 
-    def gate(self, rounds: int, settled: bool, measure: Callable[[], float]) -> float:
+    def gate(self, rounds: int, settled: bool, measure: Callable[[], FloatArray]) -> float | FloatArray:
+        """The gate of round ``rounds``: one for every camera while it narrows to ``final_gate_m``, then each
+        camera's own (:func:`_data_gate`) where the narrowing has gone below it."""
         s = self.s
         gate = s.start_gate_m * self.pace ** (rounds - 1)
         self.narrowest = self.narrowest or settled
         if gate >= s.final_gate_m and not self.narrowest:
             return gate
-        # Measured when the narrowing first goes below the rough gate, and again once it gets there (the poses
-        # have improved since).
-        if self.floor is None or self.narrowest or gate <= self.floor:
+        # Measured when the narrowing first goes below the rough gate, and again once it gets to the widest
+        # camera's (the poses have improved since).
+        if self.floor is None or self.narrowest or gate <= float(self.floor.max()):
             self.floor = measure()
-        self.narrowest = self.narrowest or gate <= self.floor
-        return self.floor if self.narrowest else gate
+        self.narrowest = self.narrowest or gate <= float(self.floor.max())
+        return self.floor if self.narrowest else np.maximum(self.floor, gate)
+
+
+def _gates(gate: float | FloatArray) -> str:
+    """The round's gate as the log says it: one, or the narrowest to the widest camera's."""
+    g = np.atleast_1d(np.asarray(gate, dtype=np.float64))
+    lo, hi = f"{float(g.min()):.2f}", f"{float(g.max()):.2f}"
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def _data_gate(
     cams: list[CameraRays], poses: list[CameraPose], use: list[bool], height: HeightPrior, s: RefineSettings
-) -> float:
-    """The gate the data calls for with the current poses: ``gate_per_residual`` times the median distance of the
-    blobs (the farther of their two rays) from the people they are put with at ``final_gate_m`` (measured there
-    every time, so that the gate does not shrink on its own narrower choices), between ``min_gate_m`` and
-    ``final_gate_m``."""
+) -> FloatArray:
+    """The gate each camera's data calls for with the current poses: ``gate_per_residual`` times the median
+    distance of its blobs (the farther of their two rays) from the people they are put with at ``final_gate_m``
+    (measured there every time, so that the gate does not shrink on its own narrower choices), between
+    ``min_gate_m`` and ``final_gate_m``. Per camera: a far camera's rays pass farther from their people than a
+    near one's, and a camera still off its pose has its rays' distances, not the others'."""
     wide = associate(world_rays(cams, poses, use), s.final_gate_m, height, s.max_range_m)
     dist = np.fmax(*ray_distances(cams, poses, wide, wide.person))  # a blob's distance, as the association's
-    dist = dist[np.isfinite(dist)]
-    if dist.size == 0:
-        return s.final_gate_m
-    return min(s.final_gate_m, max(s.min_gate_m, s.gate_per_residual * float(np.median(dist))))
+    out = np.full(len(cams), s.final_gate_m)
+    for c in range(len(cams)):
+        mine = dist[(wide.member_camera == c) & np.isfinite(dist)]
+        if mine.size:
+            out[c] = min(s.final_gate_m, max(s.min_gate_m, s.gate_per_residual * float(np.median(mine))))
+    return out
 
 
 def _spread_people(assoc: Association, most: int) -> Association:

@@ -65,3 +65,19 @@ def test_a_gate_too_narrow_for_the_poses_groups_nobody() -> None:
     c_rays, c_pose = _rays("cam-c", PEOPLE)
     off = c_pose.moved([0.0, 0.05, 0.0, 0.0, 0.0, 0.0])  # cam-c turned by 3 deg: its rays miss by ~0.5 m
     assert associate(world_rays([a_rays, c_rays], [a_pose, off]), 0.1, HeightPrior(), 100.0).person.shape[0] == 0
+
+
+def test_each_camera_has_its_own_gate() -> None:
+    """cam-b's rays miss their people by about 0.25 m (its pose is off), cam-a's and cam-c's meet. With one narrow
+    gate for all, cam-b's blobs join nobody; with a wide gate for cam-b alone they join, and cam-a's and cam-c's
+    still pair within their own narrow gate."""
+    parts = [_rays("cam-a", PEOPLE), _rays("cam-b", PEOPLE), _rays("cam-c", PEOPLE)]
+    cams, poses = [p[0] for p in parts], [p[1] for p in parts]
+    poses[1] = poses[1].moved([0.0, 0.0, 0.0, 0.0, 0.0, 0.25])  # cam-b's centre 0.25 m too high
+    r = world_rays(cams, poses)
+    narrow = associate(r, 0.1, HeightPrior(), 100.0)
+    assert 1 not in narrow.member_camera.tolist() and narrow.person.shape[0] == 3
+    own = associate(r, np.array([0.1, 0.4, 0.1]), HeightPrior(), 100.0)
+    assert own.person.shape[0] == 3
+    for pid in range(3):
+        assert sorted(own.member_camera[own.member_person == pid].tolist()) == [0, 1, 2]

@@ -165,3 +165,21 @@ def test_a_panoramic_camera_off_by_half_a_metre_and_10_deg_is_refined_from_a_rec
     assert (
         tomllib.loads((tmp_path / "out" / "nodes" / "pano1.toml").read_text())["pose"]["x_m"] == PANORAMAS["pano1"][0]
     )
+
+
+def test_rounds_that_creep_one_way_are_taken_the_rest_of_the_way() -> None:
+    """A camera whose last two steps went one way, each 0.8 of the one before, is taken on by the remainder of
+    the series (4 times the last step); one whose steps turned, or grew, is left where its adjustment put it."""
+    from panostereo.calib.adjust import Tolerance
+    from panostereo.calib.refine import _extrapolated
+
+    start = CameraPose.from_yaw(0.0, 0.0, 3.0, 0.0)
+    step = np.array([0.01, 0.08, 0.0, 0.0])  # yaw (rad), then the centre's shift (m)
+    last = {0: step / 0.8, 1: np.array([0.01, -0.08, 0.0, 0.0]) / 0.8, 2: step * 0.5}
+    after = [start.moved(step)] * 3
+    steps, out, further = _extrapolated([start] * 3, after, [0, 1, 2], last, Tolerance())
+    assert further == [0]
+    assert np.allclose(steps[0], step)
+    assert out[0].centre_m == pytest.approx(start.centre_m + 5.0 * np.array([0.08, 0.0, 0.0]))
+    assert out[0].yaw_rad == pytest.approx(start.yaw_rad + 5.0 * 0.01)
+    assert out[1] is after[1] and out[2] is after[2]
