@@ -169,11 +169,11 @@ class Tracker:
     def snapshots(self) -> list[TrackSnapshot]:
         """Every track as the other stages may read it."""
         f = self.filter
-        sigma = f.position_sigma().tolist()
+        sigma = f.position_sigma()
+        placed, likely = self._shown(sigma)
         existence = f.existence().tolist()
         out = []
         for i, tr in enumerate(self.tracks):
-            published = tr.confirmed and float(f.logodds[i]) >= 0.0
             out.append(
                 TrackSnapshot(
                     serial=tr.serial,
@@ -192,11 +192,16 @@ class Tracker:
                     misses=tr.misses,
                     confirmed=tr.confirmed,
                     detected=tr.detected,
-                    placed=sigma[i] <= self.model.publish_sigma_m,
-                    reported=published and sigma[i] <= self.model.publish_sigma_m,
+                    placed=bool(placed[i]),
+                    reported=tr.confirmed and bool(placed[i] and likely[i]),
                 )
             )
         return out
+
+    def _shown(self, sigma: FloatArray) -> tuple[BoolArray, BoolArray]:
+        """(n,) each track placed (its position known to within ``publish_sigma_m``) and more likely there than
+        not: a confirmed track both is reported."""
+        return sigma <= self.model.publish_sigma_m, self.filter.logodds >= 0.0
 
     # -- the tick -------------------------------------------------------------------------------------
     def adopt(self, names: dict[int, str], followed: dict[int, str] | None = None) -> None:
@@ -515,7 +520,7 @@ class Tracker:
         ended: list[str] = []
         # Surest first: a confirmed track before a tentative one, one reported now (there and placed) before one
         # that is not (its person lost: it may not take the id of the track that follows them now), then the oldest.
-        shown = (f.logodds >= 0.0) & (sigma <= m.publish_sigma_m)
+        shown = np.logical_and(*self._shown(sigma))
         surest = sorted(
             range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, not shown[r], self.tracks[r].serial)
         )
