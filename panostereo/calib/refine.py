@@ -266,8 +266,8 @@ def _extrapolated(
     its wrong pose, and the adjustment moves it part of the way only: round after round it steps the same way,
     by steps that shrink by a ratio r. Where two successive steps are aligned (``ALIGNED_RAD``, in units of the
     install tolerance) and shrink, the rest of the way is the geometric series' remainder, r / (1 - r) of the
-    last step (Aitken's extrapolation; at most ``MAX_EXTRAPOLATION`` of it): the next association then starts
-    there, and its adjustment takes back whatever went too far."""
+    last step (Aitken's extrapolation; at most ``MAX_EXTRAPOLATION`` of it, and no farther than the install
+    tolerance): the next association then starts there, and its adjustment takes back whatever went too far."""
     out = list(after)
     steps: dict[int, FloatArray] = {}
     further: list[int] = []
@@ -286,7 +286,8 @@ def _extrapolated(
         if math.acos(max(-1.0, min(1.0, float(a @ b) / (na * nb)))) > ALIGNED_RAD:
             continue
         ratio = nb / na
-        out[i] = after[i].moved(min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION) * step)
+        # No further than the install tolerance: the guess was within it of the truth.
+        out[i] = after[i].moved(min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION, 1.0 / nb) * step)
         further.append(i)
     return steps, out, further
 
