@@ -226,7 +226,8 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
             scale_from_heights=not fixed_idx,
         )
         change = [pose_change(poses[i], res.poses[i]) for i in moving]
-        steps, poses, further = _extrapolated(poses, res.poses, moving, steps, s.tolerance)
+        settled = all(d <= s.settled_m and a <= s.settled_rad for d, a in change)
+        steps, poses, further = _extrapolated(poses, res.poses, moving, steps, s.tolerance, settled=settled)
         if fixed_idx:  # else the prior's mean holds the scale, and stays the prior's
             height = replace(height, mean_m=res.mean_height_m)
         logger.info(
@@ -240,7 +241,6 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
             math.degrees(max(c[1] for c in change)),
             f", taken further: {', '.join(cams[i].sensor_id for i in further)}" if further else "",
         )
-        settled = all(d <= s.settled_m and a <= s.settled_rad for d, a in change)
         if settled and narrowing.narrowest:
             break
     if not fixed_idx:
@@ -257,10 +257,17 @@ MAX_EXTRAPOLATION = 10.0
 
 
 def _extrapolated(
-    before: list[CameraPose], after: list[CameraPose], moving: list[int], last: dict[int, FloatArray], tol: Tolerance
+    before: list[CameraPose],
+    after: list[CameraPose],
+    moving: list[int],
+    last: dict[int, FloatArray],
+    tol: Tolerance,
+    *,
+    settled: bool = False,
 ) -> tuple[dict[int, FloatArray], list[CameraPose], list[int]]:
     """Each moving camera's step this round, the poses after it, taken further where the rounds creep, and the
-    cameras taken further.
+    cameras taken further (none once every camera has ``settled``: the rounds may stop here, and no pose is left
+    where no adjustment has checked it).
 
     Each round associates with the poses it starts from, so a camera far off its pose keeps people whose rays meet
     its wrong pose, and the adjustment moves it part of the way only: round after round it steps the same way,
@@ -275,7 +282,7 @@ def _extrapolated(
         step = pose_offset(before[i], after[i].rotation, after[i].centre_m)
         steps[i] = step
         prev = last.get(i)
-        if prev is None or prev.shape != step.shape:
+        if settled or prev is None or prev.shape != step.shape:
             continue
         turns = 1 if before[i].level else 3
         unit = np.concatenate([np.full(turns, tol.turn_rad), np.full(3, tol.centre_m)])

@@ -169,7 +169,8 @@ def test_a_panoramic_camera_off_by_half_a_metre_and_10_deg_is_refined_from_a_rec
 
 def test_rounds_that_creep_one_way_are_taken_the_rest_of_the_way() -> None:
     """A camera whose last two steps went one way, each 0.8 of the one before, is taken on by the remainder of
-    the series (4 times the last step); one whose steps turned, or grew, is left where its adjustment put it."""
+    the series (4 times the last step); one whose steps turned, or grew, is left where its adjustment put it, and
+    so is every camera once all have settled."""
     from panostereo.calib.adjust import Tolerance
     from panostereo.calib.refine import _extrapolated
 
@@ -183,3 +184,6 @@ def test_rounds_that_creep_one_way_are_taken_the_rest_of_the_way() -> None:
     assert out[0].centre_m == pytest.approx(start.centre_m + 5.0 * np.array([0.08, 0.0, 0.0]))
     assert out[0].yaw_rad == pytest.approx(start.yaw_rad + 5.0 * 0.01)
     assert out[1] is after[1] and out[2] is after[2]
+    # Once every camera has settled the rounds may stop: nobody is left where no adjustment has checked them.
+    _, out, further = _extrapolated([start] * 3, after, [0, 1, 2], last, Tolerance(), settled=True)
+    assert further == [] and out == after
