@@ -52,8 +52,6 @@ INNER_ROUNDS = 2
 """Reweighting rounds of each person's fit (the robust loss's weights from the last round's residuals)."""
 PARAM_STEP = 0.1
 """The optimiser's scale of each camera parameter, as a fraction of its install tolerance."""
-DIFF_STEP = 1e-6
-"""Finite-difference step, relative to each parameter's size (scipy's ``diff_step``)."""
 
 
 @dataclass(frozen=True, slots=True)

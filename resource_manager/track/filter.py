@@ -28,7 +28,14 @@ from resource_manager.track.motion import MotionModel, predict_many
 from resource_manager.track.observe import TrackTable
 from resource_manager.views.blobs import Views
 
-__all__ = ["TrackFilter"]
+__all__ = ["TrackFilter", "worst_sigma"]
+
+
+def worst_sigma(cov: FloatArray) -> FloatArray:
+    """(n,) the 1-sigma spread in its worst direction of each (n, 2, 2) floor covariance (its larger eigenvalue's
+    square root, in closed form)."""
+    a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+    return np.asarray(np.sqrt(np.maximum(0.5 * (a + c) + np.hypot(0.5 * (a - c), b), 0.0)), dtype=np.float64)
 
 
 class TrackFilter:
@@ -105,8 +112,7 @@ class TrackFilter:
 
     def position_sigma(self) -> FloatArray:
         """(n,) 1-sigma position error of each track in its worst direction."""
-        a, b, c = self.p[:, 0, 0], self.p[:, 0, 1], self.p[:, 1, 1]
-        return np.asarray(np.sqrt(np.maximum(0.5 * (a + c) + np.hypot(0.5 * (a - c), b), 0.0)), dtype=np.float64)
+        return worst_sigma(self.p[:, :2, :2])
 
     def existence(self) -> FloatArray:
         """(n,) probability that each track is a person."""

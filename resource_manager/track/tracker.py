@@ -39,7 +39,7 @@ from common.angles import angle_diff
 from common.arrays import BoolArray, FloatArray
 from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
-from resource_manager.track.filter import TrackFilter
+from resource_manager.track.filter import TrackFilter, worst_sigma
 from resource_manager.track.life import (
     CLOSE_M,
     PAIR_OF_TRACKS,
@@ -427,7 +427,7 @@ class Tracker:
         gots = [[Assigned(s, j) for s, j in sorted(h.blobs.items())] for h in hyps]
         xs = np.array([[h.fix.xy[0], h.fix.xy[1], 0.0, 0.0] for h in hyps])
         priors = np.repeat(np.diag([PRIOR_SIGMA_M**2, PRIOR_SIGMA_M**2, 0.0, 0.0])[None], len(hyps), axis=0)
-        sigma = np.array([math.sqrt(max(float(np.linalg.eigvalsh(h.fix.cov)[-1]), 0.0)) for h in hyps])
+        sigma = worst_sigma(np.array([h.fix.cov for h in hyps]).reshape(-1, 2, 2))
         # At the first tick nobody was looked for before: who stands by an exit may as well be leaving.
         v_mean, v_cov = entry_velocity(xs[:, :2], sigma, m, self.scene if self._tick > 1 else Scene())
         xs[:, 2:], priors[:, 2:, 2:] = v_mean, v_cov
