@@ -98,11 +98,12 @@ def entry_velocity(
     ``sigma_m``), whom nobody saw there before.
 
     Away from exits nothing says which way a new person walks: zero mean, ``speed_sigma_mps`` on each axis.
-    Within reach of an exit (:func:`exit_reach_m`) they came in through it: their velocity across it points
-    inward, so that component is the walking speed's normal law cut to its inward half (mean σ_v √(2/π), variance
-    σ_v² (1 - 2/π)); the component along the exit is unchanged. Of two people coming in one behind the other, a
-    stride apart, the first one's track is then predicted on into the area rather than on the spot where the
-    second one appears.
+    Within reach of an exit (:func:`exit_reach_m`) they came in through it since the last look: their velocity
+    across it points inward, and the faster one walks, the likelier one is to have crossed in a given time, so that
+    component is the walking speed's normal law cut to its inward half and weighted by the speed (a Rayleigh law:
+    mean σ_v √(π/2), variance σ_v² (2 - π/2)); the component along the exit is unchanged. Of two people coming in
+    one behind the other, a stride apart, the first one's track is then predicted on into the area rather than on
+    the spot where the second one appears.
     """
     n = len(xy)
     sv = model.speed_sigma_mps
@@ -113,8 +114,8 @@ def entry_velocity(
     inward = _away_from_exits(xy, scene.area)
     entering = (np.hypot(*inward.T) > 0.0) & (scene.area.exit_distance(xy) <= exit_reach_m(sigma_m, model))
     u = inward[entering]
-    mean[entering] = sv * math.sqrt(2.0 / math.pi) * u
-    cov[entering] -= (sv * sv * 2.0 / math.pi) * np.einsum("ni,nj->nij", u, u)
+    mean[entering] = sv * math.sqrt(math.pi / 2.0) * u
+    cov[entering] -= (sv * sv * (math.pi / 2.0 - 1.0)) * np.einsum("ni,nj->nij", u, u)
     return mean, cov
 
 
@@ -122,12 +123,14 @@ ENTRY_PROBE_M = 0.05
 """Step of the finite differences that find which way is away from the nearest exit."""
 CLEAR_SLOPE = 0.5
 """A distance's slope is 1 where one exit is nearest; where it is less than this, no way is clearly away."""
+ON_EXIT_DIRECTIONS = 16
+"""Directions probed for the way in from a point on an exit."""
 
 
 def _away_from_exits(xy: FloatArray, area: Floor) -> FloatArray:
     """(n, 2) unit directions in which the distance to the nearest exit grows: the way into the area from the exit
-    a person stands by. Zero where it does not grow at the distance's slope of 1 (no exits; on an exit; two
-    exits as near): no way is the way in."""
+    a person stands by (beyond the area's boundary, the way back to it; on an exit, the way that stays inside).
+    Zero where no way clearly is (no exits; two exits as near)."""
     h = ENTRY_PROBE_M
     steps = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
     d = area.exit_distance((xy[:, None, :] + steps[None]).reshape(-1, 2)).reshape(len(xy), 4)
@@ -137,6 +140,19 @@ def _away_from_exits(xy: FloatArray, area: Floor) -> FloatArray:
     ok = norm > CLEAR_SLOPE
     out = np.zeros_like(grad)
     out[ok] = grad[ok] / norm[ok, None]
+    # Beyond the boundary (a first fix a little outside), the way in is toward the exit, not away from it.
+    out[~area.contains(xy)] *= -1.0
+    # On an exit (a first fix held to the area's edge) the distance grows both ways: the way in is the probe
+    # direction that stays inside and gets farthest from every exit.
+    on = np.flatnonzero(~ok & (area.exit_distance(xy) < h))
+    if len(on):
+        turns = np.linspace(0.0, 2.0 * math.pi, ON_EXIT_DIRECTIONS, endpoint=False)
+        dirs = np.stack([np.cos(turns), np.sin(turns)], axis=1)
+        probes = (xy[on, None, :] + h * dirs[None]).reshape(-1, 2)
+        gain = np.where(area.contains(probes), area.exit_distance(probes), -np.inf).reshape(len(on), -1)
+        best = np.argmax(gain, axis=1)
+        clear = gain[np.arange(len(on)), best] > CLEAR_SLOPE * h
+        out[on[clear]] = dirs[best[clear]]
     return out
 
 

@@ -45,10 +45,14 @@ def test_a_person_first_seen_by_the_door_is_taken_to_walk_in_one_elsewhere_to_wa
     sigma = np.full(3, 0.1)
     sv = MODEL.speed_sigma_mps
     mean, cov = entry_velocity(xy, sigma, MODEL, Scene(area=ROOM))
-    assert mean[0] == pytest.approx([0.0, sv * math.sqrt(2.0 / math.pi)])  # inward: the half of the law that comes in
-    assert cov[0] == pytest.approx(np.diag([sv**2, sv**2 * (1.0 - 2.0 / math.pi)]))  # across the door only
+    # Inward: of the walkers' law, those that crossed the door since the last look, as many as walk in that fast.
+    assert mean[0] == pytest.approx([0.0, sv * math.sqrt(math.pi / 2.0)])
+    assert cov[0] == pytest.approx(np.diag([sv**2, sv**2 * (2.0 - math.pi / 2.0)]))  # across the door only
     assert mean[1:] == pytest.approx(np.zeros((2, 2)))  # nobody comes in through a wall, or in the middle
     assert cov[1:] == pytest.approx(np.repeat(np.eye(2)[None] * sv**2, 2, axis=0))
+    # First seen on the door's line, or a little beyond it: in all the same.
+    on, _ = entry_velocity(np.array([[4.0, 0.0], [4.0, -0.05]]), np.full(2, 0.1), MODEL, Scene(area=ROOM))
+    assert on == pytest.approx(np.repeat(mean[:1], 2, axis=0))
     corner = Area.of(AreaSpec(polygon=ROOM.polygon))  # no exits declared: the whole boundary is one
     mean, _ = entry_velocity(np.array([[7.8, 3.0], [4.0, 5.8]]), np.full(2, 0.1), MODEL, Scene(area=corner))
     assert mean[0, 0] < 0.0 and mean[1, 1] < 0.0  # in from the east wall, and from the north wall
