@@ -10,8 +10,9 @@ What the strong multi-view trackers do to keep one id per person, as pure functi
 * **Returns** (:func:`match_returns`): a new person's detections next to a track no view detected this tick are
   that track found again (it lagged, or its views were hidden), not a new person.
 * **One person, two tracks** (:class:`Separation`): two tracks closer than two people can stand are one person
-  followed twice only if no view has given each its own blob for ``evidence_time_s`` (both published: for
-  ``apart_time_s`` once some view has shown them as two people); the one reported now keeps its id (else the older).
+  followed twice only if the views, since the two came close, make one person likelier than two (two people give
+  the views that see both two blobs, one person one) for ``evidence_time_s`` (both published: for ``apart_time_s``
+  once the views have shown them as two people); the one reported now keeps its id (else the older).
 * **Re-identification** (:class:`Graveyard`): a confirmed track that ended inside the area, not through an exit,
   is remembered for ``reid_window_s``; a newly confirmed track that appeared where that person could have walked
   since (``max_speed_mps``) and whose height and colour looks agree takes the old id (one assignment over all
@@ -42,6 +43,7 @@ __all__ = [
     "exit_reach_m",
     "left_area",
     "match_returns",
+    "two_people_ln_odds",
 ]
 
 CLOSE_M = 2.0 * PERSON_RADIUS_M
@@ -196,36 +198,69 @@ def match_returns(
     return [(a, b) for a, b in zip(r.tolist(), c.tolist(), strict=True) if ok[a, b]]
 
 
+SECOND_BLOB_PROB = 0.05
+"""Chance that a view shows one person as two blobs, one on each side of two tracks that follow them (a detector's
+double box, a false blob beside them): how little one view's two blobs prove two people."""
+PAIR_SURE_LN_ODDS = math.log(99.0)
+"""The views' word on two close tracks is held within 99 % either way, so that what they show now decides within a
+fraction of a second, however long the two walked together before (one of them may have lost its person since)."""
+
+
+def two_people_ln_odds(p_a: FloatArray, p_b: FloatArray, got_a: BoolArray, got_b: BoolArray) -> FloatArray:
+    """ln p(views | two people) / p(views | one person followed twice) of two close tracks, per view: ``p_a``,
+    ``p_b`` each track's chance of detection by the view, ``got_a``, ``got_b`` whether the view gave each a blob
+    of its own (both: two distinct blobs).
+
+    Two people give the view two blobs with chance p_a p_b, one with p_a (1 - p_b) + p_b (1 - p_a), none with
+    (1 - p_a)(1 - p_b); one person, detected with the likelier chance p, gives one blob (p), none (1 - p), or two
+    only by a second blob beside them (:data:`SECOND_BLOB_PROB`). A view that cannot see either says nothing."""
+    p_a, p_b = np.clip(p_a, 0.0, 1.0 - 1e-6), np.clip(p_b, 0.0, 1.0 - 1e-6)
+    p_one = np.maximum(p_a, p_b)
+    tiny = 1e-12
+    both = np.log(np.maximum(np.minimum(p_a, p_b), tiny) / SECOND_BLOB_PROB)
+    single = np.log(np.maximum(p_a * (1.0 - p_b) + p_b * (1.0 - p_a), tiny) / np.maximum(p_one, tiny))
+    neither = np.log(np.maximum((1.0 - p_a) * (1.0 - p_b), tiny) / np.maximum(1.0 - p_one, tiny))
+    out = np.where(got_a & got_b, both, np.where(got_a | got_b, single, neither))
+    # A blob given to a track the view could not see (a return) is no evidence of how many people stand there.
+    known = (p_one > 0.0) & ((p_a > 0.0) | ~got_a) & ((p_b > 0.0) | ~got_b)
+    return np.where(known, out, 0.0)
+
+
 @dataclass
 class Separation:
-    """For tracks that stand close together, the last instant some view gave each a blob of its own.
+    """For tracks that stand close together, whether the views show them as two people or as one followed twice.
 
-    Two people side by side are told apart by the views that see both (two blobs, a person's width apart); one
-    person followed twice never is (each view's one blob goes to one of the two tracks, or a detector draws two
-    boxes on one person, overlapping).
+    Each pair within two people's width (``2 CLOSE_M``) of each other gathers, from the instant it came that close,
+    the log-odds of two people against one (:func:`two_people_ln_odds` of every view that should see them, held
+    within :data:`PAIR_SURE_LN_ODDS`): two
+    people side by side give the views that see both two blobs, tick after tick, however little their bearings
+    differ; one person followed twice gives each view one blob, now to one track, now to the other, and two only
+    where a detector boxes them twice. A pair is seen apart at an instant its log-odds are for two people.
     """
 
-    apart_widths: float = 1.0
-    """A view tells two tracks apart when their bearings from it differ by at least this many of their blobs'
-    mean angular width (people side by side, not one behind the other or too far to resolve)."""
     last: dict[tuple[int, int], int] = field(default_factory=dict)
     """(serial, serial), the smaller first -> the last instant the two were seen apart."""
     since: dict[tuple[int, int], int] = field(default_factory=dict)
     """(serial, serial) -> the instant they came close together (and have stayed since)."""
+    ln_odds: dict[tuple[int, int], float] = field(default_factory=dict)
+    """(serial, serial) -> log-odds of two people against one, gathered since they came within ``2 CLOSE_M``."""
 
-    def note(self, serials: list[int], xy: FloatArray, apart: list[list[tuple[int, int]]], t_ns: int) -> None:
-        """Remember, for every close pair of tracks, whether ``apart`` (per view, the pairs of track rows that view
-        detected as two separate people) shows them apart at ``t_ns``; pairs no longer close are forgotten."""
+    def note(self, serials: list[int], xy: FloatArray, evidence: dict[tuple[int, int], float], t_ns: int) -> None:
+        """Add, for every close pair of tracks, this tick's ``evidence`` (track rows (a, b), a < b -> ln odds of two
+        people against one; absent: none), and remember the pairs it leaves more likely two people as seen apart at
+        ``t_ns``; pairs no longer close are forgotten."""
         keep: dict[tuple[int, int], int] = {}
         together: dict[tuple[int, int], int] = {}
+        odds: dict[tuple[int, int], float] = {}
         if len(xy) >= PAIR_OF_TRACKS:
             d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-            seen_apart = {(min(a, b), max(a, b)) for view in apart for a, b in view}
             # Pairs are followed a little beyond where they merge, so that the clock of a pair that hovers about
             # that distance does not restart.
             for a, b in np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist():
                 key = (min(serials[a], serials[b]), max(serials[a], serials[b]))
-                if (a, b) in seen_apart:
+                gathered = self.ln_odds.get(key, 0.0) + evidence.get((a, b), 0.0)
+                odds[key] = min(max(gathered, -PAIR_SURE_LN_ODDS), PAIR_SURE_LN_ODDS)
+                if odds[key] > 0.0:
                     keep[key] = t_ns
                 elif key in self.last:
                     keep[key] = self.last[key]
@@ -233,6 +268,7 @@ class Separation:
                     together[key] = self.since.get(key, t_ns)
         self.last = keep
         self.since = together
+        self.ln_odds = odds
 
     def told_apart(self, serials: Collection[int], t_ns: int) -> None:
         """Every two of ``serials`` that stand close are known to be two people at ``t_ns`` (another manager

@@ -54,6 +54,7 @@ from resource_manager.track.life import (
     existence_caps,
     left_area,
     match_returns,
+    two_people_ln_odds,
 )
 from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
@@ -296,7 +297,7 @@ class Tracker:
         exits = at_exit(self.filter.x[:, :2], self.filter.position_sigma(), self.model, self.scene, coverage)
         self._existence(scored, hits, tick, existence_caps(exits, self.model, self.scene))
         out.births = self._spawn(hyps, tick, t_ns)
-        self._note_apart(hits, views, t_ns)
+        self._note_apart(hits, scored, tick, t_ns)
         # 7. Prune, 8. confirm.
         out.ended = self._prune(t_ns, coverage, out.merged)
         out.reidentified = self._confirm(t_ns)
@@ -477,31 +478,39 @@ class Tracker:
         )
         return len(hyps)
 
-    def _note_apart(self, hits: dict[str, dict[int, int]], views: Views, t_ns: int) -> None:
-        """Which close tracks some view showed as two people this tick (:class:`~.life.Separation`)."""
-        f = self.filter
-        apart: list[list[tuple[int, int]]] = []
-        if f.n >= PAIR_OF_TRACKS:
-            xy = f.x[:, :2]
+    def _note_apart(
+        self, hits: dict[str, dict[int, int]], scored: dict[str, ViewScores], tick: Tick, t_ns: int
+    ) -> None:
+        """What each view says, this tick, of every two close tracks being two people or one followed twice
+        (:class:`~.life.Separation`): ``hits`` per view, track row -> blob; ``scored`` each view's chance of
+        detecting each track there was before this tick's births (new tracks say nothing yet)."""
+        f, views = self.filter, tick.views
+        evidence: dict[tuple[int, int], float] = {}
+        scored_rows = min((len(sc.p_detect) for sc in scored.values()), default=0)
+        if scored_rows >= PAIR_OF_TRACKS:
+            xy = f.x[:scored_rows, :2]
             d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-            close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist()
-            for sid, hit in hits.items():
-                row = views.rows[sid]
-                origin, start = views.origin[row], int(views.offsets[row])
-                pairs = []
-                for a, b in close:
-                    if a in hit and b in hit:
-                        # The view must tell the two apart (their bearings from it differ by a person's width),
-                        # and its two blobs must each lie on its own track's side.
-                        pa, pb = (math.atan2(xy[r, 1] - origin[1], xy[r, 0] - origin[0]) for r in (a, b))
-                        ea, eb = start + hit[a], start + hit[b]
-                        ba, bb = float(views.bearing_rad[ea]), float(views.bearing_rad[eb])
-                        width = 0.5 * float(views.width_rad[ea] + views.width_rad[eb])
-                        resolved = _arc(pa, pb) >= self.separation.apart_widths * width
-                        if resolved and _arc(ba, pa) < _arc(ba, pb) and _arc(bb, pb) < _arc(bb, pa):
-                            pairs.append((a, b))
-                apart.append(pairs)
-        self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], apart, t_ns)
+            close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1))
+            if len(close):
+                a, b = close[:, 0], close[:, 1]
+                total = np.zeros(len(close))
+                for sid, hit in hits.items():
+                    row = views.rows[sid]
+                    origin, start = views.origin[row], int(views.offsets[row])
+                    p = scored[sid].p_detect
+                    got_a = np.array([i in hit for i in a.tolist()])
+                    got_b = np.array([i in hit for i in b.tolist()])
+                    crossed = np.zeros(len(close), dtype=bool)
+                    for k in np.flatnonzero(got_a & got_b).tolist():
+                        # Two blobs prove two people only if each lies on its own track's side.
+                        ta, tb = (math.atan2(xy[r, 1] - origin[1], xy[r, 0] - origin[0]) for r in (a[k], b[k]))
+                        ba = float(views.bearing_rad[start + hit[int(a[k])]])
+                        bb = float(views.bearing_rad[start + hit[int(b[k])]])
+                        crossed[k] = _arc(ba, ta) > _arc(ba, tb) or _arc(bb, tb) > _arc(bb, ta)
+                    ln = two_people_ln_odds(p[a], p[b], got_a, got_b)
+                    total += tick.weights[sid][1] * np.where(crossed, 0.0, ln)
+                evidence = dict(zip(zip(a.tolist(), b.tolist(), strict=True), total.tolist(), strict=True))
+        self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], evidence, t_ns)
 
     # -- ends and ids ---------------------------------------------------------------------------------
     def _prune(self, t_ns: int, coverage: Coverage, merged: list[tuple[int, int]]) -> list[str]:

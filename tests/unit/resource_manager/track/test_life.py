@@ -18,6 +18,7 @@ from resource_manager.track.life import (
     existence_caps,
     left_area,
     match_returns,
+    two_people_ln_odds,
 )
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
@@ -74,25 +75,48 @@ def test_a_new_fix_where_a_coasting_track_is_predicted_is_that_track_one_far_off
     assert match_returns(hyps, cov, tracks, cov) == [(0, 0)]
 
 
-def test_two_close_tracks_are_apart_once_a_view_shows_them_apart_and_forgotten_once_far() -> None:
+def test_two_close_tracks_are_apart_while_the_views_make_them_likelier_two_and_forgotten_once_far() -> None:
     sep = Separation()
     xy = np.array([[0.0, 0.0], [0.3, 0.0]])
-    sep.note([1, 2], xy, [[]], 1_000_000_000)
+    sep.note([1, 2], xy, {}, 1_000_000_000)
     assert sep.since_apart_s(1, 2, 1_000_000_000) == math.inf and sep.together_s(2, 1, 1_500_000_000) == 0.5
-    sep.note([1, 2], xy, [[(0, 1)]], 2_000_000_000)
+    sep.note([1, 2], xy, {(0, 1): 2.0}, 2_000_000_000)
     assert sep.since_apart_s(2, 1, 2_500_000_000) == pytest.approx(0.5)
-    sep.note([1, 2], np.array([[0.0, 0.0], [3.0, 0.0]]), [[]], 3_000_000_000)
-    assert sep.since_apart_s(1, 2, 3_000_000_000) == math.inf and sep.together_s(1, 2, 3_000_000_000) == 0.0
+    sep.note([1, 2], xy, {(0, 1): -1.5}, 2_500_000_000)  # the odds gathered so far still say two
+    assert sep.since_apart_s(2, 1, 2_500_000_000) == 0.0
+    sep.note([1, 2], xy, {(0, 1): -1.5}, 3_000_000_000)  # now they say one: last seen apart at 2.5 s
+    assert sep.since_apart_s(2, 1, 3_000_000_000) == pytest.approx(0.5)
+    sep.note([1, 2], np.array([[0.0, 0.0], [3.0, 0.0]]), {}, 3_500_000_000)
+    assert sep.since_apart_s(1, 2, 3_500_000_000) == math.inf and sep.together_s(1, 2, 3_500_000_000) == 0.0
+    sep.note([1, 2], xy, {}, 4_000_000_000)  # close again: the odds start afresh
+    assert sep.ln_odds == {(1, 2): 0.0}
+
+
+def test_a_view_giving_two_close_tracks_two_blobs_says_two_people_one_blob_says_one() -> None:
+    p = np.full(5, 0.9)
+    got_a = np.array([True, True, False, False, True])
+    got_b = np.array([True, False, True, False, True])
+    hidden_b = np.array([0.9, 0.9, 0.9, 0.9, 0.0])  # the last view cannot see b: it says nothing of two or one
+    ln = two_people_ln_odds(p, hidden_b, got_a, got_b)
+    assert ln[0] > 2.0  # two blobs: two people (0.9 / 0.05)
+    assert ln[1] < -1.0 and ln[2] == pytest.approx(ln[1])  # one blob, to either: one person
+    assert ln[3] < 0.0  # none, where each of two people would likely show: one person (missed once)
+    assert ln[4] == 0.0  # a blob to a track the view cannot see (found again): nothing either way
+    # A view that should see neither says nothing either way.
+    assert two_people_ln_odds(np.zeros(1), np.zeros(1), np.zeros(1, bool), np.zeros(1, bool)).tolist() == [0.0]
+    # One hidden behind the other from a view: its one blob is what two people would give too.
+    one = two_people_ln_odds(np.array([0.9]), np.array([0.05]), np.array([True]), np.array([False]))
+    assert abs(float(one[0])) < 0.1
 
 
 def test_close_tracks_another_manager_publishes_as_two_people_are_told_apart() -> None:
     sep = Separation()
     xy = np.array([[0.0, 0.0], [0.3, 0.0], [0.1, 0.2]])
-    sep.note([1, 2, 3], xy, [[]], 1_000_000_000)
+    sep.note([1, 2, 3], xy, {}, 1_000_000_000)
     sep.told_apart({1, 2}, 2_000_000_000)
     assert sep.since_apart_s(2, 1, 2_500_000_000) == pytest.approx(0.5)
     assert sep.since_apart_s(1, 3, 2_500_000_000) == math.inf  # 3 follows none of the other's tracks
-    sep.note([1, 2, 3], xy, [[]], 2_100_000_000)  # no view shows them apart: what the other manager said holds
+    sep.note([1, 2, 3], xy, {}, 2_100_000_000)  # no view shows them apart: what the other manager said holds
     assert sep.since_apart_s(1, 2, 2_500_000_000) == pytest.approx(0.5)
 
 
