@@ -379,13 +379,22 @@ class Tracker:
         it far from where it was predicted (it jumped onto someone else's, or a false blob), are that track found
         again: it is updated, from its prediction (``predicted``: every row's state and covariance before this
         tick's update), with the hypothesis' blobs instead. Returns the hypotheses left (new people) and the rows
-        found again; ``hits`` follows."""
+        found again; ``hits`` follows.
+
+        A coasting track less likely there than not has lost its person (they left unseen, or were never there):
+        someone new where it is predicted, however vague, starts a track of their own (if they are that person
+        back, re-identification gives the id back once the lost track has ended)."""
         f = self.filter
         x0, p0 = predicted
         n = len(x0)
         moved = f.x[:n, :2] - x0[:, :2]
         jumped = np.einsum("ni,nij,nj->n", moved, np.linalg.inv(p0[:, :2, :2]), moved) > RETURN_CHI2 if n else []
-        rows = [i for i in range(n) if self.tracks[i].state() == "coasting" or (self.tracks[i].confirmed and jumped[i])]
+        likely = f.logodds[:n] >= 0.0
+        rows = [
+            i
+            for i in range(n)
+            if (self.tracks[i].state() == "coasting" and likely[i]) or (self.tracks[i].confirmed and jumped[i])
+        ]
         if not hyps or not rows:
             return hyps, []
         cand = np.array(rows, dtype=np.int64)

@@ -409,3 +409,37 @@ def test_two_people_standing_closer_than_a_blob_width_apart_keep_two_ids() -> No
     near_a, near_b = _near(run, a_at, 2.0, 16.0, radius_m=0.17), _near(run, b_at, 2.0, 16.0, radius_m=0.17)
     assert len(near_a | near_b) == 2 and near_a.most_common(1)[0][0] != near_b.most_common(1)[0][0], (near_a, near_b)
     assert run.mota["mota"] >= 0.95, run.mota
+
+
+def test_a_coasting_track_takes_a_new_person_back_only_while_it_is_likelier_there_than_not() -> None:
+    """A published track nobody detects now, 1 m vague, predicted at (4, 3); someone new is seen at (7, 3), within its
+    reach. While the track is more likely there than not, the newcomer is its person found again; once less likely
+    (its person left unseen, or it never had one), the newcomer starts a track of their own."""
+    from resource_manager.stereo.match import MatchParams
+    from resource_manager.stereo.matchers import get_matcher
+    from resource_manager.track.births import BirthParams
+    from resource_manager.track.state import TrackRecord
+    from resource_manager.track.tracker import Tracker
+    from tests.unit.resource_manager.synth import stack_views, view
+
+    def newcomer_after(logodds: float) -> tuple[int, list[str]]:
+        births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16,
+                             width_rel_sigma=0.1)  # fmt: skip
+        tracker = Tracker(TrackModel(), births, new_id=lambda: "m-new")
+        t_ns = 10**10
+        tracker.filter.add(
+            np.array([[4.0, 3.0, 0.0, 0.0]]),
+            np.diag([1.0, 1.0, 0.3, 0.3])[None],
+            height=np.full(1, 1.7),
+            height_var=np.full(1, 0.01),
+            logodds=np.array([logodds]),
+            t_ns=t_ns,
+        )
+        tracker.tracks = [TrackRecord(serial=1, born_ns=0, track_id="m-old", confirmed=True)]
+        tracker._serial, tracker._t_ns = 1, t_ns
+        views = stack_views([view(f"p{k}", c, [(7.0, 3.0, 1.7, 3)]) for k, c in enumerate([(7.5, 0.5), (7.5, 5.5)])])
+        out = tracker.step(views, t_ns + 500_000_000)
+        return out.returned, [tr.track_id for tr in tracker.tracks]
+
+    assert newcomer_after(1.0) == (1, ["m-old"])
+    assert newcomer_after(-1.0) == (0, ["m-new"])  # and the old one, given up, has ended
