@@ -111,11 +111,11 @@ class TrackModel(ConfigStruct, frozen=True):
     lost_sigma_m: Pos = 2.0
     """A track whose position is this uncertain (1 sigma, its worst direction) has lost its person: it ends."""
     apart_time_s: Pos = 1.0
-    """Two published tracks that some view has shown as two people are taken for one person followed twice only
-    after standing together, never told apart, this long: two people side by side hide each other from the views
-    for a moment and are then seen apart again (the tracks of two people pulled onto one spot by a moment's wrong
-    blobs must not be merged into one), while one person followed twice stays so. Longer keeps more such pairs
-    apart and publishes a person followed twice longer."""
+    """Two published tracks that the views have shown as two people (their blobs, one to each, over time) are taken
+    for one person followed twice only after standing together, never told apart, this long: two people side by
+    side hide each other from the views for a moment and are then seen apart again (the tracks of two people pulled
+    onto one spot by a moment's wrong blobs must not be merged into one), while one person followed twice stays so.
+    Longer keeps more such pairs apart and publishes a person followed twice longer."""
     reid_window_s: NonNeg = 10.0
     """A confirmed track that ended inside the area (not through an exit) is remembered this long: a new person
     who appears where it could have walked since, and whose height and colours agree, takes its id back (0: no
