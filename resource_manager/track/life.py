@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from common.angles import angle_diff
 from common.area import Floor
 from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel, logit
@@ -38,6 +39,7 @@ __all__ = [
     "Graveyard",
     "Lost",
     "Separation",
+    "blobs_show_two",
     "entry_velocity",
     "existence_caps",
     "exit_reach_m",
@@ -206,6 +208,25 @@ PAIR_SURE_LN_ODDS = math.log(99.0)
 fraction of a second, however long the two walked together before (one of them may have lost its person since)."""
 
 
+SLIVER_SHARE = 0.5
+"""Two people side by side, at about the same distance from a view, show about as wide: a blob narrower than this
+share of the one beside it is as likely a piece of that one (a node that cut one person's blob in two) as someone
+else."""
+
+
+def blobs_show_two(
+    track_bearing: tuple[float, float], blob_bearing: tuple[float, float], blob_width: tuple[float, float]
+) -> bool:
+    """Whether a view's two blobs, one given to each of two close tracks (bearings ``track_bearing`` from the view,
+    rad), show two people: each lies on its own track's side (nearer its bearing than the other's), and neither is
+    a sliver beside the other (:data:`SLIVER_SHARE`)."""
+    (ta, tb), (ba, bb) = track_bearing, blob_bearing
+    own_sides = abs(angle_diff(ba, ta)) <= abs(angle_diff(ba, tb)) and abs(angle_diff(bb, tb)) <= abs(
+        angle_diff(bb, ta)
+    )
+    return own_sides and min(blob_width) >= SLIVER_SHARE * max(blob_width)
+
+
 def two_people_ln_odds(p_a: FloatArray, p_b: FloatArray, got_a: BoolArray, got_b: BoolArray) -> FloatArray:
     """ln p(views | two people) / p(views | one person followed twice) of two close tracks, per view: ``p_a``,
     ``p_b`` each track's chance of detection by the view, ``got_a``, ``got_b`` whether the view gave each a blob
@@ -232,7 +253,7 @@ class Separation:
 
     Each pair within two people's width (``2 CLOSE_M``) of each other gathers, from the instant it came that close,
     the log-odds of two people against one (:func:`two_people_ln_odds` of every view that should see them, held
-    within :data:`PAIR_SURE_LN_ODDS`): two
+    within :data:`PAIR_SURE_LN_ODDS`; two blobs count only where they show two people, :func:`blobs_show_two`): two
     people side by side give the views that see both two blobs, tick after tick, however little their bearings
     differ; one person followed twice gives each view one blob, now to one track, now to the other, and two only
     where a detector boxes them twice. A pair is seen apart at an instant its log-odds are for two people.

@@ -50,6 +50,7 @@ from resource_manager.track.life import (
     NewTrack,
     Separation,
     at_exit,
+    blobs_show_two,
     entry_velocity,
     existence_caps,
     left_area,
@@ -509,15 +510,17 @@ class Tracker:
                     p = scored[sid].p_detect
                     got_a = np.array([i in hit for i in a.tolist()])
                     got_b = np.array([i in hit for i in b.tolist()])
-                    crossed = np.zeros(len(close), dtype=bool)
+                    unsure = np.zeros(len(close), dtype=bool)
                     for k in np.flatnonzero(got_a & got_b).tolist():
-                        # Two blobs prove two people only if each lies on its own track's side.
+                        ea, eb = start + hit[int(a[k])], start + hit[int(b[k])]
                         ta, tb = (math.atan2(xy[r, 1] - origin[1], xy[r, 0] - origin[0]) for r in (a[k], b[k]))
-                        ba = float(views.bearing_rad[start + hit[int(a[k])]])
-                        bb = float(views.bearing_rad[start + hit[int(b[k])]])
-                        crossed[k] = _arc(ba, ta) > _arc(ba, tb) or _arc(bb, tb) > _arc(bb, ta)
+                        unsure[k] = not blobs_show_two(
+                            (ta, tb),
+                            (float(views.bearing_rad[ea]), float(views.bearing_rad[eb])),
+                            (float(views.width_rad[ea]), float(views.width_rad[eb])),
+                        )
                     ln = two_people_ln_odds(p[a], p[b], got_a, got_b)
-                    total += tick.weights[sid][1] * np.where(crossed, 0.0, ln)
+                    total += tick.weights[sid][1] * np.where(unsure, 0.0, ln)
                 evidence = dict(zip(zip(a.tolist(), b.tolist(), strict=True), total.tolist(), strict=True))
         self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], evidence, t_ns)
 

@@ -14,6 +14,7 @@ from resource_manager.track.life import (
     NewTrack,
     Separation,
     at_exit,
+    blobs_show_two,
     entry_velocity,
     existence_caps,
     left_area,
@@ -107,6 +108,14 @@ def test_a_view_giving_two_close_tracks_two_blobs_says_two_people_one_blob_says_
     # One hidden behind the other from a view: its one blob is what two people would give too.
     one = two_people_ln_odds(np.array([0.9]), np.array([0.05]), np.array([True]), np.array([False]))
     assert abs(float(one[0])) < 0.1
+
+
+def test_two_blobs_show_two_people_only_each_on_its_own_side_and_neither_a_sliver_of_the_other() -> None:
+    tracks = (0.00, 0.05)  # two close tracks' bearings from a view (rad)
+    assert blobs_show_two(tracks, (0.00, 0.05), (0.08, 0.07))  # side by side, about as wide: two people
+    assert blobs_show_two(tracks, (0.01, 0.04), (0.08, 0.08))  # overlapping boxes still count (one behind the other)
+    assert not blobs_show_two(tracks, (0.05, 0.00), (0.08, 0.07))  # each on the other's side: a crossed assignment
+    assert not blobs_show_two(tracks, (0.00, 0.06), (0.08, 0.03))  # a sliver beside a blob: maybe one cut in two
 
 
 def test_close_tracks_another_manager_publishes_as_two_people_are_told_apart() -> None:
