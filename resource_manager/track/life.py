@@ -40,6 +40,7 @@ __all__ = [
     "Lost",
     "Separation",
     "blobs_show_two",
+    "close_pairs",
     "entry_velocity",
     "existence_caps",
     "exit_reach_m",
@@ -200,14 +201,20 @@ def match_returns(
     return [(a, b) for a, b in zip(r.tolist(), c.tolist(), strict=True) if ok[a, b]]
 
 
+def close_pairs(xy: FloatArray) -> tuple[IntArray, FloatArray]:
+    """(k, 2) rows (a < b) of the tracks at ``xy`` (n, 2) within two people's width (``2 CLOSE_M``) of each other,
+    and the (n, n) distances between all of them. Pairs are followed a little beyond where they merge (``CLOSE_M``),
+    so that the clock of a pair that hovers about that distance does not restart."""
+    d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    return np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).astype(np.int64), d
+
+
 SECOND_BLOB_PROB = 0.05
 """Chance that a view shows one person as two blobs, one on each side of two tracks that follow them (a detector's
 double box, a false blob beside them): how little one view's two blobs prove two people."""
 PAIR_SURE_LN_ODDS = math.log(99.0)
 """The views' word on two close tracks is held within 99 % either way, so that what they show now decides within a
 fraction of a second, however long the two walked together before (one of them may have lost its person since)."""
-
-
 SLIVER_SHARE = 0.5
 """Two people side by side, at about the same distance from a view, show about as wide: a blob narrower than this
 share of the one beside it is as likely a piece of that one (a node that cut one person's blob in two) as someone
@@ -274,10 +281,8 @@ class Separation:
         together: dict[tuple[int, int], int] = {}
         odds: dict[tuple[int, int], float] = {}
         if len(xy) >= PAIR_OF_TRACKS:
-            d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-            # Pairs are followed a little beyond where they merge, so that the clock of a pair that hovers about
-            # that distance does not restart.
-            for a, b in np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1)).tolist():
+            pairs, d = close_pairs(xy)
+            for a, b in pairs.tolist():
                 key = (min(serials[a], serials[b]), max(serials[a], serials[b]))
                 gathered = self.ln_odds.get(key, 0.0) + evidence.get((a, b), 0.0)
                 odds[key] = min(max(gathered, -PAIR_SURE_LN_ODDS), PAIR_SURE_LN_ODDS)

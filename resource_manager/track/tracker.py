@@ -35,7 +35,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from common.angles import angle_diff
 from common.arrays import BoolArray, FloatArray
 from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
@@ -51,6 +50,7 @@ from resource_manager.track.life import (
     Separation,
     at_exit,
     blobs_show_two,
+    close_pairs,
     entry_velocity,
     existence_caps,
     left_area,
@@ -499,8 +499,7 @@ class Tracker:
         scored_rows = min((len(sc.p_detect) for sc in scored.values()), default=0)
         if scored_rows >= PAIR_OF_TRACKS:
             xy = f.x[:scored_rows, :2]
-            d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-            close = np.argwhere(np.triu(d < 2.0 * CLOSE_M, 1))
+            close, _ = close_pairs(xy)
             if len(close):
                 a, b = close[:, 0], close[:, 1]
                 total = np.zeros(len(close))
@@ -674,11 +673,6 @@ class Tracker:
         ids = [g.track_id for g in back.values()]
         self.graveyard.take(set(ids) | set(adopted.values()))
         return ids
-
-
-def _arc(a: float, b: float) -> float:
-    """The angle between two bearings (rad, in [0, pi])."""
-    return abs(angle_diff(a, b))
 
 
 def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], n: int) -> list[list[Assigned]]:
