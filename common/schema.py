@@ -268,6 +268,10 @@ class SensorInfo(_Msg, frozen=True, tag="pano.SensorInfo"):
     point_sigma_m: Annotated[float, msgspec.Meta(ge=0.0, le=10.0)] = 0.0
     """Spread (1 sigma, m) of the point this sensor measures around the person's floor position: a head sways
     little, a box's bottom centre moves with the legs. 0: not stated (the manager assumes its default)."""
+    blobs_merge: bool = False
+    """True when this sensor's blobs are foreground segments (the paper's background subtraction): people who overlap
+    in its picture may come as one blob, whose bottom is then the nearer one's feet. False: one box per person (a
+    person detector's)."""
 
 
 SourceState = Literal["starting", "ok", "reconnecting", "failed", "ended"]

@@ -203,6 +203,7 @@ def sensor_info(
         clock_source=clock_source,
         bearing_sigma_rad=cfg.node.bearing_sigma_rad,
         point_sigma_m=BOX_POINT_SIGMA_M if isinstance(cfg.source, DetectionsSource) else HEAD_POINT_SIGMA_M,
+        blobs_merge=not isinstance(cfg.source, DetectionsSource),
     )
 
 

@@ -82,6 +82,7 @@ def fuse(
     line_views: int,
     feet_cut: FloatArray | None = None,
     cut_reach_m: FloatArray | None = None,
+    cover_near_m: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``.
 
@@ -95,6 +96,9 @@ def fuse(
             camera's body hides them: :func:`.observe.feet_cut_prob`); None: ``outlier``'s alone.
         cut_reach_m: (s, k) the farthest floor distance such a cut box can read
             (:attr:`.observe.Visibility.cut_reach_m`); None: unbounded.
+        cover_near_m: (s, k) where view ``s``'s blobs merge people who overlap, the floor distance of the nearest cover
+            of track ``k``'s feet, at whose foot a blob that took it in ends (:attr:`.observe.Visibility.cover_near_m`;
+            0 or None: none).
 
     Returns:
         (x, P, the weight (k, w) of each slot's blob: low for an outlier).
@@ -114,16 +118,17 @@ def fuse(
     feet_var = views.mono_sigma_m[blob[has]] ** 2 + views.sigma_xy_m[view[has]] ** 2 + views.point_var_m2[view[has]]
     obs[has, 5] = feet_var / weight[has]
     if feet_cut is not None and has.any():
-        # A box cut above the feet puts the person farther than they are. Judged against the prediction, a
-        # distance more likely cut than not is left out, the others weigh by the chance that they show the feet
-        # (the bearings cannot contradict a cut box where two cameras look along one line, and a precise
-        # distance, however down-weighted, would still drag the track).
+        # A box cut above the feet puts the person farther than they are (a blob that took a nearer person in,
+        # nearer). Judged against the prediction, a distance more likely cut than not is left out, the others
+        # weigh by the chance that they show the feet (the bearings cannot contradict a cut box where two cameras
+        # look along one line, and a precise distance, however down-weighted, would still drag the track).
         track = slots.track[has]
         unit = (xs[track, :2] - origin[has]) / np.maximum(dist[has], MIN_RANGE_M)[:, None]
         var = quadratic_form(unit, ps[track, :2, :2], unit) + obs[has, 5]
         reach = None if cut_reach_m is None else cut_reach_m[view[has], track]
+        near = None if cover_near_m is None else cover_near_m[view[has], track]
         nu = obs[has, 4] - dist[has]
-        ln_feet, ln_cut = feet_ln(nu, var, dist[has], feet_cut[view[has], track], outlier, reach=reach)
+        ln_feet, ln_cut = feet_ln(nu, var, dist[has], feet_cut[view[has], track], outlier, reach=reach, near=near)
         p_feet = np.exp(ln_feet - np.logaddexp(ln_feet, ln_cut))
         obs[has, 5] /= np.maximum(p_feet, HALF)
         obs[np.flatnonzero(has)[p_feet < HALF], 4] = math.nan

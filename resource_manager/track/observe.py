@@ -57,6 +57,7 @@ __all__ = [
 
 LN_2PI = math.log(TWO_PI)
 HALF = 0.5
+LN_HALF = math.log(HALF)
 """A distance farther than the gate is weighed only for a person whose feet are more than half hidden."""
 
 
@@ -122,6 +123,10 @@ class Visibility(NamedTuple):
     """(s, n) the farthest floor distance a box cut by those covers can read: the box's bottom is at most the
     highest cover's top, whose line of sight meets the floor there (inf: a cover that reaches the camera's height
     or above; 0: nothing covers the feet. Neither bounds a cut)."""
+    cover_near_m: FloatArray
+    """(s, n) in a view whose blobs merge people who overlap in its picture (:attr:`Views.blobs_merge`), the floor
+    distance of the nearest person or camera body in front that covers part of the track's feet: a merged blob's
+    bottom may be its feet, nearer than the track's (0: nothing, or a view whose blobs do not merge)."""
 
 
 def bearing_var(views: Views, rows: IntArray, dist: FloatArray) -> FloatArray:
@@ -159,14 +164,14 @@ def visibility_many(
     n = table.n
     p = np.zeros((views.n_views, n))
     if n == 0 or views.n_views == 0:
-        return Visibility(p, p.copy(), p.copy())
+        return Visibility(p, p.copy(), p.copy(), p.copy())
     dist, seen = _in_view(views, table, max_range_m)
     hiders = None
     if n + (blockers.n if blockers is not None else 0) > 1:
         hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(views, blockers, max_range_m))
-    covered, feet, reach = _covered(views, table, dist, hiders)
+    covered, feet, reach, near = _covered(views, table, dist, hiders)
     p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
-    return Visibility(p, np.where(seen, feet, 0.0), reach)
+    return Visibility(p, np.where(seen, feet, 0.0), reach, np.where(seen & views.blobs_merge[:, None], near, 0.0))
 
 
 def in_any_view(views: Views, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
@@ -212,12 +217,13 @@ def _covered(
     table: TrackTable,
     dist: FloatArray,
     hiders: tuple[TrackTable, FloatArray, BoolArray] | None,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """(s, n) share of each person's silhouette (feet to head, one person wide) that nearer people (``hiders``: a
     table, its (s, k) distances and whether each is in each picture) and the other cameras' bodies cover in each
     picture, treating the covers as independent: 1 - Π(1 - overlap_k / area); (s, n) the share of the feet they
     cover (of the person's width, where a cover reaches above the feet); and (s, n) the farthest floor distance a
-    box cut by them can read (:attr:`Visibility.cut_reach_m`; 0 where nothing covers the feet).
+    box cut by them can read (:attr:`Visibility.cut_reach_m`; 0 where nothing covers the feet); and (s, n) the floor
+    distance of the nearest of them that covers part of the feet (0: none).
 
     Angular rectangles: azimuth ± radius / distance, elevation from the floor to the head top (a body: to its
     camera). A camera above the crowd sees the head of someone behind a nearer person; one at head height does
@@ -228,6 +234,7 @@ def _covered(
     clear = np.ones(dist.shape)
     clear_feet = np.ones(dist.shape)
     reach = np.zeros(dist.shape)
+    near = np.full(dist.shape, math.inf)
     z = views.z_m[:, None, None]
     covers: list[_Cover] = []
     if hiders is not None:
@@ -253,10 +260,15 @@ def _covered(
         # cover whose top is level with the camera or above can cut a box anywhere).
         top_floor = np.where(hi_k < 0.0, z / np.tan(-np.minimum(hi_k, -1e-9)), math.inf)
         reach = np.maximum(reach, np.max(np.where(feet & (over_az > 0.0), top_floor, 0.0), axis=2, initial=0.0))
+        # ...and a blob that takes this cover in ends at its foot, where its floor line of sight meets the floor.
+        foot_floor = np.where(lo_k < 0.0, z / np.tan(-np.minimum(lo_k, -1e-9)), math.inf)
+        foot_floor = np.where(feet & (over_az > 0.0), foot_floor, math.inf)
+        near = np.minimum(near, np.min(foot_floor, axis=2, initial=math.inf))
     return (
         np.asarray(1.0 - clear, dtype=np.float64),
         np.asarray(1.0 - clear_feet, dtype=np.float64),
         np.asarray(reach, dtype=np.float64),
+        np.asarray(np.where(np.isfinite(near), near, 0.0), dtype=np.float64),
     )
 
 
@@ -300,7 +312,7 @@ def score_views(
     module docstring); ``vis``: what every view should see of each track; ``tracks``: their looks and links (row
     for row with ``table``); nobody is seen farther than ``max_range_m``."""
     rows = blobs.rows
-    vis = Visibility(blobs.pick(vis.p_detect), blobs.pick(vis.feet_hidden), blobs.pick(vis.cut_reach_m))
+    vis = Visibility(*(blobs.pick(part) for part in vis))
     p_detect = vis.p_detect
     n, m = table.n, len(blobs.entries)
     ln_miss = np.log1p(-np.minimum(p_detect, 1.0 - 1e-9))
@@ -353,8 +365,8 @@ def score_views(
         nu_d, s_cond, dist_pred = (a[track, blob] for a in feet)
         cut = feet_cut_prob(vis.feet_hidden[view, track], model)
         outlier = (model.outlier_prob, model.outlier_scale)
-        reach = vis.cut_reach_m[view, track]
-        ln_feet = np.logaddexp(*feet_ln(nu_d, s_cond, dist_pred, cut, outlier, reach=reach))
+        reach, near = vis.cut_reach_m[view, track], vis.cover_near_m[view, track]
+        ln_feet = np.logaddexp(*feet_ln(nu_d, s_cond, dist_pred, cut, outlier, reach=reach, near=near))
         ln_g = ln_g + np.where(has[blob], ln_feet, 0.0)
     ln_alt = np.maximum(ln_clutter[blob], local[track, view])
     entry = np.log(np.maximum(p_detect[view, track], 1e-300)) + ln_g - ln_alt
@@ -390,7 +402,8 @@ def _feet_gates(
     model: TrackModel,
 ) -> tuple[tuple[FloatArray, FloatArray, FloatArray], BoolArray, BoolArray]:
     """The floor distance given the bearing (conditioned on its innovation), with its own outlier model: a box
-    whose bottom is not the feet (someone nearer hides them) puts the person farther than they are.
+    whose bottom is not the feet (someone nearer hides them) puts the person farther than they are, or, where the
+    view's blobs merge people who overlap, nearer (the bottom of a blob that took the nearer one in).
 
     ``track``, all (track, blob): the track's distance variance, its bearing-distance covariance and its predicted
     distance. Returns the feet terms (innovation, conditional variance, predicted distance), the gate that counts
@@ -412,8 +425,12 @@ def _feet_gates(
     # Farther than the gate only where someone nearer or a camera's body may cut the box above the feet.
     cut_ok = (vis.feet_hidden > HALF)[col].T
     far = (nu_d > 0) & cut_ok
+    # Nearer than the gate only where such a blob may end at a cover's foot, and no nearer than that foot.
+    cover = vis.cover_near_m[col].T
+    reach_near = cover - model.gate_sigmas * np.sqrt(feet_var)[None, :]
+    closer = (nu_d < 0) & cut_ok & (cover > 0) & (rng[None, :] >= reach_near)
     density_gate = gate & np.where(has[None, :], near, True)
-    gate = gate & np.where(has[None, :], near | far, True)
+    gate = gate & np.where(has[None, :], near | far | closer, True)
     return (nu_d, s_cond, dist), density_gate, gate
 
 
@@ -434,12 +451,16 @@ def feet_ln(
     outlier: tuple[float, float],
     *,
     reach: FloatArray | None = None,
+    near: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """ln of the density of a floor distance's innovation ``nu`` (variance ``var``, given the bearing's) for a
     person predicted ``dist`` away, as its two parts: the box shows the feet (Gaussian with the wide outlier
     part), or, with probability ``cut``, a box cut above the feet, which puts them farther: by up to ``reach -
     dist`` (uniformly, widened by two σ) where the covers' tops bound how far (``reach``:
-    :attr:`Visibility.cut_reach_m`), else by an exponentially distributed distance of mean ``dist``.
+    :attr:`Visibility.cut_reach_m`), else by an exponentially distributed distance of mean ``dist``. Where a merged
+    blob may end at a nearer cover's foot (``near`` > 0: :attr:`Visibility.cover_near_m`), that chance is shared
+    half and half between the cut box and such a blob, which reads anywhere from that foot to the person (uniformly,
+    widened by two σ).
     ``outlier``: (probability, scale) of the wide part."""
     eps, k2 = outlier[0], outlier[1] ** 2
     core = -0.5 * (nu * nu / var + np.log(var) + LN_2PI)
@@ -452,6 +473,12 @@ def feet_ln(
         bounded = np.isfinite(span) & (reach > 0.0)
         span = np.where(bounded, span, 1.0)
         farther = np.where(bounded, np.where((nu > 0) & (nu <= span), -np.log(span), -np.inf), farther)
+    if near is not None:
+        merged = near > 0.0
+        span_near = np.where(merged, np.maximum(dist - near, 0.0) + 2.0 * np.sqrt(var), 1.0)
+        nearer = np.where(merged & (nu < 0) & (nu >= -span_near), -np.log(span_near), -np.inf)
+        half = np.where(merged, LN_HALF, 0.0)
+        farther = np.logaddexp(half + farther, np.where(merged, half + nearer, -np.inf))
     cut = np.clip(cut, 1e-300, 1.0 - 1e-9)
     return np.log1p(-cut) + normal, np.log(cut) + farther
 

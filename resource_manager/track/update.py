@@ -150,13 +150,16 @@ class Updater:
         # Rows the tick's visibility did not cover (tracks started this tick) count as unhidden.
         hidden = np.zeros((tick.views.n_views, len(rows)))
         reach = np.zeros_like(hidden)
+        near = np.zeros_like(hidden)
         if tick.visibility is not None:
             known = rows < tick.visibility.feet_hidden.shape[1]
             hidden[:, known] = tick.visibility.feet_hidden[:, rows[known]]
             reach[:, known] = tick.visibility.cut_reach_m[:, rows[known]]
+            near[:, known] = tick.visibility.cover_near_m[:, rows[known]]
         return {
             "feet_cut": feet_cut_prob(hidden, m),
             "cut_reach_m": reach,
+            "cover_near_m": near,
             "position_weight": tick.position_weight,
             "outlier": (m.outlier_prob, m.outlier_scale),
             "width_rel_sigma": self.width_rel_sigma,

@@ -120,6 +120,9 @@ class Views:
     body_radius_m: FloatArray
     """(s,) radius of each camera's body (a robot, a post): a cylinder from the floor up to the camera, which hides
     what stands behind it from the other cameras (0: none)."""
+    blobs_merge: BoolArray
+    """(s,) whether each camera's blobs are foreground segments, which merge people who overlap in its picture (a
+    blob's bottom may be a nearer person's feet), rather than one box per person."""
     fov: tuple[tuple[float, float] | None, ...]
     """(world azimuth of the optical axis, half width) of each perspective camera; None: 360 deg (panoramic)."""
     image: tuple[ImageBounds | None, ...]
@@ -225,6 +228,7 @@ class Views:
             point_var_m2=none,
             period_s=none,
             body_radius_m=none,
+            blobs_merge=np.zeros(0, dtype=bool),
             fov=(),
             image=(),
             hist_bins=np.zeros(0, dtype=np.int64),

@@ -119,6 +119,7 @@ def build_views(
         point_var_m2=cams.point_var_m2,
         period_s=cams.period_s,
         body_radius_m=cams.body_radius_m,
+        blobs_merge=cams.blobs_merge,
         fov=cams.fov,
         image=cams.image,
         hist_bins=hist_bins,
@@ -173,6 +174,7 @@ class _Cameras:
     point_var_m2: FloatArray
     period_s: FloatArray
     body_radius_m: FloatArray
+    blobs_merge: BoolArray
     fov: tuple[tuple[float, float] | None, ...]
     image: tuple[ImageBounds | None, ...]
 
@@ -193,6 +195,7 @@ class _Cameras:
                 [1.0 / info.fps if info is not None and info.fps > 0 else 0.0 for info in got], dtype=np.float64
             ),
             body_radius_m=np.array([info.body_radius_m if info is not None else 0.0 for info in got], dtype=np.float64),
+            blobs_merge=np.array([info is not None and info.blobs_merge for info in got], dtype=bool),
             fov=tuple(pinhole_fov(m) if m is not None else None for m in models),
             image=tuple(image_bounds(m) if m is not None else None for m in models),
         )

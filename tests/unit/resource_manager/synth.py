@@ -280,6 +280,7 @@ class ViewSpec:
     image: ImageBounds | None = None
     body_radius_m: float = 0.0
     confidence: FloatArray | None = None
+    blobs_merge: bool = False
 
     @property
     def n(self) -> int:
@@ -307,6 +308,7 @@ def stack_views(specs: Sequence[ViewSpec]) -> Views:
         point_var_m2=np.array([v.point_var_m2 for v in specs], dtype=np.float64),
         period_s=np.array([v.period_s for v in specs], dtype=np.float64),
         body_radius_m=np.array([v.body_radius_m for v in specs], dtype=np.float64),
+        blobs_merge=np.array([v.blobs_merge for v in specs], dtype=bool),
         fov=tuple(v.fov for v in specs),
         image=tuple(v.image for v in specs),
         hist_bins=bins,

@@ -55,6 +55,7 @@ def test_a_panoramic_camera_takes_its_height_from_the_surveyed_pose(
     assert parts.camera_height_m == pytest.approx(height_m) and parts.exit_at_end and parts.fps == 10.0
     info = sensor_info(cfg, parts, seq=3, stamp_ns=NOW_NS)
     assert (info.sensor_id, info.seq, info.fps, info.point_sigma_m) == ("cam2", 3, 10.0, HEAD_POINT_SIGMA_M)
+    assert info.blobs_merge  # foreground segments: people who overlap in the picture may come as one blob
     if pose_z is None:
         assert parts.pose is None and info.pose is None and info.pose_source == "unknown"
     else:
@@ -80,6 +81,7 @@ def test_a_detection_file_node_is_a_pinhole_camera_at_its_calibrated_centre(tmp_
     assert (parts.pose.x_m, parts.pose.y_m, parts.pose.z_m) == pytest.approx(tuple(centre))
     info = sensor_info(cfg, parts, seq=0, stamp_ns=NOW_NS)
     assert info.pose_source == "surveyed" and info.point_sigma_m == BOX_POINT_SIGMA_M  # a box, not a head
+    assert not info.blobs_merge  # a person detector's boxes: one per person
 
 
 def test_a_mobile_sim_camera_sends_its_height_and_leaves_its_place_to_mutual_calibration() -> None:

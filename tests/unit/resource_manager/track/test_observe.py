@@ -82,6 +82,41 @@ def test_a_distance_beyond_what_the_cover_allows_is_not_explained_by_a_cut() -> 
     np.testing.assert_allclose(none, diffuse)  # no cover bound: the diffuse model
 
 
+def test_a_view_whose_blobs_merge_knows_the_foot_of_the_nearest_person_in_front() -> None:
+    """Two people on one bearing, 3 m and 4.5 m from a camera 2.5 m up: where the camera's blobs are foreground
+    segments, a blob of the far one may end at the near one's feet, 3 m away; a person detector's boxes may not, and
+    nothing is in front of the near one or of someone off the bearing."""
+    model = TrackModel()
+    table = _table((3.0, 0.0), (4.5, 0.0), (4.5, 2.0))
+    merging = dataclasses.replace(_camera("seg", (0.0, 0.0), 2.5), blobs_merge=True)
+    boxes = _camera("det", (0.0, 0.0), 2.5)
+    vis = visibility_many(stack_views([merging, boxes]), table, model, 100.0)
+    assert vis.cover_near_m[0, 1] == pytest.approx(3.0, rel=1e-6)
+    assert vis.cover_near_m[0, 0] == 0.0 and vis.cover_near_m[0, 2] == 0.0
+    assert vis.cover_near_m[1].max() == 0.0
+    assert vis.feet_hidden[1, 1] == pytest.approx(vis.feet_hidden[0, 1])  # the same cover, whatever the sensor
+
+
+def test_a_distance_nearer_than_the_person_is_a_merged_blob_only_down_to_the_covers_foot() -> None:
+    """A person predicted 6 m away behind someone 5 m away, a reading 0.9 m nearer (0.05 m σ): a blob that took the
+    nearer one in explains it, and far better than the feet do; a reading 2 m nearer (beyond the cover's foot) is
+    no such blob, and without a merging cover nothing changes."""
+    var = np.array([0.0025, 0.0025])
+    dist, cut = np.array([6.0, 6.0]), np.array([0.3, 0.3])
+    nu = np.array([-0.9, -2.0])
+    feet, plain = feet_ln(nu, var, dist, cut, (0.05, 4.0))
+    _, merged = feet_ln(nu, var, dist, cut, (0.05, 4.0), near=np.array([5.0, 5.0]))
+    assert merged[0] > feet[0] + 5.0 and plain[0] == -np.inf
+    assert merged[1] == -np.inf
+    _, none = feet_ln(nu, var, dist, cut, (0.05, 4.0), near=np.zeros(2))
+    np.testing.assert_allclose(none, plain)
+    # Where a merging cover stands, a reading farther than predicted keeps half of the cut box's share.
+    far = np.array([0.4, 0.4])
+    _, cut_only = feet_ln(far, var, dist, cut, (0.05, 4.0))
+    _, shared = feet_ln(far, var, dist, cut, (0.05, 4.0), near=np.array([5.0, 0.0]))
+    assert shared[0] == pytest.approx(cut_only[0] + math.log(0.5)) and shared[1] == pytest.approx(cut_only[1])
+
+
 def test_bearing_variance_falls_to_the_sensors_own_with_distance() -> None:
     views = stack_views([dataclasses.replace(view("a", (0.0, 0.0), []), point_var_m2=0.01)])
     var = bearing_var(views, np.zeros(3, np.int64), np.array([1.0, 4.0, 1e6]))
