@@ -57,8 +57,8 @@ __all__ = [
 
 LN_2PI = math.log(TWO_PI)
 HALF = 0.5
+"""A distance beyond the gate is weighed only for a person whose feet are more than half hidden."""
 LN_HALF = math.log(HALF)
-"""A distance farther than the gate is weighed only for a person whose feet are more than half hidden."""
 
 
 PER_VIEW_NDIM = 3
