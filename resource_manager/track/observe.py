@@ -125,7 +125,7 @@ class Visibility(NamedTuple):
     or above; 0: nothing covers the feet. Neither bounds a cut)."""
     cover_near_m: FloatArray
     """(s, n) in a view whose blobs merge people who overlap in its picture (:attr:`Views.blobs_merge`), the floor
-    distance of the nearest person or camera body in front that covers part of the track's feet: a merged blob's
+    distance of the nearest person in front who covers part of the track's feet: a merged blob's
     bottom may be its feet, nearer than the track's (0: nothing, or a view whose blobs do not merge)."""
 
 
@@ -223,7 +223,7 @@ def _covered(
     picture, treating the covers as independent: 1 - Π(1 - overlap_k / area); (s, n) the share of the feet they
     cover (of the person's width, where a cover reaches above the feet); and (s, n) the farthest floor distance a
     box cut by them can read (:attr:`Visibility.cut_reach_m`; 0 where nothing covers the feet); and (s, n) the floor
-    distance of the nearest of them that covers part of the feet (0: none).
+    distance of the nearest person among them that covers part of the feet (0: none).
 
     Angular rectangles: azimuth ± radius / distance, elevation from the floor to the head top (a body: to its
     camera). A camera above the crowd sees the head of someone behind a nearer person; one at head height does
@@ -236,7 +236,7 @@ def _covered(
     reach = np.zeros(dist.shape)
     near = np.full(dist.shape, math.inf)
     z = views.z_m[:, None, None]
-    covers: list[_Cover] = []
+    covers: list[tuple[_Cover, bool]] = []  # each cover, and whether a foreground blob may take it in (a person)
     if hiders is not None:
         others, hdist, hseen = hiders
         if others is table:
@@ -245,11 +245,13 @@ def _covered(
             az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(views, others, hdist))
         # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
         front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
-        covers.append(_Cover(az_k, half_k, lo_k, hi_k, front))
+        covers.append((_Cover(az_k, half_k, lo_k, hi_k, front), True))
     bodies = np.flatnonzero(views.body_radius_m > 0.0)
     if bodies.size:
-        covers.append(_bodies(views, bodies, dist))
-    for az_k, half_k, lo_k, hi_k, front in covers:
+        # A camera's body is no foreground: a static one is part of the background, a robot is told apart by its
+        # colour bands (a sighting, not a person's blob).
+        covers.append((_bodies(views, bodies, dist), False))
+    for (az_k, half_k, lo_k, hi_k, front), people in covers:
         width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
         over_az = np.clip(half + half_k - np.abs(wrap_angle(az - az_k)), 0.0, width)
         over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
@@ -260,10 +262,10 @@ def _covered(
         # cover whose top is level with the camera or above can cut a box anywhere).
         top_floor = np.where(hi_k < 0.0, z / np.tan(-np.minimum(hi_k, -1e-9)), math.inf)
         reach = np.maximum(reach, np.max(np.where(feet & (over_az > 0.0), top_floor, 0.0), axis=2, initial=0.0))
-        # ...and a blob that takes this cover in ends at its foot, where its floor line of sight meets the floor.
-        foot_floor = np.where(lo_k < 0.0, z / np.tan(-np.minimum(lo_k, -1e-9)), math.inf)
-        foot_floor = np.where(feet & (over_az > 0.0), foot_floor, math.inf)
-        near = np.minimum(near, np.min(foot_floor, axis=2, initial=math.inf))
+        if people:  # ...and a blob that takes this person in ends at their feet, this far away on the floor.
+            foot_floor = np.where(lo_k < 0.0, z / np.tan(-np.minimum(lo_k, -1e-9)), math.inf)
+            foot_floor = np.where(feet & (over_az > 0.0), foot_floor, math.inf)
+            near = np.minimum(near, np.min(foot_floor, axis=2, initial=math.inf))
     return (
         np.asarray(1.0 - clear, dtype=np.float64),
         np.asarray(1.0 - clear_feet, dtype=np.float64),

@@ -95,6 +95,10 @@ def test_a_view_whose_blobs_merge_knows_the_foot_of_the_nearest_person_in_front(
     assert vis.cover_near_m[0, 0] == 0.0 and vis.cover_near_m[0, 2] == 0.0
     assert vis.cover_near_m[1].max() == 0.0
     assert vis.feet_hidden[1, 1] == pytest.approx(vis.feet_hidden[0, 1])  # the same cover, whatever the sensor
+    # A camera's body in front hides the feet too, but no foreground blob takes it in (it is background).
+    robot = _camera("robot", (3.0, 0.0), 1.1, body_radius_m=0.18)
+    behind_robot = visibility_many(stack_views([merging, robot]), _table((4.5, 0.0)), model, 100.0)
+    assert behind_robot.feet_hidden[0, 0] > 0.5 and behind_robot.cover_near_m[0, 0] == 0.0
 
 
 def test_a_distance_nearer_than_the_person_is_a_merged_blob_only_down_to_the_covers_foot() -> None:
