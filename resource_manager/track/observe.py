@@ -236,7 +236,8 @@ def _covered(
     reach = np.zeros(dist.shape)
     near = np.full(dist.shape, math.inf)
     z = views.z_m[:, None, None]
-    covers: list[tuple[_Cover, bool]] = []  # each cover, and whether a foreground blob may take it in (a person)
+    # Each cover, and the floor distance of its feet where a foreground blob may take it in (a person; None: a body).
+    covers: list[tuple[_Cover, FloatArray | None]] = []
     if hiders is not None:
         others, hdist, hseen = hiders
         if others is table:
@@ -245,13 +246,13 @@ def _covered(
             az_k, half_k, lo_k, hi_k = (a[:, None, :] for a in _silhouettes(views, others, hdist))
         # [v, i, k]: k stands in front of i (nearer by more than a person's depth) and can hide.
         front = (hdist[:, None, :] < dist[:, :, None] - 2.0 * PERSON_RADIUS_M) & hseen[:, None, :]
-        covers.append((_Cover(az_k, half_k, lo_k, hi_k, front), True))
+        covers.append((_Cover(az_k, half_k, lo_k, hi_k, front), hdist[:, None, :]))
     bodies = np.flatnonzero(views.body_radius_m > 0.0)
     if bodies.size:
         # A camera's body is no foreground: a static one is part of the background, a robot is told apart by its
         # colour bands (a sighting, not a person's blob).
-        covers.append((_bodies(views, bodies, dist), False))
-    for (az_k, half_k, lo_k, hi_k, front), people in covers:
+        covers.append((_bodies(views, bodies, dist), None))
+    for (az_k, half_k, lo_k, hi_k, front), feet_at in covers:
         width = np.maximum(np.minimum(half, half_k) * 2.0, 0.0)
         over_az = np.clip(half + half_k - np.abs(wrap_angle(az - az_k)), 0.0, width)
         over_el = np.clip(np.minimum(hi, hi_k) - np.maximum(lo, lo_k), 0.0, None)
@@ -261,11 +262,10 @@ def _covered(
         # A box cut by this cover ends at its top at most: that line of sight meets the floor this far away (a
         # cover whose top is level with the camera or above can cut a box anywhere).
         top_floor = np.where(hi_k < 0.0, z / np.tan(-np.minimum(hi_k, -1e-9)), math.inf)
-        reach = np.maximum(reach, np.max(np.where(feet & (over_az > 0.0), top_floor, 0.0), axis=2, initial=0.0))
-        if people:  # ...and a blob that takes this person in ends at their feet, this far away on the floor.
-            foot_floor = np.where(lo_k < 0.0, z / np.tan(-np.minimum(lo_k, -1e-9)), math.inf)
-            foot_floor = np.where(feet & (over_az > 0.0), foot_floor, math.inf)
-            near = np.minimum(near, np.min(foot_floor, axis=2, initial=math.inf))
+        on_feet = feet & (over_az > 0.0)
+        reach = np.maximum(reach, np.max(np.where(on_feet, top_floor, 0.0), axis=2, initial=0.0))
+        if feet_at is not None:  # ...and a blob that takes this person in ends at their feet.
+            near = np.minimum(near, np.min(np.where(on_feet, feet_at, math.inf), axis=2, initial=math.inf))
     return (
         np.asarray(1.0 - clear, dtype=np.float64),
         np.asarray(1.0 - clear_feet, dtype=np.float64),
@@ -477,10 +477,10 @@ def feet_ln(
         farther = np.where(bounded, np.where((nu > 0) & (nu <= span), -np.log(span), -np.inf), farther)
     if near is not None:
         merged = near > 0.0
-        span_near = np.where(merged, np.maximum(dist - near, 0.0) + 2.0 * np.sqrt(var), 1.0)
+        span_near = np.maximum(dist - near, 0.0) + 2.0 * np.sqrt(var)
         nearer = np.where(merged & (nu < 0) & (nu >= -span_near), -np.log(span_near), -np.inf)
         half = np.where(merged, LN_HALF, 0.0)
-        farther = np.logaddexp(half + farther, np.where(merged, half + nearer, -np.inf))
+        farther = np.logaddexp(half + farther, half + nearer)
     cut = np.clip(cut, 1e-300, 1.0 - 1e-9)
     return np.log1p(-cut) + normal, np.log(cut) + farther
 
