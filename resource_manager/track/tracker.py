@@ -260,7 +260,8 @@ class Tracker:
             views, views.every(), self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m
         )
         scored = dict(zip(sids, scores, strict=True))
-        assigned = _assign_views(sids, scores, len(self.tracks))
+        claim = self._claims()
+        assigned = _assign_views(sids, scores, claim)
         # ...and again, each view against where the others put each track: a view's choice among people close
         # together is the one that agrees with the other views (their first choices), not only with the motion.
         # Existence (step 6) reads the first scoring: against the others' place, a view's fit would count their
@@ -275,7 +276,7 @@ class Tracker:
             model=self.model,
             max_range_m=self.scene.max_range_m,
         )
-        assigned = _assign_views(sids, again, len(self.tracks))
+        assigned = _assign_views(sids, again, claim)
         # 4. Update.
         predicted = self.filter.x.copy(), self.filter.p.copy()
         updated = self.updater.update(self.filter, self.tracks, assigned, tick, t_ns)
@@ -303,6 +304,13 @@ class Tracker:
         out.ended = self._prune(t_ns, coverage, out.merged)
         out.reidentified = self._confirm(t_ns)
         return out
+
+    def _claims(self) -> FloatArray:
+        """(n,) how surely each track is someone, as the assignment weighs its claim to a blob: a tentative track
+        is a person only as likely as its existence says (it may be a false detection's echo, or someone already
+        followed); a published one is a person."""
+        confirmed = np.array([tr.confirmed for tr in self.tracks], dtype=bool)
+        return np.where(confirmed, 1.0, self.filter.existence())
 
     def _weights(self, period_s: float, dt_s: float) -> tuple[float, float]:
         """(position, existence) weight at this tick of the evidence of a view whose frames come every ``period_s``
@@ -675,20 +683,22 @@ class Tracker:
         return ids
 
 
-def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], n: int) -> list[list[Assigned]]:
-    """Each of ``n`` tracks' blobs, one view at a time (:func:`_assign`)."""
-    out: list[list[Assigned]] = [[] for _ in range(n)]
+def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], claim: FloatArray) -> list[list[Assigned]]:
+    """Each track's blobs, one view at a time (:func:`_assign`); ``claim``: (n,) how surely each is someone."""
+    out: list[list[Assigned]] = [[] for _ in range(len(claim))]
     for sid, sc in zip(sids, scores, strict=True):
-        for i, j in _assign(sc):
+        for i, j in _assign(sc, claim):
             out[i].append(Assigned(sid, j))
     return out
 
 
-def _assign(scores: ViewScores) -> list[tuple[int, int]]:
-    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian)."""
-    gain = scores.gain
-    if gain.size == 0:
+def _assign(scores: ViewScores, claim: FloatArray) -> list[tuple[int, int]]:
+    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian). A track that is
+    someone with probability r (``claim``) explains a blob with r P_D g / λ, and none with 1 - r P_D."""
+    if scores.ln_lr.size == 0:
         return []
+    sure = np.clip(claim, 1e-9, 1.0)
+    gain = scores.ln_lr + (np.log(sure) - np.log1p(-np.minimum(sure * scores.p_detect, 1.0 - 1e-9)))[:, None]
     ok = np.isfinite(gain) & (gain > 0)
     rows = np.flatnonzero(ok.any(axis=1))
     if not rows.size:

@@ -443,3 +443,21 @@ def test_a_coasting_track_takes_a_new_person_back_only_while_it_is_likelier_ther
 
     assert newcomer_after(1.0) == (1, ["m-old"])
     assert newcomer_after(-1.0) == (0, ["m-new"])  # and the old one, given up, has ended
+
+
+def test_a_tentative_track_claims_a_blob_only_as_surely_as_it_is_someone() -> None:
+    from resource_manager.track.observe import ViewScores
+    from resource_manager.track.tracker import _assign_views
+
+    # One view, one blob that fits a tentative track (row 1) a little better than a published one (row 0).
+    scores = ViewScores(
+        ln_lr=np.array([[3.0], [3.5]]), ln_miss=np.log1p(-np.array([0.9, 0.9])), p_detect=np.full(2, 0.9)
+    )
+    as_people = _assign_views(("cam",), [scores], np.array([1.0, 1.0]))
+    assert [len(a) for a in as_people] == [0, 1]  # both people: the better fit takes it
+    unsure = _assign_views(("cam",), [scores], np.array([1.0, 0.3]))
+    assert [len(a) for a in unsure] == [1, 0]  # a tentative track likelier nobody than someone yields it
+    # Alone, a poor fit is a published track's, but a tentative one likelier nobody leaves it unexplained.
+    poor = ViewScores(ln_lr=np.array([[0.5]]), ln_miss=np.log1p(-np.array([0.9])), p_detect=np.full(1, 0.9))
+    assert [len(a) for a in _assign_views(("cam",), [poor], np.array([1.0]))] == [1]
+    assert [len(a) for a in _assign_views(("cam",), [poor], np.array([0.3]))] == [0]
