@@ -99,6 +99,12 @@ class ViewScores:
         """(n, m) what assigning the blob to the track gains over leaving both apart (> 0: worth it)."""
         return self.ln_lr - self.ln_miss[:, None]
 
+    def gain_claimed(self, claim: FloatArray) -> FloatArray:
+        """(n, m) :attr:`gain` of tracks that are someone only with probability ``claim`` (n,): such a track explains
+        a blob with r P_D g / λ, and none with 1 - r P_D (at r = 1, :attr:`gain`)."""
+        sure = np.clip(claim, 1e-9, 1.0)
+        return self.ln_lr + (np.log(sure) - np.log1p(-np.minimum(sure * self.p_detect, 1.0 - 1e-9)))[:, None]
+
 
 class _Cover(NamedTuple):
     """Silhouettes that may hide people: (s, 1 or n, k) azimuth, half width, bottom and top elevations in each

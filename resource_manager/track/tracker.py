@@ -693,12 +693,11 @@ def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], claim: FloatA
 
 
 def _assign(scores: ViewScores, claim: FloatArray) -> list[tuple[int, int]]:
-    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian). A track that is
-    someone with probability r (``claim``) explains a blob with r P_D g / λ, and none with 1 - r P_D."""
-    if scores.ln_lr.size == 0:
+    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian), each track's claim
+    weighed by how surely it is someone (:meth:`~.observe.ViewScores.gain_claimed`)."""
+    gain = scores.gain_claimed(claim)
+    if gain.size == 0:
         return []
-    sure = np.clip(claim, 1e-9, 1.0)
-    gain = scores.ln_lr + (np.log(sure) - np.log1p(-np.minimum(sure * scores.p_detect, 1.0 - 1e-9)))[:, None]
     ok = np.isfinite(gain) & (gain > 0)
     rows = np.flatnonzero(ok.any(axis=1))
     if not rows.size:
