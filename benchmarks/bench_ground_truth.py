@@ -41,10 +41,10 @@ if str(REPO) not in sys.path:
 
 from common.site import load_site  # noqa: E402
 from panostereo.datasets.mot import import_mot  # noqa: E402
-from panostereo.datasets.play import DATASET_EPOCH_NS, evaluate_site  # noqa: E402
+from panostereo.datasets.play import DATASET_EPOCH_NS, evaluate_site, scored_first  # noqa: E402
 from panostereo.datasets.wildtrack import import_wildtrack  # noqa: E402
 from resource_manager.track.model import PERSON_RADIUS_M, TrackModel  # noqa: E402
-from user_agent.groundtruth import GroundTruth, GtPoint, read_gt_csv  # noqa: E402
+from user_agent.groundtruth import GroundTruth, read_gt_csv  # noqa: E402
 from user_agent.report import score_tracksets  # noqa: E402
 
 HANDOVER_S = 1.0
@@ -82,10 +82,7 @@ class Artifacts:
 def find_artifacts(gt: GroundTruth, fps: float, max_speed_mps: float) -> Artifacts:
     """The jumps, one-frame gaps and id handovers of ``gt`` (frames ``1 / fps`` apart)."""
     out = Artifacts()
-    tracks: dict[str, list[GtPoint]] = defaultdict(list)
-    for k in gt.frame_numbers:
-        for p in gt.frames[k]:
-            tracks[p.person_id].append(p)
+    tracks = {pid: gt.track_of(pid) for pid in gt.person_ids}
     step_m = max_speed_mps / fps
     for pid, pts in tracks.items():
         for a, b in itertools.pairwise(pts):
@@ -119,7 +116,7 @@ def attribute(site_path: Path, threshold_m: float) -> dict[str, Any]:
     gt = read_gt_csv(site.resolve(site.dataset.ground_truth))
     found = find_artifacts(gt, fps, TrackModel().max_speed_mps)
     _, run = evaluate_site(site_path)
-    hull = gt.area() if site.dataset.scored_area == "ground_truth" and site.area is None else None
+    hull, _ = scored_first(site, gt)
     events: dict[int, list[tuple[str, str, str, float]]] = {}
     kw: dict[str, Any] = {"epoch_ns": DATASET_EPOCH_NS, "fps": fps, "threshold_m": threshold_m, "area": hull}
     scored = score_tracksets(run.tracksets, gt, on_events=events.__setitem__, **kw).metrics

@@ -46,7 +46,8 @@ from user_agent.evaluate import HypPoint
 from user_agent.groundtruth import GroundTruth, read_gt_csv, speed_warning
 from user_agent.report import Scored, score_tracksets
 
-__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site"]
+__all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site",
+           "scored_first"]  # fmt: skip
 
 DATASET_EPOCH_NS = 1_700_000_000_000_000_000
 """World time 0 of a dataset played in dataset time (any fixed instant: the result does not depend on it)."""
@@ -240,18 +241,25 @@ def ended_inside(tracksets: Sequence[TrackSet], area: Area | None) -> int | None
     return int(np.sum(area.contains(xy) & (area.exit_distance(xy) > ENDED_BEFORE_S * 1.0)))
 
 
+def scored_first(site: SiteConfig, gt: GroundTruth) -> tuple[FloatArray | None, FloatArray | None]:
+    """(where a dataset site's tracks are scored first, the ground truth's hull), each None for everywhere.
+
+    A site that declares its area says where people are: every track counts, first. Without one, the ground truth's
+    hull (``[dataset] scored_area = "ground_truth"``) is where anyone can say whether someone is there."""
+    assert site.dataset is not None
+    hull = gt.area() if site.dataset.scored_area == "ground_truth" else None
+    return (None if site.area is not None else hull), hull
+
+
 def _report(site: SiteConfig, run: DatasetRun, gt: GroundTruth, thresholds_m: Sequence[float]) -> dict[str, Any]:
     """The scores of a run (and its tracks at the ground truth's frames, into ``run.hypotheses``)."""
     assert site.dataset is not None
-    hull = gt.area() if site.dataset.scored_area == "ground_truth" else None
+    primary, hull = scored_first(site, gt)
     fps = site.dataset.fps
 
     def score(t: float, where: FloatArray | None) -> Scored:
         return score_tracksets(run.tracksets, gt, epoch_ns=DATASET_EPOCH_NS, fps=fps, threshold_m=t, area=where)
 
-    # A site that declares its area says where people are: every track counts, first. Without one, the ground
-    # truth's hull is where anyone can say whether someone is there.
-    primary = None if site.area is not None else hull
     scored = [score(t, primary) for t in thresholds_m]
     run.hypotheses = scored[0].hypotheses if scored else {}
     report: dict[str, Any] = {
@@ -294,6 +302,6 @@ def plot_site(site_path: str | Path, run: DatasetRun, out: str | Path, *, thresh
         epoch_ns=DATASET_EPOCH_NS,
         fps=site.dataset.fps,
         threshold_m=threshold_m,
-        scored_area=gt.area() if site.dataset.scored_area == "ground_truth" and site.area is None else None,
+        scored_area=scored_first(site, gt)[0],
     )
     return save_top_view(inp, out)
