@@ -42,7 +42,8 @@ of real room the project is measured on without its data here."""
 THRESHOLDS_M = (0.5, 1.0)
 
 
-def _import(name: str, datasets: Path, out: Path) -> Path:
+def import_set(name: str, datasets: Path, out: Path) -> Path:
+    """The development set ``name`` (of ``SETS``) as a site under ``out`` (the room: written there first)."""
     from panostereo.datasets.mot import import_mot
     from panostereo.datasets.wildtrack import import_wildtrack
 
@@ -68,7 +69,8 @@ def _tracking(site: Path) -> dict[str, float]:
     return out
 
 
-def _cameras(site: Path) -> tuple[list[Any], dict[str, Any]]:
+def site_cameras(site: Path) -> tuple[list[Any], dict[str, Any]]:
+    """A site's cameras as ``calib refine`` reads them, and each one's camera model (to write a moved site)."""
     from common.site import load_site
     from panostereo.calib.observe import from_site
 
@@ -80,7 +82,7 @@ def _perturbed(official: Path, out: Path, shift_m: float, turn_rad: float, seed:
     from common.site import load_site
     from panostereo.calib.site_out import write_refined_site
 
-    cams, models = _cameras(official)
+    cams, models = site_cameras(official)
     rng = np.random.default_rng(seed)
     poses = {}
     for c in cams:
@@ -110,8 +112,8 @@ def _refine(site: Path, out: Path, fixed: str) -> dict[str, Any]:
 def _pose_errors(official: Path, site: Path) -> dict[str, list[float]]:
     from panostereo.calib.poses import pose_change
 
-    truth, _ = _cameras(official)
-    got = {c.sensor_id: c.pose for c in _cameras(site)[0]}
+    truth, _ = site_cameras(official)
+    got = {c.sensor_id: c.pose for c in site_cameras(site)[0]}
     out = {}
     for c in truth:
         moved, turned = pose_change(c.pose, got[c.sensor_id])
@@ -120,8 +122,8 @@ def _pose_errors(official: Path, site: Path) -> dict[str, list[float]]:
 
 
 def run_set(name: str, datasets: Path, work: Path, seeds: range, cases: list[tuple[float, float]]) -> dict[str, Any]:
-    official = _import(name, datasets, work / name / "official")
-    cams, _ = _cameras(official)
+    official = import_set(name, datasets, work / name / "official")
+    cams, _ = site_cameras(official)
     fixed = cams[0].sensor_id
     result: dict[str, Any] = {"fixed": fixed, "official": _tracking(official), "cases": []}
     runs = [(0.0, 0.0, 0)] if name == "pets" and seeds.start == 1 else []

@@ -124,6 +124,9 @@ class TickResult:
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
     live_tracks: list[Track] = field(default_factory=list)
     """This instant's published tracks (the same as ``trackset``'s without ``publish_lag_s``)."""
+    people: list[TrackSnapshot] = field(default_factory=list)
+    """The same tracks as the tracker holds them, each with the cameras whose blobs placed it at this instant (read
+    by the cameras' agreement check, poses/agreement.py)."""
     views: Views = field(default_factory=Views.empty)
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
@@ -321,9 +324,10 @@ class Fusion:
         show_tentative = self.config.manager.publish_tentative
         return [tr for tr in self.tracker.snapshots() if tr.reported or (show_tentative and not tr.confirmed)]
 
-    def live_tracks(self) -> list[Track]:
-        """This instant's published tracks as messages (what goes out with no ``publish_lag_s``)."""
-        return [messages.track_message(self.manager_id, tr, self.seq) for tr in self.published_tracks()][:MAX_TRACKS]
+    def live_tracks(self, shown: list[TrackSnapshot]) -> list[Track]:
+        """This instant's published tracks (``shown``: :meth:`published_tracks`) as messages (what goes out with no
+        ``publish_lag_s``)."""
+        return [messages.track_message(self.manager_id, tr, self.seq) for tr in shown[:MAX_TRACKS]]
 
     def flush(self) -> list[TrackSet]:
         """The TrackSets still held back by ``publish_lag_s`` (the end of a recorded run), oldest first."""
@@ -393,7 +397,8 @@ class Fusion:
             self.seq += 1
         used = sorted(in_use or [])
         trackset: TrackSet | None = None
-        live = self.live_tracks()
+        shown = self.published_tracks()[:MAX_TRACKS]
+        live = self.live_tracks(shown)
         if self.lagged is None:
             trackset = messages.track_set(self.manager_id, self.seq, self.last_t_ns, live, used)
         elif not skipped:
@@ -425,6 +430,7 @@ class Fusion:
             ended=ended,
             skipped=skipped,
             live_tracks=live,
+            people=shown,
             views=views if views is not None else Views.empty(),
             ptz_ended=self.ptz.take_ended(),
             latency=last if (last := self.schedule.last) is not None and last.t_ns == self.last_t_ns else None,

@@ -661,7 +661,7 @@ class ManagerNode:
             self.store.prune(t_ns)
             if not result.skipped:
                 # this instant's people, also when the published set is an earlier instant's (publish_lag_s)
-                self.agreement.update(t_ns, result.views, result.live_tracks)
+                self.agreement.update(t_ns, result.views, result.people)
         for sid, n in result.sightings_refused.items():
             self.gate.refusals.add(sid, "sighting", n)
         self.ticks += 1

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,7 +38,7 @@ from common.frames import Frame
 from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
 from resource_manager.config import MAX_PUBLISH_LAG_S, ManagerConfig, for_site, load_manager_config
-from resource_manager.fusion import Batch, Fusion
+from resource_manager.fusion import Batch, Fusion, TickResult
 from sensor_node.build import build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
@@ -47,7 +47,7 @@ from user_agent.groundtruth import GroundTruth, read_gt_csv, speed_warning
 from user_agent.report import Scored, score_tracksets
 
 __all__ = ["DATASET_EPOCH_NS", "DatasetCamera", "DatasetRun", "evaluate_site", "load_cameras", "play", "plot_site",
-           "scored_first"]  # fmt: skip
+           "scored_first", "site_manager_config"]  # fmt: skip
 
 DATASET_EPOCH_NS = 1_700_000_000_000_000_000
 """World time 0 of a dataset played in dataset time (any fixed instant: the result does not depend on it)."""
@@ -116,9 +116,14 @@ def _with_epoch(cfg: Any, epoch_ns: int) -> Any:
     return msgspec.structs.replace(cfg, source=msgspec.structs.replace(cfg.source, epoch_ns=epoch_ns))
 
 
-def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
+def play(
+    cameras: Sequence[DatasetCamera], config: ManagerConfig, on_tick: Callable[[int, TickResult], None] | None = None
+) -> DatasetRun:
     """Feed a fresh Fusion every frame as it would arrive (at its own stamp) and fuse the instants the live
-    manager's watermark rule allows (:mod:`resource_manager.ingest.schedule`): here, every frame instant."""
+    manager's watermark rule allows (:mod:`resource_manager.ingest.schedule`): here, every frame instant.
+
+    ``on_tick``: called with each fused instant and its whole result (for what reads more than the TrackSets, as
+    the live manager's cameras' agreement check does)."""
     fusion = Fusion(config)
     by_stamp: dict[int, list[Features]] = {}
     for cam in cameras:
@@ -134,6 +139,8 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
         result = fusion.step(t_ns)
         run.tick_ms.append((time.process_time() - began) * 1e3)
         run.ticks += 1
+        if not result.skipped and on_tick is not None:
+            on_tick(t_ns, result)
         if not result.skipped and result.trackset is not None:
             run.tracksets.append(result.trackset)
 
@@ -152,7 +159,7 @@ def play(cameras: Sequence[DatasetCamera], config: ManagerConfig) -> DatasetRun:
     return run
 
 
-def _manager_config(site: SiteConfig, given: str | Path | None) -> ManagerConfig:
+def site_manager_config(site: SiteConfig, given: str | Path | None) -> ManagerConfig:
     """The site's manager config (or ``given``) as the manager of this site: its sensors, its area."""
     if given:
         return for_site(load_manager_config(given), site)
@@ -188,7 +195,7 @@ def evaluate_site(
     gt_path = site.resolve(site.dataset.ground_truth)
     if not gt_path.is_file():
         raise ConfigError(f"{site.path}: dataset.ground_truth {site.dataset.ground_truth!r} not found ({gt_path})")
-    config = _manager_config(site, manager_config)
+    config = site_manager_config(site, manager_config)
     if publish_lag_s is not None:
         if not (math.isfinite(publish_lag_s) and 0.0 <= publish_lag_s <= MAX_PUBLISH_LAG_S):
             raise ConfigError(f"--publish-lag-s must be in [0, {MAX_PUBLISH_LAG_S:g}] s, got {publish_lag_s}")

@@ -1,15 +1,25 @@
 """Whether each camera's blobs still agree with where the other cameras put the people (a camera bumped or moved).
 
-Every fusion tick, for each camera's view: the published tracks that at least two *other* cameras localised
-(their positions do not rest on this camera) are the people it should see. Each of its blobs is a bearing ray from
-its centre; the blob's residual is the floor distance from that ray to the nearest such person in front of it.
-A blob that finds no person within ``gate_m`` counts as ``gate_m`` (and as unexplained: clutter, someone the
-others do not see, or a camera turned so far that its rays point at no one). Over the last ``window_s`` the median
-is the camera's residual; a camera whose residual exceeds ``disagree_m`` (with at least ``min_blobs`` blobs) is
-reported as disagreeing: its pose is no longer what its calibration says, and ``panostereo calib refine`` with a
-recording of the site fixes it. A camera in place keeps most of its rays within a person's width of the people
-the others place, whatever clutter it also sees; a camera turned by a few degrees puts most of them a metre off,
-or next to the wrong person.
+Every fusion tick, for each camera's view:
+
+* *Who checks it.* The published tracks that the blobs of at least two *other* cameras placed at this tick are the
+  people it is checked against: their positions do not rest on this camera.
+* *Whom a blob shows.* Each blob is a bearing ray from the camera's centre. Where the camera gives the blob's feet
+  distance, only the people near that distance along the ray (``RANGE_SIGMAS`` of its spread) can be the one it
+  shows: a ray through a crowd passes near somebody, its feet near one person. The published person nearest the
+  ray among those, in front of the camera, is the one it shows.
+* *Its residual.* Where that is a checked person, the residual is their floor distance from the ray. Where it is a
+  person this camera itself helped place, the blob tests nothing and is left out. A blob that finds nobody within
+  ``gate_m`` counts as ``gate_m`` and as unexplained (clutter, someone nobody else sees, or a camera turned so far
+  that its rays point at no one), unless its feet put it where fewer than two other cameras look: nobody the
+  others place can stand there, so finding nobody says nothing. A camera with no checked person at a tick adds
+  nothing then.
+
+Over the last ``window_s`` the median is the camera's residual. A camera whose residual exceeds ``disagree_m``
+(with at least ``min_blobs`` blobs) is reported as disagreeing: its pose is no longer what its calibration says,
+and ``panostereo calib refine`` with a recording of the site fixes it. A camera in place keeps most of its rays
+within a person's width of the people the others place, whatever clutter it also sees; a camera turned by a few
+degrees puts most of them a metre off, or next to the wrong person.
 
 Pure: reads the views and the published tracks, changes neither.
 """
@@ -22,13 +32,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.schema import SensorAgreement, Track
+from common.schema import SensorAgreement
+from resource_manager.track.model import HEAD_HEIGHT_M
+from resource_manager.track.observe import seen_by
+from resource_manager.track.tracker import TrackSnapshot
 from resource_manager.views.blobs import Views
 
 __all__ = ["Agreement", "AgreementParams"]
 
 MIN_OTHER_CAMERAS = 2
-"""A track counts for a camera when at least this many other cameras localised it."""
+"""A person checks a camera when the blobs of at least this many other cameras placed them."""
+RANGE_SIGMAS = 3.0
+"""A blob's feet distance rules out the people further than this many of its sigmas along its ray."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +57,8 @@ class AgreementParams:
     place puts its rays well within it)."""
     min_blobs: int = 20
     """Fewer blobs in the window say nothing either way."""
+    height_m: float = HEAD_HEIGHT_M
+    """How tall a person is taken to be where a blob's feet put them (who else could see them there)."""
 
 
 @dataclass(slots=True)
@@ -57,26 +74,42 @@ class Agreement:
         self.params = params or AgreementParams()
         self._hist: dict[str, _History] = {}
 
-    def update(self, t_ns: int, views: Views, tracks: Sequence[Track]) -> None:
-        """Add one tick's blobs (see the module docstring)."""
+    def update(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
+        """Add one tick's blobs against its published people (see the module docstring)."""
         p = self.params
+        xy = np.array([tr.xy for tr in people], dtype=np.float64).reshape(-1, 2)
         for row, sid in enumerate(views.sensor_ids):
             bearing = views.bearing_rad[views.span(row)]
-            if bearing.size == 0:
+            if bearing.size == 0 or not people:
                 continue
-            others = [t for t in tracks if sum(1 for s in t.sensors if s != sid) >= MIN_OTHER_CAMERAS]
-            if not others:
+            checks = np.array([sum(1 for s in tr.views if s != sid) >= MIN_OTHER_CAMERAS for tr in people])
+            if not checks.any():
                 continue
-            pts = np.array([(t.x_m, t.y_m) for t in others], dtype=np.float64) - views.origin[row]
+            pts = xy - views.origin[row]
             dirs = np.column_stack([np.cos(bearing), np.sin(bearing)])
             along = dirs @ pts.T  # (blobs, people)
             across = np.abs(dirs[:, 0:1] * pts[None, :, 1] - dirs[:, 1:2] * pts[None, :, 0])
-            across = np.where(along > 0, across, np.inf)
-            best = across.min(axis=1)
+            # Feet distance, where given: only the people near it along the ray can be the one a blob shows.
+            rng = views.mono_range_m[views.span(row)][:, None]
+            reach = RANGE_SIGMAS * views.mono_sigma_m[views.span(row)][:, None]
+            near = np.where(np.isfinite(rng), np.abs(along - rng) <= reach, True)
+            off = np.where((along > 0) & near, across, np.inf)
+            nearest = off.argmin(axis=1)
+            best = off[np.arange(len(bearing)), nearest]
+            # Finding nobody says something only where two other cameras look.
+            checkable = np.ones(len(bearing), dtype=bool)
+            ranged = np.flatnonzero(np.isfinite(rng[:, 0]))
+            if ranged.size:
+                feet = views.origin[row] + dirs[ranged] * rng[ranged]
+                seen = seen_by(views, feet, p.height_m, np.inf)
+                checkable[ranged] = seen[np.arange(views.n_views) != row].sum(axis=0) >= MIN_OTHER_CAMERAS
             h = self._hist.setdefault(sid, _History())
-            for d in best:
-                h.residuals.append((t_ns, min(float(d), p.gate_m)))
-                if d > p.gate_m:
+            for d, who, ok in zip(best.tolist(), nearest.tolist(), checkable.tolist(), strict=True):
+                if d <= p.gate_m:
+                    if checks[who]:
+                        h.residuals.append((t_ns, d))
+                elif ok:
+                    h.residuals.append((t_ns, p.gate_m))
                     h.unexplained.append(t_ns)
         oldest = t_ns - int(p.window_s * 1e9)
         for h in self._hist.values():

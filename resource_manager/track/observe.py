@@ -52,6 +52,7 @@ __all__ = [
     "feet_ln",
     "in_any_view",
     "score_views",
+    "seen_by",
     "visibility_many",
 ]
 
@@ -183,12 +184,18 @@ def visibility_many(
 def in_any_view(views: Views, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
     """(n,) whether some camera of ``views`` has a person ``height_m`` tall standing at ``xy`` (n, 2) in its picture
     and range."""
+    return np.asarray(seen_by(views, xy, height_m, max_range_m).any(axis=0), dtype=bool)
+
+
+def seen_by(views: Views, xy: FloatArray, height_m: float, max_range_m: float) -> BoolArray:
+    """(s, n) whether each camera of ``views`` has a person ``height_m`` tall standing at ``xy`` (n, 2) in its
+    picture and range."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     if not views.n_views or not len(xy):
-        return np.zeros(len(xy), dtype=bool)
+        return np.zeros((views.n_views, len(xy)), dtype=bool)
     n = len(xy)
     table = TrackTable(xy, np.zeros((n, 2, 2)), np.full(n, height_m), np.zeros(n))
-    return np.asarray(_in_view(views, table, max_range_m)[1].any(axis=0), dtype=bool)
+    return np.asarray(_in_view(views, table, max_range_m)[1], dtype=bool)
 
 
 def _in_view(views: Views, table: TrackTable, max_range_m: float) -> tuple[FloatArray, BoolArray]:

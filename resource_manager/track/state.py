@@ -46,6 +46,8 @@ class TrackRecord:
     method: Method = "predicted"
     sensors: tuple[str, ...] = ()
     """The camera pair the error model ranks best among the views that detected the person (or the one view)."""
+    views: tuple[str, ...] = ()
+    """The cameras whose blobs were assigned to the person at the latest tick (none: no view detected them)."""
     predicted_error_m: float = 0.0
     """That pair's predicted position error (the error model)."""
     links: dict[str, int] = field(default_factory=dict)

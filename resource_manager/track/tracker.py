@@ -94,6 +94,8 @@ class TrackSnapshot:
     state: TrackState
     method: Method
     sensors: tuple[str, ...]
+    views: tuple[str, ...]
+    """The cameras whose blobs placed it at this tick (``sensors`` is the best pair of them)."""
     predicted_error_m: float
     born_ns: int
     t_ns: int
@@ -187,6 +189,7 @@ class Tracker:
                     state=tr.state(),
                     method=tr.method,
                     sensors=tr.sensors,
+                    views=tr.views,
                     predicted_error_m=tr.predicted_error_m,
                     born_ns=tr.born_ns,
                     t_ns=int(f.t_ns[i]),
@@ -294,6 +297,8 @@ class Tracker:
         hyps = self._hypotheses(tick, unexplained)
         hyps, returned = self._returns(hyps, tick, t_ns, hits, predicted)
         out.returned = len(returned)
+        for i, tr in enumerate(self.tracks):
+            tr.views = tuple(sid for sid in sids if i in hits[sid])
         # 6. Existence (of the tracks there were; new ones start from their own evidence).
         coverage = self._coverage(views)
         exits = at_exit(self.filter.x[:, :2], self.filter.position_sigma(), self.model, self.scene, coverage)
@@ -486,6 +491,7 @@ class Tracker:
             if best is not None:
                 tr.sensors = (best.a, best.b)
                 tr.predicted_error_m = best.error_m
+            tr.views = tuple(sorted(hyps[k].blobs))
             born.append(tr)
         self.tracks.extend(born)
         self.filter.fuse_heights(rows, gots, tick.views)

@@ -20,6 +20,7 @@ from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import Blob, Features, PanoramicModel, Pose, SensorInfo, Sighting
 from resource_manager.ingest.align import Aligned, AlignParams, align
 from resource_manager.ingest.buffers import SensorBuffer
+from resource_manager.track.tracker import TrackSnapshot
 from resource_manager.views.blobs import ImageBounds, Views, stack_histograms
 
 
@@ -349,3 +350,33 @@ def view(
         hist=np.array(hist) if hist else None,
         local_id=np.arange(len(targets)),
     )
+
+
+def snapshot(
+    serial: int = 1, at: tuple[float, float] = (0.0, 0.0), *, track_id: str = "m-1", **fields: object
+) -> TrackSnapshot:
+    """A track as the other stages read it: by default a published person standing at ``at``, seen now; ``fields``
+    override any other field (a tentative one: ``track_id=""``)."""
+    confirmed = bool(track_id)
+    base: dict[str, object] = {
+        "serial": serial,
+        "track_id": track_id,
+        "x": np.array([at[0], at[1], 0.0, 0.0]),
+        "p_xy": np.eye(2) * 0.01,
+        "height_m": 1.7,
+        "existence": 0.99 if confirmed else 0.6,
+        "state": "confirmed" if confirmed else "tentative",
+        "method": "least_squares",
+        "sensors": (),
+        "views": (),
+        "predicted_error_m": 0.1,
+        "born_ns": 0,
+        "t_ns": 0,
+        "hits": 10,
+        "misses": 0,
+        "confirmed": confirmed,
+        "detected": True,
+        "placed": True,
+        "reported": confirmed,
+    }
+    return TrackSnapshot(**{**base, **fields})  # type: ignore[arg-type]

@@ -2,35 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from common.schema import Track
 from resource_manager.serve.adopt import GATE_M, adopt_ids, follows
 from resource_manager.track.tracker import TrackSnapshot
 from tests.unit.common.tracks import T0, published
+from tests.unit.resource_manager.synth import snapshot
 
 
 def _mine(serial: int, track_id: str, x: float, y: float, t_ns: int = T0) -> TrackSnapshot:
-    return TrackSnapshot(
-        serial=serial,
-        track_id=track_id,
-        x=np.array([x, y, 0.0, 0.0]),
-        p_xy=np.eye(2) * 0.01,
-        height_m=1.7,
-        existence=0.99,
-        state="confirmed" if track_id else "tentative",
-        method="paper",
-        sensors=(),
-        predicted_error_m=0.1,
-        born_ns=T0,
-        t_ns=t_ns,
-        hits=10,
-        misses=0,
-        confirmed=bool(track_id),
-        detected=True,
-        placed=True,
-        reported=bool(track_id),
-    )
+    return snapshot(serial, (x, y), track_id=track_id, method="paper", born_ns=T0, t_ns=t_ns)
 
 
 def _theirs(track_id: str, x: float, y: float, vx: float = 0.0, t_ns: int = T0) -> Track:

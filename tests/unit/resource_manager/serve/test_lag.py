@@ -2,35 +2,16 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from resource_manager.serve.lag import LaggedTracks
 from resource_manager.track.tracker import TrackSnapshot
+from tests.unit.resource_manager.synth import snapshot
 
 S = 1_000_000_000
 
 
 def _snap(serial: int, t_s: float, track_id: str = "", *, placed: bool = True) -> TrackSnapshot:
-    confirmed = bool(track_id)
-    return TrackSnapshot(
-        serial=serial,
-        track_id=track_id,
-        x=np.zeros(4),
-        p_xy=np.eye(2) * 0.01,
-        height_m=1.7,
-        existence=0.95 if confirmed else 0.6,
-        state="confirmed" if confirmed else "tentative",
-        method="least_squares",
-        sensors=(),
-        predicted_error_m=0.1,
-        born_ns=0,
-        t_ns=int(t_s * S),
-        hits=1,
-        misses=0,
-        confirmed=confirmed,
-        detected=True,
-        placed=placed,
-        reported=confirmed and placed,
+    return snapshot(
+        serial, track_id=track_id, t_ns=int(t_s * S), hits=1, placed=placed, reported=bool(track_id) and placed
     )
 
 

@@ -1,0 +1,139 @@
+"""The live check that each camera still agrees with the others (``ManagerStatus.agreement``) on the development
+sets: does it name a camera moved since its calibration, and only that one?
+
+Usage::
+
+    python -m benchmarks.bench_agreement [--datasets ../shared/datasets] [--sets wildtrack,pets,room]
+                                         [--shift-m 0.5] [--turn-deg 5] [--axis vertical|random] [--seed 1]
+                                         [--out DIR]
+
+Per set (Wildtrack's ground-truth boxes, PETS 2009's detections, the simulated room of ``bench_calib``), played in
+dataset time through the manager's Fusion with the manager's check (:mod:`resource_manager.poses.agreement`) fed
+every fused instant, as the live manager feeds it:
+
+* with the official calibration: the share of instants (after the check's first window) at which each camera is
+  reported as disagreeing (each one a false alarm);
+* then with one camera at a time whose calibration is moved by ``--shift-m`` in a random horizontal direction and
+  turned by ``--turn-deg`` about the vertical (``--axis random``: about a random axis) (its pictures no longer fit
+  it: a camera bumped): the share of
+  instants at which the moved camera is reported (a detection) and the largest share of any other camera (a false
+  alarm), with the moved camera's residual at the end.
+
+Nothing of the ground truth reaches the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from benchmarks.bench_calib import SETS, import_set, site_cameras  # noqa: E402
+from common.site import load_site  # noqa: E402
+from panostereo.calib.site_out import write_refined_site  # noqa: E402
+from panostereo.datasets.play import load_cameras, play, site_manager_config  # noqa: E402
+from resource_manager.fusion import TickResult  # noqa: E402
+from resource_manager.poses.agreement import Agreement  # noqa: E402
+
+
+def flagged(site_path: Path) -> tuple[dict[str, float], dict[str, float]]:
+    """Play a site with the check fed every instant: per camera, the share of instants after the first window at
+    which it disagreed, and its residual at the end."""
+    site = load_site(site_path)
+    check = Agreement()
+    first: list[int] = []
+    counts: dict[str, list[int]] = {}
+
+    def on_tick(t_ns: int, result: TickResult) -> None:
+        check.update(t_ns, result.views, result.people)
+        first.append(first[0] if first else t_ns)
+        if t_ns - first[0] < check.params.window_s * 1e9:
+            return
+        for a in check.report():
+            c = counts.setdefault(a.sensor_id, [0, 0])
+            c[0] += int(a.disagrees)
+            c[1] += 1
+
+    play(load_cameras(site), site_manager_config(site, None), on_tick=on_tick)
+    shares = {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(counts.items())}
+    residual = {a.sensor_id: round(a.residual_m, 3) for a in check.report()}
+    return shares, residual
+
+
+def moved(
+    official: Path, out: Path, camera: str, shift_m: float, turn_rad: float, seed: int, *, axis: str = "vertical"
+) -> Path:
+    """The site with ``camera``'s calibration moved horizontally and turned about the vertical (``axis``:
+    ``vertical``, a camera knocked round on its mount) or about a random axis (``random``, a tilt as likely as a
+    turn): its pictures no longer fit its calibration, as those of a camera bumped since it was calibrated."""
+    cams, models = site_cameras(official)
+    cam = next(c for c in cams if c.sensor_id == camera)
+    rng = np.random.default_rng(seed)
+    d, a = rng.normal(size=3), rng.normal(size=3)
+    d[2] = 0.0
+    if axis == "vertical":
+        a = np.array([0.0, 0.0, 1.0 if a[2] >= 0 else -1.0])
+    pose = cam.pose.turned_moved(turn_rad * a / np.linalg.norm(a), shift_m * d / np.linalg.norm(d))
+    return write_refined_site(load_site(official), {camera: pose}, models, out)
+
+
+def run_set(
+    name: str, datasets: Path, work: Path, shift_m: float, turn_rad: float, seed: int, axis: str
+) -> dict[str, Any]:
+    official = import_set(name, datasets, work / name / "official")
+    in_place, residual = flagged(official)
+    out: dict[str, Any] = {"in_place": {"flagged": in_place, "residual_m": residual}, "moved": {}}
+    for k, cam in enumerate(sorted(in_place)):
+        sys.stderr.write(f"{name}: {cam} moved ...\n")
+        site = moved(official, work / name / f"moved_{cam}", cam, shift_m, turn_rad, seed + k, axis=axis)
+        shares, res = flagged(site)
+        others = [v for sid, v in shares.items() if sid != cam]
+        out["moved"][cam] = {
+            "flagged": shares.get(cam, 0.0),
+            "others_flagged_max": max(others, default=0.0),
+            "residual_m": res.get(cam),
+        }
+    rows = out["moved"].values()
+    out["summary"] = {
+        "false_alarm_max_in_place": max(in_place.values(), default=0.0),
+        "moved_cameras": len(out["moved"]),
+        "moved_flagged_most_of_the_time": sum(1 for r in rows if r["flagged"] > 0.5),
+        "false_alarm_max_when_one_moved": max((r["others_flagged_max"] for r in rows), default=0.0),
+    }
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="bench_agreement", description=__doc__.splitlines()[0])
+    p.add_argument("--datasets", default=str(REPO.parent / "shared" / "datasets"), help="folder of the datasets")
+    p.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)}")
+    p.add_argument("--shift-m", type=float, default=0.5, help="how far the moved camera moves (m)")
+    p.add_argument("--turn-deg", type=float, default=5.0, help="how far it turns (degrees)")
+    p.add_argument("--axis", choices=("vertical", "random"), default="vertical", help="what the turn is about")
+    p.add_argument("--seed", type=int, default=1, help="the first camera's seed (the next ones count on)")
+    p.add_argument("--out", default=None, metavar="DIR", help="where the sites go (default: a temporary folder)")
+    args = p.parse_args(argv)
+    out: dict[str, Any] = {"shift_m": args.shift_m, "turn_deg": args.turn_deg, "axis": args.axis}
+    with tempfile.TemporaryDirectory(prefix="bench_agreement_") as tmp:
+        work = Path(args.out) if args.out else Path(tmp)
+        for name in args.sets.split(","):
+            if name not in SETS:
+                p.error(f"--sets: unknown set {name!r} (choose from {', '.join(SETS)})")
+            turn = math.radians(args.turn_deg)
+            out[name] = run_set(name, Path(args.datasets), work, args.shift_m, turn, args.seed, args.axis)
+    sys.stdout.write(json.dumps(out, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,24 @@
+"""The cameras' agreement check over a played room, as benchmarks/bench_agreement.py measures it: a camera whose
+calibration no longer fits its pictures is named, and in place none is."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from benchmarks.bench_agreement import flagged, moved
+from common.area import rectangle
+from panostereo.datasets.mot import import_mot
+from sim.detector import write_room_dataset
+
+
+def test_a_bumped_camera_of_a_played_room_is_named_and_in_place_none_is(tmp_path: Path) -> None:
+    data = write_room_dataset(tmp_path / "data", people=6, fps=4.0, duration_s=30.0, seed=3)
+    site = import_mot(data, tmp_path / "site", fps=4.0, area=rectangle(0.0, 0.0, 8.0, 6.0)).site
+    in_place, residual = flagged(site)
+    assert set(in_place) == {"cam1", "cam2", "cam3", "cam4"}
+    assert max(in_place.values()) == 0.0 and max(residual.values()) < 0.2, (in_place, residual)
+    bumped = moved(site, tmp_path / "bumped", "cam2", 0.5, math.radians(5.0), seed=1)
+    shares, residual = flagged(bumped)
+    assert shares["cam2"] > 0.5 and residual["cam2"] > 0.5, (shares, residual)
+    assert max(v for sid, v in shares.items() if sid != "cam2") < shares["cam2"], shares
