@@ -122,11 +122,9 @@ class TickResult:
     """Ids of the tracks that ended this tick."""
     skipped: bool = False
     """True when ``t_ns`` was not after the previous instant (nothing changed)."""
-    live_tracks: list[Track] = field(default_factory=list)
-    """This instant's published tracks (the same as ``trackset``'s without ``publish_lag_s``)."""
     people: list[TrackSnapshot] = field(default_factory=list)
-    """The same tracks as the tracker holds them, each with the cameras whose blobs placed it at this instant (read
-    by the cameras' agreement check, poses/agreement.py)."""
+    """This instant's published tracks (``trackset``'s without ``publish_lag_s``) as the tracker holds them, each
+    with the cameras whose blobs placed it (read by the cameras' agreement check, poses/agreement.py)."""
     views: Views = field(default_factory=Views.empty)
     """The views fused at this instant (read by the cameras' agreement check, poses/agreement.py)."""
     ptz_ended: list[tuple[Assignment, str]] = field(default_factory=list)
@@ -398,9 +396,8 @@ class Fusion:
         used = sorted(in_use or [])
         trackset: TrackSet | None = None
         shown = self.published_tracks()[:MAX_TRACKS]
-        live = self.live_tracks(shown)
         if self.lagged is None:
-            trackset = messages.track_set(self.manager_id, self.seq, self.last_t_ns, live, used)
+            trackset = messages.track_set(self.manager_id, self.seq, self.last_t_ns, self.live_tracks(shown), used)
         elif not skipped:
             self.lagged.push(self.seq, self.last_t_ns, used, self.tracker.snapshots())
             due = self.lagged.due(self.last_t_ns)
@@ -429,7 +426,6 @@ class Fusion:
             counters=counters,
             ended=ended,
             skipped=skipped,
-            live_tracks=live,
             people=shown,
             views=views if views is not None else Views.empty(),
             ptz_ended=self.ptz.take_ended(),
