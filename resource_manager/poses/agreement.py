@@ -77,46 +77,53 @@ class Agreement:
     def update(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
         """Add one tick's blobs against its published people (see the module docstring)."""
         p = self.params
-        xy = np.array([tr.xy for tr in people], dtype=np.float64).reshape(-1, 2)
-        for row, sid in enumerate(views.sensor_ids):
-            bearing = views.bearing_rad[views.span(row)]
-            if bearing.size == 0 or not people:
-                continue
-            checks = np.array([sum(1 for s in tr.views if s != sid) >= MIN_OTHER_CAMERAS for tr in people])
-            if not checks.any():
-                continue
-            pts = xy - views.origin[row]
-            dirs = np.column_stack([np.cos(bearing), np.sin(bearing)])
-            along = dirs @ pts.T  # (blobs, people)
-            across = np.abs(dirs[:, 0:1] * pts[None, :, 1] - dirs[:, 1:2] * pts[None, :, 0])
-            # Feet distance, where given: only the people near it along the ray can be the one a blob shows.
-            rng = views.mono_range_m[views.span(row)][:, None]
-            reach = RANGE_SIGMAS * views.mono_sigma_m[views.span(row)][:, None]
-            near = np.where(np.isfinite(rng), np.abs(along - rng) <= reach, True)
-            off = np.where((along > 0) & near, across, np.inf)
-            nearest = off.argmin(axis=1)
-            best = off[np.arange(len(bearing)), nearest]
-            # Finding nobody says something only where two other cameras look.
-            checkable = np.ones(len(bearing), dtype=bool)
-            ranged = np.flatnonzero(np.isfinite(rng[:, 0]))
-            if ranged.size:
-                feet = views.origin[row] + dirs[ranged] * rng[ranged]
-                seen = seen_by(views, feet, p.height_m, np.inf)
-                checkable[ranged] = seen[np.arange(views.n_views) != row].sum(axis=0) >= MIN_OTHER_CAMERAS
-            h = self._hist.setdefault(sid, _History())
-            for d, who, ok in zip(best.tolist(), nearest.tolist(), checkable.tolist(), strict=True):
-                if d <= p.gate_m:
-                    if checks[who]:
-                        h.residuals.append((t_ns, d))
-                elif ok:
-                    h.residuals.append((t_ns, p.gate_m))
-                    h.unexplained.append(t_ns)
+        if people and views.n:
+            self._add(t_ns, views, people)
         oldest = t_ns - int(p.window_s * 1e9)
         for h in self._hist.values():
             while h.residuals and h.residuals[0][0] < oldest:
                 h.residuals.popleft()
             while h.unexplained and h.unexplained[0] < oldest:
                 h.unexplained.popleft()
+
+    def _add(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
+        p = self.params
+        xy = np.array([tr.xy for tr in people], dtype=np.float64).reshape(-1, 2)
+        dirs = np.column_stack([np.cos(views.bearing_rad), np.sin(views.bearing_rad)])
+        # Feet distance, where given: only the people near it along the ray can be the one a blob shows; and finding
+        # nobody says something only where two other cameras look.
+        rng = views.mono_range_m
+        ranged = np.flatnonzero(np.isfinite(rng))
+        others_look = np.full(views.n, MIN_OTHER_CAMERAS)
+        if ranged.size:
+            feet = views.origin[views.view_of[ranged]] + dirs[ranged] * rng[ranged, None]
+            seen = seen_by(views, feet, p.height_m, np.inf)
+            others_look[ranged] = seen.sum(axis=0) - seen[views.view_of[ranged], np.arange(ranged.size)]
+        for row, sid in enumerate(views.sensor_ids):
+            span = views.span(row)
+            if span.start == span.stop:
+                continue
+            checks = np.array([sum(1 for s in tr.views if s != sid) >= MIN_OTHER_CAMERAS for tr in people])
+            if not checks.any():
+                continue
+            pts = xy - views.origin[row]
+            d = dirs[span]
+            along = d @ pts.T  # (blobs, people)
+            across = np.abs(d[:, 0:1] * pts[None, :, 1] - d[:, 1:2] * pts[None, :, 0])
+            r = rng[span, None]
+            near = np.where(np.isfinite(r), np.abs(along - r) <= RANGE_SIGMAS * views.mono_sigma_m[span, None], True)
+            off = np.where((along > 0) & near, across, np.inf)
+            nearest = off.argmin(axis=1)
+            best = off[np.arange(len(off)), nearest]
+            checkable = others_look[span] >= MIN_OTHER_CAMERAS
+            h = self._hist.setdefault(sid, _History())
+            for dist, who, ok in zip(best.tolist(), nearest.tolist(), checkable.tolist(), strict=True):
+                if dist <= p.gate_m:
+                    if checks[who]:
+                        h.residuals.append((t_ns, dist))
+                elif ok:
+                    h.residuals.append((t_ns, p.gate_m))
+                    h.unexplained.append(t_ns)
 
     def report(self) -> list[SensorAgreement]:
         """Every camera with blobs in the window, the worst first."""
