@@ -38,7 +38,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from benchmarks.bench_calib import SETS, import_set, site_cameras  # noqa: E402
+from benchmarks.bench_calib import add_set_arguments, chosen_sets, import_set, site_cameras  # noqa: E402
 from common.site import load_site  # noqa: E402
 from panostereo.calib.site_out import write_refined_site  # noqa: E402
 from panostereo.datasets.play import load_cameras, play, site_manager_config  # noqa: E402
@@ -51,13 +51,14 @@ def flagged(site_path: Path) -> tuple[dict[str, float], dict[str, float]]:
     which it disagreed, and its residual at the end."""
     site = load_site(site_path)
     check = Agreement()
-    first: list[int] = []
+    first_ns: int | None = None
     counts: dict[str, list[int]] = {}
 
     def on_tick(t_ns: int, result: TickResult) -> None:
+        nonlocal first_ns
         check.update(t_ns, result.views, result.people)
-        first.append(first[0] if first else t_ns)
-        if t_ns - first[0] < check.params.window_s * 1e9:
+        first_ns = t_ns if first_ns is None else first_ns
+        if t_ns - first_ns < check.params.window_s * 1e9:
             return
         for a in check.report():
             c = counts.setdefault(a.sensor_id, [0, 0])
@@ -115,21 +116,17 @@ def run_set(
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="bench_agreement", description=__doc__.splitlines()[0])
-    p.add_argument("--datasets", default=str(REPO.parent / "shared" / "datasets"), help="folder of the datasets")
-    p.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)}")
+    add_set_arguments(p)
     p.add_argument("--shift-m", type=float, default=0.5, help="how far the moved camera moves (m)")
     p.add_argument("--turn-deg", type=float, default=5.0, help="how far it turns (degrees)")
     p.add_argument("--axis", choices=("vertical", "random"), default="vertical", help="what the turn is about")
     p.add_argument("--seed", type=int, default=1, help="the first camera's seed (the next ones count on)")
-    p.add_argument("--out", default=None, metavar="DIR", help="where the sites go (default: a temporary folder)")
     args = p.parse_args(argv)
     out: dict[str, Any] = {"shift_m": args.shift_m, "turn_deg": args.turn_deg, "axis": args.axis}
     with tempfile.TemporaryDirectory(prefix="bench_agreement_") as tmp:
         work = Path(args.out) if args.out else Path(tmp)
-        for name in args.sets.split(","):
-            if name not in SETS:
-                p.error(f"--sets: unknown set {name!r} (choose from {', '.join(SETS)})")
-            turn = math.radians(args.turn_deg)
+        turn = math.radians(args.turn_deg)
+        for name in chosen_sets(p, args.sets):
             out[name] = run_set(name, Path(args.datasets), work, args.shift_m, turn, args.seed, args.axis)
     sys.stdout.write(json.dumps(out, indent=1) + "\n")
     return 0

@@ -42,6 +42,23 @@ of real room the project is measured on without its data here."""
 THRESHOLDS_M = (0.5, 1.0)
 
 
+def add_set_arguments(p: argparse.ArgumentParser) -> None:
+    """``--datasets``, ``--sets`` (of ``SETS``) and ``--out``: what a benchmark over the development sets reads and
+    where it writes their sites."""
+    p.add_argument("--datasets", default=str(REPO.parent / "shared" / "datasets"), help="folder of the datasets")
+    p.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)}")
+    p.add_argument("--out", default=None, metavar="DIR", help="where the sites go (default: a temporary folder)")
+
+
+def chosen_sets(p: argparse.ArgumentParser, sets: str) -> list[str]:
+    """The ``--sets`` value as names, each one of ``SETS`` (else the parser's error)."""
+    names = sets.split(",")
+    for name in names:
+        if name not in SETS:
+            p.error(f"--sets: unknown set {name!r} (choose from {', '.join(SETS)})")
+    return names
+
+
 def import_set(name: str, datasets: Path, out: Path) -> Path:
     """The development set ``name`` (of ``SETS``) as a site under ``out`` (the room: written there first)."""
     from panostereo.datasets.mot import import_mot
@@ -160,21 +177,17 @@ def run_set(name: str, datasets: Path, work: Path, seeds: range, cases: list[tup
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="bench_calib", description=__doc__.splitlines()[0])
-    p.add_argument("--datasets", default=str(REPO.parent / "shared" / "datasets"), help="folder of the datasets")
-    p.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)}")
+    add_set_arguments(p)
     p.add_argument("--seeds", type=int, default=5, help="seeds per case")
     p.add_argument("--first-seed", type=int, default=1, help="the first seed (seeds run from it)")
     p.add_argument("--cases", default="0.5:5,1.5:15", help="SHIFT_M:TURN_DEG,... (PETS: the first)")
-    p.add_argument("--out", default=None, metavar="DIR", help="where the sites go (default: a temporary folder)")
     args = p.parse_args(argv)
     cases = [(float(a), float(b)) for a, b in (c.split(":") for c in args.cases.split(","))]
     datasets = Path(args.datasets)
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as tmp:
         work = Path(args.out) if args.out else Path(tmp)
-        for name in args.sets.split(","):
-            if name not in SETS:
-                p.error(f"--sets: unknown set {name!r} (choose from {', '.join(SETS)})")
+        for name in chosen_sets(p, args.sets):
             seeds = range(args.first_seed, args.first_seed + args.seeds)
             out[name] = run_set(name, datasets, work, seeds, cases if name in EVERY_CASE else cases[:1])
     sys.stdout.write(json.dumps(out, indent=1) + "\n")
