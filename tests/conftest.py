@@ -23,6 +23,8 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 _REPO = str(Path(__file__).resolve().parent.parent)
+INTEGRATION = "tests/integration/"
+"""Where the tests that start real processes are (node ids are relative to the repository)."""
 if _REPO not in sys.path:  # so `tests.support` imports from any cwd (pyproject's pythonpath may not be set)
     sys.path.insert(0, _REPO)
 
@@ -52,6 +54,23 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 def _failed(request: pytest.FixtureRequest) -> bool:
     rep = getattr(request.node, "rep_call", None) or getattr(request.node, "rep_setup", None)
     return bool(rep is not None and rep.failed)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """Under pytest-xdist with ``--dist loadgroup`` (what ``make test`` runs) the integration tests are one work unit,
+    run one after another on one worker: each starts a router and a site's processes, and their readiness windows
+    assume one such site at a time. The unit and property tests share the other workers. (xdist's own
+    ``xdist_group`` marks rename node ids, which pytest 9.2 no longer allows; this groups by path instead.)"""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class IntegrationTogether(LoadScopeScheduling):  # type: ignore[misc]
+        def _split_scope(self, nodeid: str) -> str:
+            return "integration" if nodeid.startswith(INTEGRATION) else nodeid
+
+    return IntegrationTogether(config, log)
 
 
 @pytest.fixture

@@ -29,7 +29,7 @@ import pytest
 from common.codec import decode, encode
 from common.errors import SessionError
 from common.keys import Keys
-from common.schema import Features, Pose, PtzCommand, PtzReply, PtzRequest, Track, TrackSet
+from common.schema import Features, Pose, PtzCommand, PtzReply, PtzRequest, SensorInfo, Track, TrackSet
 from common.session import SessionSettings, open_session
 from tests.support import REPO, ManagedProcess, free_port, spawn, wait_for, wait_for_port
 
@@ -687,10 +687,16 @@ def test_real_site_runs_on_tls_and_forged_tracks_never_reach_agents(tmp_path: Pa
                     raise AssertionError(f"{err}\n{fsite.logs()}") from err
                 victim, liar = fsite.ids[0], fsite.ids[3]
                 t0 = time.monotonic()
-                wait_for(lambda: obs.status_since(t0), 5.0, "a manager status")
-                pose_before = _pose_of(obs.status_since(t0)[-1], victim)
-                real_info = next(v.info for v in agent.sensors() if v.sensor_id == victim)
-                assert real_info is not None and pose_before is not None
+
+                def victim_known() -> tuple[SensorInfo, tuple[float, float, float]] | None:
+                    """The victim's SensorInfo as the agent has it, and its pose in the newest manager status (a
+                    loaded host may need a moment for either)."""
+                    st = obs.status_since(t0)
+                    pose = _pose_of(st[-1], victim) if st else None
+                    info = next((v.info for v in agent.sensors() if v.sensor_id == victim), None)
+                    return (info, pose) if info is not None and pose is not None else None
+
+                real_info, pose_before = wait_for(victim_known, 20.0, "the victim's SensorInfo and its pose")
                 moved = msg_replace(real_info, pose=Pose(x_m=0.5, y_m=0.5, z_m=1.0, yaw_rad=0.0), seq=99)
                 for i in range(50):
                     rogue_agent.put(keys.tracks(), encode(_trackset(MANAGER_ID, 10**9 + i)))
