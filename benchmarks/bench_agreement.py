@@ -15,9 +15,12 @@ every fused instant, as the live manager feeds it:
   reported as disagreeing (each one a false alarm);
 * then with one camera at a time whose calibration is moved by ``--shift-m`` in a random horizontal direction and
   turned by ``--turn-deg`` about the vertical (``--axis random``: about a random axis) (its pictures no longer fit
-  it: a camera bumped): the share of
-  instants at which the moved camera is reported (a detection) and the largest share of any other camera (a false
-  alarm), with the moved camera's residual at the end.
+  it: a camera bumped before the manager started, ``moved``): the share of instants at which the moved camera is
+  reported (a detection) and the largest share of any other camera (a false alarm), with the moved camera's
+  residual at the end;
+* and the same move given to the manager half-way through (a camera bumped while it ran, ``bumped``: its own
+  residual in place was learned first): the share of instants from a window after the bump on at which it is
+  reported, the largest share of any other camera then, and of any camera before the bump.
 
 Nothing of the ground truth reaches the check.
 """
@@ -29,6 +32,7 @@ import json
 import math
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -46,29 +50,69 @@ from resource_manager.fusion import TickResult  # noqa: E402
 from resource_manager.poses.agreement import Agreement  # noqa: E402
 
 
-def flagged(site_path: Path) -> tuple[dict[str, float], dict[str, float]]:
-    """Play a site with the check fed every instant: per camera, the share of instants after the first window at
-    which it disagreed, and its residual at the end."""
+def flagged(site_path: Path, bump: tuple[str, Path] | None = None) -> dict[str, Any]:
+    """Play a site with the check fed every instant. Per camera, the share of instants (after the first window) at
+    which it disagreed (``flagged``), and its residual and own residual in place at the end.
+
+    ``bump``: (camera, site) whose calibration of that camera the manager is given half-way through: the camera was
+    moved while the manager ran. ``flagged`` then counts the first half only (false alarms) and ``flagged_after``
+    the instants from a window after the bump on."""
     site = load_site(site_path)
+    cameras = load_cameras(site)
+    stamps = [f.stamp_ns for cam in cameras for f in cam.features]
+    bump_ns = (min(stamps) + max(stamps)) // 2 if bump else None
+    infos_at = []
+    if bump is not None and bump_ns is not None:
+        # From the bump on, the camera's blobs are those of the moved calibration (a node's blobs are worked out
+        # with its own), and the manager is told its new SensorInfo.
+        camera, moved_site = bump
+        (after,) = [c for c in load_cameras(load_site(moved_site)) if c.sensor_id == camera]
+        cameras = [
+            c
+            if c.sensor_id != camera
+            else replace(
+                c,
+                features=[f for f in c.features if f.stamp_ns < bump_ns]
+                + [f for f in after.features if f.stamp_ns >= bump_ns],
+            )
+            for c in cameras
+        ]
+        infos_at = [(bump_ns, after.info)]
     check = Agreement()
+    window_ns = int(check.params.window_s * 1e9)
     first_ns: int | None = None
-    counts: dict[str, list[int]] = {}
+    before: dict[str, list[int]] = {}
+    after: dict[str, list[int]] = {}
 
     def on_tick(t_ns: int, result: TickResult) -> None:
         nonlocal first_ns
         check.update(t_ns, result.views, result.people)
         first_ns = t_ns if first_ns is None else first_ns
-        if t_ns - first_ns < check.params.window_s * 1e9:
+        if t_ns - first_ns < window_ns:
+            return
+        if bump_ns is None or t_ns < bump_ns:
+            counts = before
+        elif t_ns >= bump_ns + window_ns:
+            counts = after
+        else:
             return
         for a in check.report():
             c = counts.setdefault(a.sensor_id, [0, 0])
             c[0] += int(a.disagrees)
             c[1] += 1
 
-    play(load_cameras(site), site_manager_config(site, None), on_tick=on_tick)
-    shares = {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(counts.items())}
-    residual = {a.sensor_id: round(a.residual_m, 3) for a in check.report()}
-    return shares, residual
+    play(cameras, site_manager_config(site, None), on_tick=on_tick, infos_at=infos_at)
+
+    def shares(counts: dict[str, list[int]]) -> dict[str, float]:
+        return {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(counts.items())}
+
+    report = check.report()
+    return {
+        "flagged": shares(before),
+        "flagged_after": shares(after),
+        "residual_m": {a.sensor_id: round(a.residual_m, 3) for a in report},
+        "settled_m": {a.sensor_id: None if a.settled_m is None else round(a.settled_m, 3) for a in report},
+    }
 
 
 def moved(
@@ -92,24 +136,33 @@ def run_set(
     name: str, datasets: Path, work: Path, shift_m: float, turn_rad: float, seed: int, axis: str
 ) -> dict[str, Any]:
     official = import_set(name, datasets, work / name / "official")
-    in_place, residual = flagged(official)
-    out: dict[str, Any] = {"in_place": {"flagged": in_place, "residual_m": residual}, "moved": {}}
-    for k, cam in enumerate(sorted(in_place)):
+    in_place = flagged(official)
+    out: dict[str, Any] = {"in_place": in_place, "moved": {}, "bumped": {}}
+    for k, cam in enumerate(sorted(in_place["flagged"])):
         sys.stderr.write(f"{name}: {cam} moved ...\n")
         site = moved(official, work / name / f"moved_{cam}", cam, shift_m, turn_rad, seed + k, axis=axis)
-        shares, res = flagged(site)
-        others = [v for sid, v in shares.items() if sid != cam]
+        run = flagged(site)
         out["moved"][cam] = {
-            "flagged": shares.get(cam, 0.0),
-            "others_flagged_max": max(others, default=0.0),
-            "residual_m": res.get(cam),
+            "flagged": run["flagged"].get(cam, 0.0),
+            "others_flagged_max": max((v for sid, v in run["flagged"].items() if sid != cam), default=0.0),
+            "residual_m": run["residual_m"].get(cam),
         }
-    rows = out["moved"].values()
+        run = flagged(official, bump=(cam, site))
+        out["bumped"][cam] = {
+            "flagged_before": max(run["flagged"].values(), default=0.0),
+            "flagged": run["flagged_after"].get(cam, 0.0),
+            "others_flagged_max": max((v for sid, v in run["flagged_after"].items() if sid != cam), default=0.0),
+            "residual_m": run["residual_m"].get(cam),
+            "settled_m": run["settled_m"].get(cam),
+        }
+    moved_rows, bumped_rows = out["moved"].values(), out["bumped"].values()
     out["summary"] = {
-        "false_alarm_max_in_place": max(in_place.values(), default=0.0),
+        "false_alarm_max_in_place": max(in_place["flagged"].values(), default=0.0),
         "moved_cameras": len(out["moved"]),
-        "moved_flagged_most_of_the_time": sum(1 for r in rows if r["flagged"] > 0.5),
-        "false_alarm_max_when_one_moved": max((r["others_flagged_max"] for r in rows), default=0.0),
+        "moved_flagged_most_of_the_time": sum(1 for r in moved_rows if r["flagged"] > 0.5),
+        "false_alarm_max_when_one_moved": max((r["others_flagged_max"] for r in moved_rows), default=0.0),
+        "bumped_flagged_most_of_the_time": sum(1 for r in bumped_rows if r["flagged"] > 0.5),
+        "false_alarm_max_when_one_bumped": max((r["others_flagged_max"] for r in bumped_rows), default=0.0),
     }
     return out
 

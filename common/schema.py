@@ -480,7 +480,11 @@ class SensorAgreement(_Msg, frozen=True, tag="pano.SensorAgreement"):
     unexplained_frac: Unit = 0.0
     """Share of its blobs in the window that found nobody within the gate."""
     disagrees: bool = False
-    """True when the residual is too large for a camera in place: re-calibrate it (``panostereo calib refine``)."""
+    """True when the residual is too large for a camera in place, or has grown well past the camera's own in place
+    (it was moved while the manager ran): re-calibrate it (``panostereo calib refine``)."""
+    settled_m: PosMetres | None = None
+    """The camera's own residual in place, learned over its first checks (None until then, and for a camera that
+    disagreed from the start)."""
 
 
 class Latency(_Msg, frozen=True, tag="pano.Latency"):

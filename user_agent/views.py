@@ -231,6 +231,7 @@ def agreement_lines(managers: Sequence[ManagerView]) -> list[str]:
         (
             a.sensor_id,
             f"{a.residual_m:6.2f}",
+            "-" if a.settled_m is None else f"{a.settled_m:6.2f}",
             a.blobs,
             f"{100 * a.unexplained_frac:5.1f}",
             "DISAGREES" if a.disagrees else "ok",
@@ -242,9 +243,13 @@ def agreement_lines(managers: Sequence[ManagerView]) -> list[str]:
     ]
     if not rows:
         return []
-    out = ["", "CAMERA AGREEMENT (median distance of each camera's blobs from the people the others place)"]
-    out.append(format_table(("sensor", "residual_m", "blobs", "unexplained_%", "state", "manager"), rows))
-    if any(r[4] == "DISAGREES" for r in rows):
+    out = [
+        "",
+        "CAMERA AGREEMENT (median distance of each camera's blobs from the people the others place; in_place_m: "
+        "its own, learned while it agreed)",
+    ]
+    out.append(format_table(("sensor", "residual_m", "in_place_m", "blobs", "unexplained_%", "state", "manager"), rows))
+    if any(r[5] == "DISAGREES" for r in rows):
         out.append(
             "a camera that disagrees was bumped or moved: record the site (agent record) while people walk, then "
             "panostereo calib refine SITE --recording REC.mcap --fix <cameras still in place> --out DIR"

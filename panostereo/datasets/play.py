@@ -117,13 +117,17 @@ def _with_epoch(cfg: Any, epoch_ns: int) -> Any:
 
 
 def play(
-    cameras: Sequence[DatasetCamera], config: ManagerConfig, on_tick: Callable[[int, TickResult], None] | None = None
+    cameras: Sequence[DatasetCamera],
+    config: ManagerConfig,
+    on_tick: Callable[[int, TickResult], None] | None = None,
+    infos_at: Sequence[tuple[int, SensorInfo]] = (),
 ) -> DatasetRun:
     """Feed a fresh Fusion every frame as it would arrive (at its own stamp) and fuse the instants the live
     manager's watermark rule allows (:mod:`resource_manager.ingest.schedule`): here, every frame instant.
 
     ``on_tick``: called with each fused instant and its whole result (for what reads more than the TrackSets, as
-    the live manager's cameras' agreement check does)."""
+    the live manager's cameras' agreement check does). ``infos_at``: (stamp, SensorInfo) given to the manager just
+    before the first frame at or after that stamp (a camera's calibration changed while it ran)."""
     fusion = Fusion(config)
     by_stamp: dict[int, list[Features]] = {}
     for cam in cameras:
@@ -146,6 +150,7 @@ def play(
 
     fusion.absorb(Batch(infos=[cam.info for cam in cameras], presence={cam.sensor_id: True for cam in cameras}))
     now_ns = 0
+    pending = list(infos_at)
     for stamp in sorted(by_stamp):
         # Between frames, wake at the deadlines the live manager sleeps until (a camera with no frame at an
         # instant stops being waited for there, as it would live).
@@ -153,7 +158,9 @@ def play(
             now_ns += max(due, 1)
             fuse_at(now_ns)
         now_ns = stamp
-        fusion.absorb(Batch(features=by_stamp[stamp]))
+        changed = [info for at, info in pending if at <= stamp]
+        pending = [(at, info) for at, info in pending if at > stamp]
+        fusion.absorb(Batch(infos=changed, features=by_stamp[stamp]))
         fuse_at(stamp)
     run.tracksets += fusion.flush()  # what publish_lag_s still holds at the end of the dataset
     return run

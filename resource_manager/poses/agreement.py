@@ -21,6 +21,17 @@ and ``panostereo calib refine`` with a recording of the site fixes it. A camera 
 within a person's width of the people the others place, whatever clutter it also sees; a camera turned by a few
 degrees puts most of them a metre off, or next to the wrong person.
 
+*Its own residual in place.* How close a camera in place comes depends on the site (its distance from the people,
+its detector, how well the others place them): a few centimetres on one site, 0.15 m on another. So each camera's
+residual is also compared with its own: over its first ``settle_s`` of full windows (while it agreed), the largest
+residual it showed (90th percentile, ``settled_m``). A camera whose residual has since grown past
+``grown_ratio`` times that, and by at least ``grown_min_m``, for a whole window (a bump lasts; a crowd that passes
+the camera's worst side does not), was moved while the manager ran, even where the move
+leaves it under ``disagree_m`` (a turn the shift partly undoes). The people a bumped camera helps place move with
+it, so the others' residuals grow a little too: growth names a camera only where it grew by at least
+``GROWN_SHARE`` of the most any camera grew. A camera that disagreed from the start has no residual of its own and
+is judged by ``disagree_m`` alone.
+
 Pure: reads the views and the published tracks, changes neither.
 """
 
@@ -59,12 +70,37 @@ class AgreementParams:
     """Fewer blobs in the window say nothing either way."""
     height_m: float = HEAD_HEIGHT_M
     """How tall a person is taken to be where a blob's feet put them (who else could see them there)."""
+    settle_s: float = 30.0
+    """A camera's own residual in place is learned over this long once its first window is full."""
+    grown_ratio: float = 2.0
+    """A camera whose residual has grown past this many times its own in place..."""
+    grown_min_m: float = 0.05
+    """...and by at least this much (a camera in place wanders by a few centimetres between windows) has moved."""
+
+
+SETTLE_SAMPLE_S = 1.0
+"""While a camera's own residual is learned, its window's residual is sampled at most this often."""
+GROWN_SHARE = 0.5
+"""A camera is named for a grown residual only where it grew by at least this share of the most any camera grew."""
+SETTLED_QUANTILE = 90.0
+"""A camera's own residual in place is this percentile of its window residuals while it was learned."""
 
 
 @dataclass(slots=True)
 class _History:
     residuals: deque[tuple[int, float]] = field(default_factory=deque)
     unexplained: deque[int] = field(default_factory=deque)
+    first_ns: int | None = None
+    """Its first residual."""
+    first_full_ns: int | None = None
+    """When its window first held ``min_blobs`` blobs a full window after its first residual."""
+    samples: list[float] = field(default_factory=list)
+    """Its window residuals while its own is learned (while it agreed)."""
+    sampled_ns: int = 0
+    settled_m: float | None = None
+    """Its own residual in place, once learned."""
+    grown_since_ns: int | None = None
+    """Since when its residual has been grown past its own (None: it is not)."""
 
 
 class Agreement:
@@ -73,10 +109,12 @@ class Agreement:
     def __init__(self, params: AgreementParams | None = None) -> None:
         self.params = params or AgreementParams()
         self._hist: dict[str, _History] = {}
+        self._t_ns = 0
 
     def update(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
         """Add one tick's blobs against its published people (see the module docstring)."""
         p = self.params
+        self._t_ns = t_ns
         if people and views.n:
             self._add(t_ns, views, people)
         oldest = t_ns - int(p.window_s * 1e9)
@@ -85,6 +123,34 @@ class Agreement:
                 h.residuals.popleft()
             while h.unexplained and h.unexplained[0] < oldest:
                 h.unexplained.popleft()
+            self._settle(h, t_ns)
+
+    def _settle(self, h: _History, t_ns: int) -> None:
+        """Learn a camera's own residual over its first ``settle_s`` of full windows, then follow whether its
+        residual has grown past it, and since when (see the module docstring); at most every ``SETTLE_SAMPLE_S``."""
+        p = self.params
+        if h.first_ns is None and h.residuals:
+            h.first_ns = h.residuals[0][0]
+        if h.first_ns is None or len(h.residuals) < p.min_blobs or t_ns - h.sampled_ns < SETTLE_SAMPLE_S * 1e9:
+            return
+        if h.first_full_ns is None:
+            if t_ns - h.first_ns < p.window_s * 1e9:
+                return
+            h.first_full_ns = t_ns
+        h.sampled_ns = t_ns
+        med = float(np.median([d for _, d in h.residuals]))
+        if h.settled_m is None:
+            if med <= p.disagree_m:
+                h.samples.append(med)
+            if t_ns - h.first_full_ns >= p.settle_s * 1e9:
+                # Nothing learned (it disagreed all along): the absolute threshold alone judges it, for good.
+                h.settled_m = float(np.percentile(h.samples, SETTLED_QUANTILE)) if h.samples else np.inf
+                h.samples = []
+            return
+        if med > max(p.grown_ratio * h.settled_m, h.settled_m + p.grown_min_m):
+            h.grown_since_ns = t_ns if h.grown_since_ns is None else h.grown_since_ns
+        else:
+            h.grown_since_ns = None
 
     def _add(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
         p = self.params
@@ -127,20 +193,34 @@ class Agreement:
 
     def report(self) -> list[SensorAgreement]:
         """Every camera with blobs in the window, the worst first."""
-        out = []
+        p = self.params
+        rows = []
         for sid, h in self._hist.items():
             n, u = len(h.residuals), len(h.unexplained)
             if n == 0:
                 continue
             med = float(np.median([d for _, d in h.residuals]))
-            out.append(
-                SensorAgreement(
-                    sensor_id=sid,
-                    residual_m=med,
-                    blobs=n,
-                    unexplained_frac=u / n,
-                    disagrees=n >= self.params.min_blobs and med > self.params.disagree_m,
-                )
+            own = h.settled_m if h.settled_m is not None and np.isfinite(h.settled_m) else None
+            grown = (
+                own is not None
+                and h.grown_since_ns is not None
+                and self._t_ns - h.grown_since_ns >= p.window_s * 1e9
+                and med > max(p.grown_ratio * own, own + p.grown_min_m)
             )
+            rows.append((sid, med, n, u, own, med - own if grown and own is not None else 0.0))
+        # The people a bumped camera helps place move with it, so the others' residuals grow a little too; the
+        # camera that moved grows most. Growth names a camera only where it is comparable to the largest.
+        most = max((r[5] for r in rows), default=0.0)
+        out = [
+            SensorAgreement(
+                sensor_id=sid,
+                residual_m=med,
+                blobs=n,
+                unexplained_frac=u / n,
+                disagrees=n >= p.min_blobs and (med > p.disagree_m or (excess > 0 and excess >= GROWN_SHARE * most)),
+                settled_m=own,
+            )
+            for sid, med, n, u, own, excess in rows
+        ]
         out.sort(key=lambda a: -a.residual_m)
         return out

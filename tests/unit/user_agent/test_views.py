@@ -118,7 +118,7 @@ def test_watch_screen_marks_a_camera_that_disagrees_and_says_how_to_fix_it() -> 
 
     agreement = [
         SensorAgreement(sensor_id="cam3", residual_m=0.83, blobs=120, unexplained_frac=0.25, disagrees=True),
-        SensorAgreement(sensor_id="cam1", residual_m=0.07, blobs=300),
+        SensorAgreement(sensor_id="cam1", residual_m=0.07, blobs=300, settled_m=0.05),
     ]
     ms = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0,
                        agreement=agreement)  # fmt: skip
@@ -126,12 +126,13 @@ def test_watch_screen_marks_a_camera_that_disagrees_and_says_how_to_fix_it() -> 
     assert next(ln for ln in lines if ln.startswith("cam3")).split() == [
         "cam3",
         "0.83",
+        "-",
         "120",
         "25.0",
         "DISAGREES",
         "mgr1",
     ]
-    assert next(ln for ln in lines if ln.startswith("cam1")).split()[4] == "ok"
+    assert next(ln for ln in lines if ln.startswith("cam1")).split()[2:6] == ["0.05", "300", "0.0", "ok"]
     assert any("calib refine SITE --recording" in ln for ln in lines)
     plain = ManagerStatus(manager_id="mgr1", seq=1, stamp_ns=1, tick_ms=2.5, tick_p99_ms=4.0, tick_rate_hz=10.0)
     assert "CAMERA AGREEMENT" not in watch_screen([], [], [ManagerView("mgr1", True, plain)])

@@ -147,3 +147,35 @@ def test_a_blob_whose_feet_no_two_others_see_is_no_evidence() -> None:
     c3 = _ranged_view("c3", [(7.0, 0.0), (0.0, 6.0)])  # the second: straight up the y axis, out of c1's and c2's view
     out = _one_tick(c3, people, fov=math.radians(30.0))["c3"]
     assert out.blobs == 1 and out.unexplained_frac == 0.0
+
+
+def _turned_at(turn_rad: float, at_s: float, seconds: float) -> list[SensorAgreement]:
+    """c3's report each second, turned by ``turn_rad`` from ``at_s`` on (2 ticks a second)."""
+    agree = Agreement(AgreementParams(window_s=10.0, min_blobs=10, settle_s=30.0))
+    reports = []
+    for k in range(int(seconds * 2)):
+        turn = turn_rad if k / 2 >= at_s else 0.0
+        views = stack_views([_view("c1"), _view("c2"), _view("c3", turn)])
+        agree.update(k * 500_000_000, views, _people(["c1", "c2", "c3"]))
+        if k % 2:
+            reports.append(next(a for a in agree.report() if a.sensor_id == "c3"))
+    return reports
+
+
+def test_a_camera_turned_while_running_is_named_against_its_own_residual_in_place() -> None:
+    """A turn too small for the absolute threshold (1.5 degrees: 0.1-0.2 m at these distances) is named once the
+    camera's own residual in place (here about zero) has been learned; before the turn nothing is named."""
+    reports = _turned_at(math.radians(1.5), at_s=60.0, seconds=80.0)
+    before, after = reports[:59], reports[-5:]
+    assert not any(a.disagrees for a in before)
+    assert before[-1].settled_m is not None and before[-1].settled_m < 0.01
+    assert all(a.disagrees and 0.05 < a.residual_m < AgreementParams().disagree_m for a in after)
+
+
+def test_the_same_turn_from_the_start_is_its_own_residual_and_a_far_one_has_none() -> None:
+    """Turned from the start, the small turn is what the camera learns as its own (nothing to compare with: only
+    the absolute threshold judges it); a camera far off from the start learns nothing and is named throughout."""
+    small = _turned_at(math.radians(1.5), at_s=0.0, seconds=60.0)
+    assert not any(a.disagrees for a in small) and small[-1].settled_m is not None
+    far = _turned_at(math.radians(6.0), at_s=0.0, seconds=60.0)
+    assert all(a.disagrees for a in far[10:]) and far[-1].settled_m is None
