@@ -66,7 +66,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
         return None
     from xdist.scheduler import LoadScopeScheduling
 
-    class IntegrationTogether(LoadScopeScheduling):  # type: ignore[misc]
+    class IntegrationTogether(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
             return "integration" if nodeid.startswith(INTEGRATION) else nodeid
 
