@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -123,6 +124,7 @@ def test_plain_zenoh_msgpack_client_reads_tracks_and_queries_history(tmp_path: P
             assert {i["sensor_id"] for i in infos} == set(CAMERAS)
             assert all(i["model"]["type"] == "pano.PinholeModel" for i in infos)
             sub.undeclare()
+        demo.send_signal(signal.SIGINT)  # seen what it needs: the demo stops as on Ctrl-C and still reports
         demo.wait(timeout=120)
     finally:
         if demo.poll() is None:
@@ -131,5 +133,5 @@ def test_plain_zenoh_msgpack_client_reads_tracks_and_queries_history(tmp_path: P
     assert demo.returncode == 0, (tmp_path / "demo.log").read_text()[-4000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["cameras"]["started"] == summary["cameras"]["publishing"] == len(CAMERAS)
-    assert summary["frames"] > 20 and summary["tracks_published"] > 0
+    assert summary["interrupted"] and summary["frames"] > 0 and summary["tracks_published"] > 0
     assert isinstance(summary["mota"], float)
