@@ -147,10 +147,15 @@ class Agreement:
                 h.settled_m = float(np.percentile(h.samples, SETTLED_QUANTILE)) if h.samples else np.inf
                 h.samples = []
             return
-        if med > max(p.grown_ratio * h.settled_m, h.settled_m + p.grown_min_m):
+        if self._grown(med, h.settled_m):
             h.grown_since_ns = t_ns if h.grown_since_ns is None else h.grown_since_ns
         else:
             h.grown_since_ns = None
+
+    def _grown(self, residual_m: float, own_m: float) -> bool:
+        """Whether a residual has grown past a camera's own in place (see the module docstring)."""
+        p = self.params
+        return residual_m > max(p.grown_ratio * own_m, own_m + p.grown_min_m)
 
     def _add(self, t_ns: int, views: Views, people: Sequence[TrackSnapshot]) -> None:
         p = self.params
@@ -205,7 +210,7 @@ class Agreement:
                 own is not None
                 and h.grown_since_ns is not None
                 and self._t_ns - h.grown_since_ns >= p.window_s * 1e9
-                and med > max(p.grown_ratio * own, own + p.grown_min_m)
+                and self._grown(med, own)
             )
             rows.append((sid, med, n, u, own, med - own if grown and own is not None else 0.0))
         # The people a bumped camera helps place move with it, so the others' residuals grow a little too; the
