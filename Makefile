@@ -35,8 +35,8 @@ demo: $(STAMP)
 system-deps:
 	@bash tests/system_deps.sh
 
-# The integration tests run one after another on one worker, the unit and property tests on the others beside them
-# (tests/conftest.py); PYTEST_ARGS="-n 0" runs everything in one process.
+# The integration tests run one after another on one worker, the unit and property tests (and the bad-input rows)
+# on the others beside them (tests/conftest.py); PYTEST_ARGS="-n 0" runs everything in one process.
 test: $(STAMP) system-deps
 	$(BIN)/python -m pytest -n auto --dist loadgroup $(PYTEST_ARGS)
 

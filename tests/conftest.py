@@ -25,6 +25,9 @@ from hypothesis import HealthCheck, settings
 _REPO = str(Path(__file__).resolve().parent.parent)
 INTEGRATION = "tests/integration/"
 """Where the tests that start real processes are (node ids are relative to the repository)."""
+ALONGSIDE = ("tests/integration/test_bad_input.py",)
+"""Integration tests that start no site, only short commands each judged by its one line of output, and no timing:
+under pytest-xdist they may run beside the others."""
 if _REPO not in sys.path:  # so `tests.support` imports from any cwd (pyproject's pythonpath may not be set)
     sys.path.insert(0, _REPO)
 
@@ -60,15 +63,16 @@ def _failed(request: pytest.FixtureRequest) -> bool:
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     """Under pytest-xdist with ``--dist loadgroup`` (what ``make test`` runs) the integration tests are one work unit,
     run one after another on one worker: each starts a router and a site's processes, and their readiness windows
-    assume one such site at a time. The unit and property tests share the other workers. (xdist's own
-    ``xdist_group`` marks rename node ids, which pytest 9.2 no longer allows; this groups by path instead.)"""
+    assume one such site at a time. The unit and property tests (and :data:`ALONGSIDE`) share the other workers.
+    (xdist's own ``xdist_group`` marks rename node ids, which pytest 9.2 no longer allows; this groups by path.)"""
     if config.getvalue("dist") != "loadgroup":
         return None
     from xdist.scheduler import LoadScopeScheduling
 
     class IntegrationTogether(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            return "integration" if nodeid.startswith(INTEGRATION) else nodeid
+            together = nodeid.startswith(INTEGRATION) and not nodeid.startswith(ALONGSIDE)
+            return "integration" if together else nodeid
 
     return IntegrationTogether(config, log)
 
