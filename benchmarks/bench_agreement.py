@@ -66,18 +66,18 @@ def flagged(site_path: Path, bump: tuple[str, Path] | None = None) -> dict[str, 
         # From the bump on, the camera's blobs are those of the moved calibration (a node's blobs are worked out
         # with its own), and the manager is told its new SensorInfo.
         camera, moved_site = bump
-        (after,) = [c for c in load_cameras(load_site(moved_site)) if c.sensor_id == camera]
+        (bumped,) = [c for c in load_cameras(load_site(moved_site)) if c.sensor_id == camera]
         cameras = [
             c
             if c.sensor_id != camera
             else replace(
                 c,
                 features=[f for f in c.features if f.stamp_ns < bump_ns]
-                + [f for f in after.features if f.stamp_ns >= bump_ns],
+                + [f for f in bumped.features if f.stamp_ns >= bump_ns],
             )
             for c in cameras
         ]
-        infos_at = [(bump_ns, after.info)]
+        infos_at = [(bump_ns, bumped.info)]
     check = Agreement()
     window_ns = int(check.params.window_s * 1e9)
     first_ns: int | None = None
