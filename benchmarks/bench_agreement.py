@@ -32,7 +32,7 @@ import json
 import math
 import sys
 import tempfile
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -45,31 +45,42 @@ if str(REPO) not in sys.path:
 from benchmarks.bench_calib import add_set_arguments, chosen_sets, import_set, site_cameras  # noqa: E402
 from common.site import load_site  # noqa: E402
 from panostereo.calib.site_out import write_refined_site  # noqa: E402
-from panostereo.datasets.play import load_cameras, play, site_manager_config  # noqa: E402
+from panostereo.datasets.play import DatasetCamera, load_cameras, play, site_manager_config  # noqa: E402
+from resource_manager.config import ManagerConfig  # noqa: E402
 from resource_manager.fusion import TickResult  # noqa: E402
 from resource_manager.poses.agreement import Agreement  # noqa: E402
 
 
-def flagged(site_path: Path, bump: tuple[str, Path] | None = None) -> dict[str, Any]:
+@dataclass(frozen=True, slots=True)
+class Played:
+    """A site as it is played: its manager config and its cameras' frames (read once, played as often as needed)."""
+
+    config: ManagerConfig
+    cameras: list[DatasetCamera]
+
+    @classmethod
+    def of(cls, site_path: Path) -> Played:
+        site = load_site(site_path)
+        return cls(site_manager_config(site, None), load_cameras(site))
+
+
+def flagged(site: Played, bumped: DatasetCamera | None = None) -> dict[str, Any]:
     """Play a site with the check fed every instant. Per camera, the share of instants (after the first window) at
     which it disagreed (``flagged``), and its residual and own residual in place at the end.
 
-    ``bump``: (camera, site) whose calibration of that camera the manager is given half-way through: the camera was
-    moved while the manager ran. ``flagged`` then counts the first half only (false alarms) and ``flagged_after``
-    the instants from a window after the bump on."""
-    site = load_site(site_path)
-    cameras = load_cameras(site)
+    ``bumped``: one camera as a moved calibration sees it, whose frames and SensorInfo the manager is given from
+    half-way through on: the camera was moved while the manager ran. ``flagged`` then counts the first half only
+    (false alarms) and ``flagged_after`` the instants from a window after the bump on."""
+    cameras = site.cameras
     stamps = [f.stamp_ns for cam in cameras for f in cam.features]
-    bump_ns = (min(stamps) + max(stamps)) // 2 if bump else None
+    bump_ns = (min(stamps) + max(stamps)) // 2 if bumped is not None else None
     infos_at = []
-    if bump is not None and bump_ns is not None:
+    if bumped is not None and bump_ns is not None:
         # From the bump on, the camera's blobs are those of the moved calibration (a node's blobs are worked out
         # with its own), and the manager is told its new SensorInfo.
-        camera, moved_site = bump
-        (bumped,) = [c for c in load_cameras(load_site(moved_site)) if c.sensor_id == camera]
         cameras = [
             c
-            if c.sensor_id != camera
+            if c.sensor_id != bumped.sensor_id
             else replace(
                 c,
                 features=[f for f in c.features if f.stamp_ns < bump_ns]
@@ -101,7 +112,7 @@ def flagged(site_path: Path, bump: tuple[str, Path] | None = None) -> dict[str, 
             c[0] += int(a.disagrees)
             c[1] += 1
 
-    play(cameras, site_manager_config(site, None), on_tick=on_tick, infos_at=infos_at)
+    play(cameras, site.config, on_tick=on_tick, infos_at=infos_at)
 
     def shares(counts: dict[str, list[int]]) -> dict[str, float]:
         return {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(counts.items())}
@@ -136,18 +147,21 @@ def run_set(
     name: str, datasets: Path, work: Path, shift_m: float, turn_rad: float, seed: int, axis: str
 ) -> dict[str, Any]:
     official = import_set(name, datasets, work / name / "official")
-    in_place = flagged(official)
+    played = Played.of(official)
+    in_place = flagged(played)
     out: dict[str, Any] = {"in_place": in_place, "moved": {}, "bumped": {}}
     for k, cam in enumerate(sorted(in_place["flagged"])):
         sys.stderr.write(f"{name}: {cam} moved ...\n")
-        site = moved(official, work / name / f"moved_{cam}", cam, shift_m, turn_rad, seed + k, axis=axis)
-        run = flagged(site)
+        moved_site = Played.of(
+            moved(official, work / name / f"moved_{cam}", cam, shift_m, turn_rad, seed + k, axis=axis)
+        )
+        run = flagged(moved_site)
         out["moved"][cam] = {
             "flagged": run["flagged"].get(cam, 0.0),
             "others_flagged_max": max((v for sid, v in run["flagged"].items() if sid != cam), default=0.0),
             "residual_m": run["residual_m"].get(cam),
         }
-        run = flagged(official, bump=(cam, site))
+        run = flagged(played, bumped=next(c for c in moved_site.cameras if c.sensor_id == cam))
         out["bumped"][cam] = {
             "flagged_before": max(run["flagged"].values(), default=0.0),
             "flagged": run["flagged_after"].get(cam, 0.0),
