@@ -11,7 +11,7 @@ horizontal plane through the optical centre (docs/geometry.md section 5).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -87,6 +87,8 @@ class PinholeCamera:
     """(3,) translation (m): x_cam = R x_world + t."""
     width_px: int
     height_px: int
+    _coef: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    """The twelve distortion coefficients as floats (absent ones 0), read once: the lens model runs per pixel."""
 
     def __post_init__(self) -> None:
         for name, shape in (("k", (3, 3)), ("r", (3, 3)), ("t", (3,))):
@@ -102,6 +104,9 @@ class PinholeCamera:
             raise ConfigError("pinhole dist: tilted-sensor terms (tau_x, tau_y) are not supported, must be 0")
         dist.setflags(write=False)
         object.__setattr__(self, "dist", dist)
+        coef = [0.0] * 12
+        coef[: min(dist.size, 12)] = [float(c) for c in dist[:12]]
+        object.__setattr__(self, "_coef", tuple(coef))
         if not (self.k[0, 0] > 0 and self.k[1, 1] > 0 and abs(self.k[2, 2] - 1) < K22_TOLERANCE):
             raise ConfigError(f"pinhole K must have fx, fy > 0 and K[2,2] = 1, got {self.k.tolist()}")
         if not np.allclose(self.r @ self.r.T, np.eye(3), atol=1e-4) or np.linalg.det(self.r) < 0:
@@ -199,19 +204,37 @@ class PinholeCamera:
         return np.asarray(-self.r.T @ self.t, dtype=np.float64)
 
     # -- distortion ----------------------------------------------------------------------------------
-    def _coefs(self) -> FloatArray:
-        c = np.zeros(12)
-        c[: min(self.dist.size, 12)] = self.dist[:12]
-        return c
-
     def _distort(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
         """OpenCV forward distortion of normalised coordinates."""
-        k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self._coefs()
+        k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self._coef
         r2 = x * x + y * y
         radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
         xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r2 * r2
         yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r2 * r2
         return xd, yd
+
+    def _distort_jacobian(
+        self, x: FloatArray, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`_distort` and its Jacobian: (xd, yd, dxd/dx, dxd/dy, dyd/dx, dyd/dy)."""
+        k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self._coef
+        r2 = x * x + y * y
+        a = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        b = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+        radial = a / b
+        # d radial / d r2, and d r2 / dx = 2x, d r2 / dy = 2y.
+        d_radial = ((k1 + r2 * (2 * k2 + 3 * k3 * r2)) * b - a * (k4 + r2 * (2 * k5 + 3 * k6 * r2))) / (b * b)
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + s1 * r2 + s2 * r2 * r2
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + s3 * r2 + s4 * r2 * r2
+        gx = 2 * d_radial * x  # d radial / dx
+        gy = 2 * d_radial * y
+        sx = 2 * (s1 + 2 * s2 * r2)  # d (s1 r2 + s2 r2^2) / d r2, times 2
+        sy = 2 * (s3 + 2 * s4 * r2)
+        j11 = radial + x * gx + 2 * p1 * y + 6 * p2 * x + sx * x
+        j12 = x * gy + 2 * p1 * x + 2 * p2 * y + sx * y
+        j21 = y * gx + 2 * p1 * x + 2 * p2 * y + sy * x
+        j22 = radial + y * gy + 6 * p1 * y + 2 * p2 * x + sy * y
+        return xd, yd, j11, j12, j21, j22
 
     def _normalised(self, uv: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Undistorted normalised coordinates (x, y) of pixels (N, 2)."""
@@ -219,20 +242,15 @@ class PinholeCamera:
         k = self.k
         yd = (p[:, 1] - k[1, 2]) / k[1, 1]
         xd = (p[:, 0] - k[0, 2] - k[0, 1] * yd) / k[0, 0]
-        if not np.any(self.dist):
+        if not any(self._coef):
             return xd, yd
-        # Newton iterations on distort(x, y) = (xd, yd), numerical Jacobian; converges in a few steps.
+        # Newton iterations on distort(x, y) = (xd, yd); converges in a few steps.
         x, y = xd.copy(), yd.copy()
-        eps = 1e-7
         for _ in range(20):
-            fx, fy = self._distort(x, y)
+            fx, fy, j11, j12, j21, j22 = self._distort_jacobian(x, y)
             ex, ey = fx - xd, fy - yd
             if float(np.max(np.abs(ex) + np.abs(ey))) < UNDISTORT_TOLERANCE:
                 break
-            ax, ay = self._distort(x + eps, y)
-            bx, by = self._distort(x, y + eps)
-            j11, j21 = (ax - fx) / eps, (ay - fy) / eps
-            j12, j22 = (bx - fx) / eps, (by - fy) / eps
             det = j11 * j22 - j12 * j21
             det = np.where(np.abs(det) < UNDISTORT_TOLERANCE, UNDISTORT_TOLERANCE, det)
             x = x - (j22 * ex - j12 * ey) / det

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any, Literal, Protocol
 
+import numpy as np
+
 from common.angles import wrap_angle
 from common.cameras import AnnularModel, CylindricalCamera, PinholeCamera
 from common.errors import ConfigError
@@ -49,7 +51,13 @@ from sensor_node.config import (
     epoch_from,
     start_file_from_env,
 )
-from sensor_node.detections import DetectionFrames, camera_pose, features_from_detections, load_calibration
+from sensor_node.detections import (
+    DetectionFrames,
+    box_pixels,
+    camera_pose,
+    features_from_detections,
+    load_calibration,
+)
 from sensor_node.features import PanoramicGeometry, PinholeGeometry
 from sensor_node.pipeline import ImagePipeline
 from sensor_node.ptz import PtzHead
@@ -143,6 +151,33 @@ class DetectionProcessor:
             tracker=self.tracker,
         )
         return f, "ok"
+
+    def process_frames(self, frames: list[Frame], first_seq: int) -> list[Features]:
+        """:meth:`process_frame` of many frames in order (sequence numbers from ``first_seq``), the lens model run
+        once over all their boxes: a recorded file read at once (dataset time)."""
+        boxes = [frame.payload or [] for frame in frames]
+        everything = [d for dets in boxes for d in dets]
+        az = el = np.zeros(0)
+        if everything:
+            az, el = self.camera.bearing_elevation(box_pixels(everything))
+        out = []
+        start = 0
+        for k, (frame, dets) in enumerate(zip(frames, boxes, strict=True)):
+            end = start + 5 * len(dets)
+            out.append(
+                features_from_detections(
+                    dets,
+                    self.camera,
+                    sensor_id=self.sensor_id,
+                    seq=first_seq + k,
+                    stamp_ns=frame.stamp_ns,
+                    frame_index=frame.index,
+                    tracker=self.tracker,
+                    rays=(az[start:end], el[start:end]),
+                )
+            )
+            start = end
+        return out
 
 
 @dataclass(slots=True)

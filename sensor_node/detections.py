@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from common.angles import wrap_angle
+from common.arrays import FloatArray
 from common.cameras import PinholeCamera
 from common.errors import ConfigError, SourceError
 from common.frames import Clock, Frame, Pacer
@@ -118,6 +119,22 @@ def camera_pose(camera: PinholeCamera) -> Pose:
     return Pose(x_m=float(c[0]), y_m=float(c[1]), z_m=float(c[2]), yaw_rad=0.0)
 
 
+def box_pixels(dets: list[Detection]) -> FloatArray:
+    """(5 n, 2) the pixels each box is read at, five per box: bottom centre (the bearing), bottom left and right
+    (the width), top centre (the top elevation), middle."""
+    uv = np.empty((5 * len(dets), 2), dtype=np.float64)
+    for i, d in enumerate(dets):
+        cx, bottom = d.left_px + d.width_px / 2.0, d.top_px + d.height_px
+        uv[5 * i : 5 * i + 5] = [
+            (cx, bottom),
+            (d.left_px, bottom),
+            (d.left_px + d.width_px, bottom),
+            (cx, d.top_px),
+            (cx, d.top_px + d.height_px / 2.0),
+        ]
+    return uv
+
+
 def features_from_detections(
     dets: list[Detection],
     camera: PinholeCamera,
@@ -127,24 +144,19 @@ def features_from_detections(
     stamp_ns: int,
     frame_index: int,
     tracker: Tracker2D | None = None,
+    rays: tuple[FloatArray, FloatArray] | None = None,
 ) -> Features:
-    """Turn one frame's boxes into Features (world azimuths; see the module docstring)."""
+    """Turn one frame's boxes into Features (world azimuths; see the module docstring).
+
+    ``rays``: the azimuths and elevations of :func:`box_pixels` of ``dets``, when already computed (many frames
+    at once: :meth:`~sensor_node.build.DetectionProcessor.process_frames`).
+    """
     if not dets:
         if tracker is not None:
             tracker.update([])
         return Features(sensor_id=sensor_id, seq=seq, stamp_ns=stamp_ns, frame_index=frame_index)
     n = len(dets)
-    uv = np.empty((5 * n, 2), dtype=np.float64)
-    for i, d in enumerate(dets):
-        cx, bottom = d.left_px + d.width_px / 2.0, d.top_px + d.height_px
-        uv[5 * i : 5 * i + 5] = [
-            (cx, bottom),  # bottom centre: the bearing
-            (d.left_px, bottom),
-            (d.left_px + d.width_px, bottom),
-            (cx, d.top_px),  # top centre: the top elevation
-            (cx, d.top_px + d.height_px / 2.0),
-        ]
-    az, el = camera.bearing_elevation(uv)
+    az, el = camera.bearing_elevation(box_pixels(dets)) if rays is None else rays
     az = az.reshape(n, 5)
     el = el.reshape(n, 5)
     ids = [d.track_id for d in dets]

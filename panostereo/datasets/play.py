@@ -39,7 +39,7 @@ from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
 from resource_manager.config import MAX_PUBLISH_LAG_S, ManagerConfig, for_site, load_manager_config
 from resource_manager.fusion import Batch, Fusion, TickResult
-from sensor_node.build import build_node, sensor_info
+from sensor_node.build import DetectionProcessor, build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
 from user_agent.evaluate import HypPoint
@@ -100,11 +100,13 @@ def load_cameras(site: SiteConfig, epoch_ns: int = DATASET_EPOCH_NS) -> list[Dat
         assert isinstance(frames, DetectionFrames)
         last = site.dataset.frames if site.dataset is not None and site.dataset.frames else frames.last_frame
         period_ns = 1e9 / cfg.source.fps
-        feats = []
-        for k in range(1, last + 1):
-            stamp = epoch_ns + round((k - 1) * period_ns)
-            frame = Frame(index=k - 1, stamp_ns=stamp, payload=frames.by_frame.get(k, []))
-            feats.append(parts.processor.process_frame(frame, seq=k)[0])
+        processor = parts.processor
+        assert isinstance(processor, DetectionProcessor)
+        played = [
+            Frame(index=k - 1, stamp_ns=epoch_ns + round((k - 1) * period_ns), payload=frames.by_frame.get(k, []))
+            for k in range(1, last + 1)
+        ]
+        feats = processor.process_frames(played, first_seq=1)
         info = sensor_info(cfg, parts, seq=0, stamp_ns=epoch_ns)
         out.append(DatasetCamera(cfg.node.id, info, feats))
     if not out:

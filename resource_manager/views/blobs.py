@@ -43,14 +43,22 @@ class ImageBounds:
     """(3,) world -> camera translation (m)."""
     width_px: int
     height_px: int
+    _projection: FloatArray = field(init=False, repr=False, compare=False)
+    """(4, 3) world points (homogeneous rows) -> (u w, v w, w), w the depth: K [R | t], transposed."""
+
+    def __post_init__(self) -> None:
+        rt = np.column_stack([np.asarray(self.r, dtype=np.float64), np.asarray(self.t, dtype=np.float64)])
+        object.__setattr__(self, "_projection", (np.asarray(self.k, dtype=np.float64) @ rt).T.copy())
 
     def inside(self, xyz: FloatArray, margin_px: float = 0.0) -> npt.NDArray[np.bool_]:
         """(n,) whether world points (n, 3) project into the picture (in front of the camera)."""
-        c = np.asarray(xyz, dtype=np.float64).reshape(-1, 3) @ self.r.T + self.t
-        front = c[:, 2] > MIN_DEPTH_M
-        z = np.where(front, c[:, 2], 1.0)
-        u = self.k[0, 0] * c[:, 0] / z + self.k[0, 1] * c[:, 1] / z + self.k[0, 2]
-        v = self.k[1, 1] * c[:, 1] / z + self.k[1, 2]
+        pts = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+        uvw = pts @ self._projection[:3] + self._projection[3]
+        w = uvw[:, 2]  # K's last row is (0, 0, 1): the depth
+        front = w > MIN_DEPTH_M
+        z = np.where(front, w, 1.0)
+        u = uvw[:, 0] / z
+        v = uvw[:, 1] / z
         m = margin_px
         return np.asarray(
             front & (u >= -m) & (u <= self.width_px + m) & (v >= -m) & (v <= self.height_px + m), dtype=bool

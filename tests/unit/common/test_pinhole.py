@@ -27,7 +27,13 @@ def test_rodrigues_matches_opencv() -> None:
     assert np.allclose(rotation_from_rvec(RVEC), cv2.Rodrigues(RVEC)[0], atol=1e-12)
 
 
-DISTS = [[], [-0.2, 0.05, 0.001, -0.0005], [-0.2, 0.05, 0.001, -0.0005, 0.01], [0.1, 0.01, 0, 0, 0, 0.2, 0.02, 0.001]]
+DISTS = [
+    [],
+    [-0.2, 0.05, 0.001, -0.0005],
+    [-0.2, 0.05, 0.001, -0.0005, 0.01],
+    [0.1, 0.01, 0, 0, 0, 0.2, 0.02, 0.001],
+    [-0.2, 0.05, 0.001, -0.0005, 0.01, 0.02, 0.001, 0.0005, 0.002, -0.001, 0.001, 0.0005],  # thin prism too
+]
 
 
 @pytest.mark.parametrize("dist", DISTS)

@@ -104,3 +104,31 @@ def test_playback_paces_on_the_epoch(tmp_path: Path) -> None:
     late = DetectionFrames(p, 2.0, lambda: 13_000_000_000, epoch_ns=10_000_000_000, loop=True)
     f = late.read(stop)
     assert f is not None and f.stamp_ns == 13_000_000_000 and f.index == 6 % 4
+
+
+def test_frames_read_at_once_are_the_frames_read_one_by_one() -> None:
+    """Dataset time runs a file's lens model once over every box; each frame's Features are what the live node makes
+    of it alone (the same blobs, the same 2D track ids, empty frames included)."""
+    from common.frames import Frame
+    from common.pinhole import PinholeCamera
+    from sensor_node.build import DetectionProcessor
+
+    k = np.array([[700.0, 0.0, 330.0], [0.0, 700.0, 250.0], [0.0, 0.0, 1.0]])
+    cam = PinholeCamera(k, np.array([-0.3, 0.12, 0.001, -0.002, -0.02]), np.eye(3), np.array([0.0, 0.0, 3.0]), 640, 480)
+    rng = np.random.default_rng(4)
+    frames = []
+    for i in range(12):
+        dets = [
+            Detection(i + 1, -1, float(u), float(v), 30.0, 80.0, 0.9)
+            for u, v in zip(rng.uniform(0, 600, i % 4), rng.uniform(0, 400, i % 4), strict=True)
+        ]
+        frames.append(Frame(index=i, stamp_ns=1000 * i, payload=dets))
+    one_by_one = DetectionProcessor("c1", cam)
+    expected = [one_by_one.process_frame(f, seq=7 + i)[0] for i, f in enumerate(frames)]
+    got = DetectionProcessor("c1", cam).process_frames(frames, first_seq=7)
+    assert [f.seq for f in got] == [f.seq for f in expected] and [len(f.blobs) for f in got] == [0, 1, 2, 3] * 3
+    for a, b in zip(got, expected, strict=True):
+        for x, y in zip(a.blobs, b.blobs, strict=True):
+            assert x.local_id == y.local_id
+            for name in ("bearing_rad", "width_rad", "top_elev_rad", "bottom_elev_rad"):
+                assert getattr(x, name) == pytest.approx(getattr(y, name), abs=1e-12)
