@@ -68,6 +68,21 @@ class WorldRays:
     head_plane: FloatArray
     """World normal of the head's plane (pinhole boxes, :class:`CameraRays`); zero where the head ray is a point's."""
 
+    def take(self, rows: IntArray) -> WorldRays:
+        """The blobs ``rows`` alone (one instant's, looked at many times)."""
+        return WorldRays(
+            self.camera[rows],
+            self.index[rows],
+            self.instant[rows],
+            self.centre[rows],
+            self.foot[rows],
+            self.head[rows],
+            self.feet_ok[rows],
+            self.head_ok[rows],
+            self.weight[rows],
+            self.head_plane[rows],
+        )
+
 
 def world_rays(cams: list[CameraRays], poses: list[CameraPose], use: list[bool] | None = None) -> WorldRays:
     """The blobs of the cameras in ``use`` (default all) as world rays with the given poses."""
@@ -141,18 +156,20 @@ def _solve(m: FloatArray, b: FloatArray, prior: HeightPrior) -> FloatArray:
     return np.asarray(np.linalg.solve(m, b[..., None])[..., 0], dtype=np.float64)
 
 
-def _distances(r: WorldRays, rows: IntArray, person: FloatArray) -> tuple[FloatArray, BoolArray]:
-    """For blobs ``rows`` against persons (same length), the larger of the foot and head ray distances (m), and
-    whether the person is in front of the camera."""
-    feet = person.copy()
-    feet[:, 2] = 0.0
-    vf = feet - r.centre[rows]
-    vh = person - r.centre[rows]
-    af = np.einsum("ni,ni->n", vf, r.foot[rows])
-    ah = np.einsum("ni,ni->n", vh, r.head[rows])
-    df = np.linalg.norm(vf - af[:, None] * r.foot[rows], axis=1)
-    dh = off_ray(r.head[rows], r.head_plane[rows], vh)
-    d = np.maximum(np.where(r.feet_ok[rows], df, 0.0), np.where(r.head_ok[rows], dh, 0.0))
+def _distances(r: WorldRays, rows: IntArray | None, person: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """For blobs ``rows`` (None: every blob of ``r``) against persons (same length, or one for all), the larger of
+    the foot and head ray distances (m), and whether the person is in front of the camera."""
+    if rows is not None:
+        r = r.take(rows)
+    feet = np.array(person, dtype=np.float64)
+    feet[..., 2] = 0.0
+    vf = feet - r.centre
+    vh = person - r.centre
+    af = np.einsum("ni,ni->n", vf, r.foot)
+    ah = np.einsum("ni,ni->n", vh, r.head)
+    df = np.linalg.norm(vf - af[:, None] * r.foot, axis=1)
+    dh = off_ray(r.head, r.head_plane, vh)
+    d = np.maximum(np.where(r.feet_ok, df, 0.0), np.where(r.head_ok, dh, 0.0))
     front = (af > 0) & (ah > 0)
     return d, front
 
@@ -183,23 +200,21 @@ class Association:
         return np.bincount(self.member_camera, minlength=n_cameras).astype(np.int64)
 
 
-def _grown(
-    r: WorldRays, rows: IntArray, free: IntArray, *, pair: tuple[int, int], person: FloatArray, gate: FloatArray
-) -> list[int]:
-    """The blobs (of ``rows``, among ``free``) that join the pair's person: each other camera's nearest blob whose
-    rays pass within its camera's gate of the person, nearest first."""
-    if not free.size:
+def _grown(here: WorldRays, free: BoolArray, pair: tuple[int, int], person: FloatArray, gate: FloatArray) -> list[int]:
+    """The blobs of an instant (``here``, among ``free``) that join the pair's person: each other camera's nearest
+    blob whose rays pass within its camera's gate of the person, nearest first."""
+    if not free.any():
         return []
-    d, front = _distances(r, rows[free], np.broadcast_to(person, (free.size, 3)).copy())
-    d = d / gate[r.camera[rows[free]]]
-    fit = front & (d <= 1.0)
-    taken = {int(r.camera[rows[pair[0]]]), int(r.camera[rows[pair[1]]])}
+    d, front = _distances(here, None, person)
+    d = d / gate[here.camera]
+    js = np.flatnonzero(free & front & (d <= 1.0))
+    taken = {int(here.camera[pair[0]]), int(here.camera[pair[1]])}
     out = []
-    for j in free[fit][np.argsort(d[fit], kind="stable")]:
-        cam = int(r.camera[rows[j]])
+    for j in js[np.argsort(d[js], kind="stable")].tolist():
+        cam = int(here.camera[j])
         if cam not in taken:
             taken.add(cam)
-            out.append(int(j))
+            out.append(j)
     return out
 
 
@@ -235,22 +250,29 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
         if cand.size == 0:
             continue
         cand = cand[np.argsort(cost[cand], kind="stable")]
+        here = r.take(rows)
         used = np.zeros(rows.size, dtype=bool)
-        for c in cand:
-            a, b = ia[c], ib[c]
+        grown: list[tuple[int, IntArray]] = []
+        for c in cand.tolist():
+            a, b = int(ia[c]), int(ib[c])
             if used[a] or used[b]:
                 continue
-            free = np.flatnonzero(~used)
-            group = [a, b, *_grown(r, rows, free[(free != a) & (free != b)], pair=(a, b), person=x[c], gate=gate)]
-            person = x[c]
-            if len(group) > MIN_VIEWS:
-                g = rows[np.array(group)]
-                person = _solve(m_all[g].sum(axis=0), b_all[g].sum(axis=0), prior)
+            free = ~used
+            free[[a, b]] = False
+            group = [a, b, *_grown(here, free, (a, b), x[c], gate)]
             used[group] = True
             pid = len(persons)
-            persons.append(person)
+            persons.append(x[c])
+            if len(group) > MIN_VIEWS:
+                grown.append((pid, rows[np.array(group)]))
             mem_p.extend([pid] * len(group))
             mem_rows.extend(int(rows[j]) for j in group)
+        if grown:
+            # A person seen by more than the pair is placed by all its blobs (one solve for the instant's groups).
+            sums_m = np.array([m_all[g].sum(axis=0) for _, g in grown])
+            sums_b = np.array([b_all[g].sum(axis=0) for _, g in grown])
+            for (pid, _), person in zip(grown, _solve(sums_m, sums_b, prior), strict=True):
+                persons[pid] = person
     rows_arr = np.array(mem_rows, dtype=np.int64)
     return Association(
         person=np.array(persons, dtype=np.float64).reshape(-1, 3),
