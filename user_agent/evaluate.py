@@ -51,6 +51,7 @@ __all__ = [
     "hypotheses_from_tracksets",
     "unseen_spans",
     "within_area",
+    "within_area_many",
 ]
 
 MOSTLY_TRACKED = 0.8
@@ -298,17 +299,24 @@ class MotAccumulator:
 
 def within_area(area: npt.NDArray[np.float64], x_m: float, y_m: float, margin_m: float) -> bool:
     """Whether a floor point lies inside a convex, counter-clockwise polygon grown by ``margin_m``."""
-    a = area
-    b = np.roll(a, -1, axis=0)
-    edge = b - a
+    return bool(within_area_many(area, np.array([[x_m, y_m]]), margin_m)[0])
+
+
+def within_area_many(
+    area: npt.NDArray[np.float64], xy: npt.NDArray[np.float64], margin_m: float
+) -> npt.NDArray[np.bool_]:
+    """(n,) whether each floor point of ``xy`` (n, 2) lies inside a convex, counter-clockwise polygon grown by
+    ``margin_m``."""
+    a = np.asarray(area, dtype=np.float64)
+    p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    edge = np.roll(a, -1, axis=0) - a
     length = np.maximum(np.hypot(edge[:, 0], edge[:, 1]), 1e-12)
-    # Signed distance of the point to the left of each edge; inside a CCW convex polygon all are >= 0.
-    side = (edge[:, 0] * (y_m - a[:, 1]) - edge[:, 1] * (x_m - a[:, 0])) / length
-    if bool(np.all(side >= 0)):
-        return True
-    t = np.clip(((x_m - a[:, 0]) * edge[:, 0] + (y_m - a[:, 1]) * edge[:, 1]) / length**2, 0.0, 1.0)
-    near = np.hypot(a[:, 0] + t * edge[:, 0] - x_m, a[:, 1] + t * edge[:, 1] - y_m)
-    return bool(np.min(near) <= margin_m)
+    rel = p[:, None, :] - a[None, :, :]  # (n, k, 2)
+    # Signed distance of each point to the left of each edge; inside a CCW convex polygon all are >= 0.
+    side = (edge[:, 0] * rel[:, :, 1] - edge[:, 1] * rel[:, :, 0]) / length
+    t = np.clip((rel[:, :, 0] * edge[:, 0] + rel[:, :, 1] * edge[:, 1]) / length**2, 0.0, 1.0)
+    near = np.hypot(rel[:, :, 0] - t * edge[:, 0], rel[:, :, 1] - t * edge[:, 1])
+    return np.asarray(np.all(side >= 0, axis=1) | (np.min(near, axis=1) <= margin_m), dtype=bool)
 
 
 def evaluate_positions(
@@ -338,8 +346,9 @@ def evaluate_positions(
     for k in sorted(gt.frames) if frames is None else sorted(frames):
         objs = gt.frames.get(k, [])
         hs = hyps.get(k, [])
-        if area is not None:
-            hs = [h for h in hs if within_area(area, h.x_m, h.y_m, threshold_m)]
+        if area is not None and hs:
+            inside = within_area_many(area, np.array([[h.x_m, h.y_m] for h in hs]), threshold_m)
+            hs = [h for h, there in zip(hs, inside.tolist(), strict=True) if there]
         events = acc.update(
             [p.person_id for p in objs], [h.track_id for h in hs], frame_distances(objs, hs, threshold_m)
         )

@@ -209,7 +209,8 @@ def _in_view(views: Views, table: TrackTable, max_range_m: float) -> tuple[Float
             if feet is None or head is None:
                 feet = np.column_stack([table.xy, np.zeros(table.n)])
                 head = np.column_stack([table.xy, table.height])
-            seen[i] &= image.inside(feet) | image.inside(head)
+            both = image.inside(np.concatenate([feet, head]))
+            seen[i] &= both[: table.n] | both[table.n :]
         elif fov is not None:
             seen[i] &= np.abs(wrap_angle(np.arctan2(d[i, :, 1], d[i, :, 0]) - fov[0])) <= fov[1]
     return dist, seen

@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from common.schema import Track, TrackSet, TrackState
 from tests.unit.common.tracks import published
-from user_agent.evaluate import HypPoint, MotAccumulator, evaluate_positions, hypotheses_from_tracksets
+from user_agent.evaluate import (
+    HypPoint,
+    MotAccumulator,
+    evaluate_positions,
+    hypotheses_from_tracksets,
+    within_area,
+    within_area_many,
+)
 from user_agent.groundtruth import GroundTruth, GtPoint
 
 NAN = math.nan
@@ -148,3 +156,13 @@ def test_fragmentations_and_ids_per_person_count_interruptions_and_the_ids_each_
         acc.update(["p"], [hyp], d)
     m = acc.summary(0.5)
     assert m.fragmentations == 2 and m.id_switches == 1 and m.ids_per_person == 2.0
+
+
+def test_points_within_a_convex_area_grown_by_a_margin() -> None:
+    """A point is in the scored area inside the polygon or within the margin of its edge (corners rounded)."""
+    square = np.array([[0.0, 0.0], [8.0, 0.0], [8.0, 6.0], [0.0, 6.0]])
+    pts = np.array([[4.0, 3.0], [8.4, 3.0], [8.6, 3.0], [-0.4, -0.2], [8.4, 6.4], [4.0, -0.5], [4.0, -0.51]])
+    inside = within_area_many(square, pts, 0.5)
+    assert inside.tolist() == [True, True, False, True, False, True, False]
+    assert [within_area(square, x, y, 0.5) for x, y in pts] == inside.tolist()
+    assert within_area_many(square, np.zeros((0, 2)), 0.5).shape == (0,)
