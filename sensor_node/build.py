@@ -141,20 +141,11 @@ class DetectionProcessor:
         self.tracker = Tracker2D(gate=gate_rad, max_missed=3, period=2 * math.pi)
 
     def process_frame(self, frame: Frame, seq: int) -> tuple[Features, str]:
-        f = features_from_detections(
-            frame.payload or [],
-            self.camera,
-            sensor_id=self.sensor_id,
-            seq=seq,
-            stamp_ns=frame.stamp_ns,
-            frame_index=frame.index,
-            tracker=self.tracker,
-        )
-        return f, "ok"
+        return self.process_frames([frame], first_seq=seq)[0], "ok"
 
     def process_frames(self, frames: list[Frame], first_seq: int) -> list[Features]:
-        """:meth:`process_frame` of many frames in order (sequence numbers from ``first_seq``), the lens model run
-        once over all their boxes: a recorded file read at once (dataset time)."""
+        """Frames in order (sequence numbers from ``first_seq``) to Features, the lens model run once over all
+        their boxes: one frame live, a recorded file at once in dataset time."""
         boxes = [frame.payload or [] for frame in frames]
         everything = [d for dets in boxes for d in dets]
         az = el = np.zeros(0)
