@@ -39,6 +39,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from benchmarks.bench_identity import MVDETR  # noqa: E402
 from common.site import load_site  # noqa: E402
 from panostereo.datasets.mot import import_mot  # noqa: E402
 from panostereo.datasets.play import DATASET_EPOCH_NS, evaluate_site, scored_first  # noqa: E402
@@ -151,7 +152,7 @@ def _sites(datasets: Path, work: Path) -> dict[str, tuple[Path, float]]:
         noisy = import_wildtrack(wt, work / "wtn", noise_px=2.0, drop_rate=0.1, seed=1).site
         out["wildtrack_noise2px_drop10"] = (noisy, 0.5)
     if (mvdetr / "detections").is_dir():
-        out["wildtrack_mvdetr"] = (import_mot(mvdetr, work / "mvdetr", fps=2.0).site, 0.5)
+        out["wildtrack_mvdetr"] = (import_mot(mvdetr, work / "mvdetr", fps=2.0, shared_detector=MVDETR).site, 0.5)
     if (pets / "detections").is_dir():
         out["pets2009_1.0m"] = (import_mot(pets, work / "pets", fps=7.0, min_confidence=0.5).site, 1.0)
     return out

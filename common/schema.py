@@ -272,6 +272,11 @@ class SensorInfo(_Msg, frozen=True, tag="pano.SensorInfo"):
     """True when this sensor's blobs are foreground segments (the paper's background subtraction): people who overlap
     in its picture may come as one blob, whose bottom is then the nearer one's feet. False: one box per person (a
     person detector's)."""
+    shared_detector: OptId = ""
+    """The multi-view detector this sensor's boxes come from, by name, when they are not its own: one detection per
+    person on the floor, drawn into every view whose picture holds them (a multi-view detector's output, or an
+    annotation made on the floor). The sensors that name the same detector find or miss a person together, and find
+    them whether or not nearer people cover them. "": this camera's own detector, on its own picture."""
 
 
 SourceState = Literal["starting", "ok", "reconnecting", "failed", "ended"]

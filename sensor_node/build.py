@@ -230,6 +230,7 @@ def sensor_info(
         bearing_sigma_rad=cfg.node.bearing_sigma_rad,
         point_sigma_m=BOX_POINT_SIGMA_M if isinstance(cfg.source, DetectionsSource) else HEAD_POINT_SIGMA_M,
         blobs_merge=not isinstance(cfg.source, DetectionsSource),
+        shared_detector=cfg.source.shared_detector if isinstance(cfg.source, DetectionsSource) else "",
     )
 
 

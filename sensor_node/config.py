@@ -50,7 +50,7 @@ from common.clock import ClockSettings
 from common.config import ConfigStruct, load_config, resolve_path
 from common.errors import ConfigError
 from common.keys import DEFAULT_PREFIX, Keys, validate_id
-from common.schema import MAX_HIST_BINS
+from common.schema import MAX_HIST_BINS, OptId
 from common.session import SessionSettings
 
 __all__ = [
@@ -161,6 +161,10 @@ class DetectionsSource(ConfigStruct, frozen=True, tag_field="kind", tag="detecti
     """World time 0 as Unix ns; 0 takes env PANOSTEREO_EPOCH_NS, else the node's start time."""
     min_confidence: NonNeg = 0.0
     """Detections with a lower ``conf`` column are ignored."""
+    shared_detector: OptId = ""
+    """Name of the multi-view detector whose floor detections these boxes are, drawn into this camera's picture (the
+    same name in every camera's file: its views find or miss a person together, covered or not); "": the boxes are
+    this camera's own detector's, on its own picture. A fact of how the file was made."""
     max_lag_s: Pos = 1.0
     """Frames due longer ago than this (node started late) are skipped and counted as dropped."""
     loop: bool = False

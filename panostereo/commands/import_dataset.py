@@ -60,6 +60,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         help="mot: the nodes ignore boxes whose conf column is lower (the detector's operating point)",
     )
+    mot.add_argument(
+        "--shared-detector",
+        default="",
+        metavar="NAME",
+        help="mot: the boxes are one multi-view detector's floor detections drawn into every view (e.g. MVDeTr's), "
+        "not each camera's own: its name. The views then find or miss a person together, covered or not",
+    )
     wt = parser.add_argument_group("wildtrack")
     wt.add_argument("--frames", type=int, default=0, help="wildtrack: keep only the first N annotated frames (0: all)")
     wt.add_argument(
@@ -109,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
             fps=args.fps,
             area=parse_area(args.area) if args.area is not None else None,
             min_confidence=args.min_confidence,
+            shared_detector=args.shared_detector,
             noise_px=args.noise_px,
             drop_rate=args.drop_rate,
             seed=args.seed,

@@ -41,6 +41,7 @@ import numpy as np
 from common.area import Area, AreaSpec
 from common.errors import ConfigError
 from common.pinhole import PinholeCamera
+from common.schema import ID_PATTERN
 from user_agent.groundtruth import read_gt_csv
 
 __all__ = ["ImportResult", "camera_id", "import_mot", "write_site"]
@@ -177,7 +178,8 @@ def _site_toml(name: str, cams: Sequence[str], fps: float, frames: int, *, has_g
     return "\n".join(lines) + "\n"
 
 
-def _node_toml(cid: str, fps: float, min_confidence: float) -> str:
+def _node_toml(cid: str, fps: float, min_confidence: float, shared_detector: str) -> str:
+    shared = f'shared_detector = "{shared_detector}"\n' if shared_detector else ""
     return f"""# Detection-file camera {cid} (made by `panostereo import`): its boxes and its calibration.
 
 [node]
@@ -194,7 +196,7 @@ file = "../detections/{cid}.txt"
 calibration = "../calib/{cid}.json"
 fps = {fps:g}
 min_confidence = {min_confidence:g}
-"""
+{shared}"""
 
 
 MANAGER_TOML = """# Resource manager of the imported dataset site: the defaults, as on every site.
@@ -220,11 +222,13 @@ def write_site(
     has_gt: bool,
     area: AreaSpec | None = None,
     min_confidence: float = 0.0,
+    shared_detector: str = "",
 ) -> Path:
     """Write ``site.toml`` and the per-process configs for files already under ``out/calib``, ``out/detections``."""
     (out / "nodes").mkdir(parents=True, exist_ok=True)
     for cid in cameras:
-        (out / "nodes" / f"{cid}.toml").write_text(_node_toml(cid, fps, min_confidence), encoding="utf-8")
+        node = _node_toml(cid, fps, min_confidence, shared_detector)
+        (out / "nodes" / f"{cid}.toml").write_text(node, encoding="utf-8")
     (out / "nodes" / "manager.toml").write_text(MANAGER_TOML, encoding="utf-8")
     site = out / "site.toml"
     site.write_text(_site_toml(name, cameras, fps, frames, has_gt=has_gt, area=area), encoding="utf-8")
@@ -312,6 +316,7 @@ def import_mot(
     drop_rate: float = 0.0,
     seed: int = 0,
     name: str = "",
+    shared_detector: str = "",
 ) -> ImportResult:
     """Convert the dataset at ``root`` (layout in the module docstring) into a site under ``out``.
 
@@ -323,6 +328,9 @@ def import_mot(
         drop_rate: probability that a box is left out (a missed detection): a robustness study.
         seed: random seed of the noise and drops.
         name: the site's name (default: the folder's).
+        shared_detector: the name of the multi-view detector whose floor detections the boxes are, drawn into every
+            view (an annotation made on the floor, a multi-view detector's output); "": each camera's boxes are its
+            own detector's (:attr:`~sensor_node.config.DetectionsSource.shared_detector`).
 
     Raises:
         ConfigError: missing or malformed input, bad arguments.
@@ -331,6 +339,11 @@ def import_mot(
     if not src.is_dir():
         raise ConfigError(f"{src}: no such dataset folder")
     _check_args(fps, area, noise_px, drop_rate, min_confidence)
+    if shared_detector and not re.fullmatch(ID_PATTERN, shared_detector):
+        raise ConfigError(
+            f"--shared-detector {shared_detector!r}: a name of lower-case letters, digits and '-', starting with a "
+            "letter or digit"
+        )
     if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
         raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
     cameras = _camera_files(src)
@@ -358,6 +371,7 @@ def import_mot(
         has_gt=gt is not None,
         area=area,
         min_confidence=min_confidence,
+        shared_detector=shared_detector,
     )
     logger.info("imported %d cameras, %d frames, %d boxes (%d dropped) into %s", len(ids), frames, boxes, dropped, dst)
     return ImportResult(site, ids, frames, people, boxes, dropped)

@@ -44,6 +44,11 @@ from user_agent.groundtruth import GtPoint, write_gt_rows
 
 __all__ = ["GridSpec", "ImportResult", "import_wildtrack"]
 
+WILDTRACK_ANNOTATION = "wildtrack-annotation"
+"""The imported cameras' shared detector: Wildtrack's boxes are its annotated floor positions, each drawn into every
+view as one fixed box (:attr:`~sensor_node.config.DetectionsSource.shared_detector`): the annotator boxes people
+behind anyone, and a gap in the annotation is every view's at once."""
+
 logger = logging.getLogger(__name__)
 
 
@@ -213,4 +218,5 @@ def import_wildtrack(
             drop_rate=drop_rate,
             seed=seed,
             name=site_name or "wildtrack",
+            shared_detector=WILDTRACK_ANNOTATION,
         )

@@ -189,7 +189,9 @@ class _Gains:
     gain: FloatArray
     """(hypothesis, blob) log likelihood ratio of the blob being that person."""
     misses: FloatArray
-    """(hypothesis,) the views' miss terms (hidden by the tracks only)."""
+    """(hypothesis,) the views' miss terms (hidden by the tracks only), each view's on its own."""
+    ln_miss: FloatArray
+    """(view, hypothesis) each view's miss term."""
     free: Subset
     """The unexplained blobs: ``gain``'s columns."""
     column: IntArray
@@ -212,9 +214,8 @@ class _Gains:
         # Per view: each hypothesis' gain for each unexplained blob, and its miss term (hidden by the tracks only).
         vis = visibility_many(views, cand_table, model, max_range_m, blockers=blockers)
         pd = vis.p_detect
-        misses = np.zeros(len(cands))
-        for row in np.log1p(-np.minimum(pd, 1.0 - 1e-9)):
-            misses += row
+        ln_miss = np.log1p(-np.minimum(pd, 1.0 - 1e-9))
+        misses = ln_miss.sum(axis=0)
         scores = score_views(views, free, cands, cand_table, vis, model=model, max_range_m=max_range_m)
         alive = np.ones(len(cands), dtype=bool)
         for k, f in enumerate(found):
@@ -226,10 +227,34 @@ class _Gains:
         return cls(
             gain=np.concatenate([sc.gain for sc in scores], axis=1),
             misses=misses,
+            ln_miss=ln_miss,
             free=free,
             column=column,
             alive=alive,
         )
+
+
+def _shared_misses(g: _Gains, views: Views, fits: BoolArray) -> FloatArray:
+    """(hypothesis,) what turns the views' miss terms, each view's on its own (:attr:`_Gains.misses`), into one per
+    multi-view detector (:attr:`Views.shared_detector`): where some of its views have a blob that fits the hypothesis
+    (``fits``: (hypothesis, view of ``g.free``)), its other views' misses say nothing; where none does, they are one
+    miss, of the likeliest view's probability."""
+    out = np.zeros(g.ln_miss.shape[1])
+    names = sorted(set(views.shared_detector) - {""})
+    if not names:
+        return out
+    free_rows = g.free.rows.tolist()
+    for name in names:
+        rows = [v for v, d in enumerate(views.shared_detector) if d == name]
+        cols = [k for k, r in enumerate(free_rows) if r in rows]
+        ln_miss = g.ln_miss[rows]
+        fit = np.zeros((len(rows), len(out)), dtype=bool)
+        for k in cols:
+            fit[rows.index(free_rows[k])] = fits[:, k]
+        found = fit.any(axis=0)
+        own = ln_miss.sum(axis=0)
+        out += np.where(found, -np.where(fit, 0.0, ln_miss).sum(axis=0), ln_miss.min(axis=0) - own)
+    return out
 
 
 def _pick(found: list[_Found], g: _Gains, views: Views, blockers: TrackTable, min_evidence: float) -> list[Hypothesis]:
@@ -245,7 +270,7 @@ def _pick(found: list[_Found], g: _Gains, views: Views, blockers: TrackTable, mi
         # Each hypothesis' evidence: every view's best blob not yet taken, where it fits (gain > 0).
         open_gain = np.where(open_, gain, -np.inf)
         best = np.maximum.reduceat(open_gain, starts, axis=1)
-        evidence = g.misses.copy()
+        evidence = g.misses + _shared_misses(g, views, best > 0)
         for v in range(best.shape[1]):
             evidence += np.maximum(best[:, v], 0.0)
         evidence = np.where(alive, evidence, -np.inf)

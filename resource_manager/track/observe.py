@@ -162,12 +162,17 @@ def cut_bearing(
 
 
 def visibility_many(
-    views: Views, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
+    views: Views,
+    table: TrackTable,
+    model: TrackModel,
+    max_range_m: float,
+    blockers: TrackTable | None = None,
 ) -> Visibility:
     """Each track in each view: its detection probability, 0 out of the picture or ``max_range_m``, lower when
     someone nearer stands on the same bearing (one of the tracks of ``blockers``; default: of ``table`` itself,
     new people's hypotheses are hidden by the tracks, not by each other) or another camera's body does; and the
-    share of its feet those hide."""
+    share of its feet those hide. A view whose boxes are a multi-view detector's (:attr:`Views.shared_detector`: floor
+    detections drawn into its picture) has a person at ``p_detect`` whether or not nearer people cover them."""
     n = table.n
     p = np.zeros((views.n_views, n))
     if n == 0 or views.n_views == 0:
@@ -178,6 +183,9 @@ def visibility_many(
         hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(views, blockers, max_range_m))
     covered, feet, reach, near = _covered(views, table, dist, hiders)
     p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
+    shared = np.array([bool(name) for name in views.shared_detector], dtype=bool)
+    if shared.any():
+        p[shared] = np.where(seen[shared], model.p_detect, 0.0)
     return Visibility(p, np.where(seen, feet, 0.0), reach, np.where(seen & views.blobs_merge[:, None], near, 0.0))
 
 

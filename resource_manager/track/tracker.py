@@ -15,7 +15,8 @@ re-identified and ended.
    view detected is that track found again; the others start tentative (:mod:`.life`).
 6. **Existence**: each view that should see a track raises its existence when it detects the person and
    lowers it when it does not (a detection assigned to a track never counts against it), tempered so that a
-   view's frames within ``evidence_time_s`` count once, and held below where the person could have left.
+   view's frames within ``evidence_time_s`` count once, and held below where the person could have left. The views
+   of one multi-view detector find or miss a person once, at its recall, learnt from the tracks (:mod:`.recall`).
 7. **Prune**: a track ends when its existence is gone, its position is lost (``lost_sigma_m``), its height is no
    person's, its person left the area, or it is another track's person followed twice. A confirmed track that
    ended inside the area is remembered (:class:`~.life.Graveyard`).
@@ -61,6 +62,7 @@ from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
 from resource_manager.track.observe import TrackTable, ViewScores, in_any_view, score_views, visibility_many
+from resource_manager.track.recall import SharedRecall
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
 from resource_manager.views.blobs import Views
@@ -165,6 +167,8 @@ class Tracker:
         self.updater = Updater(model, births.width_rel_sigma, pair_choice, seed)
         self.separation = Separation()
         self.graveyard = Graveyard()
+        self.recall = SharedRecall(model)
+        """What the sites' multi-view detectors find (:attr:`~resource_manager.views.blobs.Views.shared_detector`)."""
         self._serial = 0
         self._t_ns = 0
         self._tick = 0
@@ -294,7 +298,7 @@ class Tracker:
         unexplained = np.ones(views.n, dtype=bool)
         starts = views.offsets.tolist()
         unexplained[[starts[views.rows[sid]] + j for sid, hit in hits.items() for j in hit.values()]] = False
-        hyps = self._hypotheses(tick, unexplained)
+        hyps = self._hypotheses(tick, unexplained, t_ns)
         hyps, returned = self._returns(hyps, tick, t_ns, hits, predicted)
         out.returned = len(returned)
         for i, tr in enumerate(self.tracks):
@@ -302,7 +306,7 @@ class Tracker:
         # 6. Existence (of the tracks there were; new ones start from their own evidence).
         coverage = self._coverage(views)
         exits = at_exit(self.filter.x[:, :2], self.filter.position_sigma(), self.model, self.scene, coverage)
-        self._existence(scored, hits, tick, existence_caps(exits, self.model, self.scene))
+        self._existence(scored, hits, tick, existence_caps(exits, self.model, self.scene), dt_s)
         out.births = self._spawn(hyps, tick, t_ns)
         self._note_apart(hits, scored, tick, t_ns)
         # 7. Prune, 8. confirm.
@@ -336,16 +340,23 @@ class Tracker:
         return lambda xy: in_any_view(views, xy, self.model.height_prior_m, self.scene.max_range_m)
 
     def _existence(
-        self, scored: dict[str, ViewScores], hits: dict[str, dict[int, int]], tick: Tick, caps: FloatArray
+        self,
+        scored: dict[str, ViewScores],
+        hits: dict[str, dict[int, int]],
+        tick: Tick,
+        caps: FloatArray,
+        dt_s: float,
     ) -> None:
         """Raise the existence of the tracks each view detects (``hits``: per view, track -> blob), lower that of
         those it should see but misses; view after view in order of sensor ids, each held below ``caps`` (where
-        the track's person could have left: :func:`~.life.existence_caps`)."""
+        the track's person could have left: :func:`~.life.existence_caps`). The multi-view detectors learn their
+        recall from it (:attr:`recall`; ``dt_s`` since the last tick)."""
         n = len(self.tracks)
         if not n:
             return
         views = list(scored.values())
         p_detect = np.array([sc.p_detect for sc in views]).reshape(-1, n)
+        sure = self._sure(n)  # before this tick's evidence
         # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
         delta = np.array([sc.ln_miss for sc in views]).reshape(-1, n)
         hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
@@ -356,13 +367,64 @@ class Tracker:
             delta[rows, cols] = np.maximum(lr, 0.0)  # a detection assigned to a track never counts against it
             # A view that detected a track it did not expect to see (a return) counts as seeing it.
             p_detect[rows, cols] = np.maximum(p_detect[rows, cols], 1e-6)
+        sees = p_detect > 0
+        self._one_miss_per_detector(delta, sees, hit, tick.views.shared_detector)
         weight = np.array([tick.weights[sid][1] for sid in scored])
-        self.filter.existence_update(delta, weight, p_detect > 0, caps)
+        self.filter.existence_update(delta, weight, sees, caps)
+        self._learn_recall(tick.views.shared_detector, p_detect > 0, hits, sure, dt_s)
+
+    def _one_miss_per_detector(
+        self, delta: FloatArray, sees: BoolArray, hit: list[tuple[int, int, int]], shared_detector: tuple[str, ...]
+    ) -> None:
+        """Count the views of one multi-view detector (``shared_detector``) as that one detector in ``delta`` (s, n),
+        each view's ln likelihood ratio for each track (in place): where some of its views detected the track, the
+        detector found the person, and its other views' misses say nothing (its box there went to someone else, or
+        lay outside the gate); where none did, the detector missed them once: ln(1 - its recall), however many views
+        it has. ``sees``: (s, n) which views should see each track; ``hit``: (view, track, blob) detections."""
+        names = sorted(set(shared_detector) - {""})
+        if not names or not delta.size:
+            return
+        got = np.zeros(delta.shape, dtype=bool)
+        for v, i, _ in hit:
+            got[v, i] = True
+        for name in names:
+            rows = np.flatnonzero(np.array([d == name for d in shared_detector], dtype=bool))
+            missed = sees[rows] & ~got[rows]
+            found: BoolArray = np.asarray(got[rows].any(axis=0), dtype=bool)
+            first = np.argmax(missed, axis=0)  # the whole miss goes on one view: the first that should see the track
+            one = np.zeros(missed.shape, dtype=bool)
+            one[first, np.arange(missed.shape[1])] = ~found & missed.any(axis=0)
+            block = delta[rows]
+            block[missed] = 0.0
+            block[one] = math.log1p(-self.recall.recall(name))
+            delta[rows] = block
+
+    def _sure(self, n: int) -> BoolArray:
+        """(n,) which of the first ``n`` tracks surely are someone: published, placed and more likely there than not."""
+        placed, likely = self._shown(self.filter.position_sigma()[:n])
+        return np.array([tr.confirmed for tr in self.tracks[:n]], dtype=bool) & placed & likely[:n]
+
+    def _learn_recall(
+        self,
+        shared_detector: tuple[str, ...],
+        sees: BoolArray,
+        hits: dict[str, dict[int, int]],
+        sure: BoolArray,
+        dt_s: float,
+    ) -> None:
+        """Let :attr:`recall` learn from this tick's views (``sees``: (s, n) which should see each track) of the
+        tracks that surely are someone (``sure``)."""
+        got = np.zeros(sees.shape, dtype=bool)
+        for v, hit in enumerate(hits.values()):
+            got[v, list(hit)] = True
+        serials = [tr.serial for tr in self.tracks[: sees.shape[1]]]
+        self.recall.learn(shared_detector, sees, got, sure=sure, serials=serials, dt_s=dt_s)
 
     # -- births and returns ---------------------------------------------------------------------------
-    def _hypotheses(self, tick: Tick, unexplained: BoolArray) -> list[Hypothesis]:
+    def _hypotheses(self, tick: Tick, unexplained: BoolArray, t_ns: int) -> list[Hypothesis]:
         """New people among the unexplained blobs (``unexplained``: (m,) over the tick's blobs); nobody next to a
-        track a view detected."""
+        track a view detected. One where a track that a multi-view detector's misses just ended would be shows those
+        were misses of someone there (:meth:`~.recall.SharedRecall.found`)."""
         m = self.model
         w = min((we for _, we in tick.weights.values()), default=1.0)
         if w <= 0:
@@ -370,7 +432,7 @@ class Tracker:
         # Started only where the evidence, tempered like every update, lifts it above the deletion threshold.
         need = (logit(m.p_delete) - logit(m.p_birth)) / w
         detected = np.array([i for i, tr in enumerate(self.tracks) if tr.detected], dtype=np.int64)
-        return find_births(
+        hyps = find_births(
             tick.views,
             unexplained,
             self.filter.table(detected),
@@ -380,6 +442,10 @@ class Tracker:
             tick=self._tick,
             min_evidence=need,
         )
+        if hyps:
+            fixes = np.array([h.fix.xy for h in hyps]), np.array([h.fix.cov for h in hyps])
+            self.recall.found(*fixes, t_ns, self.motion)
+        return hyps
 
     def _returns(
         self,
@@ -567,6 +633,8 @@ class Tracker:
                 continue
             if twice is not None:
                 merged.append((tr.serial, self.tracks[twice].serial))
+            elif float(f.logodds[i]) < delete:
+                self.recall.ended(tr.serial, f.x[i], f.p[i], t_ns)
             if tr.track_id:
                 ended.append(tr.track_id)
                 if lost and not exits[i] and m.reid_window_s > 0:

@@ -131,6 +131,9 @@ class Views:
     blobs_merge: BoolArray
     """(s,) whether each camera's blobs are foreground segments, which merge people who overlap in its picture (a
     blob's bottom may be a nearer person's feet), rather than one box per person."""
+    shared_detector: tuple[str, ...]
+    """Each view's multi-view detector (its boxes are that detector's floor detections drawn into its picture: the
+    views that name it find or miss a person together, covered or not); "": the camera's own detector."""
     fov: tuple[tuple[float, float] | None, ...]
     """(world azimuth of the optical axis, half width) of each perspective camera; None: 360 deg (panoramic)."""
     image: tuple[ImageBounds | None, ...]
@@ -237,6 +240,7 @@ class Views:
             period_s=none,
             body_radius_m=none,
             blobs_merge=np.zeros(0, dtype=bool),
+            shared_detector=(),
             fov=(),
             image=(),
             hist_bins=np.zeros(0, dtype=np.int64),

@@ -120,6 +120,7 @@ def build_views(
         period_s=cams.period_s,
         body_radius_m=cams.body_radius_m,
         blobs_merge=cams.blobs_merge,
+        shared_detector=cams.shared_detector,
         fov=cams.fov,
         image=cams.image,
         hist_bins=hist_bins,
@@ -175,6 +176,7 @@ class _Cameras:
     period_s: FloatArray
     body_radius_m: FloatArray
     blobs_merge: BoolArray
+    shared_detector: tuple[str, ...]
     fov: tuple[tuple[float, float] | None, ...]
     image: tuple[ImageBounds | None, ...]
 
@@ -196,6 +198,7 @@ class _Cameras:
             ),
             body_radius_m=np.array([info.body_radius_m if info is not None else 0.0 for info in got], dtype=np.float64),
             blobs_merge=np.array([info is not None and info.blobs_merge for info in got], dtype=bool),
+            shared_detector=tuple(info.shared_detector if info is not None else "" for info in got),
             fov=tuple(pinhole_fov(m) if m is not None else None for m in models),
             image=tuple(image_bounds(m) if m is not None else None for m in models),
         )

@@ -282,6 +282,7 @@ class ViewSpec:
     body_radius_m: float = 0.0
     confidence: FloatArray | None = None
     blobs_merge: bool = False
+    shared_detector: str = ""
 
     @property
     def n(self) -> int:
@@ -310,6 +311,7 @@ def stack_views(specs: Sequence[ViewSpec]) -> Views:
         period_s=np.array([v.period_s for v in specs], dtype=np.float64),
         body_radius_m=np.array([v.body_radius_m for v in specs], dtype=np.float64),
         blobs_merge=np.array([v.blobs_merge for v in specs], dtype=bool),
+        shared_detector=tuple(v.shared_detector for v in specs),
         fov=tuple(v.fov for v in specs),
         image=tuple(v.image for v in specs),
         hist_bins=bins,

@@ -82,6 +82,13 @@ def test_a_detection_file_node_is_a_pinhole_camera_at_its_calibrated_centre(tmp_
     info = sensor_info(cfg, parts, seq=0, stamp_ns=NOW_NS)
     assert info.pose_source == "surveyed" and info.point_sigma_m == BOX_POINT_SIGMA_M  # a box, not a head
     assert not info.blobs_merge  # a person detector's boxes: one per person
+    assert info.shared_detector == ""  # ...this camera's own
+    path.write_text(path.read_text() + 'shared_detector = "mvdetr"\n')
+    shared = load_node_config(path)
+    assert sensor_info(shared, build_node(shared, lambda: NOW_NS), seq=0, stamp_ns=NOW_NS).shared_detector == "mvdetr"
+    path.write_text(path.read_text().replace('"mvdetr"', '"MV DeTr"'))
+    with pytest.raises(ConfigError, match="shared_detector"):
+        load_node_config(path)
 
 
 def test_a_mobile_sim_camera_sends_its_height_and_leaves_its_place_to_mutual_calibration() -> None:

@@ -29,6 +29,10 @@ def test_import_writes_a_site_of_the_dataset_facts_only(made: Path, tmp_path: Pa
     node = load_node_config(site.resolve("nodes/north.toml"))
     assert isinstance(node.source, DetectionsSource)
     assert node.source.fps == 5.0 and node.source.min_confidence == 0.5
+    assert node.source.shared_detector == ""  # each camera's boxes are its own detector's unless said
+    shared = import_mot(made, tmp_path / "shared", fps=5.0, shared_detector="mvdetr")
+    one = load_node_config(load_site(shared.site).resolve("nodes/east.toml"))
+    assert isinstance(one.source, DetectionsSource) and one.source.shared_detector == "mvdetr"
     assert node.resolve(node.source.file).read_text() == (made / "detections" / "north.txt").read_text()
     manager = (tmp_path / "site" / "nodes" / "manager.toml").read_text()
     # Facts only: the area, in the site; no [match] or [tracker] tuning.
@@ -48,6 +52,7 @@ def test_import_perturbs_boxes_when_asked_and_refuses_bad_input(made: Path, tmp_
         ({"fps": 5.0, "area": AreaSpec(polygon=[[0, 0], [1, 1], [2, 2]])}, "--area.polygon encloses no area"),
         ({"fps": 5.0, "drop_rate": 1.0}, "--drop-rate"),
         ({"fps": 5.0, "min_confidence": 2.0}, "--min-confidence"),
+        ({"fps": 5.0, "shared_detector": "MV DeTr"}, "--shared-detector"),
     ]:
         with pytest.raises(ConfigError, match=message):
             import_mot(made, tmp_path / "bad", **kwargs)  # type: ignore[arg-type]

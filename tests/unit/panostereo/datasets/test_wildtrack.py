@@ -14,6 +14,7 @@ import pytest
 from common.pinhole import PinholeCamera
 from common.site import load_site
 from panostereo.datasets.wildtrack import import_wildtrack
+from sensor_node.config import DetectionsSource, load_node_config
 from tests.support import REPO, skip_or_fail
 from user_agent.groundtruth import read_gt_csv
 
@@ -33,6 +34,9 @@ def test_import_makes_a_loadable_site_whose_calibration_reprojects_ground_truth(
     assert site.dataset is not None and site.dataset.fps == 2.0 and site.dataset.frames == 20
     assert [p.name for p in site.process] == [*res.cameras, "manager"]
     assert res.cameras == ["cvlab1", "cvlab2", "cvlab3", "cvlab4", "idiap1", "idiap2", "idiap3"]
+    # Its boxes are annotated floor positions drawn into every view: one shared detector, the annotator.
+    node = load_node_config(site.resolve("nodes/cvlab1.toml"))
+    assert isinstance(node.source, DetectionsSource) and node.source.shared_detector == "wildtrack-annotation"
     gt = read_gt_csv(site.resolve(site.dataset.ground_truth))
     assert gt.frame_numbers == list(range(1, 21))
     # Camera 0 (CVLab1): the first annotated person's floor point projects to its box bottom-centre.

@@ -6,13 +6,14 @@ import dataclasses
 import math
 
 import numpy as np
+import pytest
 
 from resource_manager.stereo.match import MatchParams
 from resource_manager.stereo.matchers import get_matcher
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.model import Scene, TrackModel
 from resource_manager.track.observe import TrackTable
-from tests.unit.resource_manager.synth import stack_views, view
+from tests.unit.resource_manager.synth import ViewSpec, stack_views, view
 
 CAMS = {"p1": (0.0, 0.0), "p2": (8.0, 0.0), "p3": (8.0, 6.0), "p4": (0.0, 6.0)}
 PARAMS = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
@@ -98,3 +99,22 @@ def test_a_box_the_pictures_side_cuts_starts_nobody_alone() -> None:
     whole = stack_views([dataclasses.replace(seen, mono_range_m=p1.mono_range_m, mono_sigma_m=p1.mono_sigma_m,
                                              point_var_m2=SIGMA_M**2)])  # fmt: skip
     assert len(find_births(whole, unexplained, NOBODY, MODEL, **kw)) == 1  # type: ignore[arg-type]
+
+
+def test_a_multi_view_detector_that_boxed_a_new_person_in_some_views_did_not_miss_them_in_the_others() -> None:
+    """A new person's blobs in two of four views. Each camera's own detector: the other two missed them, which counts
+    against them. One multi-view detector in all four: it found them; its other views' lack of a blob says nothing."""
+
+    def evidence(detector: str) -> float:
+        def one(sid: str, origin: tuple[float, float]) -> ViewSpec:
+            seen = view(sid, origin, [(3.0, 2.0, 1.75, 1)] if sid in ("p1", "p2") else [])
+            return dataclasses.replace(seen, point_var_m2=SIGMA_M**2, shared_detector=detector)
+
+        specs = [one(sid, o) for sid, o in CAMS.items()]
+        views = stack_views(specs)
+        (h,) = find_births(views, np.ones(views.n, dtype=bool), NOBODY, MODEL, scene=Scene(), params=PARAMS, tick=0,
+                           min_evidence=-100.0)  # fmt: skip
+        assert set(h.blobs) == {"p1", "p2"}
+        return h.evidence
+
+    assert evidence("mv") - evidence("") == pytest.approx(-2.0 * math.log1p(-MODEL.p_detect), rel=1e-6)

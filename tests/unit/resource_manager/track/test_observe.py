@@ -151,3 +151,15 @@ def test_each_view_scores_its_blobs_against_its_own_place_of_a_track() -> None:
     assert per_view.n == 1
     assert p1 == pytest.approx(p1_at) and p2 == pytest.approx(p2_off)
     assert p1 > p2
+
+
+def test_a_multi_view_detector_s_view_finds_a_person_behind_someone_nearer() -> None:
+    """A camera at head height with someone wholly covered behind a nearer person: its own detector is unlikely to
+    box them; a multi-view detector, which finds people on the floor and draws them into its views, is not."""
+    model = TrackModel()
+    table = _table((3.0, 0.0), (6.0, 0.0))
+    own = _camera("c", (0.0, 0.0), 1.1)
+    shared = dataclasses.replace(own, sensor_id="d", shared_detector="mv")
+    p = visibility_many(stack_views([own, shared]), table, model, 100.0).p_detect
+    assert p[0, 1] < 0.5 and p[1, 1] == pytest.approx(model.p_detect)
+    assert p[0, 0] == pytest.approx(p[1, 0])  # nobody in front: alike

@@ -3,6 +3,7 @@ drops out, births at 2 and 30 fps."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 
@@ -461,3 +462,49 @@ def test_a_tentative_track_claims_a_blob_only_as_surely_as_it_is_someone() -> No
     poor = ViewScores(ln_lr=np.array([[0.5]]), ln_miss=np.log1p(-np.array([0.9])), p_detect=np.full(1, 0.9))
     assert [len(a) for a in _assign_views(("cam",), [poor], np.array([1.0]))] == [1]
     assert [len(a) for a in _assign_views(("cam",), [poor], np.array([0.3]))] == [0]
+
+
+def _one_track_after(detectors: tuple[str, ...], seen_by: tuple[int, ...]) -> float | None:
+    """A published track at (4, 3) with log-odds 4; one tick at which only the views ``seen_by`` (of four around the
+    room, with detectors ``detectors``) have its blob: its log-odds after (None: it ended)."""
+    from resource_manager.stereo.match import MatchParams
+    from resource_manager.stereo.matchers import get_matcher
+    from resource_manager.track.births import BirthParams
+    from resource_manager.track.state import TrackRecord
+    from resource_manager.track.tracker import Tracker
+    from tests.unit.resource_manager.synth import stack_views, view
+
+    births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
+    tracker = Tracker(TrackModel(), births, new_id=lambda: "m-new")
+    t_ns = 10**10
+    tracker.filter.add(
+        np.array([[4.0, 3.0, 0.0, 0.0]]),
+        np.diag([0.01, 0.01, 0.01, 0.01])[None],
+        height=np.full(1, 1.7),
+        height_var=np.full(1, 0.0001),
+        logodds=np.array([4.0]),
+        t_ns=t_ns,
+    )
+    tracker.tracks = [TrackRecord(serial=1, born_ns=0, track_id="m-1", confirmed=True, detected=True)]
+    tracker._serial, tracker._t_ns = 1, t_ns
+    corners = [(0.0, 0.0), (8.0, 0.0), (8.0, 6.0), (0.0, 6.0)]
+    specs = [
+        dataclasses.replace(view(f"p{k}", c, [(4.0, 3.0, 1.7, 1)] if k in seen_by else []), shared_detector=d)
+        for k, (c, d) in enumerate(zip(corners, detectors, strict=True))
+    ]
+    tracker.step(stack_views(specs), t_ns + 500_000_000)
+    return float(tracker.filter.logodds[0]) if tracker.tracks else None
+
+
+def test_the_views_of_one_multi_view_detector_miss_a_person_once_not_once_each() -> None:
+    """Four views miss a published person at once. Each camera's own detector: four misses, and the track ends. One
+    multi-view detector drawn into the four views: one miss (its recall is ``p_detect`` before it is learnt), and the
+    track lives on; where one of its views has the person's blob, the detector found them, and the other three
+    views' misses say nothing."""
+    own, shared = ("", "", "", ""), ("mv", "mv", "mv", "mv")
+    assert _one_track_after(own, ()) is None
+    after = _one_track_after(shared, ())
+    assert after == pytest.approx(4.0 + math.log1p(-TrackModel().p_detect), abs=1e-6)
+    seen_once_own, seen_once_shared = _one_track_after(own, (0,)), _one_track_after(shared, (0,))
+    assert seen_once_shared is not None and seen_once_shared >= 4.0 - 1e-9
+    assert seen_once_own is None or seen_once_own < seen_once_shared - 3.0

@@ -1,0 +1,129 @@
+"""How often each multi-view detector finds a person who is there, learnt from the tracks.
+
+Some views' boxes are not their camera's own detections but one floor detection per person drawn into every view
+whose picture holds them (:attr:`~resource_manager.views.blobs.Views.shared_detector`: a multi-view detector's
+output, or an annotation made on the floor). Such views find or miss a person together, whether or not nearer people
+cover them: a miss is one event, however many views share it, and its probability is the detector's own, which
+differs by detector (an annotator misses almost nobody; a detector, some). :class:`SharedRecall` learns it per
+detector from the tracks the tracker is surest of (published, placed and more likely there than not), from a prior
+of ``p_detect`` worth :data:`PRIOR_S` of one track's evidence.
+
+A tick at which the detector found nobody of such a track counts only once the person is shown to have been there:
+when some view detects the track again, or, if those misses ended the track, when a new person appears where it
+would be within ``evidence_time_s`` (:meth:`SharedRecall.found`). Someone who walked out of the cameras' sight is
+no miss of the detector.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from common.arrays import BoolArray, FloatArray
+from resource_manager.track.life import match_returns
+from resource_manager.track.model import TrackModel
+from resource_manager.track.motion import MotionModel, predict
+
+__all__ = ["MAX_RECALL", "MEMORY_S", "PRIOR_S", "SharedRecall"]
+
+PRIOR_S = 10.0
+"""Weight (s of one track's evidence) of the prior: the recall moves off ``p_detect`` once the tracks have shown
+it for about this long."""
+MEMORY_S = 600.0
+"""Evidence this old (s) has faded to 1/e: a detector can be changed."""
+MAX_RECALL = 0.999
+"""No detector is taken as surer than this: a miss always says a little."""
+
+Tally = tuple[float, float]
+"""(s of ticks counted, s of them at which the detector found the person)."""
+
+
+class SharedRecall:
+    """Each shared detector's recall: the probability that it finds a person who is in some of its views' pictures."""
+
+    def __init__(self, model: TrackModel) -> None:
+        self.model = model
+        self._tally: dict[str, Tally] = {}
+        self._pending: dict[tuple[int, str], float] = {}
+        """(track serial, detector) -> s of ticks since the detector last found that track's person."""
+        self._gone: list[tuple[int, FloatArray, FloatArray, dict[str, float]]] = []
+        """Tracks that ended on such misses: (instant, state (4,), covariance (4, 4), detector -> their pending s)."""
+
+    def recall(self, name: str) -> float:
+        """Detector ``name``'s recall (the prior ``p_detect`` before any evidence)."""
+        n, found = self._tally.get(name, (0.0, 0.0))
+        r = (found + PRIOR_S * self.model.p_detect) / (n + PRIOR_S)
+        return min(r, MAX_RECALL)
+
+    def per_view(self, shared_detector: tuple[str, ...]) -> FloatArray:
+        """(s,) the recall of each view's detector; NaN for a view with its own."""
+        return np.array([self.recall(name) if name else math.nan for name in shared_detector], dtype=np.float64)
+
+    # -- learning -------------------------------------------------------------------------------------
+    def learn(
+        self,
+        shared_detector: tuple[str, ...],
+        sees: BoolArray,
+        got: BoolArray,
+        *,
+        sure: BoolArray,
+        serials: list[int],
+        dt_s: float,
+    ) -> None:
+        """One tick of ``dt_s``: ``sees`` (s, n) which views should see each track, ``got`` (s, n) which detected it,
+        ``sure`` (n,) which tracks surely are someone (before this tick's evidence), ``serials`` their serials."""
+        if dt_s <= 0.0 or not any(shared_detector):
+            return
+        fade = math.exp(-dt_s / MEMORY_S)
+        self._tally = {k: (n * fade, f * fade) for k, (n, f) in self._tally.items()}
+        there: BoolArray = np.asarray(got.any(axis=0), dtype=bool)
+        pending: dict[tuple[int, str], float] = {}
+        for name in sorted(set(shared_detector) - {""}):
+            rows = np.array([d == name for d in shared_detector], dtype=bool)
+            looked: BoolArray = np.asarray(sees[rows].any(axis=0), dtype=bool)
+            found: BoolArray = np.asarray(got[rows].any(axis=0), dtype=bool)
+            n, f = self._tally.get(name, (0.0, 0.0))
+            for i, serial in enumerate(serials):
+                key = (serial, name)
+                if not looked[i] or not (sure[i] or key in self._pending):
+                    continue  # a run of misses counts from a track that surely was someone
+                missed = self._pending.get(key, 0.0)
+                if found[i]:
+                    n, f = n + missed + dt_s, f + dt_s
+                elif there[i]:  # another detector shows the person there: this one missed them
+                    n += missed + dt_s
+                else:
+                    pending[key] = missed + dt_s
+            self._tally[name] = (n, f)
+        self._pending = pending
+
+    def ended(self, serial: int, x: FloatArray, p: FloatArray, t_ns: int) -> None:
+        """Track ``serial`` ended at ``t_ns`` for want of detections, in state ``x`` (4,), ``p`` (4, 4): its pending
+        misses wait for :meth:`found`."""
+        mine = {name: s for (k, name), s in self._pending.items() if k == serial}
+        for name in mine:
+            del self._pending[(serial, name)]
+        if mine:
+            self._gone.append((t_ns, x.copy(), p.copy(), mine))
+
+    def found(self, xy: FloatArray, cov: FloatArray, t_ns: int, motion: MotionModel) -> None:
+        """New people at ``xy`` (h, 2) ± ``cov`` (h, 2, 2) at ``t_ns``: one where a track that ended within
+        ``evidence_time_s`` (:meth:`ended`) would be now shows that track's last ticks were misses of someone there."""
+        horizon = t_ns - int(self.model.evidence_time_s * 1e9)
+        self._gone = [g for g in self._gone if g[0] >= horizon]
+        if not self._gone or not len(xy):
+            return
+        pred = [predict(x, p, (t_ns - t0) / 1e9, motion) for t0, x, p, _ in self._gone]
+        pairs = match_returns(
+            np.asarray(xy, dtype=np.float64).reshape(-1, 2),
+            np.asarray(cov, dtype=np.float64).reshape(-1, 2, 2),
+            np.array([x[:2] for x, _ in pred]),
+            np.array([p[:2, :2] for _, p in pred]),
+        )
+        for _, k in pairs:
+            for name, missed in self._gone[k][3].items():
+                n, f = self._tally.get(name, (0.0, 0.0))
+                self._tally[name] = (n + missed, f)
+        taken = {k for _, k in pairs}
+        self._gone = [g for k, g in enumerate(self._gone) if k not in taken]
