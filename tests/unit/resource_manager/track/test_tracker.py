@@ -16,6 +16,7 @@ from common.area import AreaSpec, rectangle
 from common.schema import Blob, Features
 from resource_manager.config import ManagerConfig
 from resource_manager.track.model import TrackModel
+from resource_manager.track.tracker import Tracker
 from tests.unit.resource_manager.scenario import T0_NS as T0
 from tests.unit.resource_manager.scenario import make_config, run_scenario
 from tests.unit.resource_manager.synth import Cam, Person
@@ -364,7 +365,6 @@ def test_of_one_person_followed_twice_the_track_shown_now_stays_not_an_older_one
     from resource_manager.stereo.matchers import get_matcher
     from resource_manager.track.births import BirthParams
     from resource_manager.track.state import TrackRecord
-    from resource_manager.track.tracker import Tracker
 
     births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
     tracker = Tracker(TrackModel(), births, new_id=lambda: "unused")
@@ -416,28 +416,11 @@ def test_a_coasting_track_takes_a_new_person_back_only_while_it_is_likelier_ther
     """A published track nobody detects now, 1 m vague, predicted at (4, 3); someone new is seen at (7, 3), within its
     reach. While the track is more likely there than not, the newcomer is its person found again; once less likely
     (its person left unseen, or it never had one), the newcomer starts a track of their own."""
-    from resource_manager.stereo.match import MatchParams
-    from resource_manager.stereo.matchers import get_matcher
-    from resource_manager.track.births import BirthParams
-    from resource_manager.track.state import TrackRecord
-    from resource_manager.track.tracker import Tracker
     from tests.unit.resource_manager.synth import stack_views, view
 
     def newcomer_after(logodds: float) -> tuple[int, list[str]]:
-        births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16,
-                             width_rel_sigma=0.1)  # fmt: skip
-        tracker = Tracker(TrackModel(), births, new_id=lambda: "m-new")
-        t_ns = 10**10
-        tracker.filter.add(
-            np.array([[4.0, 3.0, 0.0, 0.0]]),
-            np.diag([1.0, 1.0, 0.3, 0.3])[None],
-            height=np.full(1, 1.7),
-            height_var=np.full(1, 0.01),
-            logodds=np.array([logodds]),
-            t_ns=t_ns,
-        )
-        tracker.tracks = [TrackRecord(serial=1, born_ns=0, track_id="m-old", confirmed=True)]
-        tracker._serial, tracker._t_ns = 1, t_ns
+        tracker = _one_published_track("m-old", logodds, np.diag([1.0, 1.0, 0.3, 0.3]), detected=False)
+        t_ns = tracker._t_ns
         views = stack_views([view(f"p{k}", c, [(7.0, 3.0, 1.7, 3)]) for k, c in enumerate([(7.5, 0.5), (7.5, 5.5)])])
         out = tracker.step(views, t_ns + 500_000_000)
         return out.returned, [tr.track_id for tr in tracker.tracks]
@@ -467,26 +450,10 @@ def test_a_tentative_track_claims_a_blob_only_as_surely_as_it_is_someone() -> No
 def _one_track_after(detectors: tuple[str, ...], seen_by: tuple[int, ...]) -> float | None:
     """A published track at (4, 3) with log-odds 4; one tick at which only the views ``seen_by`` (of four around the
     room, with detectors ``detectors``) have its blob: its log-odds after (None: it ended)."""
-    from resource_manager.stereo.match import MatchParams
-    from resource_manager.stereo.matchers import get_matcher
-    from resource_manager.track.births import BirthParams
-    from resource_manager.track.state import TrackRecord
-    from resource_manager.track.tracker import Tracker
     from tests.unit.resource_manager.synth import stack_views, view
 
-    births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
-    tracker = Tracker(TrackModel(), births, new_id=lambda: "m-new")
-    t_ns = 10**10
-    tracker.filter.add(
-        np.array([[4.0, 3.0, 0.0, 0.0]]),
-        np.diag([0.01, 0.01, 0.01, 0.01])[None],
-        height=np.full(1, 1.7),
-        height_var=np.full(1, 0.0001),
-        logodds=np.array([4.0]),
-        t_ns=t_ns,
-    )
-    tracker.tracks = [TrackRecord(serial=1, born_ns=0, track_id="m-1", confirmed=True, detected=True)]
-    tracker._serial, tracker._t_ns = 1, t_ns
+    tracker = _one_published_track("m-1", 4.0, np.diag([0.01, 0.01, 0.01, 0.01]), detected=True)
+    t_ns = tracker._t_ns
     corners = [(0.0, 0.0), (8.0, 0.0), (8.0, 6.0), (0.0, 6.0)]
     specs = [
         dataclasses.replace(view(f"p{k}", c, [(4.0, 3.0, 1.7, 1)] if k in seen_by else []), shared_detector=d)
@@ -508,3 +475,21 @@ def test_the_views_of_one_multi_view_detector_miss_a_person_once_not_once_each()
     seen_once_own, seen_once_shared = _one_track_after(own, (0,)), _one_track_after(shared, (0,))
     assert seen_once_shared is not None and seen_once_shared >= 4.0 - 1e-9
     assert seen_once_own is None or seen_once_own < seen_once_shared - 3.0
+
+
+def _one_published_track(track_id: str, logodds: float, cov: np.ndarray, *, detected: bool) -> Tracker:
+    """A tracker whose one track, published as ``track_id``, stands at (4, 3) with ``logodds`` and state covariance
+    ``cov`` (4, 4) at t = 10 s."""
+    from resource_manager.stereo.match import MatchParams
+    from resource_manager.stereo.matchers import get_matcher
+    from resource_manager.track.births import BirthParams
+    from resource_manager.track.state import TrackRecord
+
+    births = BirthParams(MatchParams(), threshold=0.1, matcher=get_matcher("greedy"), max_pairs=16, width_rel_sigma=0.1)
+    tracker = Tracker(TrackModel(), births, new_id=lambda: "m-new")
+    t_ns = 10**10
+    tracker.filter.add(np.array([[4.0, 3.0, 0.0, 0.0]]), cov[None], height=np.full(1, 1.7),
+                       height_var=np.full(1, 0.0001), logodds=np.array([logodds]), t_ns=t_ns)  # fmt: skip
+    tracker.tracks = [TrackRecord(serial=1, born_ns=0, track_id=track_id, confirmed=True, detected=detected)]
+    tracker._serial, tracker._t_ns = 1, t_ns
+    return tracker
