@@ -74,6 +74,8 @@ def run(args: argparse.Namespace) -> int:
     if "live" in report:
         print("live (published at once):")
         _table(report["live"]["scores"])
+    for name, recall in report.get("shared_detector_recall", {}).items():
+        print(f"multi-view detector {name!r}: recall learnt {recall:.3f}")
     if report.get("tracks_ended_inside") is not None:
         print(f"tracks that ended inside the area, away from its exits: {report['tracks_ended_inside']}")
     if "plot" in report:

@@ -75,6 +75,8 @@ class DatasetRun:
     """What each camera is (its SensorInfo), for the picture."""
     hypotheses: dict[int, list[HypPoint]] = field(default_factory=dict)
     """The tracks at every scored ground-truth frame (set by :func:`evaluate_site`)."""
+    shared_recall: dict[str, float] = field(default_factory=dict)
+    """The recall the manager learnt of each multi-view detector the cameras name (``shared_detector``), at the end."""
 
 
 def load_cameras(site: SiteConfig, epoch_ns: int = DATASET_EPOCH_NS) -> list[DatasetCamera]:
@@ -165,6 +167,7 @@ def play(
         fusion.absorb(Batch(infos=changed, features=by_stamp[stamp]))
         fuse_at(stamp)
     run.tracksets += fusion.flush()  # what publish_lag_s still holds at the end of the dataset
+    run.shared_recall = fusion.tracker.recall.learnt()
     return run
 
 
@@ -226,6 +229,7 @@ def evaluate_site(
             "publish_lag_s": config.manager.publish_lag_s,
             "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
             "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
+            "shared_detector_recall": {name: round(r, 4) for name, r in run.shared_recall.items()},
         }
     )
     if config.manager.publish_lag_s > 0:

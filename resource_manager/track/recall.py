@@ -56,6 +56,10 @@ class SharedRecall:
         r = (found + PRIOR_S * self.model.p_detect) / (n + PRIOR_S)
         return min(r, MAX_RECALL)
 
+    def learnt(self) -> dict[str, float]:
+        """Each multi-view detector seen so far, by name: its recall now."""
+        return {name: self.recall(name) for name in sorted(self._tally)}
+
     def per_view(self, shared_detector: tuple[str, ...]) -> FloatArray:
         """(s,) the recall of each view's detector; NaN for a view with its own."""
         return np.array([self.recall(name) if name else math.nan for name in shared_detector], dtype=np.float64)
