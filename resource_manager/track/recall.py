@@ -108,14 +108,19 @@ class SharedRecall:
         mine = {name: s for (k, name), s in self._pending.items() if k == serial}
         for name in mine:
             del self._pending[(serial, name)]
+        self._forget_gone(t_ns)
         if mine:
             self._gone.append((t_ns, x.copy(), p.copy(), mine))
+
+    def _forget_gone(self, t_ns: int) -> None:
+        """Forget the tracks that ended longer than ``evidence_time_s`` before ``t_ns``: nobody new was found there."""
+        horizon = t_ns - int(self.model.evidence_time_s * 1e9)
+        self._gone = [g for g in self._gone if g[0] >= horizon]
 
     def found(self, xy: FloatArray, cov: FloatArray, t_ns: int, motion: MotionModel) -> None:
         """New people at ``xy`` (h, 2) ± ``cov`` (h, 2, 2) at ``t_ns``: one where a track that ended within
         ``evidence_time_s`` (:meth:`ended`) would be now shows that track's last ticks were misses of someone there."""
-        horizon = t_ns - int(self.model.evidence_time_s * 1e9)
-        self._gone = [g for g in self._gone if g[0] >= horizon]
+        self._forget_gone(t_ns)
         if not self._gone or not len(xy):
             return
         pred = [predict(x, p, (t_ns - t0) / 1e9, motion) for t0, x, p, _ in self._gone]
