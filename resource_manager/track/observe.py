@@ -162,11 +162,7 @@ def cut_bearing(
 
 
 def visibility_many(
-    views: Views,
-    table: TrackTable,
-    model: TrackModel,
-    max_range_m: float,
-    blockers: TrackTable | None = None,
+    views: Views, table: TrackTable, model: TrackModel, max_range_m: float, blockers: TrackTable | None = None
 ) -> Visibility:
     """Each track in each view: its detection probability, 0 out of the picture or ``max_range_m``, lower when
     someone nearer stands on the same bearing (one of the tracks of ``blockers``; default: of ``table`` itself,

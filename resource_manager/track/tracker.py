@@ -371,7 +371,7 @@ class Tracker:
         self._one_miss_per_detector(delta, sees, hit, tick.views.shared_detector)
         weight = np.array([tick.weights[sid][1] for sid in scored])
         self.filter.existence_update(delta, weight, sees, caps)
-        self._learn_recall(tick.views.shared_detector, p_detect > 0, hits, sure, dt_s)
+        self._learn_recall(tick.views.shared_detector, sees, hits, sure, dt_s)
 
     def _one_miss_per_detector(
         self, delta: FloatArray, sees: BoolArray, hit: list[tuple[int, int, int]], shared_detector: tuple[str, ...]
