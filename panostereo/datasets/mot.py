@@ -40,8 +40,8 @@ import numpy as np
 
 from common.area import Area, AreaSpec
 from common.errors import ConfigError
+from common.keys import validate_id
 from common.pinhole import PinholeCamera
-from common.schema import ID_PATTERN
 from user_agent.groundtruth import read_gt_csv
 
 __all__ = ["ImportResult", "camera_id", "import_mot", "write_site"]
@@ -339,11 +339,8 @@ def import_mot(
     if not src.is_dir():
         raise ConfigError(f"{src}: no such dataset folder")
     _check_args(fps, area, noise_px, drop_rate, min_confidence)
-    if shared_detector and not re.fullmatch(ID_PATTERN, shared_detector):
-        raise ConfigError(
-            f"--shared-detector {shared_detector!r}: a name of lower-case letters, digits and '-', starting with a "
-            "letter or digit"
-        )
+    if shared_detector:
+        validate_id(shared_detector, "--shared-detector")
     if src.resolve() == dst.resolve() or dst.resolve().is_relative_to(src.resolve()):
         raise ConfigError(f"--out {dst} must not be inside the dataset folder {src}")
     cameras = _camera_files(src)
