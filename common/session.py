@@ -43,6 +43,7 @@ __all__ = [
     "add_session_args",
     "connect_hint",
     "install_signal_handlers",
+    "on_signal",
     "open_session",
     "refuse_second",
     "settings_from_args",
@@ -311,12 +312,21 @@ class Shutdown:
 
     def __init__(self) -> None:
         self._event = threading.Event()
+        self._requested = False
 
     def set(self) -> None:
         self._event.set()
 
+    def request(self) -> None:
+        """Set the flag from a signal handler. The handler runs in the main thread between two bytecodes, possibly
+        while that thread is inside :meth:`wait` holding the event's (non-reentrant) lock, where setting the event
+        there would wait on itself forever: the flag is raised at once, and the event is set by a thread of its
+        own, as soon as the lock is free."""
+        self._requested = True
+        threading.Thread(target=self._event.set, name="shutdown", daemon=True).start()
+
     def is_set(self) -> bool:
-        return self._event.is_set()
+        return self._requested or self._event.is_set()
 
     def wait(self, timeout: float | None = None) -> bool:
         return self._event.wait(timeout)
@@ -332,16 +342,23 @@ def install_signal_handlers(shutdown: Shutdown | None = None) -> Shutdown:
     A second signal raises KeyboardInterrupt so a stuck loop still unwinds.
     """
     flag = shutdown or Shutdown()
+    handler = on_signal(flag)
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return flag
+
+
+def on_signal(flag: Shutdown) -> Callable[[int, FrameType | None], None]:
+    """The SIGINT/SIGTERM handler that raises ``flag`` (:meth:`Shutdown.request`); a second signal raises
+    KeyboardInterrupt."""
 
     def _handler(signum: int, frame: FrameType | None) -> None:
         if flag.is_set():
             raise KeyboardInterrupt
         logger.info("received %s: shutting down", signal.Signals(signum).name)
-        flag.set()
+        flag.request()
 
-    signal.signal(signal.SIGINT, _handler)
-    signal.signal(signal.SIGTERM, _handler)
-    return flag
+    return _handler
 
 
 def wait_until(pred: Callable[[], bool], timeout_s: float, poll_s: float = 0.01) -> bool:

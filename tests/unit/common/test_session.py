@@ -23,6 +23,7 @@ from common.session import (
     Shutdown,
     add_session_args,
     install_signal_handlers,
+    on_signal,
     open_session,
     settings_from_args,
     wait_until,
@@ -202,6 +203,20 @@ def test_signal_sets_shutdown_then_second_signal_interrupts(restore_signals: Non
     with pytest.raises(KeyboardInterrupt):
         os.kill(os.getpid(), signum)
         time.sleep(1.0)  # the handler raises here
+
+
+@pytest.mark.timeout(20)
+def test_a_signal_that_lands_while_the_main_thread_holds_the_flag_s_lock_does_not_hang_it() -> None:
+    """A signal handler runs in the main thread between two bytecodes, also inside Shutdown.wait where that thread
+    holds the event's lock: raising the flag there must not wait on that lock."""
+    flag = Shutdown()
+    handler = on_signal(flag)
+    with flag._event._cond:  # the main thread inside Event.wait, between taking its lock and waiting
+        handler(signal.SIGTERM, None)
+        assert flag.is_set()
+    assert flag.wait(5.0) is True  # and the waiters wake once the lock is free
+    with pytest.raises(KeyboardInterrupt):  # a second signal still unwinds a stuck loop
+        handler(signal.SIGTERM, None)
 
 
 def test_shutdown_sleep_times_out_false() -> None:
