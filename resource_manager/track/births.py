@@ -240,17 +240,13 @@ def _shared_misses(g: _Gains, views: Views, fits: BoolArray) -> FloatArray:
     (``fits``: (hypothesis, view of ``g.free``)), its other views' misses say nothing; where none does, they are one
     miss, of the likeliest view's probability."""
     out = np.zeros(g.ln_miss.shape[1])
-    names = sorted(set(views.shared_detector) - {""})
-    if not names:
+    if not views.shared_groups:
         return out
-    free_rows = g.free.rows.tolist()
-    for name in names:
-        rows = [v for v, d in enumerate(views.shared_detector) if d == name]
-        cols = [k for k, r in enumerate(free_rows) if r in rows]
-        ln_miss = g.ln_miss[rows]
-        fit = np.zeros((len(rows), len(out)), dtype=bool)
-        for k in cols:
-            fit[rows.index(free_rows[k])] = fits[:, k]
+    # (view, hypothesis) whether each view of the tick has a blob that fits each hypothesis.
+    fit_all = np.zeros(g.ln_miss.shape, dtype=bool)
+    fit_all[g.free.rows] = fits.T
+    for rows in views.shared_groups.values():
+        ln_miss, fit = g.ln_miss[rows], fit_all[rows]
         found = fit.any(axis=0)
         own = ln_miss.sum(axis=0)
         out += np.where(found, -np.where(fit, 0.0, ln_miss).sum(axis=0), ln_miss.min(axis=0) - own)

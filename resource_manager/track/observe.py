@@ -179,9 +179,8 @@ def visibility_many(
         hiders = (table, dist, seen) if blockers is None else (blockers, *_in_view(views, blockers, max_range_m))
     covered, feet, reach, near = _covered(views, table, dist, hiders)
     p = np.where(seen, model.p_detect_hidden + (model.p_detect - model.p_detect_hidden) * (1.0 - covered), 0.0)
-    shared = np.array([bool(name) for name in views.shared_detector], dtype=bool)
-    if shared.any():
-        p[shared] = np.where(seen[shared], model.p_detect, 0.0)
+    for rows in views.shared_groups.values():
+        p[rows] = np.where(seen[rows], model.p_detect, 0.0)
     return Visibility(p, np.where(seen, feet, 0.0), reach, np.where(seen & views.blobs_merge[:, None], near, 0.0))
 
 

@@ -17,10 +17,11 @@ no miss of the detector.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
-from common.arrays import BoolArray, FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.life import match_returns
 from resource_manager.track.model import TrackModel
 from resource_manager.track.motion import MotionModel, predict
@@ -60,14 +61,10 @@ class SharedRecall:
         """Each multi-view detector seen so far, by name: its recall now."""
         return {name: self.recall(name) for name in sorted(self._tally)}
 
-    def per_view(self, shared_detector: tuple[str, ...]) -> FloatArray:
-        """(s,) the recall of each view's detector; NaN for a view with its own."""
-        return np.array([self.recall(name) if name else math.nan for name in shared_detector], dtype=np.float64)
-
     # -- learning -------------------------------------------------------------------------------------
     def learn(
         self,
-        shared_detector: tuple[str, ...],
+        groups: Mapping[str, IntArray],
         sees: BoolArray,
         got: BoolArray,
         *,
@@ -75,16 +72,17 @@ class SharedRecall:
         serials: list[int],
         dt_s: float,
     ) -> None:
-        """One tick of ``dt_s``: ``sees`` (s, n) which views should see each track, ``got`` (s, n) which detected it,
-        ``sure`` (n,) which tracks surely are someone (before this tick's evidence), ``serials`` their serials."""
-        if dt_s <= 0.0 or not any(shared_detector):
+        """One tick of ``dt_s``: ``groups`` each multi-view detector's view rows
+        (:attr:`~resource_manager.views.blobs.Views.shared_groups`), ``sees`` (s, n) which views should see each track,
+        ``got`` (s, n) which detected it, ``sure`` (n,) which tracks surely are someone (before this tick's evidence),
+        ``serials`` their serials."""
+        if dt_s <= 0.0 or not groups:
             return
         fade = math.exp(-dt_s / MEMORY_S)
         self._tally = {k: (n * fade, f * fade) for k, (n, f) in self._tally.items()}
         there: BoolArray = np.asarray(got.any(axis=0), dtype=bool)
         pending: dict[tuple[int, str], float] = {}
-        for name in sorted(set(shared_detector) - {""}):
-            rows = np.array([d == name for d in shared_detector], dtype=bool)
+        for name, rows in groups.items():
             looked: BoolArray = np.asarray(sees[rows].any(axis=0), dtype=bool)
             found: BoolArray = np.asarray(got[rows].any(axis=0), dtype=bool)
             n, f = self._tally.get(name, (0.0, 0.0))

@@ -30,13 +30,13 @@ Only this package changes a track; :meth:`Tracker.step` returns what the other s
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from common.arrays import BoolArray, FloatArray
+from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import Method, PairEntry, TrackState
 from resource_manager.track.births import BirthParams, Hypothesis, find_births
 from resource_manager.track.filter import TrackFilter, worst_sigma
@@ -356,7 +356,8 @@ class Tracker:
             return
         views = list(scored.values())
         p_detect = np.array([sc.p_detect for sc in views]).reshape(-1, n)
-        sure = self._sure(n)  # before this tick's evidence
+        groups = tick.views.shared_groups
+        sure = self._sure(n) if groups else None  # before this tick's evidence
         # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
         delta = np.array([sc.ln_miss for sc in views]).reshape(-1, n)
         hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
@@ -368,27 +369,26 @@ class Tracker:
             # A view that detected a track it did not expect to see (a return) counts as seeing it.
             p_detect[rows, cols] = np.maximum(p_detect[rows, cols], 1e-6)
         sees = p_detect > 0
-        self._one_miss_per_detector(delta, sees, hit, tick.views.shared_detector)
+        got = np.zeros(sees.shape, dtype=bool)
+        if groups:
+            for v, i, _ in hit:
+                got[v, i] = True
+            self._one_miss_per_detector(delta, sees, got, groups)
         weight = np.array([tick.weights[sid][1] for sid in scored])
         self.filter.existence_update(delta, weight, sees, caps)
-        self._learn_recall(tick.views.shared_detector, sees, hits, sure, dt_s)
+        if sure is not None:
+            serials = [tr.serial for tr in self.tracks[:n]]
+            self.recall.learn(groups, sees, got, sure=sure, serials=serials, dt_s=dt_s)
 
     def _one_miss_per_detector(
-        self, delta: FloatArray, sees: BoolArray, hit: list[tuple[int, int, int]], shared_detector: tuple[str, ...]
+        self, delta: FloatArray, sees: BoolArray, got: BoolArray, groups: Mapping[str, IntArray]
     ) -> None:
-        """Count the views of one multi-view detector (``shared_detector``) as that one detector in ``delta`` (s, n),
-        each view's ln likelihood ratio for each track (in place): where some of its views detected the track, the
-        detector found the person, and its other views' misses say nothing (its box there went to someone else, or
-        lay outside the gate); where none did, the detector missed them once: ln(1 - its recall), however many views
-        it has. ``sees``: (s, n) which views should see each track; ``hit``: (view, track, blob) detections."""
-        names = sorted(set(shared_detector) - {""})
-        if not names or not delta.size:
-            return
-        got = np.zeros(delta.shape, dtype=bool)
-        for v, i, _ in hit:
-            got[v, i] = True
-        for name in names:
-            rows = np.flatnonzero(np.array([d == name for d in shared_detector], dtype=bool))
+        """Count the views of one multi-view detector (``groups``: its name -> its view rows) as that one detector in
+        ``delta`` (s, n), each view's ln likelihood ratio for each track (in place): where some of its views detected
+        the track, the detector found the person, and its other views' misses say nothing (its box there went to
+        someone else, or lay outside the gate); where none did, the detector missed them once: ln(1 - its recall),
+        however many views it has. ``sees``, ``got``: (s, n) which views should see and which detected each track."""
+        for name, rows in groups.items():
             missed = sees[rows] & ~got[rows]
             found: BoolArray = np.asarray(got[rows].any(axis=0), dtype=bool)
             first = np.argmax(missed, axis=0)  # the whole miss goes on one view: the first that should see the track
@@ -403,22 +403,6 @@ class Tracker:
         """(n,) which of the first ``n`` tracks surely are someone: published, placed and more likely there than not."""
         placed, likely = self._shown(self.filter.position_sigma()[:n])
         return np.array([tr.confirmed for tr in self.tracks[:n]], dtype=bool) & placed & likely[:n]
-
-    def _learn_recall(
-        self,
-        shared_detector: tuple[str, ...],
-        sees: BoolArray,
-        hits: dict[str, dict[int, int]],
-        sure: BoolArray,
-        dt_s: float,
-    ) -> None:
-        """Let :attr:`recall` learn from this tick's views (``sees``: (s, n) which should see each track) of the
-        tracks that surely are someone (``sure``)."""
-        got = np.zeros(sees.shape, dtype=bool)
-        for v, hit in enumerate(hits.values()):
-            got[v, list(hit)] = True
-        serials = [tr.serial for tr in self.tracks[: sees.shape[1]]]
-        self.recall.learn(shared_detector, sees, got, sure=sure, serials=serials, dt_s=dt_s)
 
     # -- births and returns ---------------------------------------------------------------------------
     def _hypotheses(self, tick: Tick, unexplained: BoolArray, t_ns: int) -> list[Hypothesis]:

@@ -176,6 +176,8 @@ class Views:
     """(m,) the view (row) of each blob."""
     fov_width_rad: FloatArray = field(init=False)
     """(s,) horizontal extent of each view's bearings."""
+    shared_groups: dict[str, IntArray] = field(init=False)
+    """Each multi-view detector's name -> the rows of its views (:attr:`shared_detector`), in order of names."""
 
     def __post_init__(self) -> None:
         counts = np.diff(self.offsets)
@@ -183,6 +185,9 @@ class Views:
         object.__setattr__(self, "view_of", np.repeat(np.arange(len(self.sensor_ids), dtype=np.int64), counts))
         widths = [TWO_PI if f is None else min(2.0 * f[1], TWO_PI) for f in self.fov]
         object.__setattr__(self, "fov_width_rad", np.array(widths, dtype=np.float64))
+        names = sorted(set(self.shared_detector) - {""})
+        groups = {n: np.array([v for v, d in enumerate(self.shared_detector) if d == n], dtype=np.int64) for n in names}
+        object.__setattr__(self, "shared_groups", groups)
 
     @property
     def n_views(self) -> int:
