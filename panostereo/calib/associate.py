@@ -35,6 +35,8 @@ __all__ = [
 
 MIN_VIEWS = 2
 """A person needs two cameras' blobs (one camera alone places nobody here)."""
+GROWTH_BLOCK = 16
+"""Candidate pairs whose people's distances to the instant's blobs are worked out together."""
 RIDGE = 1e-9
 """Added to a person's normal equations: blobs that fix no point (neither feet nor head in the picture) leave
 it finite."""
@@ -200,21 +202,54 @@ class Association:
         return np.bincount(self.member_camera, minlength=n_cameras).astype(np.int64)
 
 
-def _grown(here: WorldRays, free: BoolArray, pair: tuple[int, int], person: FloatArray, gate: FloatArray) -> list[int]:
-    """The blobs of an instant (``here``, among ``free``) that join the pair's person: each other camera's nearest
-    blob whose rays pass within its camera's gate of the person, nearest first."""
-    if not free.any():
-        return []
-    d, front = _distances(here, None, person)
-    d = d / gate[here.camera]
-    js = np.flatnonzero(free & front & (d <= 1.0))
-    taken = {int(here.camera[pair[0]]), int(here.camera[pair[1]])}
+def _grown(camera: IntArray, free: BoolArray, pair: tuple[int, int], dist: FloatArray, front: BoolArray) -> list[int]:
+    """The blobs of an instant (cameras ``camera``, among ``free``) that join the pair's person: each other camera's
+    nearest blob whose rays pass within its camera's gate of the person (``dist``: each blob's distance in its
+    camera's gates, ``front``: the person is in front of it), nearest first."""
+    js = np.flatnonzero(free & front & (dist <= 1.0))
+    taken = {int(camera[pair[0]]), int(camera[pair[1]])}
     out = []
-    for j in js[np.argsort(d[js], kind="stable")].tolist():
-        cam = int(here.camera[j])
+    for j in js[np.argsort(dist[js], kind="stable")].tolist():
+        cam = int(camera[j])
         if cam not in taken:
             taken.add(cam)
             out.append(j)
+    return out
+
+
+def _take_best_first(
+    r: WorldRays, rows: IntArray, pairs: tuple[IntArray, IntArray], people: FloatArray, gate: FloatArray
+) -> list[tuple[FloatArray, list[int]]]:
+    """An instant's people (its blobs ``rows`` of ``r``): the candidate ``pairs`` (indices into ``rows``, best first,
+    each with its person ``people``) taken in turn while both their blobs are free, each grown by the other cameras'
+    blobs (:func:`_grown`). Returns each person taken and its blobs (indices into ``rows``)."""
+    first, second = pairs
+    n_here = rows.size
+    cams_here = r.camera[rows]
+    gates = gate[cams_here]
+    used = np.zeros(n_here, dtype=bool)
+    out: list[tuple[FloatArray, list[int]]] = []
+    at = 0
+    while at < first.size:
+        # The next few candidates whose blobs are both still free, each person's distances to every blob of the
+        # instant at once (most candidates lose a blob to a better one before their turn: those are skipped before
+        # their distances are worked out).
+        block = at + np.flatnonzero(~used[first[at:]] & ~used[second[at:]])[:GROWTH_BLOCK]
+        if block.size == 0:
+            break
+        at = int(block[-1]) + 1
+        d, front = _distances(r, np.tile(rows, block.size), np.repeat(people[block], n_here, axis=0))
+        d = d.reshape(block.size, n_here) / gates
+        front = front.reshape(block.size, n_here)
+        for k, c in enumerate(block.tolist()):
+            a, b = int(first[c]), int(second[c])
+            if used[a] or used[b]:
+                continue
+            free = ~used
+            free[[a, b]] = False
+            group = [a, b, *_grown(cams_here, free, (a, b), d[k], front[k])]
+            used[group] = True
+            out.append((people[c], group))
     return out
 
 
@@ -250,19 +285,10 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
         if cand.size == 0:
             continue
         cand = cand[np.argsort(cost[cand], kind="stable")]
-        here = r.take(rows)
-        used = np.zeros(rows.size, dtype=bool)
         grown: list[tuple[int, IntArray]] = []
-        for c in cand.tolist():
-            a, b = int(ia[c]), int(ib[c])
-            if used[a] or used[b]:
-                continue
-            free = ~used
-            free[[a, b]] = False
-            group = [a, b, *_grown(here, free, (a, b), x[c], gate)]
-            used[group] = True
+        for person, group in _take_best_first(r, rows, (ia[cand], ib[cand]), x[cand], gate):
             pid = len(persons)
-            persons.append(x[c])
+            persons.append(person)
             if len(group) > MIN_VIEWS:
                 grown.append((pid, rows[np.array(group)]))
             mem_p.extend([pid] * len(group))

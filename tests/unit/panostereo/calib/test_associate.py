@@ -81,3 +81,21 @@ def test_each_camera_has_its_own_gate() -> None:
     assert own.person.shape[0] == 3
     for pid in range(3):
         assert sorted(own.member_camera[own.member_person == pid].tolist()) == [0, 1, 2]
+
+
+def test_candidates_worked_out_together_take_the_people_one_at_a_time_would(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A crowd where many candidate pairs share blobs (people 0.3-0.6 m apart, a wide gate, ghosts of crossing rays):
+    the pairs whose distances are worked out a block at a time are taken exactly as one by one."""
+    import panostereo.calib.associate as assoc
+
+    rng = np.random.default_rng(5)
+    crowd = np.column_stack([rng.uniform(2.0, 9.0, 24), rng.uniform(2.0, 8.0, 24), rng.uniform(1.55, 1.9, 24)])
+    crowd[1::2, :2] = crowd[::2, :2] + rng.uniform(0.3, 0.6, (12, 2))  # half the people beside another
+    parts = [_rays(cid, crowd) for cid in ("cam-a", "cam-b", "cam-c")]
+    r = world_rays([p[0] for p in parts], [p[1] for p in parts])
+    together = associate(r, 0.6, HeightPrior(), 100.0)
+    monkeypatch.setattr(assoc, "GROWTH_BLOCK", 1)
+    alone = associate(r, 0.6, HeightPrior(), 100.0)
+    assert together.person.shape[0] >= 12
+    for field in ("person", "member_person", "member_camera", "member_index"):
+        assert np.array_equal(getattr(together, field), getattr(alone, field))
