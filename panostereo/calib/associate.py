@@ -218,14 +218,14 @@ def _grown(camera: IntArray, free: BoolArray, pair: tuple[int, int], dist: Float
 
 
 def _take_best_first(
-    r: WorldRays, rows: IntArray, pairs: tuple[IntArray, IntArray], people: FloatArray, gate: FloatArray
+    here: WorldRays, pairs: tuple[IntArray, IntArray], people: FloatArray, gate: FloatArray
 ) -> list[tuple[FloatArray, list[int]]]:
-    """An instant's people (its blobs ``rows`` of ``r``): the candidate ``pairs`` (indices into ``rows``, best first,
-    each with its person ``people``) taken in turn while both their blobs are free, each grown by the other cameras'
-    blobs (:func:`_grown`). Returns each person taken and its blobs (indices into ``rows``)."""
+    """An instant's people (its blobs ``here``): the candidate ``pairs`` (indices into ``here``, best first, each with
+    its person ``people``) taken in turn while both their blobs are free, each grown by the other cameras' blobs
+    (:func:`_grown`). Returns each person taken and its blobs (indices into ``here``)."""
     first, second = pairs
-    n_here = rows.size
-    cams_here = r.camera[rows]
+    n_here = here.camera.size
+    cams_here = here.camera
     gates = gate[cams_here]
     used = np.zeros(n_here, dtype=bool)
     out: list[tuple[FloatArray, list[int]]] = []
@@ -238,7 +238,7 @@ def _take_best_first(
         if block.size == 0:
             break
         at = int(block[-1]) + 1
-        d, front = _distances(r, np.tile(rows, block.size), np.repeat(people[block], n_here, axis=0))
+        d, front = _distances(here, np.tile(np.arange(n_here), block.size), np.repeat(people[block], n_here, axis=0))
         d = d.reshape(block.size, n_here) / gates
         front = front.reshape(block.size, n_here)
         for k, c in enumerate(block.tolist()):
@@ -276,8 +276,9 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
             continue
         pa, pb = rows[ia], rows[ib]
         x = _solve(m_all[pa] + m_all[pb], b_all[pa] + b_all[pb], prior)
-        da, fa = _distances(r, pa, x)
-        db, fb = _distances(r, pb, x)
+        here = r.take(rows)
+        da, fa = _distances(here, ia, x)
+        db, fb = _distances(here, ib, x)
         cost = np.maximum(da / gate[r.camera[pa]], db / gate[r.camera[pb]])
         reach = np.maximum(np.hypot(*(x[:, :2] - r.centre[pa, :2]).T), np.hypot(*(x[:, :2] - r.centre[pb, :2]).T))
         ok = (cost <= 1.0) & fa & fb & (x[:, 2] >= prior.low_m) & (x[:, 2] <= prior.high_m) & (reach <= max_range_m)
@@ -286,7 +287,7 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
             continue
         cand = cand[np.argsort(cost[cand], kind="stable")]
         grown: list[tuple[int, IntArray]] = []
-        for person, group in _take_best_first(r, rows, (ia[cand], ib[cand]), x[cand], gate):
+        for person, group in _take_best_first(here, (ia[cand], ib[cand]), x[cand], gate):
             pid = len(persons)
             persons.append(person)
             if len(group) > MIN_VIEWS:
