@@ -37,6 +37,10 @@ MIN_VIEWS = 2
 """A person needs two cameras' blobs (one camera alone places nobody here)."""
 GROWTH_BLOCK = 16
 """Candidate pairs whose people's distances to the instant's blobs are worked out together."""
+PARALLEL_SINE = 1e-6
+"""Two feet rays whose directions' cross product is shorter than this are taken as parallel (never left out)."""
+LINE_SLACK = 1e-9
+"""Relative (and metres) slack on the feet rays' distance, so that rounding never leaves out a pair that passes."""
 RIDGE = 1e-9
 """Added to a person's normal equations: blobs that fix no point (neither feet nor head in the picture) leave
 it finite."""
@@ -176,6 +180,18 @@ def _distances(r: WorldRays, rows: IntArray | None, person: FloatArray) -> tuple
     return d, front
 
 
+def _feet_lines_within(r: WorldRays, a: IntArray, b: IntArray, reach: FloatArray) -> BoolArray:
+    """Per pair of blobs ``a``, ``b``: whether their feet rays, as lines, may pass within ``reach`` of each other
+    (always, where either blob's feet are not in its picture or the rays are near parallel)."""
+    ua, ub = r.foot[a], r.foot[b]
+    n = np.cross(ua, ub)
+    norm = np.linalg.norm(n, axis=1)
+    apart = np.abs(np.einsum("ni,ni->n", r.centre[b] - r.centre[a], n))
+    crossing = norm > PARALLEL_SINE
+    within = ~crossing | (apart <= (reach * (1.0 + LINE_SLACK) + LINE_SLACK) * np.where(crossing, norm, 1.0))
+    return np.asarray(within | ~(r.feet_ok[a] & r.feet_ok[b]), dtype=bool)
+
+
 def triangulate(r: WorldRays, members: list[IntArray], prior: HeightPrior) -> FloatArray:
     """The person (x, y, h) of each group of blob rows."""
     m, b = _normals(r, np.arange(r.camera.size, dtype=np.int64))
@@ -272,9 +288,14 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
         ia, ib = np.triu_indices(rows.size, k=1)
         cross = r.camera[rows[ia]] != r.camera[rows[ib]]
         ia, ib = ia[cross], ib[cross]
+        # A pair's person within both cameras' gates of both its feet rays lies within the two gates of each ray, so
+        # those rays (lines) pass within the sum of the gates of each other: the pairs whose feet rays pass farther
+        # apart are left out before they are solved (the others are as they were).
+        pa, pb = rows[ia], rows[ib]
+        near = _feet_lines_within(r, pa, pb, gate[r.camera[pa]] + gate[r.camera[pb]])
+        ia, ib, pa, pb = ia[near], ib[near], pa[near], pb[near]
         if ia.size == 0:
             continue
-        pa, pb = rows[ia], rows[ib]
         x = _solve(m_all[pa] + m_all[pb], b_all[pa] + b_all[pb], prior)
         here = r.take(rows)
         da, fa = _distances(here, ia, x)

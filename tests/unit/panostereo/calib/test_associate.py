@@ -99,3 +99,37 @@ def test_candidates_worked_out_together_take_the_people_one_at_a_time_would(monk
     assert together.person.shape[0] >= 12
     for field in ("person", "member_person", "member_camera", "member_index"):
         assert np.array_equal(getattr(together, field), getattr(alone, field))
+
+
+def test_feet_rays_that_pass_far_apart_are_left_out_and_no_pair_that_fits_is() -> None:
+    """Rays of two cameras towards points within each gate of one person's feet are always kept (a pair that can
+    pass the gates is never left out before it is solved); rays towards feet metres apart are left out."""
+    from panostereo.calib.associate import _feet_lines_within
+
+    rng = np.random.default_rng(3)
+    parts = [_rays("cam-a", PEOPLE), _rays("cam-c", PEOPLE)]
+    r = world_rays([p[0] for p in parts], [p[1] for p in parts])
+    centres = r.centre[[0, 3]]
+    k = 2000
+    feet = np.column_stack([rng.uniform(0.0, 10.0, (k, 2)), np.zeros(k)])
+    gate = rng.uniform(0.02, 0.6, (k, 2))
+
+    def towards(c: np.ndarray, p: np.ndarray, off: np.ndarray) -> np.ndarray:
+        d = p + off - c
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def offsets(g: np.ndarray) -> np.ndarray:
+        u = rng.normal(size=(k, 3))
+        return u / np.linalg.norm(u, axis=1, keepdims=True) * (g * rng.uniform(0.0, 1.0, k))[:, None]
+
+    def pairs(fa: np.ndarray, fb: np.ndarray) -> tuple[object, np.ndarray, np.ndarray]:
+        rays = r.take(np.zeros(2 * k, dtype=np.int64))  # copies, to write the pairs' rays into
+        rays.centre[:k], rays.centre[k:] = centres[0], centres[1]
+        rays.foot[:k], rays.foot[k:] = fa, fb
+        return rays, np.arange(k), np.arange(k, 2 * k)
+
+    fit, a, b = pairs(towards(centres[0], feet, offsets(gate[:, 0])), towards(centres[1], feet, offsets(gate[:, 1])))
+    assert _feet_lines_within(fit, a, b, gate.sum(axis=1)).all()
+    far = feet + np.column_stack([np.full(k, 3.0), np.zeros(k), np.zeros(k)])
+    apart, a, b = pairs(towards(centres[0], feet, 0.0 * feet), towards(centres[1], far, 0.0 * feet))
+    assert _feet_lines_within(apart, a, b, np.full(k, 0.2)).mean() < 0.05
