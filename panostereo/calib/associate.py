@@ -5,8 +5,9 @@ through the feet and every head ray through the head; how far a ray passes from 
 distance, metres at the person) is the residual, weighted by the camera's ``point_sigma_m``.
 
 Per instant, every pair of blobs from two cameras is triangulated into a person (least squares on the four rays,
-with a weak prior on the height); pairs that fit within the gate, in front of both cameras, at a person's height,
-are taken best first, and each grows by the blob of every other camera that passes within the gate of its person.
+with a weak prior on the height), but for those whose feet rays pass too far apart to meet at anyone's feet within
+the gates; pairs that fit within the gate, in front of both cameras, at a person's height, are taken best first, and
+each grows by the blob of every other camera that passes within the gate of its person.
 Each blob joins one person at most. A wrong pairing is possible in a crowd: the adjustment's robust loss and the
 next association with better poses take care of it.
 """
