@@ -361,18 +361,17 @@ class Tracker:
         # (view, track) ln of the likelihood ratio of detected against missed, of each view's evidence.
         delta = np.array([sc.ln_miss for sc in views]).reshape(-1, n)
         hit = [(v, i, j) for v, sid in enumerate(scored) for i, j in hits[sid].items()]
+        got = np.zeros(delta.shape, dtype=bool)
         if hit:
             rows, cols = np.array([h[0] for h in hit]), np.array([h[1] for h in hit])
+            got[rows, cols] = True
             ln_lr = np.array([views[h[0]].ln_lr[h[1], h[2]] if h[2] >= 0 else -np.inf for h in hit])
             lr = np.log(1.0 - p_detect[rows, cols] + np.exp(np.minimum(ln_lr, 50.0)))
             delta[rows, cols] = np.maximum(lr, 0.0)  # a detection assigned to a track never counts against it
             # A view that detected a track it did not expect to see (a return) counts as seeing it.
             p_detect[rows, cols] = np.maximum(p_detect[rows, cols], 1e-6)
         sees = p_detect > 0
-        got = np.zeros(sees.shape, dtype=bool)
         if groups:
-            for v, i, _ in hit:
-                got[v, i] = True
             self._one_miss_per_detector(delta, sees, got, groups)
         weight = np.array([tick.weights[sid][1] for sid in scored])
         self.filter.existence_update(delta, weight, sees, caps)
