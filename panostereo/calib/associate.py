@@ -293,15 +293,16 @@ def associate(r: WorldRays, gate_m: float | FloatArray, prior: HeightPrior, max_
         # those rays (lines) pass within the sum of the gates of each other: the pairs whose feet rays pass farther
         # apart are left out before they are solved (the others are as they were).
         pa, pb = rows[ia], rows[ib]
-        near = _feet_lines_within(r, pa, pb, gate[r.camera[pa]] + gate[r.camera[pb]])
-        ia, ib, pa, pb = ia[near], ib[near], pa[near], pb[near]
+        ga, gb = gate[r.camera[pa]], gate[r.camera[pb]]
+        near = _feet_lines_within(r, pa, pb, ga + gb)
+        ia, ib, pa, pb, ga, gb = ia[near], ib[near], pa[near], pb[near], ga[near], gb[near]
         if ia.size == 0:
             continue
         x = _solve(m_all[pa] + m_all[pb], b_all[pa] + b_all[pb], prior)
         here = r.take(rows)
         da, fa = _distances(here, ia, x)
         db, fb = _distances(here, ib, x)
-        cost = np.maximum(da / gate[r.camera[pa]], db / gate[r.camera[pb]])
+        cost = np.maximum(da / ga, db / gb)
         reach = np.maximum(np.hypot(*(x[:, :2] - r.centre[pa, :2]).T), np.hypot(*(x[:, :2] - r.centre[pb, :2]).T))
         ok = (cost <= 1.0) & fa & fb & (x[:, 2] >= prior.low_m) & (x[:, 2] <= prior.high_m) & (reach <= max_range_m)
         cand = np.flatnonzero(ok)
