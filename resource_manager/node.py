@@ -107,6 +107,8 @@ MAX_HISTORY_QUERY_S = 1e7
 SEAT_RESYNC_S = 2.0
 """A zone's seats are read whole (liveliness ``get``) this often, besides the subscriber's changes: a view that
 missed a change (a reconnection) is right again within this long."""
+SEAT_RETRY_S = 0.1
+"""A read of the zone's seats that came back incomplete is asked again after this pause."""
 FRESH_FRAMES_S = 1.0
 """A standby may claim its zone only while its sensors' frames reach it: one arrived within this long."""
 LEADER_SETS = 64
@@ -119,7 +121,8 @@ class ZoneSeat:
 
     The seats come from a liveliness ``get`` on a second thread, every :data:`SEAT_RESYNC_S` and at once when the
     liveliness subscriber hears a seat go (the whole view: a change missed across a reconnection is righted too),
-    and from the subscriber's new seats, all queued in arrival order: a slow ``get`` never delays the decisions.
+    and from the subscriber's new seats, all queued in arrival order: a slow ``get`` never delays the decisions. A
+    read the router did not answer in time is read again, not taken as a whole view.
 
     Args:
         can_lead: whether the manager's sensors reach it now (a standby cut off from them never claims).
@@ -207,7 +210,15 @@ class ZoneSeat:
             except Exception as err:  # session closing
                 logger.debug("zone seats query: %s", err)
                 continue
-            seats = [s for r in replies if r.ok is not None and (s := self._seat(str(r.ok.key_expr))) is not None]
+            if any(r.ok is None for r in replies):
+                # A reply that errs (the router's answer timed out: a busy host, a link coming back) leaves only the
+                # seats this session holds itself: as a whole view it would say every other seat went, and a
+                # standby would claim over a leader that is there. Read again instead.
+                logger.debug("zone seats query of %s incomplete: read again", self.zone)
+                self.shutdown.sleep(SEAT_RETRY_S)
+                self.read_now.set()
+                continue
+            seats = [s for r in replies if (s := self._seat(str(r.ok.key_expr))) is not None]
             self.events.append((seats, number, before))
             self.wake.set()
 
