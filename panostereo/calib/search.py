@@ -7,9 +7,10 @@ and by an anchor over a few instants, already fixes the camera's pose.
 1. The anchors place the people they see: each blob whose feet are in the picture is a floor point (its foot
    ray meets the floor), with the head height its head ray gives there.
 2. Every pair (a 2D track of the camera, a 2D track of an anchor) seen at the same instants is a guess that
-   they follow one person; the camera's pose that fits their rays to the anchor's points is a hypothesis
-   (perspective-n-point, OpenCV's SQPnP; for a level camera, a scan of the yaw with the position solved
-   linearly at each).
+   they follow one person, unless at most of them no pose within twice the install tolerance of the starting
+   guess could see the anchor's person along the camera's rays; the camera's pose that fits their rays to the
+   anchor's points is a hypothesis (perspective-n-point, OpenCV's SQPnP; for a level camera, a scan of the yaw
+   with the position solved linearly at each).
 3. Hypotheses outside twice the install tolerance of the starting guess are dropped; the others are scored by
    how many of the camera's blobs, at a spread of instants, pass within the gate of a person the anchors
    place; the best is kept if it explains more than the starting guess does.
@@ -18,7 +19,7 @@ and by an anchor over a few instants, already fixes the camera's pose.
 from __future__ import annotations
 
 import math
-from collections import Counter, defaultdict
+from collections import defaultdict
 from dataclasses import dataclass
 
 import cv2
@@ -111,25 +112,25 @@ class _Scorer:
         self.blob = np.array(blob_rows, dtype=np.int64)
         self.person = people.point[np.array(person_rows, dtype=np.int64)] if person_rows else np.zeros((0, 3))
         self.starts = np.flatnonzero(np.r_[True, np.diff(self.blob) != 0]) if self.blob.size else self.blob
-        self.cam = cam
         self.gate_m = gate_m
-        self.plane = np.zeros((self.blob.size, 3)) if cam.head_plane is None else cam.head_plane[self.blob]
+        # Each (blob, person) row's two points and what the blob says of them, the same for every pose scored.
+        feet = self.person.copy()
+        feet[:, 2] = 0.0
+        plane = np.zeros((self.blob.size, 3)) if cam.head_plane is None else cam.head_plane[self.blob]
+        self.sides = (
+            (feet, cam.foot[self.blob], np.zeros((self.blob.size, 3)), cam.feet_ok[self.blob]),
+            (self.person, cam.head[self.blob], plane, cam.head_ok[self.blob]),
+        )
 
     def __call__(self, pose: CameraPose) -> int:
         if self.blob.size == 0:
             return 0
-        c = self.cam
-        feet = self.person.copy()
-        feet[:, 2] = 0.0
         d = np.zeros(self.blob.size)
         front = np.ones(self.blob.size, dtype=bool)
-        for pts, rays, ok in ((feet, c.foot, c.feet_ok), (self.person, c.head, c.head_ok)):
+        for pts, r, plane, ok in self.sides:
             v = (pts - pose.centre_m) @ pose.rotation.T
-            r = rays[self.blob]
             a = np.einsum("ni,ni->n", v, r)
-            plane = self.plane if rays is c.head else np.zeros_like(r)
-            dist = off_ray(r, plane, v)
-            d = np.maximum(d, np.where(ok[self.blob], dist, 0.0))
+            d = np.maximum(d, np.where(ok, off_ray(r, plane, v), 0.0))
             front &= a > 0
         d = np.where(front, d, np.inf)
         best = np.minimum.reduceat(d, self.starts)
@@ -197,16 +198,48 @@ def _by_track(track: IntArray, instant: IntArray) -> dict[int, dict[int, int]]:
     return out
 
 
-def _track_pairs(cam: CameraRays, people: AnchorPeople) -> list[tuple[int, int]]:
-    """(camera track, anchor track) pairs seen at ``MIN_COMMON_INSTANTS`` instants or more."""
-    by_inst: dict[int, list[int]] = defaultdict(list)
-    for j, k in enumerate(people.instant.tolist()):
-        by_inst[k].append(int(people.track[j]))
-    pairs: Counter[tuple[int, int]] = Counter()
-    for t, k in zip(cam.track.tolist(), cam.instant.tolist(), strict=True):
-        for u in by_inst.get(k, ()):
-            pairs[(t, u)] += 1
-    return [p for p, n in pairs.items() if n >= MIN_COMMON_INSTANTS]
+def _track_pairs(
+    cam: CameraRays, people: AnchorPeople, guess: CameraPose, window: tuple[float, float], gate_m: float
+) -> list[tuple[int, int]]:
+    """(camera track, anchor track) pairs seen at ``MIN_COMMON_INSTANTS`` instants or more, at most of which the
+    camera's rays could see the anchor's person from a pose within the ``window`` (m, rad) of ``guess``, in the
+    order their first common blob comes.
+
+    From such a pose, a ray of the camera seen with the guess's rotation is at most the window's angle off its
+    true direction, and the person, seen from the guess's centre rather than the true one, at most
+    ``asin(window_m / distance)`` off; the blob's own error adds ``asin(gate_m / distance)``. A pair whose rays miss
+    their person by more at most instants cannot be one person seen from within the window: its pose (a fit to
+    every instant) is not worked out."""
+    order = np.argsort(people.instant, kind="stable")
+    lo = np.searchsorted(people.instant[order], cam.instant, side="left")
+    hi = np.searchsorted(people.instant[order], cam.instant, side="right")
+    i = np.repeat(np.arange(cam.n), hi - lo)
+    if i.size == 0:
+        return []
+    j = order[np.arange(i.size) - np.repeat(np.cumsum(hi - lo) - (hi - lo), hi - lo) + np.repeat(lo, hi - lo)]
+    window_m, window_rad = window
+    fits = np.ones(i.size, dtype=bool)
+    feet = people.point[j].copy()
+    feet[:, 2] = 0.0
+    for pts, rays, ok in ((feet, cam.foot, cam.feet_ok), (people.point[j], cam.head, cam.head_ok)):
+        v = pts - guess.centre_m
+        dist = np.linalg.norm(v, axis=1)
+        world = rays[i] @ guess.rotation
+        cos = np.einsum("ni,ni->n", world, v) / np.maximum(dist, SINGULAR)
+        with np.errstate(invalid="ignore"):
+            reach = (
+                window_rad
+                + np.arcsin(np.minimum(1.0, window_m / np.maximum(dist, SINGULAR)))
+                + np.arcsin(np.minimum(1.0, gate_m / np.maximum(dist, SINGULAR)))
+            )
+        fits &= ~ok[i] | (np.arccos(np.clip(cos, -1.0, 1.0)) <= reach)
+    base = int(people.track.max()) - int(people.track.min()) + 1
+    keys = (cam.track[i] - int(cam.track.min())) * base + (people.track[j] - int(people.track.min()))
+    _, first, which, count = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+    fitting = np.bincount(which, weights=fits, minlength=count.size)
+    keep = np.flatnonzero((count >= MIN_COMMON_INSTANTS) & (2.0 * fitting >= count))
+    rows = first[keep][np.argsort(first[keep], kind="stable")]
+    return list(zip(cam.track[i[rows]].tolist(), people.track[j[rows]].tolist(), strict=True))
 
 
 def support(cam: CameraRays, pose: CameraPose, people: AnchorPeople, gate_m: float) -> int:
@@ -229,7 +262,7 @@ def find_pose(
     anchor_rows = _by_track(people.track, people.instant)
     best, best_score, tried = guess, -1, 0
     window_m, window_rad = 2.0 * tolerance.centre_m, 2.0 * tolerance.turn_rad
-    for t, u in _track_pairs(cam, people):
+    for t, u in _track_pairs(cam, people, guess, (window_m, window_rad), gate_m):
         common = sorted(set(cam_rows[t]) & set(anchor_rows[u]))
         ci = np.array([cam_rows[t][k] for k in common])
         pj = np.array([anchor_rows[u][k] for k in common])

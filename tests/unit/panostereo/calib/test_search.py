@@ -54,3 +54,34 @@ def test_no_better_hypothesis_keeps_the_guess() -> None:
     people = anchor_people([a, b], [a_pose, b_pose], [0], HeightPrior(), 100.0)
     found = find_pose(b, b_pose, people, Tolerance(), 0.5)
     assert found.score == found.start_score
+
+
+def test_track_pairs_keep_every_pair_a_pose_within_the_window_explains() -> None:
+    """A pair is left out before its pose is worked out only where no pose within the window of the guess can see
+    the anchor's person along the camera's rays: the true pairs stay for guesses anywhere in the window, and a
+    person the camera would have to see behind it goes."""
+    from panostereo.calib.search import AnchorPeople, _track_pairs
+
+    paths = _tracks(5, 8)
+    (a, a_pose), (b, b_pose) = _camera("cam-a", paths), _camera("cam-b", paths)
+    people = anchor_people([a, b], [a_pose, b_pose], [0], HeightPrior(), 100.0)
+    tol = Tolerance()
+    window = (2.0 * tol.centre_m, 2.0 * tol.turn_rad)
+    truth = {(t, t * 1000) for t in range(5)}
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        axis = rng.normal(size=3)
+        shift = rng.normal(size=3)
+        # Up to the window's edge: turned and moved by as much as the search looks.
+        guess = b_pose.turned_moved(
+            axis / np.linalg.norm(axis) * window[1] * rng.uniform(0.5, 1.0),
+            shift / np.linalg.norm(shift) * window[0] * rng.uniform(0.5, 1.0),
+        )
+        assert truth <= set(_track_pairs(b, people, guess, window, 0.5)), guess
+    # The anchor's person 0 put where camera b would have to look back over its shoulder to see them.
+    behind = people.point.copy()
+    mine = people.track == 0
+    behind[mine, :2] = 2.0 * b_pose.centre_m[:2] - behind[mine, :2]
+    turned = AnchorPeople(people.instant, people.track, behind)
+    pairs = set(_track_pairs(b, turned, b_pose, window, 0.5))
+    assert (0, 0) not in pairs and {(t, t * 1000) for t in range(1, 5)} <= pairs
