@@ -31,7 +31,7 @@ import numpy as np
 
 from common.arrays import FloatArray
 from panostereo.calib.adjust import Tolerance, adjust, ray_distances
-from panostereo.calib.associate import Association, HeightPrior, associate, triangulate, world_rays
+from panostereo.calib.associate import Association, HeightPrior, WorldRays, associate, triangulate, world_rays
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose, pose_change, pose_offset, rotation_z
 from panostereo.calib.search import anchor_people, find_pose
@@ -70,7 +70,8 @@ class RefineSettings:
     """A camera sharing fewer person-instants with the others is left as it was (undetermined)."""
     max_people: int = 5000
     """The adjustment uses at most this many person-instants, spread over the data: more cost time and move a
-    camera by less than the people's own noise."""
+    camera by less than the people's own noise. Once the first round has found more, the later rounds associate
+    only every k-th instant, enough for this many (the people of the others would not be used)."""
     max_rounds: int = 10
     settled_m: float = 0.005
     settled_rad: float = math.radians(0.02)
@@ -199,17 +200,10 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
     narrowing = _Narrowing(s)
     settled = False
     steps: dict[int, FloatArray] = {}
+    stride = 1
     for rounds in range(1, s.max_rounds + 1):
-        gate = narrowing.gate(rounds, settled, partial(_data_gate, cams, poses, use, height, s))
-        assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
-        counts = _person_counts(assoc, n)
-        dropped = [i for i in free if use[i] and counts[i] < s.min_people]
-        for i in dropped:
-            use[i] = False
-            poses[i] = start[i]
-        if dropped:
-            logger.info("undetermined: %s", ", ".join(cams[i].sensor_id for i in dropped))
-            assoc = associate(world_rays(cams, poses, use), gate, height, s.max_range_m)
+        gate = narrowing.gate(rounds, settled, partial(_data_gate, cams, poses, use, height, s, stride))
+        assoc, counts = _associate_round(cams, poses, (start, free, use), gate, height, s, stride)
         moving = [i for i in free if use[i]]
         if not moving or assoc.member_camera.size == 0:
             break
@@ -231,11 +225,12 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         if fixed_idx:  # else the prior's mean holds the scale, and stays the prior's
             height = replace(height, mean_m=res.mean_height_m)
         logger.info(
-            "round %d: gate %s m, %d people (mean height %.2f m), %d rays, largest change %.3f m %.3f deg%s",
+            "round %d: gate %s m, %d people (mean height %.2f m) of %s, %d rays, largest change %.3f m %.3f deg%s",
             rounds,
             _gates(gate),
             assoc.person.shape[0],
             height.mean_m,
+            "every instant" if stride == 1 else f"1 instant in {stride}",
             assoc.member_camera.size,
             max(c[0] for c in change),
             math.degrees(max(c[1] for c in change)),
@@ -243,10 +238,40 @@ def refine(cams: list[CameraRays], fixed: Sequence[str], settings: RefineSetting
         )
         if settled and narrowing.narrowest:
             break
+        if stride == 1 and assoc.person.shape[0] > s.max_people:
+            stride = assoc.person.shape[0] // s.max_people
     if not fixed_idx:
         poses = _as_a_whole(start, poses, [i for i in range(n) if use[i]])
+    if stride > 1 and assoc is not None:  # the report counts every instant's people
+        assoc = associate(_rays(cams, poses, use, 1), gate, height, s.max_range_m)
+        counts = _person_counts(assoc, n)
     reports = _report(cams, start, poses, fixed_idx, use, assoc, counts, s)
     return Refined(poses, reports, rounds)
+
+
+def _associate_round(  # noqa: PLR0917 - the round's state, one private call site
+    cams: list[CameraRays],
+    poses: list[CameraPose],
+    cameras: tuple[list[CameraPose], list[int], list[bool]],
+    gate: float | FloatArray,
+    height: HeightPrior,
+    s: RefineSettings,
+    stride: int,
+) -> tuple[Association, np.ndarray]:
+    """A round's association of every ``stride``-th instant, and each camera's person-instants (estimated for every
+    instant). ``cameras``: the starting guesses, the free cameras and those in use; a free camera with fewer than
+    ``min_people`` is put back at its guess and left out from now on (``poses`` and ``use`` are updated)."""
+    start, free, use = cameras
+    assoc = associate(_rays(cams, poses, use, stride), gate, height, s.max_range_m)
+    counts = _person_counts(assoc, len(cams)) * stride
+    dropped = [i for i in free if use[i] and counts[i] < s.min_people]
+    for i in dropped:
+        use[i] = False
+        poses[i] = start[i]
+    if dropped:
+        logger.info("undetermined: %s", ", ".join(cams[i].sensor_id for i in dropped))
+        assoc = associate(_rays(cams, poses, use, stride), gate, height, s.max_range_m)
+    return assoc, counts
 
 
 ALIGNED_RAD = math.radians(10.0)
@@ -357,15 +382,30 @@ def _gates(gate: float | FloatArray) -> str:
     return lo if lo == hi else f"{lo}-{hi}"
 
 
-def _data_gate(
-    cams: list[CameraRays], poses: list[CameraPose], use: list[bool], height: HeightPrior, s: RefineSettings
+def _rays(cams: list[CameraRays], poses: list[CameraPose], use: list[bool], stride: int) -> WorldRays:
+    """The blobs of the cameras in ``use`` as world rays, of every ``stride``-th instant only."""
+    r = world_rays(cams, poses, use)
+    if stride <= 1:
+        return r
+    kept = np.unique(r.instant)[::stride]
+    return r.take(np.flatnonzero(np.isin(r.instant, kept)))
+
+
+def _data_gate(  # noqa: PLR0917 - bound with partial at its one call site
+    cams: list[CameraRays],
+    poses: list[CameraPose],
+    use: list[bool],
+    height: HeightPrior,
+    s: RefineSettings,
+    stride: int,
 ) -> FloatArray:
     """The gate each camera's data calls for with the current poses: ``gate_per_residual`` times the median
     distance of its blobs (the farther of their two rays) from the people they are put with at ``final_gate_m``
     (measured there every time, so that the gate does not shrink on its own narrower choices), between
-    ``min_gate_m`` and ``final_gate_m``. Per camera: a far camera's rays pass farther from their people than a
-    near one's, and a camera still off its pose has its rays' distances, not the others'."""
-    wide = associate(world_rays(cams, poses, use), s.final_gate_m, height, s.max_range_m)
+    ``min_gate_m`` and ``final_gate_m``; of every ``stride``-th instant's people. Per camera: a far camera's rays
+    pass farther from their people than a near one's, and a camera still off its pose has its rays' distances, not
+    the others'."""
+    wide = associate(_rays(cams, poses, use, stride), s.final_gate_m, height, s.max_range_m)
     dist = np.fmax(*ray_distances(cams, poses, wide, wide.person))  # a blob's distance, as the association's
     out = np.full(len(cams), s.final_gate_m)
     for c in range(len(cams)):

@@ -187,3 +187,30 @@ def test_rounds_that_creep_one_way_are_taken_the_rest_of_the_way() -> None:
     # Once every camera has settled the rounds may stop: nobody is left where no adjustment has checked them.
     _, out, further = _extrapolated([start] * 3, after, [0, 1, 2], last, Tolerance(), settled=True)
     assert further == [] and out == after
+
+
+def test_rounds_associate_only_the_instants_the_adjustment_uses(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """With more person-instants than ``max_people``, the rounds after the first associate every k-th instant (the
+    people of the others would not be adjusted): the poses come out as well, and the report still counts every
+    instant's people."""
+    from common.site import load_site
+    from panostereo.calib.observe import from_site
+    from panostereo.calib.refine import RefineSettings, refine
+
+    truth = true_cameras()
+    rng = np.random.default_rng(17)
+    start = {cid: cam if cid == "cam-a" else bumped(cam, 0.5, math.radians(5.0), rng) for cid, cam in truth.items()}
+    site = write_site_dir(tmp_path / "site", start, truth, frames=90, seed=6)
+    cams, _ = from_site(load_site(site), None)
+    every = refine(cams, ["cam-a"])
+    caplog.set_level("INFO", logger="panostereo.calib.refine")
+    few = refine(cams, ["cam-a"], RefineSettings(max_people=120))
+    people = [int(r.getMessage().split(", ")[1].split()[0]) for r in caplog.records if "people (mean" in r.getMessage()]
+    assert people[0] >= 3 * 120 and all(120 <= p < people[0] / 2 for p in people[1:]), people
+    for cid, got in zip(truth, few.poses, strict=True):
+        moved, turned = pose_change(got, _pose(truth[cid]))
+        assert moved < 0.05 and math.degrees(turned) < 0.2, (cid, moved, math.degrees(turned))
+    for a, b in zip(few.cameras, every.cameras, strict=True):
+        assert a.people == pytest.approx(b.people, rel=0.05), (a.sensor_id, a.people, b.people)
