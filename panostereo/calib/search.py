@@ -210,13 +210,15 @@ def _track_pairs(
     ``asin(window_m / distance)`` off; the blob's own error adds ``asin(gate_m / distance)``. A pair whose rays miss
     their person by more at most instants cannot be one person seen from within the window: its pose (a fit to
     every instant) is not worked out."""
+    # Every (camera blob i, anchor person j) of one instant, blob after blob, each blob's people in their order.
     order = np.argsort(people.instant, kind="stable")
     lo = np.searchsorted(people.instant[order], cam.instant, side="left")
-    hi = np.searchsorted(people.instant[order], cam.instant, side="right")
-    i = np.repeat(np.arange(cam.n), hi - lo)
+    many = np.searchsorted(people.instant[order], cam.instant, side="right") - lo
+    i = np.repeat(np.arange(cam.n), many)
     if i.size == 0:
         return []
-    j = order[np.arange(i.size) - np.repeat(np.cumsum(hi - lo) - (hi - lo), hi - lo) + np.repeat(lo, hi - lo)]
+    kth = np.arange(i.size) - np.repeat(np.cumsum(many) - many, many)  # the k-th of its blob's people
+    j = order[np.repeat(lo, many) + kth]
     window_m, window_rad = window
     fits = np.ones(i.size, dtype=bool)
     feet = people.point[j].copy()
