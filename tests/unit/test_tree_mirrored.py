@@ -25,8 +25,7 @@ NOT_TESTED_BY_DESIGN = {
     "user_agent/cli.py",
     "panostereo/commands/router.py",
     "panostereo/commands/up.py",
-    # The shells that own a zenoh session (habit 2): tested on loopback by tests/integration.
-    "resource_manager/node.py",
+    # A shell that owns a zenoh session (habit 2): tested on loopback by tests/integration.
     "user_agent/live.py",
     # Type aliases only (numpy array types for annotations): nothing runs, mypy checks their use.
     "common/arrays.py",

@@ -1,4 +1,5 @@
-"""A manager's seat in its zone reads the zone's seats whole; a read the router did not answer is not a whole view."""
+"""The manager's shell, without a zenoh session (its loopback runs are tests/integration's): a manager's seat in
+its zone reads the zone's seats whole, and a read the router did not answer is not a whole view."""
 
 from __future__ import annotations
 
