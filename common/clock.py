@@ -153,7 +153,7 @@ class NtpClock:
 
     def _loop(self) -> None:
         while not self._stop.wait(self.resync_s):
-            self.sync()
+            self.sync(background=True)
 
     # -- measurement ----------------------------------------------------------
     def _request(self) -> _Sample | None:
@@ -173,13 +173,15 @@ class NtpClock:
             offset_ns=round(offset_s * 1e9), delay_ns=max(0, round(delay_s * 1e9)), root_ns=max(0, round(root_s * 1e9))
         )
 
-    def sync(self) -> bool:
-        """Measure the offset now; keep the minimum-delay sample. Returns False if no reply came."""
+    def sync(self, *, background: bool = False) -> bool:
+        """Measure the offset now; keep the minimum-delay sample. Returns False if no reply came. ``background``:
+        the re-sync thread's, which stops between two requests once :meth:`stop` is asked (a server that stopped
+        answering costs a stop one request's timeout, not every sample's)."""
         if not self.server:
             return False
         best: _Sample | None = None
         for _ in range(self.samples):
-            if self._stop.is_set() and self._thread is not None:
+            if background and self._stop.is_set():
                 break
             sample = self._request()
             if sample is not None and (best is None or sample.delay_ns < best.delay_ns):

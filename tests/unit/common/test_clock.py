@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pwd
 import shutil
 import signal
 import socket
 import subprocess
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -192,3 +194,42 @@ def test_against_real_chronyd(chronyd: int) -> None:
     assert abs(st.offset_ns) < TOLERANCE_NS
     assert abs(diff_ns) < TOLERANCE_NS
     assert st.uncertainty_ns < TOLERANCE_NS
+
+
+def test_stop_ends_a_background_resync_whose_server_went_silent() -> None:
+    """Once the server stops answering, a stop asked while the background re-sync waits on it ends that re-sync
+    after the request in flight: the remaining samples are not sent (each would wait out its timeout)."""
+    silent = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    silent.bind(("127.0.0.1", 0))
+    silent.settimeout(0.05)
+    heard = [0]
+    done = False
+
+    def listen() -> None:
+        while not done:
+            try:
+                silent.recvfrom(512)
+                heard[0] += 1
+            except TimeoutError:
+                continue
+
+    listener = threading.Thread(target=listen, daemon=True)
+    listener.start()
+    samples = 6
+    clock = NtpClock("127.0.0.1", silent.getsockname()[1], samples=samples, resync_s=0.05, timeout_s=0.2)
+    try:
+        clock.start()  # the first sync asks every sample, blocking: nobody answers
+        wait_for(lambda: heard[0] >= samples + 1, 10.0, "the background re-sync's first request")
+        asked = heard[0]
+        clock.stop()  # joins the re-sync thread: whatever it sent is in the socket by now
+        done = True
+        listener.join(timeout=2.0)
+        silent.setblocking(False)
+        with contextlib.suppress(BlockingIOError):
+            while True:
+                silent.recvfrom(512)
+                heard[0] += 1
+        assert heard[0] - asked <= 1, f"{heard[0] - asked} requests after the stop was asked"
+    finally:
+        done = True
+        silent.close()
