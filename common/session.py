@@ -272,10 +272,37 @@ def open_session(settings: SessionSettings, extra: dict[str, Any] | None = None)
     try:
         yield session
     finally:
+        close_session(session)
+
+
+CLOSE_WAIT_S = 3.0
+"""How long a process waits for its zenoh session to close at exit. On a working link the close takes
+milliseconds; after the link went down and came back, zenoh waits about 10 s on the dead connection's sends
+(zenoh#2675, zenoh#1979) before it gives up. The router drops the session's tokens when its lease runs out anyway."""
+
+
+def close_session(session: Any, wait_s: float = CLOSE_WAIT_S) -> bool:
+    """Close ``session``, waiting at most ``wait_s``: the close goes on in a thread of its own while the process
+    exits (a supervisor's SIGTERM is answered within seconds, not after zenoh's own timeout). True if it closed."""
+    done = threading.Event()
+
+    def close() -> None:
         try:
             session.close()
         except Exception as err:  # close can time out on lossy links (zenoh#2675)
             logger.warning("zenoh session close failed: %s", err)
+        finally:
+            done.set()
+
+    threading.Thread(target=close, name="zenoh-close", daemon=True).start()
+    if done.wait(wait_s):
+        return True
+    logger.warning(
+        "zenoh session still closing after %.0f s (a link that went down): exiting without waiting; the router "
+        "drops this session when its lease runs out",
+        wait_s,
+    )
+    return False
 
 
 SECOND_POLL_S = 0.25

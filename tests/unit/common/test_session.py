@@ -7,6 +7,7 @@ import json
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -22,6 +23,7 @@ from common.session import (
     SessionSettings,
     Shutdown,
     add_session_args,
+    close_session,
     install_signal_handlers,
     on_signal,
     open_session,
@@ -343,3 +345,30 @@ def test_a_client_with_no_router_is_told_what_to_try(settings: SessionSettings, 
     assert "cannot open a zenoh client session" in text
     for part in says:
         assert part.replace("PORT", port) in text, text
+
+
+class _Closing:
+    """A session whose close waits until released (zenoh's on a link that went down waits ~10 s)."""
+
+    def __init__(self, hangs: bool) -> None:
+        self.release = threading.Event()
+        self.hangs = hangs
+        self.closed = False
+
+    def close(self) -> None:
+        if self.hangs:
+            self.release.wait(10.0)
+        self.closed = True
+
+
+def test_a_session_whose_close_hangs_is_left_closing_and_the_process_goes_on(caplog: pytest.LogCaptureFixture) -> None:
+    quick = _Closing(hangs=False)
+    assert close_session(quick, wait_s=5.0) and quick.closed
+    stuck = _Closing(hangs=True)
+    try:
+        assert not close_session(stuck, wait_s=0.1)
+        assert not stuck.closed
+        assert "still closing" in caplog.text
+    finally:
+        stuck.release.set()
+    wait_for(lambda: stuck.closed, 5.0, "the close to finish in its own thread once released")
