@@ -100,17 +100,10 @@ class _Scorer:
         common = np.intersect1d(np.unique(cam.instant), np.unique(people.instant))
         if common.size > SCORE_INSTANTS:
             common = common[np.linspace(0, common.size - 1, SCORE_INSTANTS).round().astype(int)]
-        by_inst: dict[int, list[int]] = defaultdict(list)
-        for j in np.flatnonzero(np.isin(people.instant, common)).tolist():
-            by_inst[int(people.instant[j])].append(j)
-        blob_rows: list[int] = []
-        person_rows: list[int] = []
-        for i in np.flatnonzero(np.isin(cam.instant, common)).tolist():
-            for j in by_inst[int(cam.instant[i])]:
-                blob_rows.append(i)
-                person_rows.append(j)
-        self.blob = np.array(blob_rows, dtype=np.int64)
-        self.person = people.point[np.array(person_rows, dtype=np.int64)] if person_rows else np.zeros((0, 3))
+        blob, person = _at_one_instant(cam.instant, people.instant)
+        scored = np.isin(cam.instant[blob], common)
+        self.blob = blob[scored]
+        self.person = people.point[person[scored]]
         self.starts = np.flatnonzero(np.r_[True, np.diff(self.blob) != 0]) if self.blob.size else self.blob
         self.gate_m = gate_m
         # Each (blob, person) row's two points and what the blob says of them, the same for every pose scored.
@@ -198,6 +191,17 @@ def _by_track(track: IntArray, instant: IntArray) -> dict[int, dict[int, int]]:
     return out
 
 
+def _at_one_instant(blob_instant: IntArray, person_instant: IntArray) -> tuple[IntArray, IntArray]:
+    """Every (camera blob, anchor person) of one instant, as rows into each: blob after blob, each blob's people
+    in their order."""
+    order = np.argsort(person_instant, kind="stable")
+    lo = np.searchsorted(person_instant[order], blob_instant, side="left")
+    many = np.searchsorted(person_instant[order], blob_instant, side="right") - lo
+    blob = np.repeat(np.arange(blob_instant.size, dtype=np.int64), many)
+    kth = np.arange(blob.size) - np.repeat(np.cumsum(many) - many, many)  # the k-th of its blob's people
+    return blob, np.asarray(order[np.repeat(lo, many) + kth], dtype=np.int64)
+
+
 def _track_pairs(
     cam: CameraRays, people: AnchorPeople, guess: CameraPose, window: tuple[float, float], gate_m: float
 ) -> list[tuple[int, int]]:
@@ -210,15 +214,9 @@ def _track_pairs(
     ``asin(window_m / distance)`` off; the blob's own error adds ``asin(gate_m / distance)``. A pair whose rays miss
     their person by more at most instants cannot be one person seen from within the window: its pose (a fit to
     every instant) is not worked out."""
-    # Every (camera blob i, anchor person j) of one instant, blob after blob, each blob's people in their order.
-    order = np.argsort(people.instant, kind="stable")
-    lo = np.searchsorted(people.instant[order], cam.instant, side="left")
-    many = np.searchsorted(people.instant[order], cam.instant, side="right") - lo
-    i = np.repeat(np.arange(cam.n), many)
+    i, j = _at_one_instant(cam.instant, people.instant)
     if i.size == 0:
         return []
-    kth = np.arange(i.size) - np.repeat(np.cumsum(many) - many, many)  # the k-th of its blob's people
-    j = order[np.repeat(lo, many) + kth]
     window_m, window_rad = window
     fits = np.ones(i.size, dtype=bool)
     feet = people.point[j].copy()
