@@ -189,7 +189,7 @@ def _feet_lines_within(r: WorldRays, a: IntArray, b: IntArray, reach: FloatArray
     norm = np.linalg.norm(n, axis=1)
     apart = np.abs(np.einsum("ni,ni->n", r.centre[b] - r.centre[a], n))
     crossing = norm > PARALLEL_SINE
-    within = ~crossing | (apart <= (reach * (1.0 + LINE_SLACK) + LINE_SLACK) * np.where(crossing, norm, 1.0))
+    within = ~crossing | (apart <= (reach * (1.0 + LINE_SLACK) + LINE_SLACK) * norm)
     return np.asarray(within | ~(r.feet_ok[a] & r.feet_ok[b]), dtype=bool)
 
 
