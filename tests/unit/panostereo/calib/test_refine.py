@@ -214,3 +214,32 @@ def test_rounds_associate_only_the_instants_the_adjustment_uses(
         assert moved < 0.05 and math.degrees(turned) < 0.2, (cid, moved, math.degrees(turned))
     for a, b in zip(few.cameras, every.cameras, strict=True):
         assert a.people == pytest.approx(b.people, rel=0.05), (a.sensor_id, a.people, b.people)
+
+
+def test_the_refinement_runs_on_one_blas_thread(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its adjustments' linear algebra runs on one BLAS thread (tall, thin matrices: more threads cost CPU time and
+    save none), and the process's own limit is back afterwards."""
+    from threadpoolctl import threadpool_info
+
+    import panostereo.calib.refine as refine_mod
+    from common.site import load_site
+    from panostereo.calib.observe import from_site
+
+    def blas_threads() -> set[int]:
+        return {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+
+    seen: list[set[int]] = []
+    adjust = refine_mod.adjust
+
+    def watched(*args: object, **kwargs: object) -> object:
+        seen.append(blas_threads())
+        return adjust(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(refine_mod, "adjust", watched)
+    truth = true_cameras()
+    site = write_site_dir(tmp_path / "site", truth, truth, frames=20, seed=7)
+    cams, _ = from_site(load_site(site), None)
+    before = blas_threads()
+    refine_mod.refine(cams, ["cam-a"])
+    assert seen and all(s == {1} for s in seen), seen
+    assert blas_threads() == before
