@@ -166,19 +166,35 @@ def _solve(m: FloatArray, b: FloatArray, prior: HeightPrior) -> FloatArray:
 def _distances(r: WorldRays, rows: IntArray | None, person: FloatArray) -> tuple[FloatArray, BoolArray]:
     """For blobs ``rows`` (None: every blob of ``r``) against persons (same length, or one for all), the larger of
     the foot and head ray distances (m), and whether the person is in front of the camera."""
-    if rows is not None:
-        r = r.take(rows)
+    sel = slice(None) if rows is None else rows
+    centre, foot, head, plane = r.centre[sel], r.foot[sel], r.head[sel], r.head_plane[sel]
     feet = np.array(person, dtype=np.float64)
     feet[..., 2] = 0.0
-    vf = feet - r.centre
-    vh = person - r.centre
-    af = np.einsum("ni,ni->n", vf, r.foot)
-    ah = np.einsum("ni,ni->n", vh, r.head)
-    df = np.linalg.norm(vf - af[:, None] * r.foot, axis=1)
-    dh = off_ray(r.head, r.head_plane, vh)
-    d = np.maximum(np.where(r.feet_ok, df, 0.0), np.where(r.head_ok, dh, 0.0))
+    vf = feet - centre
+    vh = person - centre
+    af = np.einsum("ni,ni->n", vf, foot)
+    ah = np.einsum("ni,ni->n", vh, head)
+    df = np.linalg.norm(vf - af[:, None] * foot, axis=1)
+    dh = off_ray(head, plane, vh)
+    d = np.maximum(np.where(r.feet_ok[sel], df, 0.0), np.where(r.head_ok[sel], dh, 0.0))
     front = (af > 0) & (ah > 0)
     return d, front
+
+
+def _distances_each(r: WorldRays, person: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """:func:`_distances` of every blob of ``r`` from each of the persons (k, 3): (k, n) each."""
+    feet = np.array(person, dtype=np.float64)
+    feet[:, 2] = 0.0
+    vf = feet[:, None, :] - r.centre[None]
+    vh = person[:, None, :] - r.centre[None]
+    af = np.einsum("kni,ni->kn", vf, r.foot)
+    ah = np.einsum("kni,ni->kn", vh, r.head)
+    df = np.linalg.norm(vf - af[:, :, None] * r.foot[None], axis=2)
+    across = np.linalg.norm(vh - ah[:, :, None] * r.head[None], axis=2)
+    on_plane = np.any(r.head_plane != 0.0, axis=1)
+    dh = np.where(on_plane, np.abs(np.einsum("kni,ni->kn", vh, r.head_plane)), across)
+    d = np.maximum(np.where(r.feet_ok, df, 0.0), np.where(r.head_ok, dh, 0.0))
+    return d, (af > 0) & (ah > 0)
 
 
 def _feet_lines_within(r: WorldRays, a: IntArray, b: IntArray, reach: FloatArray) -> BoolArray:
@@ -255,9 +271,8 @@ def _take_best_first(
         if block.size == 0:
             break
         at = int(block[-1]) + 1
-        d, front = _distances(here, np.tile(np.arange(n_here), block.size), np.repeat(people[block], n_here, axis=0))
-        d = d.reshape(block.size, n_here) / gates
-        front = front.reshape(block.size, n_here)
+        d, front = _distances_each(here, people[block])
+        d = d / gates
         for k, c in enumerate(block.tolist()):
             a, b = int(first[c]), int(second[c])
             if used[a] or used[b]:

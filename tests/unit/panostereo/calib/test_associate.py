@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -133,3 +135,23 @@ def test_feet_rays_that_pass_far_apart_are_left_out_and_no_pair_that_fits_is() -
     far = feet + np.column_stack([np.full(k, 3.0), np.zeros(k), np.zeros(k)])
     apart, a, b = pairs(towards(centres[0], feet, 0.0 * feet), towards(centres[1], far, 0.0 * feet))
     assert _feet_lines_within(apart, a, b, np.full(k, 0.2)).mean() < 0.05
+
+
+def test_each_persons_distances_to_every_blob_are_the_pairwise_ones() -> None:
+    """The block's distances, every blob from each person at once, equal those worked out blob by blob (feet rays,
+    head rays and a pinhole box's head plane alike)."""
+    from panostereo.calib.associate import _distances, _distances_each
+
+    parts = [_rays(cid, PEOPLE) for cid in ("cam-a", "cam-b", "cam-c")]
+    r = world_rays([p[0] for p in parts], [p[1] for p in parts])
+    plane = r.head_plane.copy()
+    plane[::2] = np.cross(r.head[::2], [0.0, 0.0, 1.0])  # half the blobs carry a head plane
+    plane[::2] /= np.linalg.norm(plane[::2], axis=1, keepdims=True)
+    feet_ok = np.arange(r.camera.size) % 3 != 0
+    r = dataclasses.replace(r, head_plane=plane, feet_ok=feet_ok)
+    persons = PEOPLE + np.array([0.2, -0.1, 0.05])
+    n = r.camera.size
+    d, front = _distances_each(r, persons)
+    d1, front1 = _distances(r, np.tile(np.arange(n), len(persons)), np.repeat(persons, n, axis=0))
+    np.testing.assert_allclose(d, d1.reshape(len(persons), n), rtol=1e-12, atol=1e-12)
+    assert np.array_equal(front, front1.reshape(len(persons), n))
