@@ -320,13 +320,20 @@ def refuse_second(session: Any, key: str, what: str, wait_s: float) -> None:
     deadline = time.monotonic() + wait_s
     while True:
         try:
-            held = any(r.ok is not None for r in session.liveliness().get(key, timeout=1.0))
+            replies = list(session.liveliness().get(key, timeout=1.0))
         except Exception as err:  # a query the router's access rules deny, a closing session: nothing to see
             logger.debug("liveliness get %s: %s", key, err)
             return
-        if not held:
+        held = any(r.ok is not None for r in replies)
+        # An error reply (the router's answer timed out: a busy host, a link coming back) says nothing of whether
+        # another process holds the token: asked again, never taken for "nobody".
+        unsure = not held and any(r.ok is None for r in replies)
+        if not held and not unsure:
             return
         if time.monotonic() >= deadline:
+            if unsure:
+                logger.warning("could not tell whether %s already runs: the router did not answer for %s", what, key)
+                return
             raise ConfigError(
                 f"{what} already runs in this site: another process holds {key}; give each process its own id "
                 "(or stop the other one)"

@@ -372,3 +372,51 @@ def test_a_session_whose_close_hangs_is_left_closing_and_the_process_goes_on(cap
     finally:
         stuck.release.set()
     wait_for(lambda: stuck.closed, 5.0, "the close to finish in its own thread once released")
+
+
+class _Answers:
+    """A session whose liveliness ``get`` answers from a script: a list of replies per query (the last repeats)."""
+
+    def __init__(self, *answers: list[Any]) -> None:
+        self.answers = list(answers)
+        self.gets = 0
+
+    def liveliness(self) -> _Answers:
+        return self
+
+    def get(self, key: str, timeout: float) -> list[Any]:
+        self.gets += 1
+        return self.answers[min(self.gets, len(self.answers)) - 1]
+
+
+def _token(key: str) -> Any:
+    return argparse.Namespace(ok=argparse.Namespace(key_expr=key), err=None)
+
+
+TIMED_OUT = argparse.Namespace(ok=None, err="Timeout")
+
+
+def test_a_second_process_is_refused_also_when_the_first_answer_timed_out() -> None:
+    """A liveliness reply that errs (the router answered late) is no "nobody holds the id": asked again, the other
+    process's token is there, and the second process is refused."""
+    from common.session import refuse_second
+
+    key = "pano/sensor/cam1"
+    session = _Answers([TIMED_OUT], [_token(key)])
+    with pytest.raises(ConfigError, match="already runs in this site"):
+        refuse_second(session, key, "sensor node cam1", wait_s=0.3)
+    assert session.gets >= 2
+    free = _Answers([TIMED_OUT], [])
+    refuse_second(free, key, "sensor node cam1", wait_s=5.0)  # the whole answer: nobody holds it
+    assert free.gets == 2
+
+
+def test_a_router_that_never_answers_whole_lets_the_process_start_with_a_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from common.session import refuse_second
+
+    session = _Answers([TIMED_OUT])
+    refuse_second(session, "pano/sensor/cam1", "sensor node cam1", wait_s=0.3)
+    assert session.gets >= 2
+    assert "could not tell whether sensor node cam1 already runs" in caplog.text
