@@ -148,9 +148,9 @@ def off_ray(ray: FloatArray, plane: FloatArray, v: FloatArray) -> FloatArray:
     """Per blob, how far a point at ``v`` from the camera is from what the blob says of it (the norm of
     :func:`head_projectors` times ``v``, without building the matrices): across the ray, or off the plane where
     the blob has one (a zero ``plane``: none)."""
-    on_plane = np.any(plane != 0.0, axis=1)
-    across = np.linalg.norm(v - np.einsum("ni,ni->n", v, ray)[:, None] * ray, axis=1)
-    return np.where(on_plane, np.abs(np.einsum("ni,ni->n", v, plane)), across)
+    on_plane = np.any(plane != 0.0, axis=-1)
+    across = np.linalg.norm(v - np.einsum("...i,...i->...", v, ray)[..., None] * ray, axis=-1)
+    return np.where(on_plane, np.abs(np.einsum("...i,...i->...", v, plane)), across)
 
 
 def _solve(m: FloatArray, b: FloatArray, prior: HeightPrior) -> FloatArray:
@@ -167,33 +167,32 @@ def _distances(r: WorldRays, rows: IntArray | None, person: FloatArray) -> tuple
     """For blobs ``rows`` (None: every blob of ``r``) against persons (same length, or one for all), the larger of
     the foot and head ray distances (m), and whether the person is in front of the camera."""
     sel = slice(None) if rows is None else rows
-    centre, foot, head, plane = r.centre[sel], r.foot[sel], r.head[sel], r.head_plane[sel]
-    feet = np.array(person, dtype=np.float64)
-    feet[..., 2] = 0.0
-    vf = feet - centre
-    vh = person - centre
-    af = np.einsum("ni,ni->n", vf, foot)
-    ah = np.einsum("ni,ni->n", vh, head)
-    df = np.linalg.norm(vf - af[:, None] * foot, axis=1)
-    dh = off_ray(head, plane, vh)
-    d = np.maximum(np.where(r.feet_ok[sel], df, 0.0), np.where(r.head_ok[sel], dh, 0.0))
-    front = (af > 0) & (ah > 0)
-    return d, front
+    blobs = (r.centre[sel], r.foot[sel], r.head[sel], r.head_plane[sel], r.feet_ok[sel], r.head_ok[sel])
+    return _off_rays(blobs, np.asarray(person, dtype=np.float64))
 
 
 def _distances_each(r: WorldRays, person: FloatArray) -> tuple[FloatArray, BoolArray]:
     """:func:`_distances` of every blob of ``r`` from each of the persons (k, 3): (k, n) each."""
-    feet = np.array(person, dtype=np.float64)
-    feet[:, 2] = 0.0
-    vf = feet[:, None, :] - r.centre[None]
-    vh = person[:, None, :] - r.centre[None]
-    af = np.einsum("kni,ni->kn", vf, r.foot)
-    ah = np.einsum("kni,ni->kn", vh, r.head)
-    df = np.linalg.norm(vf - af[:, :, None] * r.foot[None], axis=2)
-    across = np.linalg.norm(vh - ah[:, :, None] * r.head[None], axis=2)
-    on_plane = np.any(r.head_plane != 0.0, axis=1)
-    dh = np.where(on_plane, np.abs(np.einsum("kni,ni->kn", vh, r.head_plane)), across)
-    d = np.maximum(np.where(r.feet_ok, df, 0.0), np.where(r.head_ok, dh, 0.0))
+    blobs = (r.centre[None], r.foot[None], r.head[None], r.head_plane[None], r.feet_ok[None], r.head_ok[None])
+    return _off_rays(blobs, np.asarray(person, dtype=np.float64)[:, None, :])
+
+
+def _off_rays(
+    blobs: tuple[FloatArray, FloatArray, FloatArray, FloatArray, BoolArray, BoolArray], person: FloatArray
+) -> tuple[FloatArray, BoolArray]:
+    """The larger of the foot and head ray distances of blobs (centre, foot, head, head plane, feet ok, head ok;
+    each (..., 3) or (...,)) from persons (..., 3), broadcast against each other, and whether each person is in
+    front of the blob's camera."""
+    centre, foot, head, plane, feet_ok, head_ok = blobs
+    feet = person.copy()
+    feet[..., 2] = 0.0
+    vf = feet - centre
+    vh = person - centre
+    af = np.einsum("...i,...i->...", vf, foot)
+    ah = np.einsum("...i,...i->...", vh, head)
+    df = np.linalg.norm(vf - af[..., None] * foot, axis=-1)
+    dh = off_ray(head, plane, vh)
+    d = np.maximum(np.where(feet_ok, df, 0.0), np.where(head_ok, dh, 0.0))
     return d, (af > 0) & (ah > 0)
 
 
