@@ -29,6 +29,7 @@ __all__ = [
     "WorldRays",
     "associate",
     "off_ray",
+    "off_rays",
     "triangulate",
     "world_rays",
 ]
@@ -168,16 +169,16 @@ def _distances(r: WorldRays, rows: IntArray | None, person: FloatArray) -> tuple
     the foot and head ray distances (m), and whether the person is in front of the camera."""
     sel = slice(None) if rows is None else rows
     blobs = (r.centre[sel], r.foot[sel], r.head[sel], r.head_plane[sel], r.feet_ok[sel], r.head_ok[sel])
-    return _off_rays(blobs, np.asarray(person, dtype=np.float64))
+    return off_rays(blobs, np.asarray(person, dtype=np.float64))
 
 
 def _distances_each(r: WorldRays, person: FloatArray) -> tuple[FloatArray, BoolArray]:
     """:func:`_distances` of every blob of ``r`` from each of the persons (k, 3): (k, n) each."""
     blobs = (r.centre[None], r.foot[None], r.head[None], r.head_plane[None], r.feet_ok[None], r.head_ok[None])
-    return _off_rays(blobs, np.asarray(person, dtype=np.float64)[:, None, :])
+    return off_rays(blobs, np.asarray(person, dtype=np.float64)[:, None, :])
 
 
-def _off_rays(
+def off_rays(
     blobs: tuple[FloatArray, FloatArray, FloatArray, FloatArray, BoolArray, BoolArray], person: FloatArray
 ) -> tuple[FloatArray, BoolArray]:
     """The larger of the foot and head ray distances of blobs (centre, foot, head, head plane, feet ok, head ok;

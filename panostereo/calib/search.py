@@ -27,7 +27,7 @@ import numpy as np
 
 from common.arrays import FloatArray, IntArray
 from panostereo.calib.adjust import Tolerance
-from panostereo.calib.associate import HeightPrior, off_ray
+from panostereo.calib.associate import HeightPrior, off_rays
 from panostereo.calib.observe import CameraRays
 from panostereo.calib.poses import CameraPose, pose_change, rotation_z
 
@@ -106,25 +106,19 @@ class _Scorer:
         self.person = people.point[person[scored]]
         self.starts = np.flatnonzero(np.r_[True, np.diff(self.blob) != 0]) if self.blob.size else self.blob
         self.gate_m = gate_m
-        # Each (blob, person) row's two points and what the blob says of them, the same for every pose scored.
-        feet = self.person.copy()
-        feet[:, 2] = 0.0
-        plane = np.zeros((self.blob.size, 3)) if cam.head_plane is None else cam.head_plane[self.blob]
-        self.sides = (
-            (feet, cam.foot[self.blob], np.zeros((self.blob.size, 3)), cam.feet_ok[self.blob]),
-            (self.person, cam.head[self.blob], plane, cam.head_ok[self.blob]),
+        # Each (blob, person) row's rays in the camera's frame, the same for every pose scored.
+        self.rays = (
+            cam.foot[self.blob],
+            cam.head[self.blob],
+            np.zeros((self.blob.size, 3)) if cam.head_plane is None else cam.head_plane[self.blob],
         )
+        self.ok = (cam.feet_ok[self.blob], cam.head_ok[self.blob])
 
     def __call__(self, pose: CameraPose) -> int:
         if self.blob.size == 0:
             return 0
-        d = np.zeros(self.blob.size)
-        front = np.ones(self.blob.size, dtype=bool)
-        for pts, r, plane, ok in self.sides:
-            v = (pts - pose.centre_m) @ pose.rotation.T
-            a = np.einsum("ni,ni->n", v, r)
-            d = np.maximum(d, np.where(ok, off_ray(r, plane, v), 0.0))
-            front &= a > 0
+        foot, head, plane = (r @ pose.rotation for r in self.rays)
+        d, front = off_rays((pose.centre_m, foot, head, plane, *self.ok), self.person)
         d = np.where(front, d, np.inf)
         best = np.minimum.reduceat(d, self.starts)
         return int(np.count_nonzero(best <= self.gate_m))
