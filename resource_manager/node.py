@@ -32,7 +32,8 @@ leads, it publishes as above.
 With a zone floor (``[manager] zone_polygon``, which ``--site`` sets from the site's ``[[zones]]``) a leader publishes
 only the tracks it owns (:mod:`resource_manager.serve.zones`): it hears the other managers' TrackSets on ``tracks``,
 and names the tracks it does not publish after its neighbours' tracks of the same people, so that a person walking
-in from a neighbouring zone keeps the id.
+in from a neighbouring zone keeps the id. Its standby names them so too (:func:`standby_names`): a person who walks
+in while the leader is gone keeps the id when the standby takes over.
 """
 
 from __future__ import annotations
@@ -740,7 +741,7 @@ class ManagerNode:
         if own is None:
             return trackset
         self._others("")
-        names = self.fusion.adopt(own.theirs(self.clock.now_ns()), keep=frozenset(own.owned))
+        names = after_neighbours(self.fusion, own, self.clock.now_ns())
         if names:
             logger.info("zone manager %s: %d tracks named after its neighbours'", self.mid, len(names))
         if trackset is None:
@@ -748,20 +749,17 @@ class ManagerNode:
         return msgspec.structs.replace(trackset, tracks=own.select(trackset.tracks, self.clock.now_ns()))
 
     def _follow(self) -> TrackSet | None:
-        """A standby's tick (the lock held): its tracks take the ids of the leader's newest TrackSet
-        (resource_manager/serve/adopt.py), which is what it keeps as history (and, in a zone with a floor, what it
-        owns when it takes over). None: nothing new from the leader."""
+        """A standby's tick (the lock held): its tracks take the ids of the leader's newest TrackSet and, in a zone
+        with a floor, the others the neighbours' ids (:func:`standby_names`). Returns the leader's newest TrackSet,
+        which is what it keeps as history (and, in a zone, what it owns when it takes over). None: nothing new from
+        the leader."""
         if self.leader_sets is None or self.seat is None:
             return None
         leader = self.seat.leader()
         newest = self._others(leader)
-        if newest is None:
-            return None
-        names = self.fusion.adopt(newest.tracks)
+        names = standby_names(self.fusion, newest, self.ownership, self.clock.now_ns())
         if names:
             logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
-        if self.ownership is not None:
-            self.ownership.owned = {t.track_id for t in newest.tracks}
         return newest
 
     def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:
@@ -863,6 +861,26 @@ class ManagerNode:
         for pub in (self.pub_tracks, self.pub_pairs, self.pub_status):
             pub.close()
         self.log.close()
+
+
+def after_neighbours(fusion: Fusion, own: ZoneOwnership, now_ns: int) -> dict[int, str]:
+    """A zone manager's tracks of people it does not own named after the neighbours' published tracks of them
+    (resource_manager/serve/zones.py): the id a person keeps across a handoff. The owned ones keep theirs."""
+    return fusion.adopt(own.theirs(now_ns), keep=frozenset(own.owned))
+
+
+def standby_names(fusion: Fusion, leader: TrackSet | None, own: ZoneOwnership | None, now_ns: int) -> dict[int, str]:
+    """A standby's renames at one tick: its tracks named after those of its leader's newest TrackSet (``leader``,
+    None: nothing new heard), which the leader owns; in a zone, the others after the neighbours' (as the leader
+    names them, :func:`after_neighbours`), also while no leader is heard. Otherwise a person who crosses into the
+    zone while its leader is gone and before the standby has taken over (a lease) would be published under the
+    standby's own id, not the one the neighbour published them under."""
+    names = fusion.adopt(leader.tracks) if leader is not None else {}
+    if own is None:
+        return names
+    if leader is not None:
+        own.owned = {t.track_id for t in leader.tracks}
+    return names | after_neighbours(fusion, own, now_ns)
 
 
 def _id_order(tid: str) -> tuple[str, int]:

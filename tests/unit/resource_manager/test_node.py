@@ -1,5 +1,6 @@
 """The manager's shell, without a zenoh session (its loopback runs are tests/integration's): a manager's seat in
-its zone reads the zone's seats whole, and a read the router did not answer is not a whole view."""
+its zone reads the zone's seats whole, and a read the router did not answer is not a whole view; a zone's standby
+names its people as the leader does."""
 
 from __future__ import annotations
 
@@ -8,9 +9,18 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from common.area import Area, rectangle
 from common.keys import Keys
+from common.schema import TrackSet
 from common.session import Shutdown, wait_until
-from resource_manager.node import ZoneSeat
+from resource_manager.fusion import Batch, Fusion
+from resource_manager.node import ZoneSeat, standby_names
+from resource_manager.serve.zones import ZoneOwnership
+from tests.unit.common.tracks import published
+from tests.unit.resource_manager.scenario import T0_NS, make_config
+from tests.unit.resource_manager.synth import Cam, Person, features_for, info_for
 
 ZONE = "hall"
 KEYS = Keys()
@@ -99,3 +109,31 @@ def test_a_read_the_router_did_not_answer_does_not_make_a_standby_claim() -> Non
     finally:
         shutdown.set()
         seat.close()
+
+
+def test_a_person_who_walks_into_a_zone_while_its_leader_is_gone_keeps_the_neighbours_id() -> None:
+    """A 10 m room cut along x = 5 m; the west zone's leader is gone (killed, its lease not yet over), its standby
+    fuses the frames. A person walks from the east zone into the west's: the east publishes them as ``east-1``
+    until they are a band past the border. The standby names its track of them after the east's, as a leader
+    would, so when it takes over it publishes them under ``east-1``, not under an id of its own."""
+    band = 1.0
+    cams = [Cam("c1", 0.2, 0.2), Cam("c2", 9.8, 0.2, yaw=3.1), Cam("c3", 9.8, 9.8, yaw=-2.4), Cam("c4", 0.2, 9.8)]
+    infos = [info_for(c) for c in cams]
+    standby = Fusion(make_config("west-b"))
+    west = ZoneOwnership(Area.of(rectangle(0.0, 0.0, 5.0, 10.0)), band)
+    east = ZoneOwnership(Area.of(rectangle(5.0, 0.0, 10.0, 10.0)), band)
+    rng = np.random.default_rng(1)
+    ids = []
+    for tick in range(1, 90):
+        t = tick / 10.0
+        x = 9.0 - 1.0 * t
+        t_ns = T0_NS + int(t * 1e9)
+        frames = [features_for(c, [Person(x, 5.0)], cams, t_ns, tick, rng) for c in cams]
+        standby.absorb(Batch(features=frames, infos=infos))
+        standby.step(t_ns - 100_000_000)
+        theirs = east.select([published("east-1", x, vx=-1.0, t_ns=t_ns, mid="east")], t_ns)
+        west.heard(TrackSet(manager_id="east", seq=tick, stamp_ns=t_ns, tracks=theirs), t_ns)
+        standby_names(standby, None, west, t_ns)
+        if x < 5.0 - band - 0.5:  # the east has let the person go: what the standby would publish on taking over
+            ids.append({tr.track_id for tr in standby.published_tracks()})
+    assert ids and all(got == {"east-1"} for got in ids), ids
