@@ -33,6 +33,7 @@ from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
 from resource_manager.track.observe import TrackTable, score_views, visibility_many
+from resource_manager.track.recall import detector_misses
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import Subset, Views
 
@@ -238,7 +239,8 @@ def _shared_misses(g: _Gains, views: Views, fits: BoolArray) -> FloatArray:
     """(hypothesis,) what turns the views' miss terms, each view's on its own (:attr:`_Gains.misses`), into one per
     multi-view detector (:attr:`Views.shared_detector`): where some of its views have a blob that fits the hypothesis
     (``fits``: (hypothesis, view of ``g.free``)), its other views' misses say nothing; where none does, they are one
-    miss, of the likeliest view's probability."""
+    miss, of the likeliest view's probability (:func:`~.recall.detector_misses`; the tracker counts a track's miss at
+    the detector's learnt recall instead)."""
     out = np.zeros(g.ln_miss.shape[1])
     if not views.shared_groups:
         return out
@@ -246,10 +248,9 @@ def _shared_misses(g: _Gains, views: Views, fits: BoolArray) -> FloatArray:
     fit_all = np.zeros(g.ln_miss.shape, dtype=bool)
     fit_all[g.free.rows] = fits.T
     for rows in views.shared_groups.values():
-        ln_miss, fit = g.ln_miss[rows], fit_all[rows]
-        found = fit.any(axis=0)
-        own = ln_miss.sum(axis=0)
-        out += np.where(found, -np.where(fit, 0.0, ln_miss).sum(axis=0), ln_miss.min(axis=0) - own)
+        fit = fit_all[rows]
+        ln_miss = np.where(fit, 0.0, g.ln_miss[rows])  # a view with a fitting blob counts its gain, not its miss
+        out += detector_misses(ln_miss, fit, g.ln_miss[rows].min(axis=0)).sum(axis=0) - ln_miss.sum(axis=0)
     return out
 
 

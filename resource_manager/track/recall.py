@@ -26,7 +26,7 @@ from resource_manager.track.life import match_returns
 from resource_manager.track.model import TrackModel
 from resource_manager.track.motion import MotionModel, predict
 
-__all__ = ["MAX_RECALL", "MEMORY_S", "PRIOR_S", "SharedRecall"]
+__all__ = ["MAX_RECALL", "MEMORY_S", "PRIOR_S", "SharedRecall", "detector_misses"]
 
 PRIOR_S = 10.0
 """Weight (s of one track's evidence) of the prior: the recall moves off ``p_detect`` once the tracks have shown
@@ -38,6 +38,19 @@ MAX_RECALL = 0.999
 
 Tally = tuple[float, float]
 """(s of ticks counted, s of them at which the detector found the person)."""
+
+
+def detector_misses(ln_miss: FloatArray, got: BoolArray, once: FloatArray) -> FloatArray:
+    """(g, n) the misses of one shared detector's ``g`` views of ``n`` people as that one detector's: ``ln_miss``
+    (g, n) each view's own ln(1 - P_D) of each person where it did not find them (0 where it should not see them),
+    ``got`` (g, n) where a view found them. Where some view found a person, the detector found them, and its other
+    views' misses say nothing (0: its box there went to someone else, or lay outside the gate); where none did, the
+    detector missed them once: ``once`` (n,) on the first view that should see them, 0 on the others."""
+    missed = (ln_miss < 0.0) & ~got
+    cols = np.flatnonzero(~got.any(axis=0) & missed.any(axis=0))
+    out = np.zeros(ln_miss.shape)
+    out[np.argmax(missed, axis=0)[cols], cols] = once[cols]
+    return out
 
 
 class SharedRecall:

@@ -62,7 +62,7 @@ from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
 from resource_manager.track.observe import TrackTable, ViewScores, in_any_view, score_views, visibility_many
-from resource_manager.track.recall import SharedRecall
+from resource_manager.track.recall import SharedRecall, detector_misses
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
 from resource_manager.views.blobs import Views
@@ -382,21 +382,15 @@ class Tracker:
     def _one_miss_per_detector(
         self, delta: FloatArray, sees: BoolArray, got: BoolArray, groups: Mapping[str, IntArray]
     ) -> None:
-        """Count the views of one multi-view detector (``groups``: its name -> its view rows) as that one detector in
-        ``delta`` (s, n), each view's ln likelihood ratio for each track (in place): where some of its views detected
-        the track, the detector found the person, and its other views' misses say nothing (its box there went to
-        someone else, or lay outside the gate); where none did, the detector missed them once: ln(1 - its recall),
-        however many views it has. ``sees``, ``got``: (s, n) which views should see and which detected each track."""
+        """Count the views of each multi-view detector (``groups``: its name -> its view rows) as that one detector in
+        ``delta`` (s, n), each view's ln likelihood ratio for each track (in place, :func:`~.recall.detector_misses`):
+        a track some of its views detected is not missed by the others; one none did is missed once, at ln(1 - its
+        learnt recall). ``sees``, ``got``: (s, n) which views should see and which detected each track."""
         for name, rows in groups.items():
-            missed = sees[rows] & ~got[rows]
-            found: BoolArray = np.asarray(got[rows].any(axis=0), dtype=bool)
-            first = np.argmax(missed, axis=0)  # the whole miss goes on one view: the first that should see the track
-            one = np.zeros(missed.shape, dtype=bool)
-            one[first, np.arange(missed.shape[1])] = ~found & missed.any(axis=0)
-            block = delta[rows]
-            block[missed] = 0.0
-            block[one] = math.log1p(-self.recall.recall(name))
-            delta[rows] = block
+            hit, block = got[rows], delta[rows]
+            once = np.full(block.shape[1], math.log1p(-self.recall.recall(name)))
+            misses = detector_misses(np.where(sees[rows] & ~hit, block, 0.0), hit, once)
+            delta[rows] = np.where(hit, block, misses)
 
     def _sure(self, n: int) -> BoolArray:
         """(n,) which of the first ``n`` tracks surely are someone: published, placed and more likely there than not."""

@@ -7,7 +7,7 @@ import pytest
 
 from resource_manager.track.model import TrackModel
 from resource_manager.track.motion import MotionModel
-from resource_manager.track.recall import MAX_RECALL, PRIOR_S, SharedRecall
+from resource_manager.track.recall import MAX_RECALL, PRIOR_S, SharedRecall, detector_misses
 
 MODEL = TrackModel()
 GROUPS = {"mv": np.array([0, 1])}
@@ -90,3 +90,23 @@ def test_a_camera_with_its_own_detector_learns_nothing_here() -> None:
     rec = SharedRecall(MODEL)
     rec.learn({}, np.ones((2, 1), dtype=bool), np.zeros((2, 1), dtype=bool), sure=SURE, serials=[1], dt_s=0.5)
     assert rec.recall("") == pytest.approx(MODEL.p_detect)
+
+
+def test_a_shared_detectors_views_miss_a_person_once_and_not_at_all_when_one_found_them() -> None:
+    """Three views of one shared detector, four people: found by view 1 (the other views' misses say nothing); found
+    by none while views 0 and 2 should see them (one miss, on view 0); found by none, only view 2 should see them (the
+    miss on view 2); nobody should see them (nothing)."""
+    ln_miss = np.array(
+        [
+            [-2.3, -2.3, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0],
+            [-1.2, -1.2, -0.7, 0.0],
+        ]
+    )
+    got = np.zeros((3, 4), dtype=bool)
+    got[1, 0] = True
+    once = np.array([-5.0, -5.0, -5.0, -5.0])
+    np.testing.assert_array_equal(
+        detector_misses(ln_miss, got, once),
+        [[0.0, -5.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, -5.0, 0.0]],
+    )
