@@ -757,9 +757,11 @@ class ManagerNode:
             return None
         leader = self.seat.leader()
         newest = self._others(leader)
-        names = standby_names(self.fusion, newest, self.ownership, self.clock.now_ns())
+        names, theirs = standby_names(self.fusion, newest, self.ownership, self.clock.now_ns())
         if names:
             logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
+        if theirs:
+            logger.info("standby %s: %d tracks named after its neighbours'", self.mid, len(theirs))
         return newest
 
     def _log_ended(self, ended: list[tuple[Assignment, str]]) -> None:
@@ -869,18 +871,20 @@ def after_neighbours(fusion: Fusion, own: ZoneOwnership, now_ns: int) -> dict[in
     return fusion.adopt(own.theirs(now_ns), keep=frozenset(own.owned))
 
 
-def standby_names(fusion: Fusion, leader: TrackSet | None, own: ZoneOwnership | None, now_ns: int) -> dict[int, str]:
-    """A standby's renames at one tick: its tracks named after those of its leader's newest TrackSet (``leader``,
-    None: nothing new heard), which the leader owns; in a zone, the others after the neighbours' (as the leader
-    names them, :func:`after_neighbours`), also while no leader is heard. Otherwise a person who crosses into the
-    zone while its leader is gone and before the standby has taken over (a lease) would be published under the
-    standby's own id, not the one the neighbour published them under."""
+def standby_names(
+    fusion: Fusion, leader: TrackSet | None, own: ZoneOwnership | None, now_ns: int
+) -> tuple[dict[int, str], dict[int, str]]:
+    """A standby's renames at one tick, serial -> id: its tracks named after those of its leader's newest TrackSet
+    (``leader``, None: nothing new heard), which the leader owns; and, in a zone, the others named after the
+    neighbours' (as the leader names them, :func:`after_neighbours`), also while no leader is heard. Otherwise a
+    person who crosses into the zone while its leader is gone and before the standby has taken over (a lease) would
+    be published under the standby's own id, not the one the neighbour published them under."""
     names = fusion.adopt(leader.tracks) if leader is not None else {}
     if own is None:
-        return names
+        return names, {}
     if leader is not None:
         own.owned = {t.track_id for t in leader.tracks}
-    return names | after_neighbours(fusion, own, now_ns)
+    return names, after_neighbours(fusion, own, now_ns)
 
 
 def _id_order(tid: str) -> tuple[str, int]:
