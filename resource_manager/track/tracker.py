@@ -9,7 +9,8 @@ re-identified and ended.
 3. **Assign, per view**: how well each blob fits each track (:mod:`.observe`) gives one cost; the blobs are
    assigned one to one to tracks, or left to clutter and new people (Hungarian, scipy's ``linear_sum_assignment``).
    Then again, each view against where the other views' assignments put each track
-   (:meth:`~.update.Updater.leave_one_out`): among people close together, the choice the other views agree with.
+   (:meth:`~.update.Updater.leave_one_out`): among people close together, the choice the other views agree with,
+   kept where those second choices agree with themselves (:func:`_consistent`).
 4. **Update** each track with every view assigned to it (:mod:`.update`), its head height, looks and links.
 5. **Births and returns** from the blobs no track explains (:mod:`.births`): a new person next to a track no
    view detected is that track found again; the others start tentative (:mod:`.life`).
@@ -35,6 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_array
+from scipy.sparse.csgraph import connected_components
 
 from common.arrays import BoolArray, FloatArray, IntArray
 from common.schema import Method, PairEntry, TrackState
@@ -61,7 +64,14 @@ from resource_manager.track.life import (
 from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
-from resource_manager.track.observe import TrackTable, ViewScores, in_any_view, score_views, visibility_many
+from resource_manager.track.observe import (
+    TrackTable,
+    ViewScores,
+    Visibility,
+    in_any_view,
+    score_views,
+    visibility_many,
+)
 from resource_manager.track.recall import SharedRecall, detector_misses
 from resource_manager.track.state import TrackRecord
 from resource_manager.track.update import Assigned, Tick, Updater
@@ -273,17 +283,9 @@ class Tracker:
         # together is the one that agrees with the other views (their first choices), not only with the motion.
         # Existence (step 6) reads the first scoring: against the others' place, a view's fit would count their
         # evidence again.
-        xy, cov = self.updater.leave_one_out(self.filter, assigned, tick)
-        again = score_views(
-            views,
-            views.every(),
-            self.tracks,
-            TrackTable(xy, cov, table.height, table.height_var),
-            vis,
-            model=self.model,
-            max_range_m=self.scene.max_range_m,
+        assigned = _consistent(
+            assigned, lambda got, rows: self._against_others(got, tick, table, vis, rows), sids, claim
         )
-        assigned = _assign_views(sids, again, claim)
         # 4. Update.
         predicted = self.filter.x.copy(), self.filter.p.copy()
         updated = self.updater.update(self.filter, self.tracks, assigned, tick, t_ns)
@@ -313,6 +315,22 @@ class Tracker:
         out.ended = self._prune(t_ns, coverage, out.merged)
         out.reidentified = self._confirm(t_ns)
         return out
+
+    def _against_others(
+        self, assigned: list[list[Assigned]], tick: Tick, table: TrackTable, vis: Visibility, rows: IntArray | None
+    ) -> list[ViewScores]:
+        """Each view's blobs against where the other views' ``assigned`` blobs put each track (only the tracks of
+        filter ``rows``, in that order, if given)."""
+        xy, cov = self.updater.leave_one_out(self.filter, assigned, tick)
+        tracks = self.tracks
+        others = TrackTable(xy, cov, table.height, table.height_var)
+        if rows is not None:
+            tracks = [tracks[i] for i in rows.tolist()]
+            others = TrackTable(xy[:, rows], cov[:, rows], table.height[rows], table.height_var[rows])
+            vis = Visibility(*(part[:, rows] for part in vis))
+        return score_views(
+            tick.views, tick.views.every(), tracks, others, vis, model=self.model, max_range_m=self.scene.max_range_m
+        )
 
     def _claims(self) -> FloatArray:
         """(n,) how surely each track is someone, as the assignment weighs its claim to a blob: a tentative track
@@ -741,6 +759,51 @@ def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], claim: FloatA
         for i, j in _assign(sc, claim):
             out[i].append(Assigned(sid, j))
     return out
+
+
+def _consistent(
+    first: list[list[Assigned]],
+    against_others: Callable[[list[list[Assigned]], IntArray | None], list[ViewScores]],
+    sids: tuple[str, ...],
+    claim: FloatArray,
+) -> list[list[Assigned]]:
+    """The second pass: each view's blobs assigned again against where the other views' ``first`` choices put each
+    track (``against_others``), where the new choices agree with themselves; else the first choices.
+
+    Each view's second choice relies on the *first* choices of the other views. Where several views change their
+    minds about the same people at once, each relies on a choice another no longer makes: two cameras at the two
+    ends of one line of sight through two people, each seeing only the nearer one, each give their blob to the
+    other camera's track, and the tracks swap. So the tracks whose blobs changed are grouped (the tracks one view's
+    change touches, one group), and each group keeps the pass whose choices fit each other better: the sum, over
+    each track's blobs, of the blob's gain against where that pass's other blobs of the track put it
+    (``against_others``), the pseudo-likelihood of each pass's assignment.
+    """
+    again = against_others(first, None)
+    second = _assign_views(sids, again, claim)
+    n = len(first)
+    before = [{a.sensor_id: a.blob for a in got} for got in first]
+    after = [{a.sensor_id: a.blob for a in got} for got in second]
+    links: list[tuple[int, int]] = []
+    touched: set[int] = set()
+    for sid in sids:
+        moved = [i for i in range(n) if before[i].get(sid) != after[i].get(sid)]
+        touched.update(moved)
+        links += [(moved[0], i) for i in moved]
+    if not touched:
+        return second
+    a, b = np.array(links, dtype=np.int64).T
+    _, group = connected_components(coo_array((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    view = {sid: v for v, sid in enumerate(sids)}
+    rows = np.array(sorted(touched), dtype=np.int64)
+    # Only the touched tracks' places and scores are needed again.
+    gain_first = [sc.gain_claimed(claim)[rows] for sc in again]
+    alone = [got if i in touched else [] for i, got in enumerate(second)]
+    gain_second = [sc.gain_claimed(claim[rows]) for sc in against_others(alone, rows)]
+    fit = np.zeros((2, n))  # each group's fit under the first and under the second choices (-inf: a blob off)
+    for k, i in enumerate(rows.tolist()):
+        fit[0, group[i]] += sum(float(gain_first[view[s]][k, j]) for s, j in before[i].items())
+        fit[1, group[i]] += sum(float(gain_second[view[s]][k, j]) for s, j in after[i].items())
+    return [second[i] if i not in touched or fit[1, group[i]] > fit[0, group[i]] else first[i] for i in range(n)]
 
 
 def _assign(scores: ViewScores, claim: FloatArray) -> list[tuple[int, int]]:
