@@ -13,10 +13,11 @@ What the strong multi-view trackers do to keep one id per person, as pure functi
   followed twice only if the views, since the two came close, make one person likelier than two (two people give
   the views that see both two blobs, one person one) for ``evidence_time_s`` (both published: for ``apart_time_s``
   once the views have shown them as two people); the one reported now keeps its id (else the older).
-* **Re-identification** (:class:`Graveyard`): a confirmed track that ended inside the area, not through an exit,
-  is remembered for ``reid_window_s``; a newly confirmed track that appeared where that person could have walked
-  since (``max_speed_mps``) and whose height and colour looks agree takes the old id (one assignment over all
-  such pairs).
+* **Re-identification** (:class:`Graveyard`): a confirmed track that ended inside the area, not through an exit
+  (lost, or taken for another's person followed twice: two people no view shows apart are one track until they
+  part), is remembered for ``reid_window_s``; a newly confirmed track that appeared where that person could have
+  walked since (``max_speed_mps``) and whose height and colour looks agree takes the old id (one assignment over
+  all such pairs).
 """
 
 from __future__ import annotations

@@ -117,7 +117,8 @@ class TrackModel(ConfigStruct, frozen=True):
     onto one spot by a moment's wrong blobs must not be merged into one), while one person followed twice stays so.
     Longer keeps more such pairs apart and publishes a person followed twice longer."""
     reid_window_s: NonNeg = 10.0
-    """A confirmed track that ended inside the area (not through an exit) is remembered this long: a new person
+    """A confirmed track that ended inside the area (not through an exit), lost or taken for another track's
+    person followed twice, is remembered this long: a new person
     who appears where it could have walked since, and whose height and colours agree, takes its id back (0: no
     re-identification)."""
     colour_sigma: Pos = 0.15

@@ -603,7 +603,8 @@ class Tracker:
         """End the tracks whose existence is gone, whose position is lost, whose height is no person's, whose
         person left the area, or that follow another track's person (the one reported now keeps its id, else the
         older). Confirmed tracks that ended inside the area, not at an exit, are remembered for
-        re-identification."""
+        re-identification, those taken for another's person followed twice too: two people whom every view showed
+        as one blob for a while are one track until they part, and the one who walks off is a lost person back."""
         m, f = self.model, self.filter
         if not self.tracks:
             return []
@@ -632,7 +633,7 @@ class Tracker:
                 self.recall.ended(tr.serial, f.x[i], f.p[i], t_ns)
             if tr.track_id:
                 ended.append(tr.track_id)
-                if lost and not exits[i] and m.reid_window_s > 0:
+                if (lost or twice is not None) and not exits[i] and m.reid_window_s > 0:
                     self.graveyard.remember(self._lost(i, t_ns))
         keep.sort()
         self.tracks = [self.tracks[i] for i in keep]

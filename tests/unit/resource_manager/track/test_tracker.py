@@ -225,6 +225,53 @@ def test_a_person_missed_by_every_camera_for_4_s_comes_back_with_the_old_id() ->
     assert len(before) == 1 and set(after) == set(before), (before, after)
 
 
+def _one_blob(t0_s: float, t1_s: float):  # type: ignore[no-untyped-def]
+    """A ``deliver`` hook: between ``t0_s`` and ``t1_s`` every view shows people 0 and 1 as one blob spanning both
+    (a detector's box around two people standing together)."""
+
+    def union(a: Blob, b: Blob) -> Blob:
+        b_at = a.bearing_rad + wrap_angle(b.bearing_rad - a.bearing_rad)
+        lo = min(a.bearing_rad - a.width_rad / 2, b_at - b.width_rad / 2)
+        hi = max(a.bearing_rad + a.width_rad / 2, b_at + b.width_rad / 2)
+        u0, u1 = min(a.bbox_u_px, b.bbox_u_px), max(a.bbox_u_px + a.bbox_w_px, b.bbox_u_px + b.bbox_w_px)
+        return msgspec.structs.replace(
+            a, bearing_rad=wrap_angle((lo + hi) / 2), width_rad=hi - lo, bbox_u_px=u0, bbox_w_px=u1 - u0,
+            top_elev_rad=max(a.top_elev_rad, b.top_elev_rad), bottom_elev_rad=min(a.bottom_elev_rad, b.bottom_elev_rad),
+        )  # fmt: skip
+
+    def deliver(batch: list[Features], rng: np.random.Generator) -> list[Features]:
+        out = []
+        for f in batch:
+            by_id = {b.local_id: b for b in f.blobs}
+            together = t0_s <= (f.stamp_ns - T0) / 1e9 < t1_s and {0, 1} <= set(by_id)
+            rest = [b for b in f.blobs if b.local_id > 1]
+            out.append(msgspec.structs.replace(f, blobs=[*rest, union(by_id[0], by_id[1])]) if together else f)
+        return out
+
+    return deliver
+
+
+def test_two_people_every_camera_saw_as_one_blob_for_5_s_keep_their_ids_when_they_part() -> None:
+    """B walks up to A and stands 0.3 m beside them; for 5 s every camera boxes the two as one (their tracks become
+    one), then B walks back the way they came: each has their own id again (B's back: they are a head taller)."""
+
+    def b_at(t: float) -> tuple[float, float]:
+        come, go = min(max((t - 1.0) / 2.0, 0.0), 1.0), min(max((t - 8.0) / 2.0, 0.0), 1.0)
+        return (6.5 - 2.2 * come + 2.2 * go, 3.0)
+
+    def people(t: float) -> list[Person]:
+        return [Person(4.0, 3.0, 1.6), Person(*b_at(t), 1.9)]
+
+    run = run_scenario(SQUARE, people, duration_s=14.0, seed=14, deliver=_one_blob(3.0, 8.0), keep_results=True,
+                       config=_with_area(ROOM))  # fmt: skip
+    a_ids = _near(run, lambda t: (4.0, 3.0), 0.5, 3.0, radius_m=0.3)
+    b_ids = _near(run, b_at, 0.5, 3.0, radius_m=0.3)
+    a_after = _near(run, lambda t: (4.0, 3.0), 10.5, 14.0, radius_m=0.3)
+    b_after = _near(run, b_at, 10.5, 14.0)
+    assert [a_ids.most_common(1)[0][0], b_ids.most_common(1)[0][0]] == [next(iter(a_after)), next(iter(b_after))]
+    assert len(a_after) == len(b_after) == 1, (a_ids, b_ids, a_after, b_after)
+
+
 def test_someone_leaving_by_the_door_and_someone_entering_there_get_different_ids() -> None:
     """A walks out through the door on the wall y = 0 (an exit of the area) and is gone; 2 s later B comes in there:
     B is a new person, not A back."""
