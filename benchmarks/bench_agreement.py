@@ -45,10 +45,15 @@ if str(REPO) not in sys.path:
 from benchmarks.bench_calib import add_set_arguments, chosen_sets, import_set, site_cameras  # noqa: E402
 from common.site import load_site  # noqa: E402
 from panostereo.calib.site_out import write_refined_site  # noqa: E402
-from panostereo.datasets.play import DatasetCamera, load_cameras, play, site_manager_config  # noqa: E402
+from panostereo.datasets.play import (  # noqa: E402
+    AgreementTally,
+    DatasetCamera,
+    load_cameras,
+    play,
+    site_manager_config,
+)
 from resource_manager.config import ManagerConfig  # noqa: E402
-from resource_manager.fusion import TickResult  # noqa: E402
-from resource_manager.poses.agreement import Agreement  # noqa: E402
+from resource_manager.poses.agreement import AgreementParams  # noqa: E402
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,38 +94,19 @@ def flagged(site: Played, bumped: DatasetCamera | None = None) -> dict[str, Any]
             for c in cameras
         ]
         infos_at = [(bump_ns, bumped.info)]
-    check = Agreement()
-    window_ns = int(check.params.window_s * 1e9)
-    first_ns: int | None = None
-    before: dict[str, list[int]] = {}
-    after: dict[str, list[int]] = {}
+    window_ns = int(AgreementParams().window_s * 1e9)
 
-    def on_tick(t_ns: int, result: TickResult) -> None:
-        nonlocal first_ns
-        check.update(t_ns, result.views, result.people)
-        first_ns = t_ns if first_ns is None else first_ns
-        if t_ns - first_ns < window_ns:
-            return
+    def bucket(t_ns: int) -> str | None:
         if bump_ns is None or t_ns < bump_ns:
-            counts = before
-        elif t_ns >= bump_ns + window_ns:
-            counts = after
-        else:
-            return
-        for a in check.report():
-            c = counts.setdefault(a.sensor_id, [0, 0])
-            c[0] += int(a.disagrees)
-            c[1] += 1
+            return "before"
+        return "after" if t_ns >= bump_ns + window_ns else None
 
-    play(cameras, site.config, on_tick=on_tick, infos_at=infos_at)
-
-    def shares(counts: dict[str, list[int]]) -> dict[str, float]:
-        return {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(counts.items())}
-
-    report = check.report()
+    tally = AgreementTally(bucket=bucket)
+    play(cameras, site.config, on_tick=tally.on_tick, infos_at=infos_at)
+    report = tally.check.report()
     return {
-        "flagged": shares(before),
-        "flagged_after": shares(after),
+        "flagged": tally.shares("before"),
+        "flagged_after": tally.shares("after"),
         "residual_m": {a.sensor_id: round(a.residual_m, 3) for a in report},
         "settled_m": {a.sensor_id: None if a.settled_m is None else round(a.settled_m, 3) for a in report},
     }

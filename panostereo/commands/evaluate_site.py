@@ -3,7 +3,8 @@
 Plays the site's detection files through the manager's own ``Fusion`` with no wall clock and no zenoh
 (:mod:`panostereo.datasets.play`): deterministic, and seconds where the live network takes the dataset's
 duration. Prints CLEAR-MOT (MOTA, MOTP, false positives, misses, ID switches), IDF1, and the mean and p90 error,
-at 0.5 m and 1.0 m (``--threshold`` to choose), scored on every ground-truth frame from the first.
+at 0.5 m and 1.0 m (``--threshold`` to choose), scored on every ground-truth frame from the first, and how often
+each camera disagreed with the others over the run (the live manager's calibration check).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
 from common.cli import positive
 from panostereo.datasets.play import evaluate_site
@@ -78,9 +80,26 @@ def run(args: argparse.Namespace) -> int:
         print(f"multi-view detector {name!r}: recall learnt {recall:.3f}")
     if report.get("tracks_ended_inside") is not None:
         print(f"tracks that ended inside the area, away from its exits: {report['tracks_ended_inside']}")
+    _agreement(report.get("agreement", []))
     if "plot" in report:
         print(f"plot: {report['plot']}")
     return 0
+
+
+def _agreement(rows: list[dict[str, Any]]) -> None:
+    """The cameras' agreement check over the run, as the live manager reports it (ManagerStatus.agreement)."""
+    if not rows:
+        return
+    off = [r for r in rows if r["disagreed_share"] > 0]
+    if not off:
+        lo, hi = min(r["residual_m"] for r in rows), max(r["residual_m"] for r in rows)
+        print(f"calibration check: every camera agrees with the others (median residuals {lo:.2f}-{hi:.2f} m)")
+        return
+    said = ", ".join(f"{r['sensor_id']} at {100 * r['disagreed_share']:.0f} % (median residual {r['residual_m']:.2f} m)"
+                     for r in off)  # fmt: skip
+    print(f"calibration check: cameras whose blobs disagreed with the others' people, share of instants: {said}")
+    print("  a camera that disagrees often is likely off its calibration: `panostereo calib refine` (README: "
+          "Calibrating a site) finds its pose from these people")  # fmt: skip
 
 
 def _table(scores: list[dict[str, float]]) -> None:

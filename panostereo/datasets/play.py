@@ -39,6 +39,7 @@ from common.schema import Features, SensorInfo, TrackSet
 from common.site import SiteConfig, load_site
 from resource_manager.config import MAX_PUBLISH_LAG_S, ManagerConfig, for_site, load_manager_config
 from resource_manager.fusion import Batch, Fusion, TickResult
+from resource_manager.poses.agreement import Agreement
 from sensor_node.build import DetectionProcessor, build_node, sensor_info
 from sensor_node.config import DetectionsSource, load_node_config
 from sensor_node.detections import DetectionFrames
@@ -171,6 +172,46 @@ def play(
     return run
 
 
+@dataclass
+class AgreementTally:
+    """The live manager's check that each camera agrees with the others (:mod:`resource_manager.poses.agreement`,
+    ``ManagerStatus.agreement``) over a played run: per camera, at how many instants it disagreed and its residual
+    then, from the check's first full window on. ``bucket``: which tally an instant counts in (None: none)."""
+
+    bucket: Callable[[int], str | None] = lambda t_ns: "run"
+    check: Agreement = field(default_factory=Agreement)
+    first_ns: int | None = None
+    counts: dict[str, dict[str, list[int]]] = field(default_factory=dict)
+    """bucket -> sensor id -> [instants it disagreed, instants checked]."""
+    residuals: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    """bucket -> sensor id -> its residual (m) at each instant checked."""
+
+    def on_tick(self, t_ns: int, result: TickResult) -> None:
+        self.check.update(t_ns, result.views, result.people)
+        self.first_ns = t_ns if self.first_ns is None else self.first_ns
+        name = self.bucket(t_ns)
+        if t_ns - self.first_ns < self.check.params.window_s * 1e9 or name is None:
+            return
+        for a in self.check.report():
+            c = self.counts.setdefault(name, {}).setdefault(a.sensor_id, [0, 0])
+            c[0] += int(a.disagrees)
+            c[1] += 1
+            self.residuals.setdefault(name, {}).setdefault(a.sensor_id, []).append(a.residual_m)
+
+    def shares(self, name: str = "run") -> dict[str, float]:
+        """Per camera, the share of the instants checked at which it disagreed."""
+        return {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(self.counts.get(name, {}).items())}
+
+    def summary(self, name: str = "run") -> list[dict[str, Any]]:
+        """Per camera, the most often disagreeing first: ``disagreed_share`` and the median ``residual_m``."""
+        res = self.residuals.get(name, {})
+        rows = [
+            {"sensor_id": sid, "disagreed_share": share, "residual_m": round(float(np.median(res[sid])), 3)}
+            for sid, share in self.shares(name).items()
+        ]
+        return sorted(rows, key=lambda r: (-r["disagreed_share"], -r["residual_m"]))
+
+
 def site_manager_config(site: SiteConfig, given: str | Path | None) -> ManagerConfig:
     """The site's manager config (or ``given``) as the manager of this site: its sensors, its area."""
     if given:
@@ -191,7 +232,8 @@ def evaluate_site(
     """Play a dataset site in dataset time and score it at each threshold.
 
     ``publish_lag_s`` (default: the manager config's): with a lag, the tracks published that late are scored, and
-    the live ones (no lag) beside them, under ``live``.
+    the live ones (no lag) beside them, under ``live``. ``agreement``: how often each camera's blobs disagreed
+    with where the others put the people (:class:`AgreementTally`): a camera off its calibration.
 
     Returns:
         (a JSON-ready report, the run).
@@ -217,7 +259,8 @@ def evaluate_site(
     began = time.perf_counter()
     cameras = load_cameras(site)
     loaded = time.perf_counter()
-    run = play(cameras, config)
+    tally = AgreementTally()
+    run = play(cameras, config, on_tick=tally.on_tick)
     run.infos = [c.info for c in cameras]
     played = time.perf_counter()
     gt = read_gt_csv(gt_path)
@@ -230,6 +273,7 @@ def evaluate_site(
             "seconds": {"load": round(loaded - began, 3), "play": round(played - loaded, 3)},
             "tick_ms_mean": round(sum(run.tick_ms) / len(run.tick_ms), 3) if run.tick_ms else None,
             "shared_detector_recall": {name: round(r, 4) for name, r in run.shared_recall.items()},
+            "agreement": tally.summary(),
         }
     )
     if config.manager.publish_lag_s > 0:

@@ -3,6 +3,7 @@ frame, a one-camera false box is no person, the scored area is where the ground 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -11,7 +12,7 @@ from common.area import rectangle
 from common.errors import ConfigError
 from panostereo.datasets.mot import import_mot
 from panostereo.datasets.play import evaluate_site
-from tests.unit.panostereo.mot_synth import write_dataset
+from tests.unit.panostereo.mot_synth import look_at, write_dataset
 from user_agent.evaluate import within_area
 from user_agent.groundtruth import read_gt_csv
 
@@ -70,3 +71,18 @@ def test_a_multi_view_detector_that_misses_everyone_for_a_frame_loses_nobody(mad
     assert own["scores"][0]["track_ids"] > 3 and own["shared_detector_recall"] == {}
     assert shared["scores"][0]["track_ids"] == 3 and shared["scores"][0]["id_switches"] == 0
     assert 0.8 < shared["shared_detector_recall"]["drawn"] < 0.95  # it missed everyone in 3 of 30 frames
+
+
+def test_a_camera_off_its_calibration_is_named_by_the_agreement_check(tmp_path: Path) -> None:
+    """16 s of three people seen by three cameras: with every calibration right, every camera agrees; with the east
+    camera's calibration saying it stands 1 m along its wall from where its boxes were taken (looking the same way),
+    the east camera disagrees, all the time."""
+    write_dataset(tmp_path / "data", frames=80)
+    right, _ = evaluate_site(import_mot(tmp_path / "data", tmp_path / "right", fps=5.0).site)
+    assert {r["sensor_id"] for r in right["agreement"]} == {"north", "east", "southwest"}
+    assert all(r["disagreed_share"] == 0.0 and r["residual_m"] < 0.2 for r in right["agreement"]), right["agreement"]
+    (tmp_path / "data" / "calib" / "east.json").write_text(json.dumps(look_at(14.0, 6.0, 3.0, (5.0, 6.0))))
+    off, _ = evaluate_site(import_mot(tmp_path / "data", tmp_path / "off", fps=5.0).site)
+    worst = off["agreement"][0]
+    assert worst["sensor_id"] == "east", off["agreement"]
+    assert worst["disagreed_share"] > 0.5 and worst["residual_m"] > 0.3, off["agreement"]
