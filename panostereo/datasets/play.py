@@ -181,10 +181,8 @@ class AgreementTally:
     bucket: Callable[[int], str | None] = lambda t_ns: "run"
     check: Agreement = field(default_factory=Agreement)
     first_ns: int | None = None
-    counts: dict[str, dict[str, list[int]]] = field(default_factory=dict)
-    """bucket -> sensor id -> [instants it disagreed, instants checked]."""
-    residuals: dict[str, dict[str, list[float]]] = field(default_factory=dict)
-    """bucket -> sensor id -> its residual (m) at each instant checked."""
+    checked: dict[str, dict[str, list[tuple[bool, float]]]] = field(default_factory=dict)
+    """bucket -> sensor id -> (whether it disagreed, its residual in m) at each instant checked."""
 
     def on_tick(self, t_ns: int, result: TickResult) -> None:
         self.check.update(t_ns, result.views, result.people)
@@ -193,20 +191,22 @@ class AgreementTally:
         if t_ns - self.first_ns < self.check.params.window_s * 1e9 or name is None:
             return
         for a in self.check.report():
-            c = self.counts.setdefault(name, {}).setdefault(a.sensor_id, [0, 0])
-            c[0] += int(a.disagrees)
-            c[1] += 1
-            self.residuals.setdefault(name, {}).setdefault(a.sensor_id, []).append(a.residual_m)
+            self.checked.setdefault(name, {}).setdefault(a.sensor_id, []).append((a.disagrees, a.residual_m))
 
     def shares(self, name: str = "run") -> dict[str, float]:
         """Per camera, the share of the instants checked at which it disagreed."""
-        return {sid: round(n / max(total, 1), 3) for sid, (n, total) in sorted(self.counts.get(name, {}).items())}
+        got = self.checked.get(name, {})
+        return {sid: round(sum(d for d, _ in got[sid]) / len(got[sid]), 3) for sid in sorted(got)}
 
     def summary(self, name: str = "run") -> list[dict[str, Any]]:
         """Per camera, the most often disagreeing first: ``disagreed_share`` and the median ``residual_m``."""
-        res = self.residuals.get(name, {})
+        got = self.checked.get(name, {})
         rows = [
-            {"sensor_id": sid, "disagreed_share": share, "residual_m": round(float(np.median(res[sid])), 3)}
+            {
+                "sensor_id": sid,
+                "disagreed_share": share,
+                "residual_m": round(float(np.median([r for _, r in got[sid]])), 3),
+            }
             for sid, share in self.shares(name).items()
         ]
         return sorted(rows, key=lambda r: (-r["disagreed_share"], -r["residual_m"]))
