@@ -118,9 +118,8 @@ class TrackModel(ConfigStruct, frozen=True):
     Longer keeps more such pairs apart and publishes a person followed twice longer."""
     reid_window_s: NonNeg = 10.0
     """A confirmed track that ended inside the area (not through an exit), lost or taken for another track's
-    person followed twice, is remembered this long: a new person
-    who appears where it could have walked since, and whose height and colours agree, takes its id back (0: no
-    re-identification)."""
+    person followed twice, is remembered this long: a new person who appears where it could have walked since, and
+    whose height and colours agree, takes its id back (0: no re-identification)."""
     colour_sigma: Pos = 0.15
     """Spread of the Bhattacharyya distance between a person's blobs and their look in one view."""
     look_time_s: Pos = 2.0
