@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from common.arrays import FloatArray, IntArray
 from resource_manager.track.lines import size_ratio_lines
-from resource_manager.track.motion import MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
+from resource_manager.track.motion import IEKF_ITERATIONS, MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
 from resource_manager.track.observe import bearing_var, cut_bearing, feet_ln
 from resource_manager.views.blobs import Views
 
@@ -80,6 +80,7 @@ def fuse(
     outlier: tuple[float, float],
     width_rel_sigma: float,
     line_views: int,
+    iterations: int = IEKF_ITERATIONS,
     feet_cut: FloatArray | None = None,
     cut_reach_m: FloatArray | None = None,
     cover_near_m: FloatArray | None = None,
@@ -92,6 +93,7 @@ def fuse(
         outlier: (probability, scale) of the observations' outlier component.
         width_rel_sigma: the relative width error of the size-ratio method.
         line_views: the size-ratio pairs are taken among each track's first this many views (0: none).
+        iterations: at most this many Gauss-Newton steps of the update (:func:`.motion.update_many`).
         feet_cut: (s, k) probability that view ``s``'s box of track ``k`` ends above the feet (someone nearer or a
             camera's body hides them: :func:`.observe.feet_cut_prob`); None: ``outlier``'s alone.
         cut_reach_m: (s, k) the farthest floor distance such a cut box can read
@@ -145,7 +147,7 @@ def fuse(
             width_rel_sigma,
         )
     batch = ObservationBatch.padded(slots.per_slot(obs), slots.used(), line_rows, line_valid)
-    return update_many(xs, ps, batch, outlier)
+    return update_many(xs, ps, batch, outlier, iterations)
 
 
 def fuse_heights(

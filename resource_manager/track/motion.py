@@ -281,10 +281,16 @@ def update(
 
 
 def update_many(
-    x: FloatArray, p: FloatArray, batch: ObservationBatch, outlier: tuple[float, float] | None = None
+    x: FloatArray,
+    p: FloatArray,
+    batch: ObservationBatch,
+    outlier: tuple[float, float] | None = None,
+    iterations: int = IEKF_ITERATIONS,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`update` of many tracks at once: states ``x`` (k, 4), covariances ``p`` (k, 4, 4), each track with
     its row of ``batch``.
+
+    ``iterations``: at most this many Gauss-Newton steps (the first is the plain EKF update).
 
     The steps are taken in information form (the measurement noise is diagonal and the state has four
     dimensions): each is a 4x4 solve per track whatever the number of views. Each track stops iterating once its
@@ -311,7 +317,7 @@ def update_many(
     xi = x.copy()
     p_new = p
     active = np.ones(k, dtype=bool)
-    for _ in range(IEKF_ITERATIONS):
+    for _ in range(iterations):
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
         w = np.concatenate([resp, resp], axis=1) * rows.info
         w_line = resp_line * info_line
