@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from common.arrays import BoolArray, FloatArray, IntArray
-from resource_manager.track.fuse import Slots, fuse, fuse_heights
+from resource_manager.track.fuse import Slots, fuse, fuse_heights, fuse_without_each
 from resource_manager.track.motion import MotionModel, predict_many
 from resource_manager.track.observe import TrackTable
 from resource_manager.views.blobs import Views
@@ -149,6 +149,13 @@ class TrackFilter:
         """What :meth:`fuse` would make of ``rows`` (a row may come more than once, with other blobs), without
         keeping it: (states (k, 4), covariances (k, 4, 4), the weight (k, w) of each one's blobs)."""
         return fuse(self.x[rows], self.p[rows], Slots.of(assigned, views), views, **options)
+
+    def fused_without_each(
+        self, rows: IntArray, slots: Slots, views: Views, **options: Any
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """What :meth:`fused` would make of ``rows`` with the blobs of their ``slots``, and of each without each of
+        its blobs in turn (:func:`.fuse.fuse_without_each`), without keeping it."""
+        return fuse_without_each(self.x[rows], self.p[rows], slots, views, **options)
 
     def fix(self, row: int, xy: FloatArray, cov: FloatArray) -> None:
         """Linear Kalman update of ``row`` with a floor position (the paper mode's pair fix)."""

@@ -5,7 +5,8 @@ index arrays (:class:`Slots`: one slot per view of each track, in order of senso
 once per tick on arrays rather than once per track and view:
 
 * :func:`fuse`: the iterated EKF of :mod:`.motion` with each view's bearing and, where the camera sees the feet,
-  its floor distance, and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`);
+  its floor distance, and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`), all
+  gathered by :func:`observations`; :func:`fuse_without_each`, the same and each track without each view;
 * :func:`fuse_heights`: the head-top heights the views imply at each track's updated distance (scalar Kalman
   updates, view after view).
 
@@ -17,18 +18,24 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
 from common.arrays import FloatArray, IntArray
 from resource_manager.track.lines import size_ratio_lines
-from resource_manager.track.motion import IEKF_ITERATIONS, MIN_RANGE_M, ObservationBatch, quadratic_form, update_many
+from resource_manager.track.motion import (
+    MIN_RANGE_M,
+    ObservationBatch,
+    quadratic_form,
+    update_many,
+    update_without_each,
+)
 from resource_manager.track.observe import bearing_var, cut_bearing, feet_ln
 from resource_manager.views.blobs import Views
 
-__all__ = ["Slots", "fuse", "fuse_heights"]
+__all__ = ["Slots", "fuse", "fuse_heights", "fuse_without_each", "observations"]
 
 _Scalar = TypeVar("_Scalar", bound=np.generic)
 HALF = 0.5
@@ -76,16 +83,50 @@ def fuse(
     slots: Slots,
     views: Views,
     *,
+    outlier: tuple[float, float],
+    **options: Any,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``
+    (:func:`observations`, with ``options``; :func:`.motion.update_many`).
+
+    Returns:
+        (x, P, the weight (k, w) of each slot's blob: low for an outlier).
+    """
+    batch = observations(xs, ps, slots, views, outlier=outlier, **options)
+    return update_many(xs, ps, batch, outlier)
+
+
+def fuse_without_each(
+    xs: FloatArray,
+    ps: FloatArray,
+    slots: Slots,
+    views: Views,
+    *,
+    outlier: tuple[float, float],
+    **options: Any,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`fuse`, and each track without each of its slots' blobs in turn (:func:`.motion.update_without_each`):
+    (x (k, 4), P (k, 4, 4); x (k, w, 4), P (k, w, 4, 4) without slot w)."""
+    batch = observations(xs, ps, slots, views, outlier=outlier, **options)
+    return update_without_each(xs, ps, batch, outlier)
+
+
+def observations(
+    xs: FloatArray,
+    ps: FloatArray,
+    slots: Slots,
+    views: Views,
+    *,
     position_weight: FloatArray,
     outlier: tuple[float, float],
     width_rel_sigma: float,
     line_views: int,
-    iterations: int = IEKF_ITERATIONS,
     feet_cut: FloatArray | None = None,
     cut_reach_m: FloatArray | None = None,
     cover_near_m: FloatArray | None = None,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """States ``xs`` (k, 4) and covariances ``ps`` (k, 4, 4) updated with the blobs of their ``slots``.
+) -> ObservationBatch:
+    """The blobs of the ``slots`` as observations of the tracks predicted at ``xs`` (k, 4) with covariances ``ps``
+    (k, 4, 4).
 
     Args:
         position_weight: (s,) each view's share of a new frame's information (its variances are divided by it: a
@@ -93,7 +134,6 @@ def fuse(
         outlier: (probability, scale) of the observations' outlier component.
         width_rel_sigma: the relative width error of the size-ratio method.
         line_views: the size-ratio pairs are taken among each track's first this many views (0: none).
-        iterations: at most this many Gauss-Newton steps of the update (:func:`.motion.update_many`).
         feet_cut: (s, k) probability that view ``s``'s box of track ``k`` ends above the feet (someone nearer or a
             camera's body hides them: :func:`.observe.feet_cut_prob`); None: ``outlier``'s alone.
         cut_reach_m: (s, k) the farthest floor distance such a cut box can read
@@ -101,9 +141,6 @@ def fuse(
         cover_near_m: (s, k) where view ``s``'s blobs merge people who overlap, the floor distance of the nearest cover
             of track ``k``'s feet, at whose foot a blob that took it in ends (:attr:`.observe.Visibility.cover_near_m`;
             0 or None: none).
-
-    Returns:
-        (x, P, the weight (k, w) of each slot's blob: low for an outlier).
     """
     view, blob = slots.view, slots.blob
     # Each assigned blob as an observation of its track: its bearing and, where the camera sees the feet, its
@@ -146,8 +183,7 @@ def fuse(
             slots.used()[:, first],
             width_rel_sigma,
         )
-    batch = ObservationBatch.padded(slots.per_slot(obs), slots.used(), line_rows, line_valid)
-    return update_many(xs, ps, batch, outlier, iterations)
+    return ObservationBatch.padded(slots.per_slot(obs), slots.used(), line_rows, line_valid)
 
 
 def fuse_heights(

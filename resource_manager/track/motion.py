@@ -37,6 +37,7 @@ __all__ = [
     "predict_many",
     "update",
     "update_many",
+    "update_without_each",
 ]
 
 IEKF_ITERATIONS = 4
@@ -341,6 +342,57 @@ def update_many(
         if last:
             break
     return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp
+
+
+def update_without_each(
+    x: FloatArray,
+    p: FloatArray,
+    batch: ObservationBatch,
+    outlier: tuple[float, float] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`update_many` of every track, and of every track without each of its observations in turn.
+
+    Each left-out update is the full update's information with that slot's taken out again, and one Gauss-Newton
+    step from the full estimate on what is left: one 4x4 solve per slot instead of an iterated update per slot.
+    The other slots keep the weights (outlier responsibilities) the full update gave them. The batch's lines stay
+    in every left-out update.
+
+    Returns:
+        (x (k, 4), P (k, 4, 4) of the full updates; x (k, v, 4), P (k, v, 4, 4) without slot v; the slots without
+        an observation hold the full update).
+    """
+    xi, p_full, resp = update_many(x, p, batch, outlier)
+    k, nv = batch.valid.shape
+    if k == 0 or nv == 0:
+        return xi, p_full, np.repeat(xi[:, None], nv, axis=1), np.repeat(p_full[:, None], nv, axis=1)
+    rows = _Rows.of(batch)
+    h, jac = rows.predicted(xi[:, :2])
+    w = np.concatenate([resp, resp], axis=1) * rows.info
+    nu = rows.z - h
+    nu[:, :nv] = wrap_angle(nu[:, :nv])
+    info_prior = np.linalg.inv(p)
+    w_line = (
+        batch.lines_valid / batch.lines_var
+        if outlier is None
+        else _line_responsibilities(batch, xi[:, :2], p_full, outlier) / batch.lines_var
+    )
+    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, xi[:, :2])
+    info = info_prior.copy()
+    info[:, :2, :2] += _outer_sum(w, jac) + _outer_sum(w_line, batch.lines_dir)
+    # The gradient of the full update's cost at its estimate (0 where it converged), and each slot's share of it.
+    grad = (info_prior @ (xi - x)[:, :, None])[:, :, 0]
+    grad[:, :2] -= _weighted_sum(w_line * nu_line, batch.lines_dir) + _weighted_sum(w * nu, jac)
+    wb, wr = w[:, :nv, None, None], w[:, nv:, None, None]
+    jb, jr = jac[:, :nv], jac[:, nv:]
+    slot_info = wb * jb[..., :, None] * jb[..., None, :] + wr * jr[..., :, None] * jr[..., None, :]
+    slot_grad = (w[:, :nv, None] * nu[:, :nv, None]) * jb + (w[:, nv:, None] * nu[:, nv:, None]) * jr
+    info_out = np.repeat(info[:, None], nv, axis=1)
+    info_out[:, :, :2, :2] -= slot_info
+    grad_out = np.repeat(grad[:, None], nv, axis=1)
+    grad_out[:, :, :2] += slot_grad
+    p_out = np.linalg.inv(info_out)
+    x_out = xi[:, None] - (p_out @ grad_out[..., None])[..., 0]
+    return xi, p_full, x_out, 0.5 * (p_out + np.swapaxes(p_out, -1, -2))
 
 
 def _weighted_sum(w: FloatArray, jac: FloatArray) -> FloatArray:

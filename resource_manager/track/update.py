@@ -21,6 +21,7 @@ from common.schema import MAX_METRES, Method, PairEntry
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.pairs import PairCandidate, rank_pairs_many
 from resource_manager.track.filter import TrackFilter
+from resource_manager.track.fuse import Slots
 from resource_manager.track.looks import learn_looks
 from resource_manager.track.model import TrackModel
 from resource_manager.track.observe import Visibility, feet_cut_prob
@@ -33,9 +34,6 @@ MAX_PAIR_CAMERAS = 5
 """Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
 OUTLIER_RELEASE = 0.5
 """An assigned blob that the track's other views make more likely an outlier than not is released."""
-LOOK_STEPS = 2
-"""Gauss-Newton steps of the leave-one-out places (:meth:`Updater.leave_one_out`): they say where a view should
-look for a track, not where the track is, and the later steps would move 99 in 100 of them by less than 2 cm."""
 
 
 class Assigned(NamedTuple):
@@ -174,36 +172,22 @@ class Updater:
     ) -> tuple[FloatArray, FloatArray]:
         """Where each view should look for each track (row for row with ``filt``), given what the other views
         assigned to it: (s, n, 2) positions and (s, n, 2, 2) covariances, from the track's prediction updated with
-        the blobs ``assigned`` to it by every view but that one. Nothing is kept."""
+        the blobs ``assigned`` to it by every view but that one (its update with them all, that view's information
+        taken out again: :func:`.motion.update_without_each`). Nothing is kept."""
         views = tick.views
         xy = np.repeat(filt.x[None, :, :2], views.n_views, axis=0)
         cov = np.repeat(filt.p[None, :, :2, :2], views.n_views, axis=0)
-        # One batch: each track with all its blobs (for the views that gave it none), and without each view's.
-        rows: list[int] = []
-        gots: list[list[tuple[str, int]]] = []
-        left_out: list[int] = []
-        for i, got in enumerate(assigned):
-            for k in range(-1, len(got) if len(got) > 1 else 0):
-                rest = [(a.sensor_id, a.blob) for q, a in enumerate(got) if q != k]
-                if not rest:
-                    continue
-                rows.append(i)
-                gots.append(rest)
-                left_out.append(views.rows[got[k].sensor_id] if k >= 0 else -1)
-        if not rows:
+        r = np.array([i for i, got in enumerate(assigned) if got], dtype=np.int64)
+        if not len(r):
             return xy, cov
-        r, out = np.array(rows, dtype=np.int64), np.array(left_out, dtype=np.int64)
-        # Where to look needs the bearings and feet only, and not to the last millimetre: Eq. 2's size-ratio lines are
-        # left out (they cost a third), and the update stops after LOOK_STEPS (another fifth).
-        x, p, _ = filt.fused(r, gots, views, **self._fuse_args(r, tick, lines=False), iterations=LOOK_STEPS)
-        every = out < 0
-        xy[:, r[every]], cov[:, r[every]] = x[every, :2], p[every, :2, :2]
-        # The view a track's only blob came from looks for it where it was predicted; the others, without their own.
-        for i, got in enumerate(assigned):
-            if len(got) == 1:
-                v = views.rows[got[0].sensor_id]
-                xy[v, i], cov[v, i] = filt.x[i, :2], filt.p[i, :2, :2]
-        xy[out[~every], r[~every]], cov[out[~every], r[~every]] = x[~every, :2], p[~every, :2, :2]
+        slots = Slots.of([[(a.sensor_id, a.blob) for a in assigned[i]] for i in r.tolist()], views)
+        # Where to look needs the bearings and feet only: Eq. 2's size-ratio lines are left out (they cost a third).
+        x, p, x_out, p_out = filt.fused_without_each(r, slots, views, **self._fuse_args(r, tick, lines=False))
+        xy[:, r], cov[:, r] = x[None, :, :2], p[None, :, :2, :2]
+        # Each view that gave a track a blob looks for it without that blob (where it was a track's only blob: where
+        # the track was predicted).
+        track, slot, view = slots.track, slots.slot, slots.view
+        xy[view, r[track]], cov[view, r[track]] = x_out[track, slot, :2], p_out[track, slot, :2, :2]
         return xy, cov
 
     def _paper_update(
