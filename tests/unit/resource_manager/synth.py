@@ -330,27 +330,45 @@ def stack_views(specs: Sequence[ViewSpec]) -> Views:
 
 
 def view(
-    sid: str, origin: tuple[float, float], targets: list[tuple[float, float, float, int]], z: float = 1.1
+    sid: str,
+    origin: tuple[float, float],
+    targets: list[tuple[float, float, float, int | None]],
+    z: float = 1.1,
+    *,
+    sigma_deg: float = 0.2,
+    feet_sigma_m: float | None = None,
 ) -> ViewSpec:
-    """Blobs seen from ``origin`` of targets (x, y, height, colour index), exact."""
+    """Blobs seen from ``origin`` of targets (x, y, height, colour index; None for all: a view without colour),
+    exact; with ``feet_sigma_m``, each box's foot gives the target's floor distance with that uncertainty."""
     o = np.array(origin, dtype=np.float64)
-    b, w, top, hist = [], [], [], []
+    b, w, top, bottom, dist, hist = [], [], [], [], [], []
     for x, y, h, k in targets:
         d = math.hypot(x - o[0], y - o[1])
         b.append(math.atan2(y - o[1], x - o[0]))
         w.append(2 * math.atan(0.45 / (2 * d)))
         top.append(math.atan2(h - z, d))
-        hist.append(colour_hist(k))
+        bottom.append(math.atan2(-z, d))
+        dist.append(d)
+        if k is not None:
+            hist.append(colour_hist(k))
+    feet = {}
+    if feet_sigma_m is not None:
+        feet = {
+            "bottom_elev_rad": np.array(bottom),
+            "mono_range_m": np.array(dist),
+            "mono_sigma_m": np.full(len(dist), feet_sigma_m),
+        }
     return ViewSpec(
         sensor_id=sid,
         origin_xy=o,
         z_m=z,
-        sigma_rad=math.radians(0.2),
+        sigma_rad=math.radians(sigma_deg),
         bearing_rad=np.array(b),
         width_rad=np.array(w),
         top_elev_rad=np.array(top),
         hist=np.array(hist) if hist else None,
         local_id=np.arange(len(targets)),
+        **feet,
     )
 
 

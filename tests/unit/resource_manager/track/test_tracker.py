@@ -19,7 +19,7 @@ from resource_manager.track.model import TrackModel
 from resource_manager.track.tracker import Tracker
 from tests.unit.resource_manager.scenario import T0_NS as T0
 from tests.unit.resource_manager.scenario import make_config, run_scenario
-from tests.unit.resource_manager.synth import Cam, Person, ViewSpec, stack_views
+from tests.unit.resource_manager.synth import Cam, Person, ViewSpec, stack_views, view
 
 SQUARE = [Cam("p1", 0.5, 0.5), Cam("p2", 7.5, 0.5), Cam("p3", 7.5, 5.5), Cam("p4", 0.5, 5.5)]
 
@@ -463,7 +463,6 @@ def test_a_coasting_track_takes_a_new_person_back_only_while_it_is_likelier_ther
     """A published track nobody detects now, 1 m vague, predicted at (4, 3); someone new is seen at (7, 3), within its
     reach. While the track is more likely there than not, the newcomer is its person found again; once less likely
     (its person left unseen, or it never had one), the newcomer starts a track of their own."""
-    from tests.unit.resource_manager.synth import stack_views, view
 
     def newcomer_after(logodds: float) -> tuple[int, list[str]]:
         tracker = _one_published_track("m-old", logodds, np.diag([1.0, 1.0, 0.3, 0.3]), detected=False)
@@ -544,22 +543,7 @@ def _one_published_track(track_id: str, logodds: float, cov: np.ndarray, *, dete
 
 def _nearest_only(sid: str, at: tuple[float, float], person: np.ndarray) -> ViewSpec:
     """A corner camera (2.6 m up) that sees one person, its box's foot giving their floor distance."""
-    z = 2.6
-    d = math.hypot(person[0] - at[0], person[1] - at[1])
-    return ViewSpec(
-        sensor_id=sid,
-        origin_xy=np.array(at),
-        z_m=z,
-        sigma_rad=math.radians(0.3),
-        bearing_rad=np.array([math.atan2(person[1] - at[1], person[0] - at[0])]),
-        width_rad=np.array([2 * math.atan(0.45 / (2 * d))]),
-        top_elev_rad=np.array([math.atan2(1.7 - z, d)]),
-        bottom_elev_rad=np.array([math.atan2(-z, d)]),
-        mono_range_m=np.array([d]),
-        mono_sigma_m=np.array([0.15]),
-        hist=None,
-        local_id=np.arange(1),
-    )
+    return view(sid, at, [(float(person[0]), float(person[1]), 1.7, None)], z=2.6, sigma_deg=0.3, feet_sigma_m=0.15)
 
 
 @pytest.mark.parametrize("off_m", [0.1, 0.2, -0.2])
