@@ -32,7 +32,7 @@ from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.stereo.localize import Measurement, localize_best_pair
 from resource_manager.stereo.match import Matcher, MatchParams, match_matrices
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel
-from resource_manager.track.observe import TrackTable, score_views, visibility_many
+from resource_manager.track.observe import Looks, TrackTable, score_views, visibility_many
 from resource_manager.track.recall import detector_misses
 from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import Subset, Views
@@ -217,7 +217,8 @@ class _Gains:
         pd = vis.p_detect
         ln_miss = np.log1p(-np.minimum(pd, 1.0 - 1e-9))
         misses = ln_miss.sum(axis=0)
-        scores = score_views(views, free, cands, cand_table, vis, model=model, max_range_m=max_range_m)
+        looks = Looks.of(cands, views, model.look_min_s)
+        scores = score_views(views, free, cands, cand_table, vis, model=model, max_range_m=max_range_m, looks=looks)
         alive = np.ones(len(cands), dtype=bool)
         for k, f in enumerate(found):
             if f.b < 0:  # one view: only where no other camera has a clear view of the spot

@@ -43,6 +43,7 @@ from resource_manager.track.state import TrackRecord
 from resource_manager.views.blobs import Subset, Views
 
 __all__ = [
+    "Looks",
     "TrackTable",
     "ViewScores",
     "Visibility",
@@ -82,6 +83,26 @@ class TrackTable:
     @property
     def n(self) -> int:
         return int(self.xy.shape[-2])
+
+
+@dataclass(frozen=True, slots=True)
+class Looks:
+    """Every track's colour looks learnt for at least ``look_min_s``, as arrays (built once per tick: the looks
+    change only when the update learns), for each histogram size the views send: (n, s, bins) each track's look in
+    each view and (n, s) 1/0 whether it has one there, and the (n, bins) sum and (n,) count over the views it has
+    one in."""
+
+    by_bins: dict[int, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]
+
+    @staticmethod
+    def of(tracks: Sequence[TrackRecord], views: Views, min_s: float) -> Looks:
+        rows = np.arange(views.n_views, dtype=np.int64)
+        return Looks({bins: _look_arrays(tracks, views, rows, bins, min_s) for bins in views.hist_sqrt})
+
+    def take(self, rows: IntArray) -> Looks:
+        """The looks of tracks ``rows`` only."""
+        return Looks({bins: (own[rows], ok[rows], total[rows], count[rows]) for bins, (own, ok, total, count) in
+                      self.by_bins.items()})  # fmt: skip
 
 
 @dataclass(frozen=True, slots=True)
@@ -326,10 +347,12 @@ def score_views(
     *,
     model: TrackModel,
     max_range_m: float,
+    looks: Looks,
 ) -> list[ViewScores]:
     """The ``blobs`` of ``views`` against every track, one :class:`ViewScores` per view of ``blobs.rows`` (see the
     module docstring); ``vis``: what every view should see of each track; ``tracks``: their looks and links (row
-    for row with ``table``); nobody is seen farther than ``max_range_m``."""
+    for row with ``table``; ``looks``: their looks as arrays, :meth:`Looks.of` them); nobody is seen farther than
+    ``max_range_m``."""
     rows = blobs.rows
     vis = Visibility(*(blobs.pick(part) for part in vis))
     p_detect = vis.p_detect
@@ -392,7 +415,7 @@ def score_views(
     entry = entry + _height_term(
         views, table, track, blobs.entries[blob], dist=dist[view, track], s_dd=s_dd_track[view, track], model=model
     )
-    entry = entry + _colour_term(views, blobs, tracks, track, blob, model=model)
+    entry = entry + _colour_term(views, blobs, looks, track, blob, model=model)
     entry = entry + _link_term(views, blobs, tracks, track, blob, model=model)
     ln_lr = np.full((n, m), -np.inf)
     ln_lr[track, blob] = entry
@@ -533,7 +556,7 @@ def _height_term(
 
 
 def _colour_term(
-    views: Views, blobs: Subset, tracks: Sequence[TrackRecord], track: IntArray, blob: IntArray, *, model: TrackModel
+    views: Views, blobs: Subset, looks: Looks, track: IntArray, blob: IntArray, *, model: TrackModel
 ) -> FloatArray:
     """ln [p(colour | this person) / p(colour | anyone else)] of each (``track``, ``blob``) pair (``blob``: a
     position in ``blobs``), the paper's
@@ -549,7 +572,8 @@ def _colour_term(
     view, entry = blobs.row_of[blob], blobs.entries[blob]
     blob_bins = views.hist_bins[views.view_of[entry]]
     for bins, hist in views.hist_sqrt.items():
-        own, own_ok, total, count = _look_arrays(tracks, views, blobs.rows, bins, model.look_min_s)
+        own, own_ok, total, count = looks.by_bins[bins]
+        own, own_ok = own[:, blobs.rows], own_ok[:, blobs.rows]
         # The other views' looks: all learnt ones but this view's, their mean renormalised (a unit vector's
         # direction).
         others = total[:, None, :] - own * own_ok[:, :, None]

@@ -65,6 +65,7 @@ from resource_manager.track.looks import looks_ln_odds
 from resource_manager.track.model import Scene, TrackModel, logit
 from resource_manager.track.motion import MotionModel
 from resource_manager.track.observe import (
+    Looks,
     TrackTable,
     ViewScores,
     Visibility,
@@ -273,8 +274,16 @@ class Tracker:
         vis.p_detect[[i for i, sid in enumerate(sids) if sid in blind]] = 0.0
         tick = Tick(views, evidence, pose_sigma or {}, np.array([evidence[sid][0] for sid in sids]), vis)
         # 3. Assign, per view.
+        looks = Looks.of(self.tracks, views, self.model.look_min_s)
         scores = score_views(
-            views, views.every(), self.tracks, table, vis, model=self.model, max_range_m=self.scene.max_range_m
+            views,
+            views.every(),
+            self.tracks,
+            table,
+            vis,
+            model=self.model,
+            max_range_m=self.scene.max_range_m,
+            looks=looks,
         )
         scored = dict(zip(sids, scores, strict=True))
         claim = self._claims()
@@ -284,7 +293,7 @@ class Tracker:
         # Existence (step 6) reads the first scoring: against the others' place, a view's fit would count their
         # evidence again.
         assigned = _consistent(
-            assigned, lambda got, rows: self._against_others(got, tick, table, vis, rows), sids, claim
+            assigned, lambda got, rows: self._against_others(got, tick, table, vis, looks=looks, rows=rows), sids, claim
         )
         # 4. Update.
         predicted = self.filter.x.copy(), self.filter.p.copy()
@@ -317,7 +326,14 @@ class Tracker:
         return out
 
     def _against_others(
-        self, assigned: list[list[Assigned]], tick: Tick, table: TrackTable, vis: Visibility, rows: IntArray | None
+        self,
+        assigned: list[list[Assigned]],
+        tick: Tick,
+        table: TrackTable,
+        vis: Visibility,
+        *,
+        looks: Looks,
+        rows: IntArray | None,
     ) -> list[ViewScores]:
         """Each view's blobs against where the other views' ``assigned`` blobs put each track (only the tracks of
         filter ``rows``, in that order, if given)."""
@@ -328,8 +344,16 @@ class Tracker:
             tracks = [tracks[i] for i in rows.tolist()]
             others = TrackTable(xy[:, rows], cov[:, rows], table.height[rows], table.height_var[rows])
             vis = Visibility(*(part[:, rows] for part in vis))
+            looks = looks.take(rows)
         return score_views(
-            tick.views, tick.views.every(), tracks, others, vis, model=self.model, max_range_m=self.scene.max_range_m
+            tick.views,
+            tick.views.every(),
+            tracks,
+            others,
+            vis,
+            model=self.model,
+            max_range_m=self.scene.max_range_m,
+            looks=looks,
         )
 
     def _claims(self) -> FloatArray:

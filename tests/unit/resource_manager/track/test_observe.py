@@ -132,7 +132,7 @@ def test_bearing_variance_falls_to_the_sensors_own_with_distance() -> None:
 def test_each_view_scores_its_blobs_against_its_own_place_of_a_track() -> None:
     """A table with a place per view: p1 looks for the track at its person, p2 one metre off. p1's blob scores as
     against a table of that one place; p2's, as against a table of the other."""
-    from resource_manager.track.observe import score_views
+    from resource_manager.track.observe import Looks, score_views
     from resource_manager.track.state import TrackRecord
 
     person = (3.0, 2.0, 1.7, 0)
@@ -144,8 +144,9 @@ def test_each_view_scores_its_blobs_against_its_own_place_of_a_track() -> None:
 
     def scored(table: TrackTable) -> list[float]:
         vis = visibility_many(views, at, model, 50.0)
+        looks = Looks.of(tracks, views, model.look_min_s)
         return [float(sc.ln_lr[0, 0]) for sc in score_views(views, views.every(), tracks, table, vis, model=model,
-                                                             max_range_m=50.0)]  # fmt: skip
+                                                             max_range_m=50.0, looks=looks)]  # fmt: skip
 
     (p1, p2), (p1_at, _), (_, p2_off) = scored(per_view), scored(at), scored(off)
     assert per_view.n == 1
