@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from common.angles import angle_diff
+from common.angles import wrap_angle
 from common.area import Floor
 from common.arrays import BoolArray, FloatArray, IntArray
 from resource_manager.track.model import PERSON_RADIUS_M, Scene, TrackModel, logit
@@ -223,16 +223,16 @@ else."""
 
 
 def blobs_show_two(
-    track_bearing: tuple[float, float], blob_bearing: tuple[float, float], blob_width: tuple[float, float]
-) -> bool:
+    track_bearing: tuple[FloatArray, FloatArray], blob_bearing: tuple[FloatArray, FloatArray],
+    blob_width: tuple[FloatArray, FloatArray],
+) -> BoolArray:  # fmt: skip
     """Whether a view's two blobs, one given to each of two close tracks (bearings ``track_bearing`` from the view,
     rad), show two people: each lies on its own track's side (nearer its bearing than the other's), and neither is
-    a sliver beside the other (:data:`SLIVER_SHARE`)."""
-    (ta, tb), (ba, bb) = track_bearing, blob_bearing
-    own_sides = abs(angle_diff(ba, ta)) <= abs(angle_diff(ba, tb)) and abs(angle_diff(bb, tb)) <= abs(
-        angle_diff(bb, ta)
-    )
-    return own_sides and min(blob_width) >= SLIVER_SHARE * max(blob_width)
+    a sliver beside the other (:data:`SLIVER_SHARE`). Element by element over arrays of such pairs."""
+    (ta, tb), (ba, bb), (wa, wb) = track_bearing, blob_bearing, blob_width
+    own_a = np.abs(wrap_angle(ba - ta)) <= np.abs(wrap_angle(ba - tb))
+    own_b = np.abs(wrap_angle(bb - tb)) <= np.abs(wrap_angle(bb - ta))
+    return np.asarray(own_a & own_b & (np.minimum(wa, wb) >= SLIVER_SHARE * np.maximum(wa, wb)), dtype=bool)
 
 
 def two_people_ln_odds(p_a: FloatArray, p_b: FloatArray, got_a: BoolArray, got_b: BoolArray) -> FloatArray:

@@ -601,24 +601,30 @@ class Tracker:
             close, _ = close_pairs(xy)
             if len(close):
                 a, b = close[:, 0], close[:, 1]
+                order = [views.rows[sid] for sid in hits]
+                # Each view's blob of each track (-1: none), and what each view should have seen of each.
+                blob = np.full((views.n_views, scored_rows), -1, dtype=np.int64)
+                for row, hit in zip(order, hits.values(), strict=True):
+                    known = [i for i in hit if i < scored_rows]
+                    blob[row, known] = [hit[i] for i in known]
+                p = np.zeros((views.n_views, scored_rows))
+                p[order] = [scored[sid].p_detect[:scored_rows] for sid in hits]
+                got_a, got_b = blob[:, a] >= 0, blob[:, b] >= 0
+                # Two blobs, one given to each, that do not show two people say nothing either way.
+                v, k = np.nonzero(got_a & got_b)
+                ea, eb = views.offsets[v] + blob[v, a[k]], views.offsets[v] + blob[v, b[k]]
+                d = xy[None, :, :] - views.origin[:, None, :]
+                bearing = np.arctan2(d[:, :, 1], d[:, :, 0])
+                unsure = np.zeros(got_a.shape, dtype=bool)
+                unsure[v, k] = ~blobs_show_two(
+                    (bearing[v, a[k]], bearing[v, b[k]]),
+                    (views.bearing_rad[ea], views.bearing_rad[eb]),
+                    (views.width_rad[ea], views.width_rad[eb]),
+                )
+                ln = np.where(unsure, 0.0, two_people_ln_odds(p[:, a], p[:, b], got_a, got_b))
                 total = np.zeros(len(close))
-                for sid, hit in hits.items():
-                    row = views.rows[sid]
-                    origin, start = views.origin[row], int(views.offsets[row])
-                    p = scored[sid].p_detect
-                    got_a = np.array([i in hit for i in a.tolist()])
-                    got_b = np.array([i in hit for i in b.tolist()])
-                    unsure = np.zeros(len(close), dtype=bool)
-                    for k in np.flatnonzero(got_a & got_b).tolist():
-                        ea, eb = start + hit[int(a[k])], start + hit[int(b[k])]
-                        ta, tb = (math.atan2(xy[r, 1] - origin[1], xy[r, 0] - origin[0]) for r in (a[k], b[k]))
-                        unsure[k] = not blobs_show_two(
-                            (ta, tb),
-                            (float(views.bearing_rad[ea]), float(views.bearing_rad[eb])),
-                            (float(views.width_rad[ea]), float(views.width_rad[eb])),
-                        )
-                    ln = two_people_ln_odds(p[a], p[b], got_a, got_b)
-                    total += tick.weights[sid][1] * np.where(unsure, 0.0, ln)
+                for sid, row in zip(hits, order, strict=True):
+                    total += tick.weights[sid][1] * ln[row]
                 evidence = dict(zip(zip(a.tolist(), b.tolist(), strict=True), total.tolist(), strict=True))
         self.separation.note([tr.serial for tr in self.tracks], f.x[:, :2], evidence, t_ns)
 
