@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from common.arrays import BoolArray, FloatArray, IntArray
-from resource_manager.track.fuse import Slots, fuse, fuse_heights, fuse_without_each
-from resource_manager.track.motion import MotionModel, predict_many
+from resource_manager.track.fuse import Slots, fuse, fuse_heights, observations
+from resource_manager.track.motion import MotionModel, predict_many, update_without_each
 from resource_manager.track.observe import TrackTable
 from resource_manager.views.blobs import Views
 
@@ -151,11 +151,13 @@ class TrackFilter:
         return fuse(self.x[rows], self.p[rows], Slots.of(assigned, views), views, **options)
 
     def fused_without_each(
-        self, rows: IntArray, slots: Slots, views: Views, **options: Any
+        self, rows: IntArray, slots: Slots, views: Views, *, outlier: tuple[float, float], **options: Any
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """What :meth:`fused` would make of ``rows`` with the blobs of their ``slots``, and of each without each of
-        its blobs in turn (:func:`.fuse.fuse_without_each`), without keeping it."""
-        return fuse_without_each(self.x[rows], self.p[rows], slots, views, **options)
+        its blobs in turn (:func:`.motion.update_without_each` of :func:`.fuse.observations`), without keeping it:
+        (x (k, 4), P (k, 4, 4); x (k, w, 4), P (k, w, 4, 4) without slot w)."""
+        x, p = self.x[rows], self.p[rows]
+        return update_without_each(x, p, observations(x, p, slots, views, outlier=outlier, **options), outlier)
 
     def fix(self, row: int, xy: FloatArray, cov: FloatArray) -> None:
         """Linear Kalman update of ``row`` with a floor position (the paper mode's pair fix)."""

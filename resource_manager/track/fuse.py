@@ -6,7 +6,8 @@ once per tick on arrays rather than once per track and view:
 
 * :func:`fuse`: the iterated EKF of :mod:`.motion` with each view's bearing and, where the camera sees the feet,
   its floor distance, and the size-ratio lines along near-colinear pairs' baselines (:mod:`.lines`), all
-  gathered by :func:`observations`; :func:`fuse_without_each`, the same and each track without each view;
+  gathered by :func:`observations` (which :meth:`.filter.TrackFilter.fused_without_each` also updates each track
+  with, without each view in turn);
 * :func:`fuse_heights`: the head-top heights the views imply at each track's updated distance (scalar Kalman
   updates, view after view).
 
@@ -30,12 +31,11 @@ from resource_manager.track.motion import (
     ObservationBatch,
     quadratic_form,
     update_many,
-    update_without_each,
 )
 from resource_manager.track.observe import bearing_var, cut_bearing, feet_ln
 from resource_manager.views.blobs import Views
 
-__all__ = ["Slots", "fuse", "fuse_heights", "fuse_without_each", "observations"]
+__all__ = ["Slots", "fuse", "fuse_heights", "observations"]
 
 _Scalar = TypeVar("_Scalar", bound=np.generic)
 HALF = 0.5
@@ -94,21 +94,6 @@ def fuse(
     """
     batch = observations(xs, ps, slots, views, outlier=outlier, **options)
     return update_many(xs, ps, batch, outlier)
-
-
-def fuse_without_each(
-    xs: FloatArray,
-    ps: FloatArray,
-    slots: Slots,
-    views: Views,
-    *,
-    outlier: tuple[float, float],
-    **options: Any,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`fuse`, and each track without each of its slots' blobs in turn (:func:`.motion.update_without_each`):
-    (x (k, 4), P (k, 4, 4); x (k, w, 4), P (k, w, 4, 4) without slot w)."""
-    batch = observations(xs, ps, slots, views, outlier=outlier, **options)
-    return update_without_each(xs, ps, batch, outlier)
 
 
 def observations(
