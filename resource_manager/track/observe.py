@@ -350,10 +350,8 @@ def score_views(
     looks: Looks,
 ) -> list[ViewScores]:
     """The ``blobs`` of ``views`` against every track, one :class:`ViewScores` per view of ``blobs.rows`` (see the
-    module docstring); ``vis``: what every view should see of each track; ``tracks``: their looks and links (row
-    for row with ``table``; ``looks``: their looks as arrays, :meth:`Looks.of` them); nobody is seen farther than
-    ``max_range_m``."""
-    rows = blobs.rows
+    module docstring); ``vis``: what every view should see of each track; ``tracks``: their links, ``looks``: their
+    looks (both row for row with ``table``); nobody is seen farther than ``max_range_m``."""
     vis = Visibility(*(blobs.pick(part) for part in vis))
     p_detect = vis.p_detect
     n, m = table.n, len(blobs.entries)
@@ -370,7 +368,7 @@ def score_views(
     jac = np.stack([-d[:, :, 1] / r2, d[:, :, 0] / r2], axis=2)  # d bearing / d position
     unit = d / dist[:, :, None]  # d distance / d position
     pc = blobs.pick(table.pos_cov) if per_view else table.pos_cov
-    s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, rows[:, None], dist)
+    s_tt = quadratic_form(jac, pc, jac) + bearing_var(views, blobs.rows[:, None], dist)
     s_dd_track = quadratic_form(unit, pc, unit)
     bearing, cut_var = _blob_bearings(views, blobs, dist[col].T)
     blob_s_tt = s_tt[col].T + cut_var
