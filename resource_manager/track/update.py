@@ -32,8 +32,6 @@ __all__ = ["MAX_PAIR_CAMERAS", "Assigned", "Tick", "Updater"]
 
 MAX_PAIR_CAMERAS = 5
 """Only the cameras nearest a person are paired when ranking pairs by the error model (5 cameras: 10 pairs)."""
-PAIR = 2
-"""Two views."""
 OUTLIER_RELEASE = 0.5
 """An assigned blob that the track's other views make more likely an outlier than not is released."""
 
@@ -190,15 +188,6 @@ class Updater:
         # the track was predicted).
         track, slot, view = slots.track, slots.slot, slots.view
         xy[view, r[track]], cov[view, r[track]] = x_out[track, slot, :2], p_out[track, slot, :2, :2]
-        # A track two views gave a blob: each looks where the other's blob alone puts it (its own update: taken out
-        # of the pair's, the other's outlier weight would still be the one judged against it).
-        pairs = [(i, got) for i, got in enumerate(assigned) if len(got) == PAIR]
-        if pairs:
-            rows = np.array([i for i, _ in pairs for _ in range(PAIR)], dtype=np.int64)
-            alone = [[(got[1 - k].sensor_id, got[1 - k].blob)] for _, got in pairs for k in range(PAIR)]
-            x1, p1, _ = filt.fused(rows, alone, views, **self._fuse_args(rows, tick, lines=False))
-            left_out = [views.rows[got[k].sensor_id] for _, got in pairs for k in range(PAIR)]
-            xy[left_out, rows], cov[left_out, rows] = x1[:, :2], p1[:, :2, :2]
         return xy, cov
 
     def _paper_update(

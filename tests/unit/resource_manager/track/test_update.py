@@ -73,26 +73,3 @@ def test_each_view_looks_for_a_track_where_the_other_views_put_it() -> None:
     assert not np.allclose(xy[rows["p1"], 1], x0[1, :2])  # p2's bearing moved it
     assert xy[:, 2] == pytest.approx(np.repeat(x0[None, 2, :2], 3, axis=0))
     assert f.x == pytest.approx(x0)  # nothing kept
-
-
-def test_of_a_track_two_views_gave_a_blob_each_looks_where_the_others_blob_alone_puts_it() -> None:
-    """Two views, p1 and p2, gave the track a blob each: p1 looks for it where p2's blob alone puts it (the
-    update with that blob only, judged against the prediction), and p2 where p1's does; p3, which gave none, where
-    both put it."""
-    f = TrackFilter(MotionModel(0.8, 2.0), 0.05)
-    x0 = np.array([[5.3, 1.7, 0.0, 0.0]])
-    f.add(x0, np.eye(4)[None] * 0.09, height=np.full(1, 1.7), height_var=np.full(1, 0.02), logodds=np.full(1, 3.0),
-          t_ns=0)  # fmt: skip
-    tick = _tick((5.0, 1.5))
-    rows = tick.views.rows
-    updater = Updater(TrackModel(), width_rel_sigma=0.1, pair_choice="error_model")
-    xy, cov = updater.leave_one_out(f, [[Assigned("p1", 0), Assigned("p2", 0)]], tick)
-    args = updater._fuse_args(np.zeros(1, dtype=np.int64), tick, lines=False)
-    for sid, other in (("p1", "p2"), ("p2", "p1")):
-        alone, p_alone, _ = f.fused(np.zeros(1, dtype=np.int64), [[(other, 0)]], tick.views, **args)
-        assert xy[rows[sid], 0] == pytest.approx(alone[0, :2]) and cov[rows[sid], 0] == pytest.approx(
-            p_alone[0, :2, :2]
-        )
-    both, _, _ = f.fused(np.zeros(1, dtype=np.int64), [[("p1", 0), ("p2", 0)]], tick.views, **args)
-    assert xy[rows["p3"], 0] == pytest.approx(both[0, :2])
-    assert math.hypot(*(xy[rows["p3"], 0] - (5.0, 1.5))) < 0.1  # the two bearings cross on the person
