@@ -96,8 +96,7 @@ class Looks:
 
     @staticmethod
     def of(tracks: Sequence[TrackRecord], views: Views, min_s: float) -> Looks:
-        rows = np.arange(views.n_views, dtype=np.int64)
-        return Looks({bins: _look_arrays(tracks, views, rows, bins, min_s) for bins in views.hist_sqrt})
+        return Looks({bins: _look_arrays(tracks, views, bins, min_s) for bins in views.hist_sqrt})
 
     def take(self, rows: IntArray) -> Looks:
         """The looks of tracks ``rows`` only."""
@@ -591,18 +590,18 @@ def _colour_term(
 
 
 def _look_arrays(
-    tracks: Sequence[TrackRecord], views: Views, rows: IntArray, bins: int, min_s: float
+    tracks: Sequence[TrackRecord], views: Views, bins: int, min_s: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view ``rows`` of ``views`` and (n, s)
-    1/0 whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in."""
-    column = {views.sensor_ids[r]: i for i, r in enumerate(rows.tolist())}
+    """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``views`` and (n, s) 1/0
+    whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in (those of cameras
+    not in ``views`` too)."""
     learnt = [
-        (i, column.get(sid, -1), look)
+        (i, views.rows.get(sid, -1), look)
         for i, tr in enumerate(tracks)
         for sid, look in tr.looks.items()
         if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
     ]
-    n, s = len(tracks), len(rows)
+    n, s = len(tracks), views.n_views
     own = np.zeros((n * s, bins))
     own_ok = np.zeros(n * s)
     if not learnt:
