@@ -304,8 +304,22 @@ def update_many(
     k, nv = batch.valid.shape
     if k == 0:
         return x, p, np.zeros((0, nv))
-    info_prior = np.linalg.inv(p)
-    rows = _Rows.of(batch)
+    return _iterate(x, p, batch, outlier, iterations=iterations, info_prior=np.linalg.inv(p), rows=_Rows.of(batch))
+
+
+def _iterate(
+    x: FloatArray,
+    p: FloatArray,
+    batch: ObservationBatch,
+    outlier: tuple[float, float] | None,
+    *,
+    iterations: int,
+    info_prior: npt.NDArray[np.floating],
+    rows: _Rows,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`update_many`'s steps, given the prior's information ``info_prior`` (the inverse of ``p``) and the
+    batch's ``rows``."""
+    k, nv = batch.valid.shape
     h, jac = rows.predicted(x[:, :2])
     resp = batch.valid.astype(np.float64)
     # The lines are linear in the position: their innovations against the prediction do not change.
@@ -361,16 +375,16 @@ def update_without_each(
         (x (k, 4), P (k, 4, 4) of the full updates; x (k, v, 4), P (k, v, 4, 4) without slot v; the slots without
         an observation hold the full update).
     """
-    xi, p_full, resp = update_many(x, p, batch, outlier)
     k, nv = batch.valid.shape
     if k == 0 or nv == 0:
+        xi, p_full, _ = update_many(x, p, batch, outlier)
         return xi, p_full, np.repeat(xi[:, None], nv, axis=1), np.repeat(p_full[:, None], nv, axis=1)
-    rows = _Rows.of(batch)
+    info_prior, rows = np.linalg.inv(p), _Rows.of(batch)
+    xi, p_full, resp = _iterate(x, p, batch, outlier, iterations=IEKF_ITERATIONS, info_prior=info_prior, rows=rows)
     h, jac = rows.predicted(xi[:, :2])
     w = np.concatenate([resp, resp], axis=1) * rows.info
     nu = rows.z - h
     nu[:, :nv] = wrap_angle(nu[:, :nv])
-    info_prior = np.linalg.inv(p)
     w_line = (
         batch.lines_valid / batch.lines_var
         if outlier is None
