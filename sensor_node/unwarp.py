@@ -86,7 +86,7 @@ class PanoFrame:
             if self.small_maps is None:
                 self._small = np.ascontiguousarray(self.source[:: self.scale, :: self.scale])
             else:
-                self._small = cv2.remap(self.source, self.small_maps, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
+                self._small = cv2.remap(self.source, self.small_maps, None, cv2.INTER_NEAREST)  # type: ignore[call-overload, unused-ignore]
         return self._small
 
     @property
@@ -117,7 +117,7 @@ class PanoFrame:
         if self._small is not None or self.small_maps is None:
             return np.ascontiguousarray(_wrap_cols(self.small, c0, r0, w, h))
         m = np.ascontiguousarray(_wrap_cols(self.small_maps, c0, r0, w, h))
-        return cv2.remap(self.source, m, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
+        return cv2.remap(self.source, m, None, cv2.INTER_NEAREST)  # type: ignore[call-overload, unused-ignore]
 
     def colour(self, u0: int, v0: int, w: int, h: int) -> Image:
         """Full-resolution colour of the box (u0, v0, w, h); columns wrap around on a panorama."""

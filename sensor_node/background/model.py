@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, cast
 
 import cv2
 import numpy as np
@@ -235,9 +235,10 @@ class BackgroundModel:
         self.noise_sigma = MAD_TO_SIGMA * float(np.median(self._dev[::4, ::4]))
         # Each operation by whichever of numpy and OpenCV is faster at it (numpy: float products and sums
         # with a scalar; OpenCV: maxima and minima with one, saturating 8-bit conversion).
-        sigma = cv2.max(self._dev * np.float32(MAD_TO_SIGMA), max(self.noise_sigma, MIN_SIGMA))  # type: ignore[call-overload]
-        self._sigma = sigma
-        thr = cv2.min(cv2.max(cv2.convertScaleAbs(sigma, alpha=s.fg_sigmas), s.fg_threshold), 254)  # type: ignore[call-overload]
+        # (OpenCV's type stubs before 5.1 reject these calls' overloads, so the ignores may go unused.)
+        sigma = cv2.max(self._dev * np.float32(MAD_TO_SIGMA), max(self.noise_sigma, MIN_SIGMA))  # type: ignore[call-overload, unused-ignore]
+        self._sigma = cast("npt.NDArray[np.float32]", sigma)
+        thr = cv2.min(cv2.max(cv2.convertScaleAbs(sigma, alpha=s.fg_sigmas), s.fg_threshold), 254)  # type: ignore[call-overload, unused-ignore]
         self._thr = thr
         if self.tail_sigmas is None:
             self._thr_weak = None

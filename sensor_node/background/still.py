@@ -237,7 +237,7 @@ class StillRegions:
         still = cv2.bitwise_and(fg, cv2.bitwise_not(moved))
         if self._static is None:
             self._static = np.zeros_like(grey)
-        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload]
+        self._static = cv2.bitwise_and(cv2.add(self._static, 1, mask=still), still)  # type: ignore[call-overload, unused-ignore]
         changed = False
         if self._under is not None and self._under.expired(frame):
             self._under = None  # everything it kept is too old to put back
