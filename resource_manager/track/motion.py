@@ -304,7 +304,10 @@ def update_many(
     k, nv = batch.valid.shape
     if k == 0:
         return x, p, np.zeros((0, nv))
-    return _iterate(x, p, batch, outlier, iterations=iterations, info_prior=np.linalg.inv(p), rows=_Rows.of(batch))
+    xi, p_new, resp, _ = _iterate(
+        x, p, batch, outlier, iterations=iterations, info_prior=np.linalg.inv(p), rows=_Rows.of(batch)
+    )
+    return xi, p_new, resp
 
 
 def _iterate(
@@ -316,9 +319,9 @@ def _iterate(
     iterations: int,
     info_prior: npt.NDArray[np.floating],
     rows: _Rows,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, tuple[FloatArray, FloatArray]]:
     """:func:`update_many`'s steps, given the prior's information ``info_prior`` (the inverse of ``p``) and the
-    batch's ``rows``."""
+    batch's ``rows``; also the rows' predictions and Jacobians at the estimate (:meth:`_Rows.predicted`)."""
     k, nv = batch.valid.shape
     h, jac = rows.predicted(x[:, :2])
     resp = batch.valid.astype(np.float64)
@@ -347,15 +350,14 @@ def _iterate(
         xi = np.where(active[:, None], step, xi)
         p_new = np.where(active[:, None, None], p_step, p_new)
         last = not (active & (moved >= CONVERGED_STEP_M)).any()
-        if outlier is not None or not last:
-            h, jac = rows.predicted(xi[:, :2])
+        h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
             resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
             resp_line = np.where(active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line)
         active &= moved >= CONVERGED_STEP_M
         if last:
             break
-    return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp
+    return xi, 0.5 * (p_new + np.swapaxes(p_new, 1, 2)), resp, (h, jac)
 
 
 def update_without_each(
@@ -380,8 +382,9 @@ def update_without_each(
         xi, p_full, _ = update_many(x, p, batch, outlier)
         return xi, p_full, np.repeat(xi[:, None], nv, axis=1), np.repeat(p_full[:, None], nv, axis=1)
     info_prior, rows = np.linalg.inv(p), _Rows.of(batch)
-    xi, p_full, resp = _iterate(x, p, batch, outlier, iterations=IEKF_ITERATIONS, info_prior=info_prior, rows=rows)
-    h, jac = rows.predicted(xi[:, :2])
+    xi, p_full, resp, (h, jac) = _iterate(
+        x, p, batch, outlier, iterations=IEKF_ITERATIONS, info_prior=info_prior, rows=rows
+    )
     w = np.concatenate([resp, resp], axis=1) * rows.info
     nu = rows.z - h
     nu[:, :nv] = wrap_angle(nu[:, :nv])
