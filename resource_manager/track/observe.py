@@ -461,9 +461,11 @@ def _feet_gates(
     nu_d = range_innovation - s_td / blob_s_tt * nu_t
     s_cond = np.maximum(s_dd - s_td**2 / blob_s_tt, 1e-18)
     near = np.abs(range_innovation) <= model.gate_sigmas * np.sqrt(s_dd)
-    # Farther than the gate only where someone nearer or a camera's body may cut the box above the feet.
+    # Farther than the gate wherever the likelihood admits a box cut above the feet: with someone nearer or a
+    # camera's body in front (``feet_cut_prob_covered``), and, less likely, with nothing known there
+    # (``feet_hidden_prob``: furniture, a bag, someone untracked); the likelihood weighs which it is.
+    far = (nu_d > 0) & (feet_cut_prob(vis.feet_hidden, model) > 0.0)[col].T
     cut_ok = (vis.feet_hidden > HALF)[col].T
-    far = (nu_d > 0) & cut_ok
     # Nearer than the gate only where such a blob may end at a cover's foot, and no nearer than that foot.
     cover = vis.cover_near_m[col].T
     reach_near = cover - model.gate_sigmas * np.sqrt(feet_var)[None, :]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -164,3 +165,32 @@ def test_a_multi_view_detector_s_view_finds_a_person_behind_someone_nearer() -> 
     p = visibility_many(stack_views([own, shared]), table, model, 100.0).p_detect
     assert p[0, 1] < 0.5 and p[1, 1] == pytest.approx(model.p_detect)
     assert p[0, 0] == pytest.approx(p[1, 0])  # nobody in front: alike
+
+
+def test_a_box_cut_above_the_feet_with_nobody_in_front_is_weighed_not_gated_away() -> None:
+    """Something the tracker does not know of (a table, a bag) cuts a box above the feet: its bottom reads 1.5 m
+    farther than the person stands, with nobody predicted in front. The blob stays the person's candidate, scored
+    below an uncut one and above nothing; a model that says no box is ever so cut gates it out."""
+    from resource_manager.track.observe import Looks, score_views
+    from resource_manager.track.state import TrackRecord
+
+    person = (4.0, 0.0, 1.7, None)
+    fits = dataclasses.replace(view("c", (0.0, 0.0), [person], z=2.5, feet_sigma_m=0.1), sigma_rad=0.0035)
+    assert fits.mono_range_m is not None
+    cut = dataclasses.replace(fits, mono_range_m=fits.mono_range_m + 1.5)
+    table, tracks = _table((4.0, 0.0)), [TrackRecord(serial=1, born_ns=0)]
+
+    def scored(spec: ViewSpec, model: TrackModel) -> float:
+        views = stack_views([spec])
+        vis = visibility_many(views, table, model, 50.0)
+        assert vis.feet_hidden[0, 0] == 0.0  # nobody in front
+        looks = Looks.of(tracks, views, model.look_min_s)
+        (sc,) = score_views(views, views.every(), tracks, table, vis, model=model, max_range_m=50.0, looks=looks)
+        return float(sc.ln_lr[0, 0])
+
+    model = TrackModel()
+    assert math.isfinite(scored(cut, model))
+    assert scored(cut, model) < scored(fits, model)
+    never_cut = msgspec.structs.replace(model, feet_hidden_prob=0.0)
+    assert scored(cut, never_cut) == -math.inf
+    assert math.isfinite(scored(fits, never_cut))
