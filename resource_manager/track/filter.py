@@ -44,11 +44,16 @@ class TrackFilter:
     Args:
         motion: how people move.
         height_change_mps: how fast a head-top height may change.
+        height_outlier: (probability, scale) of a head-top height off by several sigmas (see
+            :func:`.fuse.fuse_heights`); None: every height is trusted.
     """
 
-    def __init__(self, motion: MotionModel, height_change_mps: float) -> None:
+    def __init__(
+        self, motion: MotionModel, height_change_mps: float, height_outlier: tuple[float, float] | None = None
+    ) -> None:
         self.motion = motion
         self.height_change_mps = height_change_mps
+        self.height_outlier = height_outlier
         self.x: FloatArray = np.zeros((0, 4))
         """(n, 4) x, y (m) and vx, vy (m/s) on the floor."""
         self.p: FloatArray = np.zeros((0, 4, 4))
@@ -176,7 +181,12 @@ class TrackFilter:
             return
         rows = np.asarray(rows, dtype=np.int64)
         self.height[rows], self.height_var[rows] = fuse_heights(
-            self.x[rows, :2], self.height[rows], self.height_var[rows], Slots.of(assigned, views), views
+            self.x[rows, :2],
+            self.height[rows],
+            self.height_var[rows],
+            Slots.of(assigned, views),
+            views,
+            self.height_outlier,
         )
 
     def existence_update(self, delta: FloatArray, weight: FloatArray, sees: BoolArray, cap: FloatArray) -> None:

@@ -172,10 +172,19 @@ def observations(
 
 
 def fuse_heights(
-    xy: FloatArray, height_m: FloatArray, height_var: FloatArray, slots: Slots, views: Views
+    xy: FloatArray,
+    height_m: FloatArray,
+    height_var: FloatArray,
+    slots: Slots,
+    views: Views,
+    outlier: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Head-top heights ``height_m`` (k,) and their variances ``height_var`` of tracks at ``xy`` (k, 2) after the
-    heights their slots' blobs imply (scalar Kalman updates, slot after slot)."""
+    heights their slots' blobs imply (scalar Kalman updates, slot after slot).
+
+    ``outlier``: (probability, scale) of a height off by several sigmas (raised arms, a box that took in someone
+    else, a blob given to the wrong track), as the views' scores model it: a height likelier such an outlier than
+    not is left out, and one that may be is weighed by the chance that it is not."""
     view, blob = slots.view, slots.blob
     at = xy[slots.track]
     d = np.hypot(at[:, 0] - views.origin[view, 0], at[:, 1] - views.origin[view, 1])
@@ -185,7 +194,17 @@ def fuse_heights(
     # A head cut by the picture's top gives a lower bound only: left out.
     use = slots.used() & ~slots.per_slot(views.top_cut[blob])
     for c in range(slots.shape[1]):
-        k = height_var / (height_var + var[:, c])
-        height_m = np.where(use[:, c], height_m + k * (z[:, c] - height_m), height_m)
-        height_var = np.where(use[:, c], height_var * (1.0 - k), height_var)
+        meas_var = var[:, c]
+        used = use[:, c]
+        if outlier is not None:
+            nu, s = z[:, c] - height_m, height_var + var[:, c]
+            eps, k2 = outlier[0], outlier[1] ** 2
+            core = math.log(1.0 - eps) - 0.5 * (nu * nu / s)
+            wide = math.log(eps) - 0.5 * (nu * nu / (k2 * s) + math.log(k2))
+            p_core = np.exp(core - np.logaddexp(core, wide))
+            used = used & (p_core >= HALF)
+            meas_var = meas_var / np.maximum(p_core, HALF)
+        k = height_var / (height_var + meas_var)
+        height_m = np.where(used, height_m + k * (z[:, c] - height_m), height_m)
+        height_var = np.where(used, height_var * (1.0 - k), height_var)
     return height_m, height_var

@@ -172,7 +172,9 @@ class Tracker:
         self.scene = scene if scene is not None else Scene()
         self.pair_choice = pair_choice
         self.motion = MotionModel(model.speed_sigma_mps, model.turn_time_s)
-        self.filter = TrackFilter(self.motion, model.height_change_mps)
+        self.filter = TrackFilter(
+            self.motion, model.height_change_mps, height_outlier=(model.outlier_prob, model.outlier_scale)
+        )
         self.tracks: list[TrackRecord] = []
         """Row for row with :attr:`filter`."""
         self.updater = Updater(model, births.width_rel_sigma, pair_choice, seed)

@@ -86,6 +86,19 @@ def test_heights_move_to_what_the_views_imply_and_cut_heads_are_left_out() -> No
     assert height.tolist() == [1.5, 1.9] and var.tolist() == [0.04, 0.04]
 
 
+def test_a_height_far_off_the_track_s_is_left_out_as_an_outlier() -> None:
+    """A track known to be 1.75 m tall gets two blobs: one that fits, and one whose top puts the head at 2.6 m (a
+    box that took in someone else, raised arms). As an outlier model weighs it, the height stays; trusted, it
+    drags."""
+    stack = stack_views([view("p1", (0.0, 0.0), [(*TRUE_A, 0)]), view("q", (8.0, 0.0), [(*TRUE_A[:2], 2.6, 0)])])
+    slots = Slots.of([[("p1", 0), ("q", 0)]], stack)
+    xy, height, var = np.array([TRUE_A[:2]]), np.array([1.75]), np.array([0.05**2])
+    robust, robust_var = fuse_heights(xy, height, var, slots, stack, outlier=(0.05, 4.0))
+    trusted, _ = fuse_heights(xy, height, var, slots, stack)
+    assert robust[0] == pytest.approx(1.75, abs=0.01) and robust_var[0] < var[0]
+    assert trusted[0] > 1.85
+
+
 @pytest.mark.parametrize(("cut", "pulled"), [(0.02, True), (0.5, False)])
 def test_a_distance_from_a_box_likely_cut_above_the_feet_does_not_drag_the_track(cut: float, pulled: bool) -> None:
     """Two cameras on one line with the person (their bearings say nothing along it), the nearer one's box 0.5 m
