@@ -128,8 +128,11 @@ class TrackModel(ConfigStruct, frozen=True):
     """A look learnt for less than this is not yet compared."""
     link_odds: Annotated[float, msgspec.Meta(ge=1.0)] = 4.0
     """How much likelier a blob that continues the node's 2D track of a person is theirs than another's."""
-    gate_sigmas: Pos = 5.0
-    """A blob further than this many sigmas (bearing or feet distance) from a track is not considered for it."""
+    gate_sigmas: Pos = 10.0
+    """A blob further than this many sigmas (bearing or feet distance) from a track is not considered for it. The
+    gate leaves the weighing to the likelihood, whose outlier part (``outlier_scale`` times wider) still gives a
+    blob 10 sigmas off a chance (2.5 of its own sigmas): a track that fell behind its person, or whose person's
+    box is badly drawn, keeps its person as a candidate instead of losing them to a new track."""
 
     @property
     def turn_rate(self) -> float:
