@@ -186,7 +186,7 @@ class TrackFilter:
             self.height_var[rows],
             Slots.of(assigned, views),
             views,
-            self.height_outlier,
+            outlier=self.height_outlier,
         )
 
     def existence_update(self, delta: FloatArray, weight: FloatArray, sees: BoolArray, cap: FloatArray) -> None:

@@ -177,6 +177,7 @@ def fuse_heights(
     height_var: FloatArray,
     slots: Slots,
     views: Views,
+    *,
     outlier: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Head-top heights ``height_m`` (k,) and their variances ``height_var`` of tracks at ``xy`` (k, 2) after the
