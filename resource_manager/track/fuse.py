@@ -29,6 +29,7 @@ from resource_manager.track.lines import size_ratio_lines
 from resource_manager.track.motion import (
     MIN_RANGE_M,
     ObservationBatch,
+    core_share,
     quadratic_form,
     update_many,
 )
@@ -198,11 +199,7 @@ def fuse_heights(
         meas_var = var[:, c]
         used = use[:, c]
         if outlier is not None:
-            nu, s = z[:, c] - height_m, height_var + var[:, c]
-            eps, k2 = outlier[0], outlier[1] ** 2
-            core = math.log(1.0 - eps) - 0.5 * (nu * nu / s)
-            wide = math.log(eps) - 0.5 * (nu * nu / (k2 * s) + math.log(k2))
-            p_core = np.exp(core - np.logaddexp(core, wide))
+            p_core = core_share((z[:, c] - height_m) ** 2 / (height_var + var[:, c]), 1, outlier)
             used = used & (p_core >= HALF)
             meas_var = meas_var / np.maximum(p_core, HALF)
         k = height_var / (height_var + meas_var)

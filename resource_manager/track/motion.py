@@ -33,6 +33,7 @@ __all__ = [
     "MotionModel",
     "Observation",
     "ObservationBatch",
+    "core_share",
     "predict",
     "predict_many",
     "update",
@@ -439,7 +440,6 @@ def _responsibilities(
     """(k, v) posterior probability of each observation's core (not outlier) component, from its residual at the
     estimate ``h``, ``jac`` were predicted at and its variance there (the measurement's plus the estimate's,
     ``p``); the lines left out."""
-    eps, scale = outlier
     nv = h.shape[1] // 2
     var = rows.var + np.einsum("kri,kri->kr", jac @ p[:, :2, :2], jac)
     nu = rows.z - h
@@ -447,6 +447,13 @@ def _responsibilities(
     terms = nu**2 / var
     has = rows.has_range
     d2 = terms[:, :nv] + np.where(has, terms[:, nv:], 0.0)
+    return np.asarray(np.where(rows.valid, core_share(d2, np.where(has, 2, 1), outlier), 0.0), dtype=np.float64)
+
+
+def core_share(d2: FloatArray, dim: npt.ArrayLike, outlier: tuple[float, float]) -> FloatArray:
+    """Posterior probability that a residual of squared Mahalanobis distance ``d2`` (dimension ``dim``) is the
+    Gaussian core's, not the outlier part's (``outlier``: its probability, and how many times wider it is)."""
+    eps, scale = outlier
     core = (1.0 - eps) * np.exp(-0.5 * d2)
-    wide = np.where(has, eps / scale**2, eps / scale) * np.exp(-0.5 * d2 / scale**2)
-    return np.asarray(np.where(rows.valid, core / np.maximum(core + wide, 1e-300), 0.0), dtype=np.float64)
+    wide = eps / np.power(scale, dim) * np.exp(-0.5 * d2 / scale**2)
+    return np.asarray(core / np.maximum(core + wide, 1e-300), dtype=np.float64)
