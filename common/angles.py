@@ -31,8 +31,29 @@ def wrap_angle(a: Any) -> Any:
     """Wrap angle(s) to [-pi, pi). Returns a float for a scalar, an array for an array."""
     if type(a) is float or type(a) is int:  # plain Python numbers: float % is np.mod's rule, ~10x cheaper
         return _wrap_scalar(a)
-    w = np.mod(np.asarray(a, dtype=np.float64) + math.pi, TWO_PI) - math.pi
+    shifted = np.asarray(a, dtype=np.float64) + math.pi
+    if shifted.size >= _MANY and shifted.min() > -TWO_PI and shifted.max() < 2.0 * TWO_PI:
+        return _wrap_near(shifted)
+    w = np.mod(shifted, TWO_PI) - math.pi
     return float(w) if np.ndim(w) == 0 else w
+
+
+_MANY = 512
+"""From this many angles on, :func:`wrap_angle` checks whether they lie within one turn of the range first: the
+check costs more than ``np.mod`` saves on fewer."""
+
+
+def _wrap_near(shifted: FloatArray) -> FloatArray:
+    """``np.mod(shifted, TWO_PI) - pi`` of values in (-2 pi, 4 pi) (NaN excluded), by adding or taking one turn.
+
+    ``np.mod`` computes a floored quotient beside the remainder; here the result is the same to the bit: for
+    ``y`` in [2 pi, 4 pi) the remainder is ``y - TWO_PI``, exact (Sterbenz), and for ``y`` in (-2 pi, 0) it is
+    ``fmod(y) + TWO_PI`` with ``fmod(y) = y``, the one rounding np.mod makes too.
+    """
+    turn = np.where(shifted < 0.0, -TWO_PI, np.where(shifted >= TWO_PI, TWO_PI, 0.0))
+    shifted -= turn
+    shifted -= math.pi
+    return shifted
 
 
 def angle_diff(a: float, b: float) -> float:

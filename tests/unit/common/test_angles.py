@@ -33,6 +33,30 @@ def test_wrap_angle_keeps_the_kind_of_its_argument() -> None:
 
 
 @pytest.mark.parametrize(
+    ("low", "high"),
+    [(-0.5, 0.5), (-3 * math.pi, 3 * math.pi), (-3 * math.pi - 1e-9, 3 * math.pi + 1e-9), (-40.0, 40.0)],
+)
+def test_wrap_angle_of_many_angles_is_np_mod_to_the_bit(low: float, high: float) -> None:
+    """Many angles within a turn of the range take a shortcut past ``np.mod``: the same numbers, edges included."""
+    edges = [
+        -math.pi,
+        math.pi,
+        3 * math.pi,
+        -3 * math.pi,
+        np.nextafter(-3 * math.pi, 0.0),
+        np.nextafter(3 * math.pi, 0.0),
+    ]
+    edges += [np.nextafter(-math.pi, -4.0), np.nextafter(math.pi, 0.0), -math.pi - 1e-17, 0.0, -0.0, TWO_PI, -TWO_PI]
+    a = np.concatenate([np.random.default_rng(0).uniform(low, high, (40, 50)).ravel(), edges])
+    want = np.mod(a + math.pi, TWO_PI) - math.pi
+    got = wrap_angle(a)
+    assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+    with_nan = a.copy()
+    with_nan[7] = math.nan
+    assert np.array_equal(wrap_angle(with_nan), np.mod(with_nan + math.pi, TWO_PI) - math.pi, equal_nan=True)
+
+
+@pytest.mark.parametrize(
     ("a_deg", "b_deg", "want_deg"),
     [(10.0, 30.0, -20.0), (170.0, -170.0, -20.0), (-170.0, 170.0, 20.0), (180.0, 0.0, -180.0), (720.0, 0.0, 0.0)],
 )
