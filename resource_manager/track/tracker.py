@@ -69,6 +69,7 @@ from resource_manager.track.observe import (
     TrackTable,
     ViewScores,
     Visibility,
+    gains_claimed,
     in_any_view,
     score_views,
     visibility_many,
@@ -786,10 +787,34 @@ class Tracker:
 
 
 def _assign_views(sids: tuple[str, ...], scores: list[ViewScores], claim: FloatArray) -> list[list[Assigned]]:
-    """Each track's blobs, one view at a time (:func:`_assign`); ``claim``: (n,) how surely each is someone."""
+    """Each track's blobs, one view at a time: in each view, the one-to-one (track, blob) pairs of positive gain
+    that maximise the total gain (Hungarian), each track's claim weighed by how surely it is someone (``claim``:
+    (n,); :meth:`~.observe.ViewScores.gain_claimed`).
+
+    The gains and which of them count are worked out for every view at once (the views' blobs side by side: a
+    tick has many views of a few blobs each, where numpy's cost per call outweighs its arithmetic); only the
+    Hungarian step runs view by view."""
     out: list[list[Assigned]] = [[] for _ in range(len(claim))]
-    for sid, sc in zip(sids, scores, strict=True):
-        for i, j in _assign(sc, claim):
+    counts = [sc.ln_lr.shape[1] for sc in scores]
+    if not len(claim) or not sum(counts):
+        return out
+    gain = gains_claimed(scores, claim)
+    ok = np.isfinite(gain) & (gain > 0)
+    starts = np.cumsum([0, *counts])
+    so_far = np.concatenate([np.zeros((len(claim), 1), dtype=np.int64), np.cumsum(ok, axis=1)], axis=1)
+    # [i, v]: track i has a blob worth taking in view v; [e]: blob e is worth taking for some track.
+    row_ok = so_far[:, starts[1:]] > so_far[:, starts[:-1]]
+    col_ok = np.asarray(ok.any(axis=0), dtype=bool)
+    positive = np.where(ok, gain, 0.0)
+    bounds = starts.tolist()
+    for v in np.flatnonzero(row_ok.any(axis=0)).tolist():
+        a, b = bounds[v], bounds[v + 1]
+        rows, cols = row_ok[:, v].nonzero()[0], col_ok[a:b].nonzero()[0]
+        sub = positive[rows[:, None], cols + a]
+        r, c = linear_sum_assignment(sub, maximize=True)
+        keep = sub[r, c] > 0
+        sid = sids[v]
+        for i, j in zip(rows[r[keep]].tolist(), cols[c[keep]].tolist(), strict=True):
             out[i].append(Assigned(sid, j))
     return out
 
@@ -837,20 +862,3 @@ def _consistent(
         fit[0, group[i]] += sum(float(gain_first[view[s]][k, j]) for s, j in before[i].items())
         fit[1, group[i]] += sum(float(gain_second[view[s]][k, j]) for s, j in after[i].items())
     return [second[i] if i not in touched or fit[1, group[i]] > fit[0, group[i]] else first[i] for i in range(n)]
-
-
-def _assign(scores: ViewScores, claim: FloatArray) -> list[tuple[int, int]]:
-    """One-to-one (track, blob) pairs of positive gain that maximise the total gain (Hungarian), each track's claim
-    weighed by how surely it is someone (:meth:`~.observe.ViewScores.gain_claimed`)."""
-    gain = scores.gain_claimed(claim)
-    if gain.size == 0:
-        return []
-    ok = np.isfinite(gain) & (gain > 0)
-    rows = np.flatnonzero(ok.any(axis=1))
-    if not rows.size:
-        return []
-    cols = np.flatnonzero(ok.any(axis=0))
-    sub = np.where(ok, gain, 0.0)[rows][:, cols]
-    r, c = linear_sum_assignment(sub, maximize=True)
-    tracks, blobs = rows.tolist(), cols.tolist()
-    return [(tracks[i], blobs[j]) for i, j in zip(r.tolist(), c.tolist(), strict=True) if sub[i, j] > 0]

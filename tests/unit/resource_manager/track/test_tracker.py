@@ -496,6 +496,37 @@ def test_a_tentative_track_claims_a_blob_only_as_surely_as_it_is_someone() -> No
     assert [len(a) for a in _assign_views(("cam",), [poor], np.array([0.3]))] == [0]
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_views_are_assigned_each_on_its_own(seed: int) -> None:
+    """Every view's gains worked out at once assign as each view's Hungarian step on its own gains would: views
+    without blobs, blobs no track can take (-inf) and gains below zero included."""
+    from scipy.optimize import linear_sum_assignment
+
+    from resource_manager.track.observe import ViewScores
+    from resource_manager.track.tracker import _assign_views
+
+    rng = np.random.default_rng(seed)
+    n = 6
+    scores = []
+    for m in (3, 0, 5, 1, 4):
+        ln_lr = rng.normal(0.5, 2.0, (n, m))
+        ln_lr[rng.random((n, m)) < 0.3] = -np.inf
+        p = rng.uniform(0.0, 0.95, n)
+        scores.append(ViewScores(ln_lr=ln_lr, ln_miss=np.log1p(-p), p_detect=p))
+    claim = rng.uniform(0.2, 1.0, n)
+    sids = tuple(f"c{k}" for k in range(len(scores)))
+    want: list[list[tuple[str, int]]] = [[] for _ in range(n)]
+    for sid, sc in zip(sids, scores, strict=True):
+        gain = sc.gain_claimed(claim)
+        r, c = linear_sum_assignment(np.where(np.isfinite(gain) & (gain > 0), gain, 0.0), maximize=True)
+        for i, j in zip(r.tolist(), c.tolist(), strict=True):
+            if np.isfinite(gain[i, j]) and gain[i, j] > 0:
+                want[i].append((sid, j))
+    got = _assign_views(sids, scores, claim)
+    assert [[(a.sensor_id, a.blob) for a in row] for row in got] == want
+    assert any(want)
+
+
 def _one_track_after(detectors: tuple[str, ...], seen_by: tuple[int, ...]) -> float | None:
     """A published track at (4, 3) with log-odds 4; one tick at which only the views ``seen_by`` (of four around the
     room, with detectors ``detectors``) have its blob: its log-odds after (None: it ended)."""
