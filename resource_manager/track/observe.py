@@ -612,20 +612,26 @@ def _look_arrays(
     """Each track's looks learnt for at least ``min_s``: (n, s, bins) in each view of ``views`` and (n, s) 1/0
     whether it has one there, and the (n, bins) sum and (n,) count over every view it has one in (those of cameras
     not in ``views`` too)."""
-    learnt = [
-        (i, views.rows.get(sid, -1), look)
-        for i, tr in enumerate(tracks)
-        for sid, look in tr.looks.items()
-        if look.shape == (bins,) and tr.look_s.get(sid, 0.0) >= min_s
-    ]
+    # (track, view row or -1, look) of each look learnt, as three lists (one pass over every track's looks).
+    track_of: list[int] = []
+    view_of: list[int] = []
+    learnt: list[FloatArray] = []
+    shape, view_row = (bins,), views.rows.get
+    for i, tr in enumerate(tracks):
+        look_s = tr.look_s
+        for sid, look in tr.looks.items():
+            if look.shape == shape and look_s.get(sid, 0.0) >= min_s:
+                track_of.append(i)
+                view_of.append(view_row(sid, -1))
+                learnt.append(look)
     n, s = len(tracks), views.n_views
     own = np.zeros((n * s, bins))
     own_ok = np.zeros(n * s)
     if not learnt:
         return own.reshape(n, s, bins), own_ok.reshape(n, s), np.zeros((n, bins)), np.zeros(n)
-    row = np.fromiter((i for i, _, _ in learnt), dtype=np.int64, count=len(learnt))
-    col = np.fromiter((c for _, c, _ in learnt), dtype=np.int64, count=len(learnt))
-    mat = np.concatenate([look for _, _, look in learnt]).reshape(-1, bins)
+    row = np.array(track_of, dtype=np.int64)
+    col = np.array(view_of, dtype=np.int64)
+    mat = np.concatenate(learnt).reshape(-1, bins)
     here = col >= 0
     own[row[here] * s + col[here]] = mat[here]
     own_ok[row[here] * s + col[here]] = 1.0
