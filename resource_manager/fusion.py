@@ -374,7 +374,8 @@ class Fusion:
 
     def _ptz_commands(self, t_ns: int) -> list[PtzCommand]:
         out = []
-        for aim in self.ptz.tick(self.ptz_targets(), t_ns):
+        # The tracks' places (a snapshot of every track) only where some camera is assigned to one.
+        for aim in self.ptz.tick(self.ptz_targets() if self.ptz.assignments else {}, t_ns):
             self.ptz_seq += 1
             out.append(messages.ptz_command(self.manager_id, self.ptz_seq, t_ns, aim))
         return out
