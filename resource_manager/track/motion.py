@@ -424,6 +424,8 @@ def _line_responsibilities(
     """(k, l) posterior probability of each line's core (not outlier) component at the estimate ``xy`` with its
     covariance ``p``: a width ratio is as fallible as a bearing (a blob cut by someone in front, two people
     merged into one), so a line the views contradict is weighed down like a view."""
+    if not batch.lines_valid.size:  # no lines (the usual case: no two views near colinear): nothing to weigh
+        return np.zeros(batch.lines_valid.shape)
     eps, scale = outlier
     d = batch.lines_dir
     var = batch.lines_var + quadratic_form(d, p[:, None, :2, :2], d)
