@@ -653,10 +653,14 @@ class Tracker:
         surest = sorted(
             range(len(self.tracks)), key=lambda r: (not self.tracks[r].confirmed, not shown[r], self.tracks[r].serial)
         )
+        # Pairs plainly farther apart than CLOSE_M (with a margin for np.hypot against math.hypot) are no person
+        # followed twice (:meth:`_one_spot`'s first test): left out at once instead of pair by pair.
+        d = f.x[:, None, :2] - f.x[None, :, :2]
+        maybe_close = (~(np.hypot(d[..., 0], d[..., 1]) >= CLOSE_M * (1.0 + 1e-9))).tolist()
         for i in surest:
             tr = self.tracks[i]
             lost = float(f.logodds[i]) < delete or float(sigma[i]) > m.lost_sigma_m
-            twice = next((k for k in keep if self._same_person(i, k, t_ns)), None)
+            twice = next((k for k in keep if maybe_close[i][k] and self._same_person(i, k, t_ns)), None)
             if not (lost or twice is not None or out_of_area[i] or self._implausible_height(i)):
                 keep.append(i)
                 continue
