@@ -336,16 +336,21 @@ def _iterate(
     xi = x.copy()
     p_new = p
     active = np.ones(k, dtype=bool)
+    # Without lines (the usual case) their information and gradient are zeros: adding them changes nothing.
+    has_lines = batch.lines_valid.size > 0
     for _ in range(iterations):
         # An outlier says nothing about where the person is (another person's blob): weight by resp alone.
         w = np.concatenate([resp, resp], axis=1) * rows.info
-        w_line = resp_line * info_line
         info = info_prior.copy()
-        info[:, :2, :2] += _outer_sum(w, jac) + _outer_sum(w_line, batch.lines_dir)
-        p_step = np.linalg.inv(info)
         nu = rows.z - h - (jac @ (x - xi)[:, :2, None])[:, :, 0]
         nu[:, :nv] = wrap_angle(nu[:, :nv])
-        grad = _weighted_sum(w_line * nu_line, batch.lines_dir) + _weighted_sum(w * nu, jac)
+        gain, grad = _outer_sum(w, jac), _weighted_sum(w * nu, jac)
+        if has_lines:
+            w_line = resp_line * info_line
+            gain = gain + _outer_sum(w_line, batch.lines_dir)
+            grad = _weighted_sum(w_line * nu_line, batch.lines_dir) + grad
+        info[:, :2, :2] += gain
+        p_step = np.linalg.inv(info)
         step = x + (p_step[:, :, :2] @ grad[:, :, None])[:, :, 0]
         moved = np.hypot(step[:, 0] - xi[:, 0], step[:, 1] - xi[:, 1])
         xi = np.where(active[:, None], step, xi)
@@ -354,7 +359,10 @@ def _iterate(
         h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
             resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
-            resp_line = np.where(active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line)
+            if has_lines:
+                resp_line = np.where(
+                    active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line
+                )
         active &= moved >= CONVERGED_STEP_M
         if last:
             break
@@ -396,10 +404,14 @@ def update_without_each(
     )
     nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, xi[:, :2])
     info = info_prior.copy()
-    info[:, :2, :2] += _outer_sum(w, jac) + _outer_sum(w_line, batch.lines_dir)
+    gain, pull = _outer_sum(w, jac), _weighted_sum(w * nu, jac)
+    if batch.lines_valid.size:  # no lines (the usual case): their zeros left out, as in _iterate
+        gain = gain + _outer_sum(w_line, batch.lines_dir)
+        pull = _weighted_sum(w_line * nu_line, batch.lines_dir) + pull
+    info[:, :2, :2] += gain
     # The gradient of the full update's cost at its estimate (0 where it converged), and each slot's share of it.
     grad = (info_prior @ (xi - x)[:, :, None])[:, :, 0]
-    grad[:, :2] -= _weighted_sum(w_line * nu_line, batch.lines_dir) + _weighted_sum(w * nu, jac)
+    grad[:, :2] -= pull
     wb, wr = w[:, :nv, None, None], w[:, nv:, None, None]
     jb, jr = jac[:, :nv], jac[:, nv:]
     slot_info = wb * jb[..., :, None] * jb[..., None, :] + wr * jr[..., :, None] * jr[..., None, :]
