@@ -359,10 +359,7 @@ def _iterate(
         h, jac = rows.predicted(xi[:, :2])
         if outlier is not None:
             resp = np.where(active[:, None], _responsibilities(h, jac, p_new, rows, outlier), resp)
-            if has_lines:
-                resp_line = np.where(
-                    active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line
-                )
+            resp_line = np.where(active[:, None], _line_responsibilities(batch, xi[:, :2], p_new, outlier), resp_line)
         active &= moved >= CONVERGED_STEP_M
         if last:
             break
@@ -397,15 +394,15 @@ def update_without_each(
     w = np.concatenate([resp, resp], axis=1) * rows.info
     nu = rows.z - h
     nu[:, :nv] = wrap_angle(nu[:, :nv])
-    w_line = (
-        batch.lines_valid / batch.lines_var
-        if outlier is None
-        else _line_responsibilities(batch, xi[:, :2], p_full, outlier) / batch.lines_var
-    )
-    nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, xi[:, :2])
     info = info_prior.copy()
     gain, pull = _outer_sum(w, jac), _weighted_sum(w * nu, jac)
     if batch.lines_valid.size:  # no lines (the usual case): their zeros left out, as in _iterate
+        w_line = (
+            batch.lines_valid / batch.lines_var
+            if outlier is None
+            else _line_responsibilities(batch, xi[:, :2], p_full, outlier) / batch.lines_var
+        )
+        nu_line = batch.lines_value - np.einsum("kli,ki->kl", batch.lines_dir, xi[:, :2])
         gain = gain + _outer_sum(w_line, batch.lines_dir)
         pull = _weighted_sum(w_line * nu_line, batch.lines_dir) + pull
     info[:, :2, :2] += gain
