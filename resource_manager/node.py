@@ -290,6 +290,9 @@ class ZoneSeat:
 class ManagerNode:
     """Everything one manager process holds; ``loop()`` runs until ``shutdown``."""
 
+    followed: str | None = None
+    """The leader whose tracks this manager, standing by, names its own after (None while it leads)."""
+
     def __init__(self, session: Any, cfg: ManagerConfig, clock: NtpClock, shutdown: Shutdown) -> None:
         import zenoh
 
@@ -737,6 +740,7 @@ class ManagerNode:
         """A leader's tick in a zone with a floor (the lock held): the tracks it owns of ``trackset``
         (resource_manager/serve/zones.py), the others named after the neighbours' tracks of the same people (the id
         a person keeps across a handoff). Without a zone floor, ``trackset`` as it is."""
+        self.followed = None
         own = self.ownership
         if own is None:
             return trackset
@@ -758,8 +762,12 @@ class ManagerNode:
         leader = self.seat.leader()
         newest = self._others(leader)
         names, theirs = standby_names(self.fusion, newest, self.ownership, self.clock.now_ns())
-        if names:
+        # Said at each rename, and the first time it follows this leader even with nothing to rename (a restarted
+        # manager whose reloaded tracks already carry the leader's ids).
+        if names or (newest is not None and leader != self.followed):
             logger.info("standby %s follows %s: %d tracks renamed", self.mid, leader, len(names))
+        if newest is not None:
+            self.followed = leader
         if theirs:
             logger.info("standby %s: %d tracks named after its neighbours'", self.mid, len(theirs))
         return newest
